@@ -1,0 +1,161 @@
+#include "autodiff/tape.h"
+
+#include <algorithm>
+
+#include "autodiff/ops.h"
+
+namespace sl {
+namespace {
+
+struct Tape {
+  std::vector<std::shared_ptr<Node>> nodes;
+  uint64_t next_seq = 0;
+  size_t sweep_at = 4096;
+  bool grad_enabled = true;
+};
+
+thread_local Tape g_tape;
+
+bool node_is_dead(const Node& n) {
+  for (const auto& w : n.outputs)
+    if (!w.expired()) return false;
+  return true;
+}
+
+// Drops nodes no one can backprop through any more. Walking in reverse lets one pass free
+// whole chains: freeing a node releases its inputs, which may kill the node before it.
+void sweep_dead_nodes(Tape& tape) {
+  for (size_t i = tape.nodes.size(); i-- > 0;)
+    if (node_is_dead(*tape.nodes[i])) tape.nodes[i].reset();
+  tape.nodes.erase(std::remove(tape.nodes.begin(), tape.nodes.end(), nullptr), tape.nodes.end());
+  tape.sweep_at = std::max<size_t>(4096, 2 * tape.nodes.size());
+}
+
+void accumulate(TensorImpl& impl, Tensor g, const std::string& op) {
+  SL_CHECK(g.shape() == impl.shape, "backward of ", op, ": gradient ", g.describe(),
+           " does not match its input's shape ", shape_str(impl.shape));
+  if (g.dtype() != impl.dtype) g = g.to(impl.dtype);
+  if (!impl.grad.defined()) {
+    // A leaf's .grad() must own its memory: later in-place updates must not alias
+    // another tensor, and a gradient that is a view must not pin a larger buffer.
+    const bool owned = g.is_contiguous() && g.storage().use_count() == 1 &&
+                       g.storage()->bytes() == static_cast<size_t>(g.numel()) * dtype_size(g.dtype());
+    impl.grad = (impl.has_producer || owned) ? g : g.clone();
+  } else {
+    impl.grad = add(impl.grad, g);
+  }
+}
+
+}  // namespace
+
+bool grad_enabled() { return g_tape.grad_enabled; }
+
+bool needs_grad(const TensorList& inputs) {
+  if (!g_tape.grad_enabled) return false;
+  for (const Tensor& t : inputs)
+    if (t.defined() && t.requires_grad()) return true;
+  return false;
+}
+
+NoGradGuard::NoGradGuard() : previous_(g_tape.grad_enabled) { g_tape.grad_enabled = false; }
+NoGradGuard::~NoGradGuard() { g_tape.grad_enabled = previous_; }
+
+void record(const char* op, const TensorList& inputs, const TensorList& outputs, BackwardFn fn) {
+  Tape& tape = g_tape;
+  auto node = std::make_shared<Node>();
+  node->op = op;
+  node->seq = tape.next_seq++;
+  for (const Tensor& t : inputs) node->inputs.push_back(t.defined() ? t.impl() : nullptr);
+  for (const Tensor& t : outputs) {
+    SL_CHECK(!t.impl()->has_producer && !t.requires_grad(), op,
+             ": an op output must be a fresh tensor, not an input or another op's output");
+    t.impl()->requires_grad = true;
+    t.impl()->has_producer = true;
+    t.impl()->producer = node;
+    node->outputs.push_back(t.impl());
+    node->output_shapes.push_back(t.shape());
+    node->output_dtypes.push_back(t.dtype());
+  }
+  node->backward = std::move(fn);
+  tape.nodes.push_back(std::move(node));
+  if (tape.nodes.size() >= tape.sweep_at) sweep_dead_nodes(tape);
+}
+
+void backward(const Tensor& loss, const Tensor& grad_output, bool retain_graph) {
+  SL_CHECK(loss.defined(), "backward: loss is undefined");
+  SL_CHECK(loss.requires_grad(), "backward: loss ", loss.describe(),
+           " does not require grad (no input of its graph requires grad, or it was computed "
+           "under NoGradGuard)");
+  Tensor seed = grad_output;
+  if (!seed.defined()) {
+    SL_CHECK(loss.numel() == 1, "backward: loss has shape ", shape_str(loss.shape()),
+             "; pass grad_output for a loss with more than one element");
+    seed = Tensor::ones(loss.shape(), loss.dtype());
+  }
+  SL_CHECK(seed.shape() == loss.shape(), "backward: grad_output ", seed.describe(),
+           " does not match loss ", loss.describe());
+  TensorImpl& root = *loss.impl();
+  NoGradGuard no_grad;
+  if (!root.has_producer) {  // a leaf: d leaf / d leaf
+    accumulate(root, seed, "backward");
+    return;
+  }
+  std::shared_ptr<Node> start = root.producer.lock();
+  SL_CHECK(start != nullptr,
+           "backward: the graph behind this tensor was already freed by an earlier backward(); "
+           "pass retain_graph=true to the first backward() to run it twice");
+
+  Tape& tape = g_tape;
+  auto it = std::find(tape.nodes.begin(), tape.nodes.end(), start);
+  SL_CHECK(it != tape.nodes.end(), "backward: the loss was recorded on another thread's tape");
+  const size_t start_index = static_cast<size_t>(it - tape.nodes.begin());
+
+  accumulate(root, seed, "backward");
+  start->reached = true;
+  for (size_t i = start_index + 1; i-- > 0;) {
+    std::shared_ptr<Node> node = tape.nodes[i];
+    if (!node->reached) continue;
+    node->reached = false;
+    TensorList grads(node->outputs.size());
+    for (size_t k = 0; k < node->outputs.size(); ++k) {
+      std::shared_ptr<TensorImpl> out = node->outputs[k].lock();
+      if (out && out->grad.defined()) {
+        grads[k] = out->grad;
+        out->grad = Tensor();  // outputs of ops are never leaves: free early
+      } else {
+        grads[k] = Tensor::zeros(node->output_shapes[k], node->output_dtypes[k]);
+      }
+    }
+    TensorList in_grads = node->backward(grads);
+    SL_CHECK(in_grads.size() == node->inputs.size(), "backward of ", node->op, ": returned ",
+             in_grads.size(), " gradients for ", node->inputs.size(), " inputs");
+    for (size_t k = 0; k < node->inputs.size(); ++k) {
+      TensorImpl* in = node->inputs[k].get();
+      if (!in || !in->requires_grad || !in_grads[k].defined()) continue;
+      accumulate(*in, in_grads[k], node->op);
+      if (in->has_producer)
+        if (auto p = in->producer.lock()) p->reached = true;
+    }
+    if (!retain_graph) tape.nodes[i].reset();
+  }
+  if (!retain_graph)
+    tape.nodes.erase(std::remove(tape.nodes.begin(), tape.nodes.end(), nullptr), tape.nodes.end());
+}
+
+TensorList apply(const std::shared_ptr<Function>& fn, const TensorList& inputs) {
+  TensorList outputs;
+  {
+    NoGradGuard no_grad;
+    outputs = fn->forward(inputs);
+  }
+  if (needs_grad(inputs)) {
+    const std::string name = fn->name();
+    record(name.c_str(), inputs, outputs,
+           [fn](const TensorList& g) { return fn->backward(g); });
+  }
+  return outputs;
+}
+
+size_t tape_size() { return g_tape.nodes.size(); }
+
+}  // namespace sl

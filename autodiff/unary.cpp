@@ -1,0 +1,157 @@
+#include "autodiff/unary.h"
+
+#include <cmath>
+
+#include "autodiff/map.h"
+#include "autodiff/tape.h"
+
+namespace sl {
+namespace {
+using detail::map_n;
+
+// y = fwd(x); dx = bwd(g, x, y). Forward and backward of each op sit together below.
+template <class Fwd, class Bwd>
+Tensor unary(const char* op, const Tensor& x, Fwd fwd, Bwd bwd) {
+  Tensor y = map_n(op, fwd, x);
+  if (needs_grad({x})) {
+    const Tensor xd = x.detach(), yd = y.detach();
+    record(op, {x}, {y}, [=](const TensorList& g) { return TensorList{map_n(op, bwd, g[0], xd, yd)}; });
+  }
+  return y;
+}
+
+template <class T>
+T acos_grad_floor() {
+  return sizeof(T) == 4 ? T(1e-6) : T(1e-12);
+}
+}  // namespace
+
+#define SL_T decltype(g)
+
+Tensor neg(const Tensor& x) {
+  return unary("neg", x, [](auto v) { return -v; }, [](auto g, auto, auto) { return -g; });
+}
+
+Tensor exp(const Tensor& x) {
+  return unary("exp", x, [](auto v) { return std::exp(v); }, [](auto g, auto, auto y) { return g * y; });
+}
+
+Tensor log(const Tensor& x) {
+  return unary("log", x, [](auto v) { return std::log(v); }, [](auto g, auto v, auto) { return g / v; });
+}
+
+Tensor log1p(const Tensor& x) {
+  return unary("log1p", x, [](auto v) { return std::log1p(v); },
+               [](auto g, auto v, auto) { return g / (SL_T(1) + v); });
+}
+
+Tensor expm1(const Tensor& x) {
+  return unary("expm1", x, [](auto v) { return std::expm1(v); },
+               [](auto g, auto, auto y) { return g * (y + SL_T(1)); });
+}
+
+Tensor sqrt(const Tensor& x) {
+  return unary("sqrt", x, [](auto v) { return std::sqrt(v); },
+               [](auto g, auto, auto y) { return g / (SL_T(2) * y); });
+}
+
+Tensor square(const Tensor& x) {
+  return unary("square", x, [](auto v) { return v * v; }, [](auto g, auto v, auto) { return SL_T(2) * g * v; });
+}
+
+Tensor abs(const Tensor& x) {
+  return unary("abs", x, [](auto v) { return std::abs(v); },
+               [](auto g, auto v, auto) { return v > 0 ? g : (v < 0 ? -g : SL_T(0)); });
+}
+
+Tensor pow_scalar(const Tensor& x, double p) {
+  return unary("pow_scalar", x, [p](auto v) { return std::pow(v, static_cast<decltype(v)>(p)); },
+               [p](auto g, auto v, auto) {
+                 using T = SL_T;
+                 if (p == 0.0) return T(0);
+                 if (p == 1.0) return g;
+                 if (p == 2.0) return T(2) * g * v;
+                 return g * static_cast<T>(p) * std::pow(v, static_cast<T>(p - 1.0));
+               });
+}
+
+Tensor clamp(const Tensor& x, double lo, double hi) {
+  SL_CHECK(lo <= hi, "clamp: lo ", lo, " > hi ", hi);
+  return unary(
+      "clamp", x,
+      [lo, hi](auto v) {
+        using T = decltype(v);
+        return v < T(lo) ? T(lo) : (v > T(hi) ? T(hi) : v);
+      },
+      [lo, hi](auto g, auto v, auto) { return (v >= SL_T(lo) && v <= SL_T(hi)) ? g : SL_T(0); });
+}
+
+Tensor relu(const Tensor& x) {
+  return unary("relu", x, [](auto v) { return v > 0 ? v : decltype(v)(0); },
+               [](auto g, auto v, auto) { return v > 0 ? g : SL_T(0); });
+}
+
+Tensor leaky_relu(const Tensor& x, double slope) {
+  return unary("leaky_relu", x, [slope](auto v) { return v > 0 ? v : static_cast<decltype(v)>(slope) * v; },
+               [slope](auto g, auto v, auto) { return v > 0 ? g : static_cast<SL_T>(slope) * g; });
+}
+
+Tensor elu(const Tensor& x, double alpha) {
+  return unary("elu", x, [alpha](auto v) { return v > 0 ? v : static_cast<decltype(v)>(alpha) * std::expm1(v); },
+               [alpha](auto g, auto v, auto y) { return v > 0 ? g : g * (y + static_cast<SL_T>(alpha)); });
+}
+
+Tensor sigmoid(const Tensor& x) {
+  return unary(
+      "sigmoid", x,
+      [](auto v) {
+        using T = decltype(v);
+        if (v >= 0) return T(1) / (T(1) + std::exp(-v));
+        const T e = std::exp(v);
+        return e / (T(1) + e);
+      },
+      [](auto g, auto, auto y) { return g * y * (SL_T(1) - y); });
+}
+
+Tensor softplus(const Tensor& x) {
+  return unary(
+      "softplus", x,
+      [](auto v) { return (v > 0 ? v : decltype(v)(0)) + std::log1p(std::exp(-std::abs(v))); },
+      [](auto g, auto v, auto) {
+        using T = SL_T;
+        const T s = v >= 0 ? T(1) / (T(1) + std::exp(-v)) : std::exp(v) / (T(1) + std::exp(v));
+        return g * s;
+      });
+}
+
+Tensor tanh(const Tensor& x) {
+  return unary("tanh", x, [](auto v) { return std::tanh(v); },
+               [](auto g, auto, auto y) { return g * (SL_T(1) - y * y); });
+}
+
+Tensor sin(const Tensor& x) {
+  return unary("sin", x, [](auto v) { return std::sin(v); }, [](auto g, auto v, auto) { return g * std::cos(v); });
+}
+
+Tensor cos(const Tensor& x) {
+  return unary("cos", x, [](auto v) { return std::cos(v); }, [](auto g, auto v, auto) { return -g * std::sin(v); });
+}
+
+Tensor acos(const Tensor& x) {
+  return unary(
+      "acos", x,
+      [](auto v) {
+        using T = decltype(v);
+        return std::acos(v < T(-1) ? T(-1) : (v > T(1) ? T(1) : v));
+      },
+      [](auto g, auto v, auto) {
+        using T = SL_T;
+        if (v < T(-1) || v > T(1)) return T(0);  // clamped region
+        const T one_minus = std::fmax(T(1) - v * v, acos_grad_floor<T>());
+        return -g / std::sqrt(one_minus);
+      });
+}
+
+#undef SL_T
+
+}  // namespace sl

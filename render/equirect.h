@@ -1,0 +1,48 @@
+// The one equirectangular panorama convention (DESIGN: "Panoramas"). Every part calls these.
+//
+// World frame: right-handed, +Y up. A unit direction d has
+//   elevation θ = asin(d.y)          (+π/2 at the zenith)
+//   azimuth   φ = atan2(d.x, -d.z)   (0 looking down -Z, +π/2 towards +X)
+// An H×W panorama (H = W/2) maps it to continuous pixel coordinates
+//   u = W·(φ/2π + 1/2),  v = H·(1/2 - θ/π)
+// so row 0 is the zenith, the image centre column looks down -Z, and pixel (i, j) has its centre
+// at (u, v) = (j + 0.5, i + 0.5). u wraps at the azimuth seam (φ = ±π, the image's left/right
+// edge). Degenerate input (zero vector) maps to the direction's azimuth 0 at elevation 0.
+#pragma once
+#include <cmath>
+
+namespace sl::equirect {
+
+constexpr double kPi = 3.14159265358979323846;
+
+struct UV {
+  double u, v;
+};
+struct Dir {
+  double x, y, z;
+};
+
+inline UV direction_to_uv(double x, double y, double z, int width, int height) {
+  const double len = std::sqrt(x * x + y * y + z * z);
+  if (!(len > 0.0)) return {0.5 * width, 0.5 * height};
+  const double ey = std::fmax(-1.0, std::fmin(1.0, y / len));
+  const double elevation = std::asin(ey);
+  const double azimuth = std::atan2(x, -z);
+  return {width * (azimuth / (2.0 * kPi) + 0.5), height * (0.5 - elevation / kPi)};
+}
+
+inline Dir uv_to_direction(double u, double v, int width, int height) {
+  const double azimuth = (u / width - 0.5) * 2.0 * kPi;
+  const double elevation = (0.5 - v / height) * kPi;
+  const double c = std::cos(elevation);
+  return {c * std::sin(azimuth), std::sin(elevation), -c * std::cos(azimuth)};
+}
+
+// Solid angle of pixel row i of an H×W panorama (sums to 4π over the image).
+inline double pixel_solid_angle(int row, int width, int height) {
+  const double t0 = (0.5 - static_cast<double>(row) / height) * kPi;
+  const double t1 = (0.5 - static_cast<double>(row + 1) / height) * kPi;
+  return (2.0 * kPi / width) * (std::sin(t0) - std::sin(t1));
+}
+
+}  // namespace sl::equirect

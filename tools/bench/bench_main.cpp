@@ -1,0 +1,52 @@
+// streetlight-bench: benchmarks as a tool, never as timed tests. See bench.h.
+#include <cstdio>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "autodiff/error.h"
+#include "tools/bench/bench.h"
+
+namespace sl::bench {
+namespace {
+struct Entry {
+  std::string summary;
+  Command command;
+};
+std::map<std::string, Entry>& registry() {
+  static std::map<std::string, Entry> r;
+  return r;
+}
+void usage(FILE* out) {
+  std::fprintf(out, "usage: streetlight-bench COMMAND [options]   (COMMAND --help for its options)\n\ncommands:\n");
+  for (const auto& [name, e] : registry()) std::fprintf(out, "  %-10s %s\n", name.c_str(), e.summary.c_str());
+}
+}  // namespace
+
+Registrar::Registrar(const char* name, const char* summary, Command command) {
+  registry()[name] = Entry{summary, command};
+}
+
+}  // namespace sl::bench
+
+int main(int argc, char** argv) {
+  using namespace sl::bench;
+  if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
+    usage(argc < 2 ? stderr : stdout);
+    return argc < 2 ? 2 : 0;
+  }
+  auto it = registry().find(argv[1]);
+  if (it == registry().end()) {
+    std::fprintf(stderr, "error: unknown command '%s' (try streetlight-bench --help)\n", argv[1]);
+    return 2;
+  }
+  try {
+    return it->second.command(std::vector<std::string>(argv + 2, argv + argc));
+  } catch (const sl::Error& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+  }
+}

@@ -31,19 +31,32 @@ void sweep_dead_nodes(Tape& tape) {
   tape.sweep_at = std::max<size_t>(4096, 2 * tape.nodes.size());
 }
 
+void add_into(Tensor& slot, Tensor g, bool must_own) {
+  if (!slot.defined()) {
+    // A leaf's .grad() must own its memory: later in-place updates must not alias another
+    // tensor, and a gradient that is a view must not pin a larger buffer.
+    const bool owned = g.is_contiguous() && g.storage().use_count() == 1 &&
+                       g.storage()->bytes() == static_cast<size_t>(g.numel()) * dtype_size(g.dtype());
+    slot = (!must_own || owned) ? g : g.clone();
+  } else {
+    slot = add(slot, g);
+  }
+}
+
+// Leaves collect into .grad(); op outputs into their producer's pending slot, which outlives
+// the output tensor itself (a node's inputs may be freed before their producer runs).
 void accumulate(TensorImpl& impl, Tensor g, const std::string& op) {
   SL_CHECK(g.shape() == impl.shape, "backward of ", op, ": gradient ", g.describe(),
            " does not match its input's shape ", shape_str(impl.shape));
   if (g.dtype() != impl.dtype) g = g.to(impl.dtype);
-  if (!impl.grad.defined()) {
-    // A leaf's .grad() must own its memory: later in-place updates must not alias
-    // another tensor, and a gradient that is a view must not pin a larger buffer.
-    const bool owned = g.is_contiguous() && g.storage().use_count() == 1 &&
-                       g.storage()->bytes() == static_cast<size_t>(g.numel()) * dtype_size(g.dtype());
-    impl.grad = (impl.has_producer || owned) ? g : g.clone();
-  } else {
-    impl.grad = add(impl.grad, g);
+  if (!impl.has_producer) {
+    add_into(impl.grad, g, true);
+    return;
   }
+  std::shared_ptr<Node> p = impl.producer.lock();
+  if (!p) return;  // its graph was freed: nothing upstream can use it
+  p->reached = true;
+  add_into(p->pending[static_cast<size_t>(impl.output_index)], g, false);
 }
 
 }  // namespace
@@ -72,11 +85,13 @@ void record(const char* op, const TensorList& inputs, const TensorList& outputs,
     t.impl()->requires_grad = true;
     t.impl()->has_producer = true;
     t.impl()->producer = node;
+    t.impl()->output_index = static_cast<int>(node->outputs.size());
     node->outputs.push_back(t.impl());
     node->output_shapes.push_back(t.shape());
     node->output_dtypes.push_back(t.dtype());
   }
   node->backward = std::move(fn);
+  node->pending.resize(node->outputs.size());
   tape.nodes.push_back(std::move(node));
   if (tape.nodes.size() >= tape.sweep_at) sweep_dead_nodes(tape);
 }
@@ -111,30 +126,22 @@ void backward(const Tensor& loss, const Tensor& grad_output, bool retain_graph) 
   const size_t start_index = static_cast<size_t>(it - tape.nodes.begin());
 
   accumulate(root, seed, "backward");
-  start->reached = true;
   for (size_t i = start_index + 1; i-- > 0;) {
     std::shared_ptr<Node> node = tape.nodes[i];
     if (!node->reached) continue;
     node->reached = false;
     TensorList grads(node->outputs.size());
-    for (size_t k = 0; k < node->outputs.size(); ++k) {
-      std::shared_ptr<TensorImpl> out = node->outputs[k].lock();
-      if (out && out->grad.defined()) {
-        grads[k] = out->grad;
-        out->grad = Tensor();  // outputs of ops are never leaves: free early
-      } else {
-        grads[k] = Tensor::zeros(node->output_shapes[k], node->output_dtypes[k]);
-      }
+    for (size_t k = 0; k < grads.size(); ++k) {
+      grads[k] = node->pending[k].defined() ? node->pending[k]
+                                            : Tensor::zeros(node->output_shapes[k], node->output_dtypes[k]);
+      node->pending[k] = Tensor();
     }
     TensorList in_grads = node->backward(grads);
     SL_CHECK(in_grads.size() == node->inputs.size(), "backward of ", node->op, ": returned ",
              in_grads.size(), " gradients for ", node->inputs.size(), " inputs");
     for (size_t k = 0; k < node->inputs.size(); ++k) {
       TensorImpl* in = node->inputs[k].get();
-      if (!in || !in->requires_grad || !in_grads[k].defined()) continue;
-      accumulate(*in, in_grads[k], node->op);
-      if (in->has_producer)
-        if (auto p = in->producer.lock()) p->reached = true;
+      if (in && in->requires_grad && in_grads[k].defined()) accumulate(*in, in_grads[k], node->op);
     }
     if (!retain_graph) tape.nodes[i].reset();
   }

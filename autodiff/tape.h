@@ -57,6 +57,7 @@ struct Node {
   std::vector<Shape> output_shapes;
   std::vector<DType> output_dtypes;
   BackwardFn backward;
+  std::vector<Tensor> pending;  // gradients w.r.t. the outputs, gathered during backward
   bool reached = false;
 };
 

@@ -139,7 +139,8 @@ struct TensorImpl {
   bool requires_grad = false;
   bool has_producer = false;  // produced by a recorded op (then not a leaf)
   std::weak_ptr<Node> producer;
-  Tensor grad;
+  int output_index = 0;  // which output of the producer this is
+  Tensor grad;           // leaves only
   std::string name;
 };
 

@@ -1,0 +1,249 @@
+// BVH queries against brute force, plus the edge cases the header promises.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "autodiff/random.h"
+#include "render/bvh.h"
+#include "render/gltf_loader.h"
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+glm::vec3 random_unit(sl::Rng& rng) {
+  const float z = static_cast<float>(rng.uniform(-1.0, 1.0));
+  const float phi = static_cast<float>(rng.uniform(0.0, 6.283185307179586));
+  const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+  return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+// Random triangle soup: many small triangles, some large, some degenerate.
+sl::Mesh random_soup(int count, uint64_t seed) {
+  sl::Rng rng(seed);
+  sl::Mesh m;
+  for (int i = 0; i < count; ++i) {
+    const glm::vec3 c(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
+    const float size = i % 50 == 0 ? 0.8f : 0.08f;
+    const uint32_t b = static_cast<uint32_t>(m.positions.size());
+    for (int k = 0; k < 3; ++k)
+      m.positions.push_back(c + size * glm::vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)));
+    if (i % 97 == 0) m.positions.back() = m.positions[b];  // degenerate
+    m.triangles.push_back({b, b + 1, b + 2});
+  }
+  return m;
+}
+
+void expect_matches_brute_force(const sl::Mesh& m, const sl::Bvh& bvh, const std::vector<sl::Ray>& rays) {
+  std::vector<sl::Hit> hits(rays.size());
+  std::vector<uint8_t> occ(rays.size());
+  bvh.intersect(rays.data(), hits.data(), rays.size());
+  bvh.occluded(rays.data(), occ.data(), rays.size());
+  int hit_count = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const sl::Hit ref = sl::intersect_brute_force(m.positions, m.triangles, rays[i]);
+    ASSERT_EQ(hits[i].hit(), ref.hit()) << "ray " << i;
+    ASSERT_EQ(occ[i] != 0, ref.hit()) << "ray " << i;
+    if (ref.hit()) {
+      ++hit_count;
+      ASSERT_NEAR(hits[i].t, ref.t, 1e-5f * ref.t) << "ray " << i;
+    }
+  }
+  EXPECT_GT(hit_count, 0);
+  EXPECT_LT(hit_count, static_cast<int>(rays.size()));
+}
+
+std::vector<sl::Ray> random_rays(const sl::Bounds3& b, int count, uint64_t seed) {
+  sl::Rng rng(seed);
+  std::vector<sl::Ray> rays(count);
+  const glm::vec3 c = b.centre(), e = 0.75f * b.extent();
+  for (auto& r : rays) {
+    r.origin = c + e * glm::vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
+    r.direction = random_unit(rng);
+  }
+  return rays;
+}
+
+TEST(Bvh, ClosestHitMatchesBruteForceOnRandomSoup) {
+  const sl::Mesh m = random_soup(3000, 7);
+  const sl::Bvh bvh(m);
+  EXPECT_LT(bvh.triangle_count(), m.triangle_count());  // degenerate triangles were left out
+  expect_matches_brute_force(m, bvh, random_rays(m.bounds(), 2000, 11));
+}
+
+TEST(Bvh, ClosestHitRespectsTminAndTmax) {
+  const sl::Mesh m = random_soup(500, 3);
+  const sl::Bvh bvh(m);
+  std::vector<sl::Ray> rays = random_rays(m.bounds(), 1000, 5);
+  sl::Rng rng(9);
+  for (auto& r : rays) {
+    r.tmin = static_cast<float>(rng.uniform(0.0, 0.5));
+    r.tmax = r.tmin + static_cast<float>(rng.uniform(0.0, 1.0));
+  }
+  expect_matches_brute_force(m, bvh, rays);
+}
+
+TEST(Bvh, SharedEdgeIsWatertight) {
+  // Two triangles sharing the diagonal of the unit square; rays aimed exactly at the diagonal.
+  sl::Mesh m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  m.triangles = {{0, 1, 2}, {0, 2, 3}};
+  const sl::Bvh bvh(m);
+  for (int i = 1; i < 1000; ++i) {
+    const float s = i / 1000.0f;
+    sl::Ray r;
+    r.origin = {s, s, 1.0f};
+    r.direction = {0.0f, 0.0f, -1.0f};
+    EXPECT_TRUE(bvh.intersect(r).hit()) << s;
+    r.origin = {s + 0.3f, s - 0.2f, 2.0f};  // oblique rays through the diagonal point (s, s, 0)
+    r.direction = glm::vec3(s, s, 0.0f) - r.origin;
+    EXPECT_TRUE(bvh.intersect(r).hit()) << s;
+  }
+}
+
+TEST(Bvh, DegenerateTrianglesAreNeverHit) {
+  sl::Mesh m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+  m.triangles = {{0, 1, 2}, {3, 4, 3}};  // collinear, then a point
+  const sl::Bvh bvh(m);
+  EXPECT_TRUE(bvh.empty());
+  sl::Ray r;
+  r.origin = {1, 1, 0};
+  r.direction = {0, -1, 0};
+  EXPECT_FALSE(bvh.intersect(r).hit());
+  EXPECT_FALSE(sl::intersect_brute_force(m.positions, m.triangles, r).hit());
+}
+
+TEST(Bvh, RayInTheTrianglePlaneMissesIt) {
+  sl::Mesh m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  m.triangles = {{0, 1, 2}};
+  const sl::Bvh bvh(m);
+  sl::Ray r;
+  r.origin = {-1, 0.2f, 0};
+  r.direction = {1, 0, 0};  // slides along z = 0 across the triangle
+  EXPECT_FALSE(bvh.intersect(r).hit());
+  EXPECT_FALSE(bvh.occluded(r));
+}
+
+TEST(Bvh, RayLeavingASurfaceWithEpsilonTminDoesNotSelfHit) {
+  const sl::Mesh m = random_soup(2000, 21);
+  const sl::Bvh bvh(m);
+  sl::Rng rng(4);
+  int tested = 0;
+  for (size_t t = 0; t < m.triangle_count(); t += 3) {
+    const glm::uvec3 tri = m.triangles[t];
+    const glm::vec3 p0 = m.positions[tri.x], p1 = m.positions[tri.y], p2 = m.positions[tri.z];
+    const glm::vec3 n = glm::cross(p1 - p0, p2 - p0);
+    if (glm::length(n) < 1e-6f) continue;
+    const float u = static_cast<float>(rng.uniform(0.05, 0.45)), v = static_cast<float>(rng.uniform(0.05, 0.45));
+    sl::Ray r;
+    r.origin = (1 - u - v) * p0 + u * p1 + v * p2;
+    r.direction = random_unit(rng);
+    r.tmin = 1e-4f;
+    const sl::Hit h = bvh.intersect(r);
+    if (h.hit()) {
+      EXPECT_NE(h.triangle, t) << "self-hit at t = " << h.t;
+    }
+    ++tested;
+  }
+  EXPECT_GT(tested, 500);
+}
+
+TEST(Bvh, EmptyMeshMissesEveryRay) {
+  const sl::Bvh bvh{sl::Mesh{}};
+  EXPECT_TRUE(bvh.empty());
+  EXPECT_TRUE(bvh.bounds().empty());
+  for (const auto& r : random_rays(sl::Bounds3{{-1, -1, -1}, {1, 1, 1}}, 100, 1)) {
+    EXPECT_FALSE(bvh.intersect(r).hit());
+    EXPECT_FALSE(bvh.occluded(r));
+  }
+}
+
+TEST(Bvh, InvalidRaysMissWithoutNaN) {
+  const sl::Mesh m = random_soup(100, 2);
+  const sl::Bvh bvh(m);
+  sl::Ray zero;
+  zero.direction = glm::vec3(0.0f);
+  sl::Ray nan_origin;
+  nan_origin.origin = glm::vec3(std::nanf(""));
+  sl::Ray inf_dir;
+  inf_dir.direction = glm::vec3(kInf, 0, 0);
+  for (const sl::Ray& r : {zero, nan_origin, inf_dir}) {
+    const sl::Hit h = bvh.intersect(r);
+    EXPECT_FALSE(h.hit());
+    EXPECT_FALSE(bvh.occluded(r));
+  }
+}
+
+TEST(Bvh, AxisAlignedRaysThroughBoxFacesMatchBruteForce) {
+  // A grid of unit quads: rays along axes, some starting exactly on box planes.
+  sl::Mesh m;
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) {
+      const uint32_t b = static_cast<uint32_t>(m.positions.size());
+      m.positions.push_back({float(i), 0.0f, float(j)});
+      m.positions.push_back({float(i + 1), 0.0f, float(j)});
+      m.positions.push_back({float(i + 1), 0.3f * (i % 3), float(j + 1)});
+      m.positions.push_back({float(i), 0.0f, float(j + 1)});
+      m.triangles.push_back({b, b + 1, b + 2});
+      m.triangles.push_back({b, b + 2, b + 3});
+    }
+  const sl::Bvh bvh(m);
+  std::vector<sl::Ray> rays;
+  for (int i = 0; i <= 40; ++i)
+    for (int j = 0; j <= 40; ++j) {
+      sl::Ray r;
+      r.origin = {i * 0.5f, 2.0f, j * 0.5f};
+      r.direction = {0.0f, -1.0f, 0.0f};
+      rays.push_back(r);
+      r.origin = {-1.0f, 0.1f * (i % 7), j * 0.5f};
+      r.direction = {1.0f, 0.0f, 0.0f};
+      rays.push_back(r);
+    }
+  expect_matches_brute_force(m, bvh, rays);
+}
+
+TEST(Bvh, ResultsAreIdenticalWithOneAndTwoThreads) {
+  const sl::Mesh m = random_soup(5000, 8);
+  const sl::Bvh bvh(m);
+  const auto rays = random_rays(m.bounds(), 4000, 3);
+  std::vector<sl::Hit> a(rays.size()), b(rays.size());
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  bvh.intersect(rays.data(), a.data(), rays.size());
+  omp_set_num_threads(2);
+  bvh.intersect(rays.data(), b.data(), rays.size());
+  omp_set_num_threads(threads);
+  for (size_t i = 0; i < rays.size(); ++i) {
+    EXPECT_EQ(a[i].triangle, b[i].triangle);
+    EXPECT_EQ(a[i].t, b[i].t);
+  }
+}
+
+TEST(Bvh, NodesAreCompactAndLeavesSmall) {
+  const sl::Mesh m = random_soup(20000, 12);
+  const sl::Bvh bvh(m);
+  size_t leaf_tris = 0;
+  for (const auto& n : bvh.nodes()) {
+    EXPECT_LE(n.count, sl::Bvh::kMaxLeafSize);
+    leaf_tris += n.count;
+  }
+  EXPECT_EQ(leaf_tris, bvh.triangle_count());
+  EXPECT_LE(bvh.depth(), 64);
+}
+
+TEST(Bvh, RealModelsMatchBruteForce) {
+  const std::string dir = std::string(STREETLIGHT_SHARED_DATA) + "/models";
+  if (!std::filesystem::exists(dir + "/CesiumMilkTruck.glb")) GTEST_SKIP() << "shared models not found in " << dir;
+  for (const char* name : {"CesiumMilkTruck.glb", "Shadow_Tester_4.glb"}) {
+    const sl::Mesh m = sl::load_gltf(dir + "/" + name);
+    const sl::Bvh bvh(m);
+    SCOPED_TRACE(name);
+    expect_matches_brute_force(m, bvh, random_rays(m.bounds(), 600, 17));
+  }
+}
+
+}  // namespace

@@ -57,12 +57,8 @@ Tensor rows_view(const Tensor& x, const ReducePlan& p) {
 template <class T>
 double row_sum(const T* p, int64_t n) {
   double total = 0.0;
-  for (int64_t b = 0; b < n; b += kReduceBlock) {
-    const int64_t e = std::min(n, b + kReduceBlock);
-    double acc = 0.0;
-    for (int64_t i = b; i < e; ++i) acc += static_cast<double>(p[i]);
-    total += acc;
-  }
+  for (int64_t b = 0; b < n; b += kReduceBlock)
+    total += block_sum(b, std::min(n, b + kReduceBlock), [p](int64_t i) { return p[i]; });
   return total;
 }
 

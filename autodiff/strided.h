@@ -57,9 +57,13 @@ void for_each_strided(const Shape& shape, const std::array<Shape, K>& strides, B
   for (size_t d = 0; d + 1 < nd; ++d) rows *= plan.shape[d];
   std::array<int64_t, K> steps;
   for (size_t k = 0; k < K; ++k) steps[k] = plan.strides[k][nd - 1];
-  const int64_t grain_rows = std::max<int64_t>(1, grain_elements / std::max<int64_t>(inner, 1));
-  parallel_for(rows, grain_rows, [&](int64_t r0, int64_t r1) {
-    for (int64_t r = r0; r < r1; ++r) {
+  // Long rows are cut into fixed pieces so that one dense operand still spreads over threads.
+  const int64_t piece = std::min<int64_t>(inner, std::max<int64_t>(grain_elements, 1));
+  const int64_t pieces_per_row = (inner + piece - 1) / piece;
+  const int64_t grain_items = std::max<int64_t>(1, grain_elements / piece);
+  parallel_for(rows * pieces_per_row, grain_items, [&](int64_t i0, int64_t i1) {
+    for (int64_t item = i0; item < i1; ++item) {
+      const int64_t r = item / pieces_per_row, p = item % pieces_per_row;
       std::array<int64_t, K> off{};
       int64_t rem = r;
       for (size_t d = nd - 1; d-- > 0;) {
@@ -67,7 +71,9 @@ void for_each_strided(const Shape& shape, const std::array<Shape, K>& strides, B
         rem /= plan.shape[d];
         for (size_t k = 0; k < K; ++k) off[k] += i * plan.strides[k][d];
       }
-      body(off, inner, steps);
+      const int64_t start = p * piece;
+      for (size_t k = 0; k < K; ++k) off[k] += start * steps[k];
+      body(off, std::min(piece, inner - start), steps);
     }
   });
 }

@@ -1,0 +1,302 @@
+#include "data/image_io.h"
+
+#include <unistd.h>
+
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+#include "autodiff/parallel.h"
+
+namespace sl {
+
+namespace fs = std::filesystem;
+
+float srgb_to_linear(float c) {
+  if (!(c > 0.0f)) return 0.0f;
+  return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+}
+
+float linear_to_srgb(float l) {
+  if (!(l > 0.0f)) return 0.0f;
+  return l <= 0.0031308f ? 12.92f * l : 1.055f * std::pow(l, 1.0f / 2.4f) - 0.055f;
+}
+
+namespace {
+
+std::string lower_extension(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext;
+}
+
+bool is_float_type(OIIO::TypeDesc t) {
+  return t.basetype == OIIO::TypeDesc::FLOAT || t.basetype == OIIO::TypeDesc::HALF ||
+         t.basetype == OIIO::TypeDesc::DOUBLE;
+}
+
+// Colour channels get the transfer curve; alpha (the 2nd of 2 or the 4th of 4) never does.
+bool is_alpha(int channel, int channels) {
+  return (channels == 2 && channel == 1) || (channels == 4 && channel == 3);
+}
+
+// An open ImageInput with its spec; every failure names the file.
+struct OpenedInput {
+  std::unique_ptr<OIIO::ImageInput> in;
+  OIIO::ImageSpec spec;
+};
+
+OpenedInput open_input(const std::string& path, const char* op) {
+  SL_CHECK(!path.empty(), op, ": empty file name");
+  std::error_code ec;
+  SL_CHECK(fs::exists(path, ec), op, ": '", path, "': no such file");
+  SL_CHECK(!fs::is_directory(path, ec), op, ": '", path, "' is a directory, not an image");
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  OpenedInput r;
+  r.in = OIIO::ImageInput::open(path, &config);
+  if (!r.in) fail(op, ": '", path, "': cannot open as an image: ", OIIO::geterror());
+  r.spec = r.in->spec();
+  SL_CHECK(r.spec.width > 0 && r.spec.height > 0 && r.spec.nchannels > 0, op, ": '", path,
+           "': invalid image size ", r.spec.width, "x", r.spec.height, "x", r.spec.nchannels);
+  SL_CHECK(r.spec.depth <= 1, op, ": '", path, "': volume images are not supported");
+  return r;
+}
+
+// Reads all channels interleaved as `type`; fails with the reader's message on damaged data.
+template <class T>
+std::vector<T> read_pixels(OpenedInput& f, OIIO::TypeDesc type, const std::string& path,
+                           const char* op) {
+  const size_t n = static_cast<size_t>(f.spec.width) * f.spec.height * f.spec.nchannels;
+  std::vector<T> buf(n);
+  const bool ok = f.in->read_image(0, 0, 0, f.spec.nchannels, type, buf.data());
+  std::string message = f.in->geterror();
+  const bool closed = f.in->close();
+  if (message.empty()) message = f.in->geterror();
+  SL_CHECK(ok && closed && message.empty(), op, ": '", path,
+           "': truncated or corrupt image data: ", message.empty() ? "read failed" : message);
+  return buf;
+}
+
+void check_size(const OIIO::ImageSpec& spec, int width, int height, const std::string& path,
+                const char* op) {
+  SL_CHECK((width <= 0 || spec.width == width) && (height <= 0 || spec.height == height), op,
+           ": '", path, "' is ", spec.width, "x", spec.height, ", expected ",
+           width > 0 ? std::to_string(width) : std::string("any"), "x",
+           height > 0 ? std::to_string(height) : std::string("any"));
+}
+
+// A destination-folder temporary name with the destination's extension (OIIO picks the
+// writer from the final name; the extension keeps the temporary recognisable too).
+std::string temporary_name(const std::string& path) {
+  static std::atomic<uint64_t> counter{0};
+  const fs::path p(path);
+  const std::string name = "." + p.stem().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
+                           std::to_string(counter.fetch_add(1)) + p.extension().string();
+  return (p.parent_path() / name).string();
+}
+
+// Writes interleaved pixels of `type` through a temporary file and renames it into place.
+void write_pixels(const std::string& path, const OIIO::ImageSpec& spec, const void* pixels,
+                  const char* op) {
+  const fs::path parent = fs::path(path).parent_path();
+  std::error_code ec;
+  SL_CHECK(parent.empty() || fs::is_directory(parent, ec), op, ": '", path,
+           "': folder does not exist");
+  auto out = OIIO::ImageOutput::create(path);
+  if (!out) fail(op, ": '", path, "': no writer for this extension: ", OIIO::geterror());
+  const std::string tmp = temporary_name(path);
+  bool ok = out->open(tmp, spec);
+  ok = ok && out->write_image(spec.format, pixels);
+  ok = out->close() && ok;
+  if (!ok) {
+    const std::string message = out->geterror();
+    fs::remove(tmp, ec);
+    fail(op, ": '", path, "': write failed: ", message);
+  }
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+    fail(op, ": '", path, "': cannot rename the temporary file into place: ", ec.message());
+  }
+}
+
+// [C, H, W] float or double tensor → contiguous F32 copy of its values.
+std::vector<float> planar_values(const Tensor& t, const std::string& path, const char* op) {
+  SL_CHECK(t.defined(), op, ": '", path, "': tensor is undefined");
+  SL_CHECK(t.dtype() == DType::F32 || t.dtype() == DType::F64, op, ": '", path,
+           "': expected an F32 or F64 tensor, got ", t.describe());
+  const std::vector<double> v = t.detach().to_vector();
+  return std::vector<float>(v.begin(), v.end());
+}
+
+}  // namespace
+
+ImageInfo read_image_info(const std::string& path) {
+  OpenedInput f = open_input(path, "read_image_info");
+  ImageInfo info;
+  info.width = f.spec.width;
+  info.height = f.spec.height;
+  info.channels = f.spec.nchannels;
+  info.is_float = is_float_type(f.spec.format);
+  info.bits = static_cast<int>(f.spec.format.size() * 8);
+  return info;
+}
+
+Tensor read_image(const std::string& path, const ImageReadOptions& options) {
+  const char* op = "read_image";
+  OpenedInput f = open_input(path, op);
+  const int fc = f.spec.nchannels, w = f.spec.width, h = f.spec.height;
+  check_size(f.spec, options.width, options.height, path, op);
+  const int want = options.channels == 0 ? fc : options.channels;
+  SL_CHECK(want == 1 || want == 2 || want == 3 || want == 4, op, ": '", path,
+           "': requested channel count must be 0-4, got ", options.channels);
+  const bool grey_to_rgb = want == 3 && fc == 1;
+  const bool drop_alpha = want == 3 && fc == 4;
+  SL_CHECK(want == fc || grey_to_rgb || drop_alpha, op, ": '", path, "' has ", fc,
+           " channels, expected ", want);
+  const bool float_file = is_float_type(f.spec.format);
+  const std::vector<float> buf = read_pixels<float>(f, OIIO::TypeDesc::FLOAT, path, op);
+
+  const bool curve = options.transfer == Transfer::SRGB ||
+                     (options.transfer == Transfer::Auto && !float_file);
+  Tensor image = Tensor::empty({want, h, w}, DType::F32);
+  float* dst = image.data<float>();
+  const int64_t plane = static_cast<int64_t>(w) * h;
+  parallel_for(plane, 16384, [&](int64_t p0, int64_t p1) {
+    for (int c = 0; c < want; ++c) {
+      const int src_c = grey_to_rgb ? 0 : c;
+      const bool apply = curve && !is_alpha(c, want);
+      for (int64_t p = p0; p < p1; ++p) {
+        const float x = buf[static_cast<size_t>(p * fc + src_c)];
+        dst[c * plane + p] = apply ? srgb_to_linear(x) : x;
+      }
+    }
+  });
+  return image;
+}
+
+void write_image(const std::string& path, const Tensor& image, const ImageWriteOptions& options) {
+  const char* op = "write_image";
+  SL_CHECK(image.defined() && image.dim() == 3, op, ": '", path,
+           "': expected a [C, H, W] tensor, got ", image.defined() ? image.describe() : "undefined");
+  const int c = static_cast<int>(image.size(0)), h = static_cast<int>(image.size(1)),
+            w = static_cast<int>(image.size(2));
+  SL_CHECK(c >= 1 && c <= 4 && h > 0 && w > 0, op, ": '", path,
+           "': expected 1-4 channels and a non-empty image, got ", image.describe());
+  const std::string ext = lower_extension(path);
+  const bool is_exr = ext == ".exr", is_hdr = ext == ".hdr", is_png = ext == ".png",
+             is_jpg = ext == ".jpg" || ext == ".jpeg";
+  SL_CHECK(is_exr || is_hdr || is_png || is_jpg, op, ": '", path, "': unsupported extension '",
+           ext, "' (use .exr, .hdr, .png, .jpg)");
+  SL_CHECK(!is_hdr || c == 3, op, ": '", path, "': Radiance .hdr needs 3 channels, got ", c);
+  SL_CHECK(!is_jpg || c == 1 || c == 3, op, ": '", path, "': JPEG needs 1 or 3 channels, got ", c);
+  const bool float_file = is_exr || is_hdr;
+  const int bits = float_file ? 32 : options.bits;
+  SL_CHECK(float_file || bits == 8 || (bits == 16 && is_png), op, ": '", path,
+           "': unsupported bit depth ", options.bits, " for ", ext);
+
+  const std::vector<float> planar = planar_values(image, path, op);
+  const bool curve = options.transfer == Transfer::SRGB ||
+                     (options.transfer == Transfer::Auto && !float_file);
+  const int64_t plane = static_cast<int64_t>(w) * h;
+  const double max_code = bits == 16 ? 65535.0 : 255.0;
+  std::vector<float> f32(float_file ? planar.size() : 0);
+  std::vector<uint8_t> u8(bits == 8 ? planar.size() : 0);
+  std::vector<uint16_t> u16(bits == 16 ? planar.size() : 0);
+  parallel_for(plane, 16384, [&](int64_t p0, int64_t p1) {
+    for (int ch = 0; ch < c; ++ch) {
+      const bool apply = curve && !is_alpha(ch, c);
+      for (int64_t p = p0; p < p1; ++p) {
+        float x = planar[static_cast<size_t>(ch * plane + p)];
+        if (std::isnan(x)) x = 0.0f;
+        if (apply) x = linear_to_srgb(x);
+        const size_t i = static_cast<size_t>(p * c + ch);
+        if (float_file) {
+          f32[i] = x;
+        } else {
+          const double code = std::nearbyint(std::clamp(static_cast<double>(x), 0.0, 1.0) * max_code);
+          if (bits == 8) u8[i] = static_cast<uint8_t>(code);
+          else u16[i] = static_cast<uint16_t>(code);
+        }
+      }
+    }
+  });
+  const OIIO::TypeDesc type = float_file ? OIIO::TypeDesc::FLOAT
+                              : bits == 8 ? OIIO::TypeDesc::UINT8
+                                          : OIIO::TypeDesc::UINT16;
+  OIIO::ImageSpec spec(w, h, c, type);
+  if (c == 4) spec.alpha_channel = 3;
+  if (c == 4 && is_png) spec.attribute("oiio:UnassociatedAlpha", 1);
+  const void* pixels = float_file ? static_cast<const void*>(f32.data())
+                       : bits == 8 ? static_cast<const void*>(u8.data())
+                                   : static_cast<const void*>(u16.data());
+  write_pixels(path, spec, pixels, op);
+}
+
+Tensor read_depth(const std::string& path, MissingDepth missing, int width, int height) {
+  const char* op = "read_depth";
+  OpenedInput f = open_input(path, op);
+  check_size(f.spec, width, height, path, op);
+  SL_CHECK(f.spec.nchannels == 1, op, ": '", path, "' has ", f.spec.nchannels,
+           " channels, expected 1 (a depth map)");
+  const int w = f.spec.width, h = f.spec.height;
+  const float hole = missing == MissingDepth::Zero ? 0.0f : std::nanf("");
+  Tensor depth = Tensor::empty({1, h, w}, DType::F32);
+  float* dst = depth.data<float>();
+  const size_t n = static_cast<size_t>(w) * h;
+  if (is_float_type(f.spec.format)) {
+    const std::vector<float> buf = read_pixels<float>(f, OIIO::TypeDesc::FLOAT, path, op);
+    for (size_t i = 0; i < n; ++i)
+      dst[i] = std::isfinite(buf[i]) && buf[i] > 0.0f ? buf[i] : hole;
+  } else {
+    SL_CHECK(f.spec.format == OIIO::TypeDesc::UINT16, op, ": '", path,
+             "': an integer depth map must be 16-bit (KITTI: metres = value / 256), got ",
+             f.spec.format.size() * 8, "-bit");
+    const std::vector<uint16_t> buf = read_pixels<uint16_t>(f, OIIO::TypeDesc::UINT16, path, op);
+    for (size_t i = 0; i < n; ++i) dst[i] = buf[i] == 0 ? hole : static_cast<float>(buf[i]) / 256.0f;
+  }
+  return depth;
+}
+
+void write_depth(const std::string& path, const Tensor& depth_m) {
+  const char* op = "write_depth";
+  SL_CHECK(depth_m.defined() && (depth_m.dim() == 2 || (depth_m.dim() == 3 && depth_m.size(0) == 1)),
+           op, ": '", path, "': expected a [1, H, W] or [H, W] tensor, got ",
+           depth_m.defined() ? depth_m.describe() : "undefined");
+  const int h = static_cast<int>(depth_m.size(-2)), w = static_cast<int>(depth_m.size(-1));
+  SL_CHECK(h > 0 && w > 0, op, ": '", path, "': empty depth map ", depth_m.describe());
+  const std::string ext = lower_extension(path);
+  SL_CHECK(ext == ".exr" || ext == ".png", op, ": '", path, "': unsupported extension '", ext,
+           "' for a depth map (use .exr or 16-bit KITTI .png)");
+  const std::vector<float> d = planar_values(depth_m, path, op);
+  if (ext == ".exr") {
+    std::vector<float> out(d.size());
+    for (size_t i = 0; i < d.size(); ++i)
+      out[i] = std::isfinite(d[i]) && d[i] > 0.0f ? d[i] : std::nanf("");
+    write_pixels(path, OIIO::ImageSpec(w, h, 1, OIIO::TypeDesc::FLOAT), out.data(), op);
+    return;
+  }
+  std::vector<uint16_t> out(d.size());
+  for (size_t i = 0; i < d.size(); ++i) {
+    if (!(std::isfinite(d[i]) && d[i] > 0.0f)) {
+      out[i] = 0;
+      continue;
+    }
+    const double code = std::nearbyint(static_cast<double>(d[i]) * 256.0);
+    SL_CHECK(code <= 65535.0, op, ": '", path, "': depth ", d[i], " m at pixel (",
+             i % static_cast<size_t>(w), ", ", i / static_cast<size_t>(w),
+             ") exceeds the 16-bit PNG range (max 255.996 m); use .exr");
+    out[i] = static_cast<uint16_t>(std::max(1.0, code));  // a tiny positive depth is not a hole
+  }
+  write_pixels(path, OIIO::ImageSpec(w, h, 1, OIIO::TypeDesc::UINT16), out.data(), op);
+}
+
+}  // namespace sl

@@ -1,0 +1,292 @@
+#include "render/environment_map.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "autodiff/parallel.h"
+#include "autodiff/tape.h"
+#include "render/equirect.h"
+
+namespace sl {
+namespace {
+
+constexpr double kTwoPi = 2.0 * equirect::kPi;
+
+double luminance(double r, double g, double b) { return 0.2126 * r + 0.7152 * g + 0.0722 * b; }
+
+// sin(elevation) at the top edge of row i (row 0 starts at the zenith, sin = 1).
+double row_top_sin(int i, int height) { return std::sin((0.5 - static_cast<double>(i) / height) * equirect::kPi); }
+
+}  // namespace
+
+EnvTaps env_bilinear_taps(double x, double y, double z, int width, int height) {
+  const auto uv = equirect::direction_to_uv(x, y, z, width, height);
+  const double fu = uv.u - 0.5, fv = uv.v - 0.5;
+  const double jf = std::floor(fu), iff = std::floor(fv);
+  const double fx = fu - jf, fy = fv - iff;
+  const int64_t j = static_cast<int64_t>(jf), i = static_cast<int64_t>(iff);
+  const int64_t j0 = ((j % width) + width) % width, j1 = (j0 + 1) % width;
+  const int64_t i0 = std::clamp<int64_t>(i, 0, height - 1), i1 = std::clamp<int64_t>(i + 1, 0, height - 1);
+  return EnvTaps{{i0 * width + j0, i0 * width + j1, i1 * width + j0, i1 * width + j1},
+                 {(1 - fy) * (1 - fx), (1 - fy) * fx, fy * (1 - fx), fy * fx}};
+}
+
+EnvironmentMap::EnvironmentMap(const Tensor& radiance) {
+  SL_CHECK(radiance.dim() == 3 && radiance.size(0) == 3, "EnvironmentMap: radiance must be [3, H, W], got ",
+           radiance.describe());
+  SL_CHECK(radiance.size(1) >= 1 && radiance.size(2) >= 2, "EnvironmentMap: panorama ", radiance.describe(),
+           " is too small");
+  radiance_ = radiance.detach().to(DType::F32).contiguous();
+  height_ = static_cast<int>(radiance_.size(1));
+  width_ = static_cast<int>(radiance_.size(2));
+  const float* p = radiance_.data<float>();
+  const int64_t plane = static_cast<int64_t>(height_) * width_;
+  rgb_.resize(static_cast<size_t>(plane) * 3);
+  for (int64_t k = 0; k < plane; ++k) {
+    for (int c = 0; c < 3; ++c) {
+      const float v = p[c * plane + k];
+      SL_CHECK(std::isfinite(v) && v >= 0.0f, "EnvironmentMap: texel (row ", k / width_, ", col ", k % width_,
+               ", channel ", c, ") has radiance ", v, "; expected finite and >= 0");
+      rgb_[static_cast<size_t>(k) * 3 + c] = v;
+    }
+  }
+  build_sampling();
+}
+
+glm::vec3 EnvironmentMap::texel(int row, int col) const {
+  const size_t k = (static_cast<size_t>(row) * width_ + col) * 3;
+  return {rgb_[k], rgb_[k + 1], rgb_[k + 2]};
+}
+
+glm::vec3 EnvironmentMap::lookup(const glm::vec3& d) const {
+  if (!(std::isfinite(d.x) && std::isfinite(d.y) && std::isfinite(d.z)) || glm::dot(d, d) <= 0.0f)
+    return glm::vec3(0.0f);
+  const EnvTaps t = env_bilinear_taps(d.x, d.y, d.z, width_, height_);
+  glm::vec3 v(0.0f);
+  for (int k = 0; k < 4; ++k) {
+    const size_t o = static_cast<size_t>(t.index[k]) * 3;
+    v += static_cast<float>(t.weight[k]) * glm::vec3(rgb_[o], rgb_[o + 1], rgb_[o + 2]);
+  }
+  return v;
+}
+
+void EnvironmentMap::build_sampling() {
+  const int H = height_, W = width_;
+  texel_pdf_.assign(static_cast<size_t>(H) * W, 0.0);
+  col_cdf_.assign(static_cast<size_t>(H) * (W + 1), 0.0);
+  row_cdf_.assign(static_cast<size_t>(H) + 1, 0.0);
+  std::vector<double> row_mass(H, 0.0);
+  for (int i = 0; i < H; ++i) {
+    const double omega = equirect::pixel_solid_angle(i, W, H);
+    double* cdf = &col_cdf_[static_cast<size_t>(i) * (W + 1)];
+    for (int j = 0; j < W; ++j) {
+      // The bilinear lookup inside texel (i, j) never exceeds the brightest of its 3×3
+      // neighbours, so sampling by that bound keeps L/pdf bounded next to a one-texel sun.
+      double bound = 0.0;
+      for (int di = -1; di <= 1; ++di)
+        for (int dj = -1; dj <= 1; ++dj) {
+          const glm::vec3 t = texel(std::clamp(i + di, 0, H - 1), (j + dj + W) % W);
+          bound = std::max(bound, luminance(t.r, t.g, t.b));
+        }
+      const double m = bound * omega;
+      texel_pdf_[static_cast<size_t>(i) * W + j] = m;
+      cdf[j + 1] = cdf[j] + m;
+    }
+    row_mass[i] = cdf[W];
+    row_cdf_[i + 1] = row_cdf_[i] + row_mass[i];
+  }
+  const double total = row_cdf_[H];
+  if (!(total > 0.0)) {  // black map: sample() falls back to the uniform sphere
+    texel_pdf_.clear();
+    return;
+  }
+  for (double& m : texel_pdf_) m /= total;
+  for (double& c : row_cdf_) c /= total;
+  for (int i = 0; i < H; ++i) {
+    double* cdf = &col_cdf_[static_cast<size_t>(i) * (W + 1)];
+    const double mass = cdf[W];
+    for (int j = 0; j <= W; ++j) cdf[j] = mass > 0 ? cdf[j] / mass : static_cast<double>(j) / W;
+  }
+}
+
+EnvironmentMap::Sample EnvironmentMap::sample(float u1, float u2) const {
+  Sample s;
+  if (texel_pdf_.empty()) {  // uniform sphere
+    const double y = 1.0 - 2.0 * u1, r = std::sqrt(std::max(0.0, 1.0 - y * y)), phi = kTwoPi * u2;
+    s.direction = glm::vec3(float(r * std::cos(phi)), float(y), float(r * std::sin(phi)));
+    s.radiance = lookup(s.direction);
+    s.pdf = float(1.0 / (2.0 * kTwoPi));
+    return s;
+  }
+  const int H = height_, W = width_;
+  // Row by the marginal, then column by the row's conditional; the leftover fraction of each
+  // uniform places the direction inside the texel, uniformly in solid angle.
+  auto pick = [](const double* cdf, int n, double u, double& frac) {
+    int k = static_cast<int>(std::upper_bound(cdf, cdf + n + 1, u) - cdf) - 1;
+    k = std::clamp(k, 0, n - 1);
+    while (k > 0 && cdf[k + 1] - cdf[k] <= 0.0) --k;  // never land on a zero-mass bin
+    while (k < n - 1 && cdf[k + 1] - cdf[k] <= 0.0) ++k;
+    const double w = cdf[k + 1] - cdf[k];
+    frac = w > 0 ? std::clamp((u - cdf[k]) / w, 0.0, 1.0) : 0.5;
+    return k;
+  };
+  double fr, fc;
+  const int i = pick(row_cdf_.data(), H, u1, fr);
+  const int j = pick(&col_cdf_[static_cast<size_t>(i) * (W + 1)], W, u2, fc);
+  const double s0 = row_top_sin(i, H), s1 = row_top_sin(i + 1, H);
+  const double sin_el = s0 + (s1 - s0) * fr;
+  const double u = j + fc;
+  const double az = (u / W - 0.5) * kTwoPi;
+  const double c = std::sqrt(std::max(0.0, 1.0 - sin_el * sin_el));
+  s.direction = glm::vec3(float(c * std::sin(az)), float(sin_el), float(-c * std::cos(az)));
+  s.radiance = lookup(s.direction);
+  s.pdf = float(texel_pdf_[static_cast<size_t>(i) * W + j] / equirect::pixel_solid_angle(i, W, H));
+  return s;
+}
+
+float EnvironmentMap::pdf(const glm::vec3& d) const {
+  if (texel_pdf_.empty()) return float(1.0 / (2.0 * kTwoPi));
+  if (!(glm::dot(d, d) > 0.0f)) return 0.0f;
+  const auto uv = equirect::direction_to_uv(d.x, d.y, d.z, width_, height_);
+  const int j = std::clamp(static_cast<int>(std::floor(uv.u)), 0, width_ - 1);
+  const int i = std::clamp(static_cast<int>(std::floor(uv.v)), 0, height_ - 1);
+  return float(texel_pdf_[static_cast<size_t>(i) * width_ + j] / equirect::pixel_solid_angle(i, width_, height_));
+}
+
+glm::dvec3 EnvironmentMap::integral() const {
+  glm::dvec3 total(0.0);
+  for (int i = 0; i < height_; ++i) {
+    const double omega = equirect::pixel_solid_angle(i, width_, height_);
+    for (int j = 0; j < width_; ++j) total += glm::dvec3(texel(i, j)) * omega;
+  }
+  return total;
+}
+
+EnvironmentMap EnvironmentMap::rotated(double azimuth_rad) const {
+  // A feature at azimuth φ moves to φ + angle: new column u reads old column u - shift.
+  const double shift = azimuth_rad / kTwoPi * width_;
+  Tensor out = Tensor::empty({3, height_, width_}, DType::F32);
+  float* po = out.data<float>();
+  const float* pi = radiance_.data<float>();
+  const int64_t plane = static_cast<int64_t>(height_) * width_;
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < height_; ++i)
+      for (int j = 0; j < width_; ++j) {
+        const double src = j - shift;
+        const double f = std::floor(src);
+        const double w = src - f;
+        const int64_t j0 = ((static_cast<int64_t>(f) % width_) + width_) % width_, j1 = (j0 + 1) % width_;
+        const float* row = pi + c * plane + static_cast<int64_t>(i) * width_;
+        po[c * plane + static_cast<int64_t>(i) * width_ + j] = float((1 - w) * row[j0] + w * row[j1]);
+      }
+  return EnvironmentMap(out);
+}
+
+EnvironmentMap EnvironmentMap::resized(int width, int height) const {
+  return EnvironmentMap(resize_panorama(radiance_, width, height));
+}
+
+Tensor resize_panorama(const Tensor& panorama, int width, int height) {
+  SL_CHECK(panorama.dim() == 3, "resize_panorama: expected [C, H, W], got ", panorama.describe());
+  SL_CHECK(width >= 2 && height >= 1, "resize_panorama: bad target size ", width, "x", height);
+  const Tensor src = panorama.detach().to(DType::F64).contiguous();
+  const int C = int(src.size(0)), H = int(src.size(1)), W = int(src.size(2));
+  // Separable overlap weights: rows in the measure sin(elevation) (∝ solid angle), columns in
+  // azimuth. out = Σ in · overlap / |out texel|, so Σ out·Ω_out == Σ in·Ω_in exactly.
+  std::vector<std::vector<std::pair<int, double>>> rw(height), cw(width);
+  for (int o = 0; o < height; ++o) {
+    const double a0 = row_top_sin(o + 1, height), a1 = row_top_sin(o, height);
+    for (int i = 0; i < H; ++i) {
+      const double b0 = row_top_sin(i + 1, H), b1 = row_top_sin(i, H);
+      const double ov = std::min(a1, b1) - std::max(a0, b0);
+      if (ov > 0) rw[o].push_back({i, ov / (a1 - a0)});
+    }
+  }
+  for (int o = 0; o < width; ++o) {
+    const double a0 = double(o) / width, a1 = double(o + 1) / width;
+    for (int j = 0; j < W; ++j) {
+      const double b0 = double(j) / W, b1 = double(j + 1) / W;
+      const double ov = std::min(a1, b1) - std::max(a0, b0);
+      if (ov > 0) cw[o].push_back({j, ov / (a1 - a0)});
+    }
+  }
+  Tensor out = Tensor::zeros({C, height, width}, DType::F64);
+  const double* ps = src.data<double>();
+  double* po = out.data<double>();
+  parallel_for(int64_t(C) * height, 1, [&](int64_t b, int64_t e) {
+    for (int64_t ci = b; ci < e; ++ci) {
+      const int c = int(ci / height), o = int(ci % height);
+      for (int q = 0; q < width; ++q) {
+        double acc = 0;
+        for (auto [i, wr] : rw[o])
+          for (auto [j, wc] : cw[q]) acc += wr * wc * ps[(int64_t(c) * H + i) * W + j];
+        po[(int64_t(c) * height + o) * width + q] = acc;
+      }
+    }
+  });
+  return out.to(panorama.dtype());
+}
+
+// ---------------------------------------------------------------- differentiable lookup
+Tensor env_lookup(const Tensor& env, const Tensor& directions) {
+  SL_CHECK(env.dim() == 3 && env.size(0) == 3, "env_lookup: env must be [3, H, W], got ", env.describe());
+  SL_CHECK(directions.dim() == 2 && directions.size(1) == 3, "env_lookup: directions must be [N, 3], got ",
+           directions.describe());
+  SL_CHECK(env.dtype() == directions.dtype(), "env_lookup: dtypes differ: ", env.describe(), " and ",
+           directions.describe());
+  const Tensor e = env.detach().contiguous(), d = directions.detach().contiguous();
+  const int H = int(e.size(1)), W = int(e.size(2));
+  const int64_t N = d.size(0), plane = int64_t(H) * W;
+  Tensor out = Tensor::empty({N, 3}, env.dtype());
+  SL_DISPATCH_FLOAT(env.dtype(), "env_lookup", [&] {
+    using T = scalar_t;
+    const T* pe = e.data<T>();
+    const T* pd = d.data<T>();
+    T* po = out.data<T>();
+    parallel_for(N, 1024, [&](int64_t b, int64_t en) {
+      for (int64_t n = b; n < en; ++n) {
+        const T x = pd[3 * n], y = pd[3 * n + 1], z = pd[3 * n + 2];
+        if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) || x * x + y * y + z * z <= 0) {
+          po[3 * n] = po[3 * n + 1] = po[3 * n + 2] = 0;
+          continue;
+        }
+        const EnvTaps t = env_bilinear_taps(x, y, z, W, H);
+        for (int c = 0; c < 3; ++c) {
+          double v = 0;
+          for (int k = 0; k < 4; ++k) v += t.weight[k] * pe[c * plane + t.index[k]];
+          po[3 * n + c] = T(v);
+        }
+      }
+    });
+  });
+  if (needs_grad({env})) {
+    const Shape env_shape = env.shape();
+    record("env_lookup", {env, directions}, {out}, [=](const TensorList& g) {
+      const Tensor go = g[0].contiguous();
+      Tensor ge = Tensor::zeros(env_shape, go.dtype());
+      SL_DISPATCH_FLOAT(go.dtype(), "env_lookup", [&] {
+        using T = scalar_t;
+        const T* pd = d.data<T>();
+        const T* pg = go.data<T>();
+        T* pe = ge.data<T>();
+        // One channel per task: each texel plane is written by one thread, in ray order.
+        parallel_for(3, 1, [&](int64_t c0, int64_t c1) {
+          for (int64_t c = c0; c < c1; ++c) {
+            T* p = pe + c * plane;
+            for (int64_t n = 0; n < N; ++n) {
+              const T x = pd[3 * n], y = pd[3 * n + 1], z = pd[3 * n + 2];
+              if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) || x * x + y * y + z * z <= 0) continue;
+              const EnvTaps t = env_bilinear_taps(x, y, z, W, H);
+              const T gv = pg[3 * n + c];
+              for (int k = 0; k < 4; ++k) p[t.index[k]] += T(t.weight[k]) * gv;
+            }
+          }
+        });
+      });
+      return TensorList{ge, Tensor()};
+    });
+  }
+  return out;
+}
+
+}  // namespace sl

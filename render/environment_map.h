@@ -1,0 +1,78 @@
+// Equirectangular HDR environment maps: lookup, rotation, resizing and importance sampling.
+//
+// Contract:
+// - Radiance is a [3, H, W] F32 (or F64) tensor, linear HDR, laid out by render/equirect.h
+//   (row 0 = zenith, u wraps at the azimuth seam). H >= 1, W >= 2; finite, non-negative values
+//   (negative or NaN texels throw, naming the texel).
+// - lookup(d): bilinear between texel centres, wrapping in azimuth and clamping at the poles.
+// - env_lookup(env, dirs) is the same lookup as ONE tape op over a batch of directions,
+//   differentiable with respect to the texels (and not the directions). Zero-length or
+//   non-finite directions read 0 and pass no gradient.
+// - Importance sampling: a texel is chosen with probability ∝ (the largest luminance among it
+//   and its 8 neighbours, a bound on the bilinear lookup inside it) × its solid angle
+//   (piecewise constant), then a direction uniformly in solid angle inside it. pdf() is in
+//   solid angle (1/sr) and equals the density sample() draws from, Jacobian of the sphere
+//   (the cos θ of the elevation) included. A black map falls back to uniform sphere sampling.
+// - rotated(φ): the map seen after rotating the world by φ about +Y (azimuth φ → φ + angle).
+// - resized(W', H'): area-weighted (solid-angle) averaging, so the integral of radiance over
+//   the sphere is preserved; never point-samples a sun.
+#pragma once
+#include <glm/glm.hpp>
+#include <vector>
+
+#include "autodiff/tensor.h"
+
+namespace sl {
+
+class EnvironmentMap {
+ public:
+  EnvironmentMap() = default;
+  explicit EnvironmentMap(const Tensor& radiance);
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+  const Tensor& radiance() const { return radiance_; }  // [3, H, W] f32
+
+  glm::vec3 lookup(const glm::vec3& direction) const;
+  glm::vec3 texel(int row, int col) const;
+
+  struct Sample {
+    glm::vec3 direction;  // unit, world
+    glm::vec3 radiance;   // lookup(direction)
+    float pdf;            // solid-angle density
+  };
+  Sample sample(float u1, float u2) const;
+  float pdf(const glm::vec3& direction) const;
+
+  // Integral of radiance over the sphere, per channel (W/m²/sr × sr).
+  glm::dvec3 integral() const;
+
+  EnvironmentMap rotated(double azimuth_rad) const;
+  EnvironmentMap resized(int width, int height) const;
+
+ private:
+  void build_sampling();
+
+  Tensor radiance_;
+  int width_ = 0, height_ = 0;
+  std::vector<float> rgb_;         // interleaved H×W×3 copy for fast lookup
+  std::vector<double> row_cdf_;    // H+1 entries, marginal over rows
+  std::vector<double> col_cdf_;    // H×(W+1), conditional per row
+  std::vector<double> texel_pdf_;  // probability of each texel (sums to 1)
+};
+
+// The four texels and weights of the bilinear lookup in direction (x, y, z) of an H×W map:
+// between texel centres, azimuth wrapping, rows clamped at the poles. Shared by every lookup.
+struct EnvTaps {
+  int64_t index[4];  // row·W + col
+  double weight[4];
+};
+EnvTaps env_bilinear_taps(double x, double y, double z, int width, int height);
+
+// Differentiable batched lookup (one tape node): env [3, H, W], directions [N, 3] -> [N, 3].
+Tensor env_lookup(const Tensor& env, const Tensor& directions);
+
+// Resizes a [3, H, W] panorama tensor preserving the integral over the sphere.
+Tensor resize_panorama(const Tensor& panorama, int width, int height);
+
+}  // namespace sl

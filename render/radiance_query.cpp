@@ -1,0 +1,322 @@
+#include "render/radiance_query.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+
+#include "autodiff/ops.h"
+#include "autodiff/parallel.h"
+#include "render/environment_map.h"
+#include "render/spherical_gaussian.h"
+
+namespace sl {
+namespace {
+
+constexpr int kGradBuffers = 4;  // fixed, so the summation order never depends on threads
+
+struct Geometry {
+  int64_t N, R, X, Y, Z, vox, H, W;
+};
+
+template <class T>
+struct Tap {
+  int64_t voxel;
+  T w;
+};
+
+// The samples one ray keeps after pruning, recomputed identically in forward and backward.
+template <class T>
+struct RayMarch {
+  bool valid = false;       // finite, non-zero direction
+  bool terminated = false;  // stopped by transmittance: no sky term
+  T dir[3];                 // unit l
+  T env[3];                 // L_env(l)
+  EnvTaps env_taps;
+  std::vector<T> alpha, t, g;           // per sample; g has 3 per sample
+  std::vector<Tap<T>> taps;             // taps_per_sample per sample
+  int taps_per_sample = 1;
+  int64_t considered = 0;               // samples inside the grid before pruning
+  size_t count() const { return alpha.size(); }
+};
+
+template <class T>
+sg::Lobe<T> lobe_at(const T* vsg, int64_t vox, int64_t v) {
+  sg::Lobe<T> L;
+  for (int i = 0; i < 3; ++i) {
+    L.c[i] = vsg[i * vox + v];
+    L.mu[i] = vsg[(3 + i) * vox + v];
+  }
+  L.sharpness = vsg[6 * vox + v];
+  return L;
+}
+
+template <class T>
+void march(const Geometry& geo, const VsgGrid& grid, const RadianceQueryOptions& opt, const T* vsg, const T* env,
+           const T* o, const T* l, RayMarch<T>& m) {
+  m.alpha.clear();
+  m.t.clear();
+  m.g.clear();
+  m.taps.clear();
+  m.terminated = false;
+  m.considered = 0;
+  m.taps_per_sample = opt.trilinear ? 8 : 1;
+  const T len = std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
+  m.valid = std::isfinite(len) && len > 0 && std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]);
+  if (!m.valid) return;
+  for (int i = 0; i < 3; ++i) m.dir[i] = l[i] / len;
+  m.env_taps = env_bilinear_taps(m.dir[0], m.dir[1], m.dir[2], int(geo.W), int(geo.H));
+  T env_max = 0;
+  for (int c = 0; c < 3; ++c) {
+    double v = 0;
+    for (int k = 0; k < 4; ++k) v += m.env_taps.weight[k] * env[c * geo.H * geo.W + m.env_taps.index[k]];
+    m.env[c] = T(v);
+    env_max = std::max(env_max, m.env[c]);
+  }
+  const glm::dvec3 origin(o[0], o[1], o[2]), dir(m.dir[0], m.dir[1], m.dir[2]);
+  double t0, t1;
+  if (!grid.clip_ray(origin, dir, t0, t1)) return;
+  const T v[3] = {-m.dir[0], -m.dir[1], -m.dir[2]};  // lobes are seen from x: G(−l)
+  const int64_t dims[3] = {geo.X, geo.Y, geo.Z};
+  const T stop = T(opt.min_transmittance) / std::max(T(1), env_max);
+  T tau = 1;
+  Tap<T> taps[8];
+  for (int k = 0; k < opt.samples; ++k) {
+    const double tk = t0 + (k + 0.5) * (t1 - t0) / opt.samples;
+    const glm::dvec3 p = grid.to_voxel(origin + tk * dir);
+    ++m.considered;
+    int n_taps;
+    if (!opt.trilinear) {
+      int64_t idx[3];
+      for (int a = 0; a < 3; ++a) idx[a] = std::clamp<int64_t>(int64_t(std::floor(p[a])), 0, dims[a] - 1);
+      taps[0] = {(idx[0] * geo.Y + idx[1]) * geo.Z + idx[2], T(1)};
+      n_taps = 1;
+    } else {
+      int64_t i0[3], i1[3];
+      T fr[3];
+      for (int a = 0; a < 3; ++a) {
+        const double f = p[a] - 0.5, fl = std::floor(f);
+        fr[a] = T(f - fl);
+        i0[a] = std::clamp<int64_t>(int64_t(fl), 0, dims[a] - 1);
+        i1[a] = std::clamp<int64_t>(int64_t(fl) + 1, 0, dims[a] - 1);
+      }
+      for (int c = 0; c < 8; ++c) {
+        const int64_t x = (c & 1) ? i1[0] : i0[0], y = (c & 2) ? i1[1] : i0[1], z = (c & 4) ? i1[2] : i0[2];
+        const T w = ((c & 1) ? fr[0] : 1 - fr[0]) * ((c & 2) ? fr[1] : 1 - fr[1]) * ((c & 4) ? fr[2] : 1 - fr[2]);
+        taps[c] = {(x * geo.Y + y) * geo.Z + z, w};
+      }
+      n_taps = 8;
+    }
+    T alpha = 0;
+    for (int j = 0; j < n_taps; ++j) alpha += taps[j].w * vsg[7 * geo.vox + taps[j].voxel];
+    if (opt.prune && alpha < T(opt.empty_alpha)) continue;
+    T g[3] = {0, 0, 0};
+    for (int j = 0; j < n_taps; ++j) {
+      const auto e = sg::eval(lobe_at(vsg, geo.vox, taps[j].voxel), v);
+      for (int c = 0; c < 3; ++c) g[c] += taps[j].w * e.value[c];
+    }
+    m.alpha.push_back(alpha);
+    m.t.push_back(T(tk));
+    for (int c = 0; c < 3; ++c) m.g.push_back(g[c]);
+    for (int j = 0; j < n_taps; ++j) m.taps.push_back(taps[j]);
+    tau *= (1 - alpha);
+    if (opt.prune && tau < stop) {
+      m.terminated = true;
+      return;
+    }
+  }
+}
+
+class RadianceQueryOp : public Function {
+ public:
+  RadianceQueryOp(const VsgGrid& grid, const RadianceQueryOptions& opt, RadianceQueryStats* stats)
+      : grid_(grid), opt_(opt), stats_(stats) {}
+
+  std::string name() const override { return "radiance_query"; }
+
+  TensorList forward(const TensorList& in) override {
+    vsg_ = in[0].detach().contiguous();
+    env_ = in[1].detach().contiguous();
+    origins_ = in[2].detach().contiguous();
+    dirs_ = in[3].detach().contiguous();
+    geo_ = {vsg_.size(0), origins_.size(1), vsg_.size(2), vsg_.size(3), vsg_.size(4), 0, env_.size(2), env_.size(3)};
+    geo_.vox = geo_.X * geo_.Y * geo_.Z;
+    Tensor radiance = Tensor::empty({geo_.N, geo_.R, 3}, vsg_.dtype());
+    Tensor tau = Tensor::empty({geo_.N, geo_.R}, vsg_.dtype());
+    Tensor depth = Tensor::empty({geo_.N, geo_.R}, vsg_.dtype());
+    std::atomic<int64_t> total{0}, evaluated{0}, terminated{0};
+    SL_DISPATCH_FLOAT(vsg_.dtype(), "radiance_query", [&] {
+      using T = scalar_t;
+      parallel_for(geo_.N * geo_.R, 64, [&](int64_t b, int64_t e) {
+        RayMarch<T> m;
+        int64_t n_total = 0, n_eval = 0, n_term = 0;
+        for (int64_t r = b; r < e; ++r) {
+          const int64_t n = r / geo_.R;
+          march(geo_, grid_, opt_, vsg_.data<T>() + n * 8 * geo_.vox, env_.data<T>() + n * 3 * geo_.H * geo_.W,
+                origins_.data<T>() + 3 * r, dirs_.data<T>() + 3 * r, m);
+          T out[3] = {0, 0, 0}, tr = 1, d = 0;
+          if (m.valid) {
+            for (size_t k = 0; k < m.count(); ++k) {
+              const T w = tr * m.alpha[k];
+              for (int c = 0; c < 3; ++c) out[c] += w * m.g[3 * k + c];
+              d += w * m.t[k];
+              tr *= 1 - m.alpha[k];
+            }
+            if (!m.terminated)
+              for (int c = 0; c < 3; ++c) out[c] += tr * m.env[c];
+          }
+          for (int c = 0; c < 3; ++c) radiance.data<T>()[3 * r + c] = out[c];
+          tau.data<T>()[r] = tr;
+          depth.data<T>()[r] = d;
+          n_total += m.considered;
+          n_eval += int64_t(m.count());
+          n_term += m.terminated ? 1 : 0;
+        }
+        total += n_total;
+        evaluated += n_eval;
+        terminated += n_term;
+      });
+    });
+    if (stats_) {
+      stats_->rays += geo_.N * geo_.R;
+      stats_->samples_total += total.load();
+      stats_->samples_evaluated += evaluated.load();
+      stats_->rays_terminated += terminated.load();
+    }
+    return {radiance, tau, depth};
+  }
+
+  TensorList backward(const TensorList& grads) override {
+    const Tensor gR = grads[0].contiguous(), gT = grads[1].contiguous(), gD = grads[2].contiguous();
+    const int64_t rays = geo_.N * geo_.R;
+    const int64_t vsg_size = geo_.N * 8 * geo_.vox, env_size = geo_.N * 3 * geo_.H * geo_.W;
+    Tensor g_vsg = Tensor::zeros(vsg_.shape(), vsg_.dtype());
+    Tensor g_env = Tensor::zeros(env_.shape(), env_.dtype());
+    SL_DISPATCH_FLOAT(vsg_.dtype(), "radiance_query", [&] {
+      using T = scalar_t;
+      std::vector<std::vector<T>> buf_vsg(kGradBuffers), buf_env(kGradBuffers);
+      const int64_t chunk = (rays + kGradBuffers - 1) / kGradBuffers;
+      parallel_for(kGradBuffers, 1, [&](int64_t b0, int64_t b1) {
+        for (int64_t b = b0; b < b1; ++b) {
+          const int64_t r0 = b * chunk, r1 = std::min(rays, r0 + chunk);
+          if (r0 >= r1) continue;
+          buf_vsg[b].assign(size_t(vsg_size), T(0));
+          buf_env[b].assign(size_t(env_size), T(0));
+          RayMarch<T> m;
+          std::vector<T> tau_before;
+          for (int64_t r = r0; r < r1; ++r) backward_ray<T>(r, gR, gT, gD, m, tau_before, buf_vsg[b], buf_env[b]);
+        }
+      });
+      // Sum the chunk buffers in chunk order.
+      T* pv = g_vsg.data<T>();
+      T* pe = g_env.data<T>();
+      for (int b = 0; b < kGradBuffers; ++b) {
+        if (buf_vsg[b].empty()) continue;
+        const T* sv = buf_vsg[b].data();
+        const T* se = buf_env[b].data();
+        parallel_for(vsg_size, 65536, [&](int64_t i0, int64_t i1) {
+          for (int64_t i = i0; i < i1; ++i) pv[i] += sv[i];
+        });
+        for (int64_t i = 0; i < env_size; ++i) pe[i] += se[i];
+      }
+    });
+    return {g_vsg, g_env, Tensor(), Tensor()};
+  }
+
+ private:
+  template <class T>
+  void backward_ray(int64_t r, const Tensor& gR, const Tensor& gT, const Tensor& gD, RayMarch<T>& m,
+                    std::vector<T>& tau_before, std::vector<T>& bv, std::vector<T>& be) const {
+    const int64_t n = r / geo_.R;
+    const T* vsg = vsg_.data<T>() + n * 8 * geo_.vox;
+    march(geo_, grid_, opt_, vsg, env_.data<T>() + n * 3 * geo_.H * geo_.W, origins_.data<T>() + 3 * r,
+          dirs_.data<T>() + 3 * r, m);
+    if (!m.valid) return;
+    const T* gr = gR.data<T>() + 3 * r;
+    const T gt = gT.data<T>()[r], gd = gD.data<T>()[r];
+    const size_t K = m.count();
+    tau_before.resize(K + 1);
+    tau_before[0] = 1;
+    for (size_t k = 0; k < K; ++k) tau_before[k + 1] = tau_before[k] * (1 - m.alpha[k]);
+    // Sky term: ∂L/∂L_env = τ_K.
+    if (!m.terminated) {
+      T* env_grad = be.data() + n * 3 * geo_.H * geo_.W;
+      for (int c = 0; c < 3; ++c)
+        for (int j = 0; j < 4; ++j)
+          env_grad[c * geo_.H * geo_.W + m.env_taps.index[j]] += T(m.env_taps.weight[j]) * gr[c] * tau_before[K];
+    }
+    // Back to front: B is the radiance seen just behind sample k, BD the same for depth, P the
+    // transmittance from behind sample k to the end.
+    T B[3];
+    for (int c = 0; c < 3; ++c) B[c] = m.terminated ? T(0) : m.env[c];
+    T BD = 0, P = 1;
+    T* gv = bv.data() + n * 8 * geo_.vox;
+    const T v[3] = {-m.dir[0], -m.dir[1], -m.dir[2]};
+    const int nt = m.taps_per_sample;
+    for (size_t kk = K; kk-- > 0;) {
+      const T a = m.alpha[kk], tb = tau_before[kk];
+      T g_alpha = gd * tb * (m.t[kk] - BD) - gt * tb * P;
+      T g_lobe[3];
+      for (int c = 0; c < 3; ++c) {
+        g_alpha += gr[c] * tb * (m.g[3 * kk + c] - B[c]);
+        g_lobe[c] = gr[c] * tb * a;
+      }
+      for (int j = 0; j < nt; ++j) {
+        const Tap<T>& tap = m.taps[kk * nt + j];
+        gv[7 * geo_.vox + tap.voxel] += tap.w * g_alpha;
+        const sg::Lobe<T> lobe = lobe_at(vsg, geo_.vox, tap.voxel);
+        const auto e = sg::eval(lobe, v);
+        const T up[3] = {tap.w * g_lobe[0], tap.w * g_lobe[1], tap.w * g_lobe[2]};
+        T gc[3] = {0, 0, 0}, gmu[3] = {0, 0, 0}, gs = 0;
+        sg::backward(lobe, v, e, up, gc, gmu, gs);
+        for (int c = 0; c < 3; ++c) {
+          gv[c * geo_.vox + tap.voxel] += gc[c];
+          gv[(3 + c) * geo_.vox + tap.voxel] += gmu[c];
+        }
+        gv[6 * geo_.vox + tap.voxel] += gs;
+      }
+      for (int c = 0; c < 3; ++c) B[c] = a * m.g[3 * kk + c] + (1 - a) * B[c];
+      BD = a * m.t[kk] + (1 - a) * BD;
+      P *= 1 - a;
+    }
+  }
+
+  VsgGrid grid_;
+  RadianceQueryOptions opt_;
+  RadianceQueryStats* stats_;
+  Tensor vsg_, env_, origins_, dirs_;
+  Geometry geo_{};
+};
+
+}  // namespace
+
+RadianceQueryResult radiance_query(const Tensor& vsg, const Tensor& env, const Tensor& origins,
+                                   const Tensor& directions, const VsgGrid& grid, const RadianceQueryOptions& options,
+                                   RadianceQueryStats* stats) {
+  grid.validate();
+  SL_CHECK(options.samples >= 1, "radiance_query: samples = ", options.samples, " must be >= 1");
+  const bool batched = vsg.dim() == 5;
+  SL_CHECK(vsg.dim() == (batched ? 5 : 4) && vsg.size(batched ? 1 : 0) == 8,
+           "radiance_query: vsg must be [N, 8, X, Y, Z] or [8, X, Y, Z], got ", vsg.describe());
+  SL_CHECK(env.dim() == (batched ? 4 : 3) && env.size(batched ? 1 : 0) == 3,
+           "radiance_query: env must be [N, 3, H, W] or [3, H, W] to match vsg ", vsg.describe(), ", got ",
+           env.describe());
+  SL_CHECK(origins.shape() == directions.shape() && origins.dim() == (batched ? 3 : 2) && origins.size(-1) == 3,
+           "radiance_query: origins ", origins.describe(), " and directions ", directions.describe(),
+           " must both be [N, R, 3] (or [R, 3])");
+  for (const Tensor* t : {&env, &origins, &directions})
+    SL_CHECK(t->dtype() == vsg.dtype(), "radiance_query: dtypes differ: vsg ", vsg.describe(), ", got ", t->describe());
+  const Tensor v = batched ? vsg : unsqueeze(vsg, 0);
+  const Tensor e = batched ? env : unsqueeze(env, 0);
+  const Tensor o = batched ? origins : unsqueeze(origins, 0);
+  const Tensor d = batched ? directions : unsqueeze(directions, 0);
+  SL_CHECK(e.size(0) == v.size(0) && o.size(0) == v.size(0), "radiance_query: batch sizes differ: vsg ",
+           vsg.describe(), ", env ", env.describe(), ", origins ", origins.describe());
+  SL_CHECK(v.size(2) == grid.dims[0] && v.size(3) == grid.dims[1] && v.size(4) == grid.dims[2],
+           "radiance_query: vsg ", vsg.describe(), " does not match the grid dims [", grid.dims[0], ", ",
+           grid.dims[1], ", ", grid.dims[2], "]");
+  TensorList out = apply(std::make_shared<RadianceQueryOp>(grid, options, stats), {v, e, o, d});
+  if (batched) return {out[0], out[1], out[2]};
+  return {squeeze(out[0], 0), squeeze(out[1], 0), squeeze(out[2], 0)};
+}
+
+}  // namespace sl

@@ -1,0 +1,60 @@
+// The radiance query L(x, l) of Eq. 1, as ONE fused tape op over a batch of rays:
+//
+//   L(x, l) = Σ_{k=1..K} τ_{k−1} α_k G(−l; ξ_k) + τ_K L_env(l),   τ_k = Π_{i≤k} (1 − α_i)
+//
+// Inputs: vsg [N, 8, X, Y, Z] (activated parameters, see vsg_volume.h), env [N, 3, H, W]
+// (panorama convention of equirect.h), origins and directions [N, R, 3] (world). The unbatched
+// forms [8, X, Y, Z], [3, H, W], [R, 3] are accepted too. Directions are normalised here; a zero
+// or non-finite ray gives radiance 0, τ_K = 1, depth 0 and no gradient.
+// Samples: K equi-spaced points t_k = t0 + (k − ½)(t1 − t0)/K over the part [t0, t1] of the ray
+// inside the grid's box (none when it misses the box). Lookup: nearest voxel (the paper) or
+// trilinear (α and G interpolated separately, borders clamped).
+// Outputs: radiance [N, R, 3]; transmittance τ_K [N, R] (for the sky-separation loss); depth
+// [N, R] = Σ τ_{k−1} α_k t_k, the expected distance of the volume's contribution (unnormalised:
+// divide by 1 − τ_K for the depth of the visible surface).
+// Gradients flow to vsg and env (not to origins or directions). Backward recomputes the samples
+// (nothing per sample is stored) and uses the stable recursion B_{k−1} = α_k g_k + (1 − α_k) B_k,
+// ∂L/∂α_k = τ_{k−1}(g_k − B_k), so α = 1 is safe. Gradients are scattered into a fixed number of
+// per-chunk buffers summed in order: identical bits for any thread count.
+//
+// Pruning (opt.prune, on by default) — the pruned query is a slightly different function, and
+// backward differentiates exactly that function:
+//   - a sample whose α_k < empty_alpha is skipped (treated as α_k = 0): error ≤ empty_alpha·G;
+//   - a ray stops once τ_k · max(1, max_c L_env,c(l)) < min_transmittance, dropping the rest of
+//     the volume and the sky term: error ≤ min_transmittance · (1 + G_max / max(1, L_env)).
+//     Scaling by the sky's radiance keeps a 10^5 sun behind a nearly opaque wall from leaking.
+// tests/render/radiance_query_test.cpp checks pruned against unpruned within these bounds.
+#pragma once
+#include <cstdint>
+
+#include "autodiff/tape.h"
+#include "render/vsg_volume.h"
+
+namespace sl {
+
+struct RadianceQueryOptions {
+  int samples = 64;                 // K
+  bool trilinear = false;           // nearest voxel (paper) or trilinear
+  bool prune = true;
+  double empty_alpha = 1e-6;
+  double min_transmittance = 1e-4;
+};
+
+struct RadianceQueryStats {
+  int64_t rays = 0;
+  int64_t samples_total = 0;      // rays × K, over rays that hit the grid
+  int64_t samples_evaluated = 0;  // lobes actually evaluated
+  int64_t rays_terminated = 0;    // stopped early by transmittance
+};
+
+struct RadianceQueryResult {
+  Tensor radiance;       // [N, R, 3] (or [R, 3])
+  Tensor transmittance;  // [N, R]    (or [R])
+  Tensor depth;          // [N, R]    (or [R])
+};
+
+RadianceQueryResult radiance_query(const Tensor& vsg, const Tensor& env, const Tensor& origins,
+                                   const Tensor& directions, const VsgGrid& grid,
+                                   const RadianceQueryOptions& options = {}, RadianceQueryStats* stats = nullptr);
+
+}  // namespace sl

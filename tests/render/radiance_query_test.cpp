@@ -1,0 +1,229 @@
+#include "render/radiance_query.h"
+
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <cmath>
+
+#include "autodiff/gradcheck.h"
+#include "autodiff/ops.h"
+#include "render/environment_map.h"
+
+namespace sl {
+namespace {
+
+VsgGrid small_grid() {
+  VsgGrid g;
+  g.dims = {4, 4, 2};
+  g.center = {0, 0, 0};
+  g.extent_neg = {10, 4, 10};
+  g.extent_pos = {10, 6, 10};
+  g.log_scale_m = 2.0;
+  return g;
+}
+
+// Random activated VSG parameters with alpha in a moderate range.
+Tensor random_vsg(const VsgGrid& g, uint64_t seed, DType dt, double alpha_lo = 0.05, double alpha_hi = 0.6) {
+  Tensor raw = Tensor::uniform({8, g.dims[0], g.dims[1], g.dims[2]}, -1, 1, seed, dt);
+  Tensor p = vsg_activate(raw, 0).detach().clone();
+  Tensor alpha = Tensor::uniform({1, g.dims[0], g.dims[1], g.dims[2]}, alpha_lo, alpha_hi, seed + 1, dt);
+  slice(p, 0, 7, 8).copy_(alpha);
+  return p;
+}
+
+struct Rays {
+  Tensor origins, dirs;
+};
+
+Rays random_rays(int64_t n, uint64_t seed, DType dt) {
+  return {Tensor::uniform({n, 3}, -2, 2, seed, dt), Tensor::uniform({n, 3}, -1, 1, seed + 1, dt)};
+}
+
+TEST(VsgGrid, LogProjectionIsInvertibleAndMapsTheEdgesToTheGridBounds) {
+  VsgGrid g;  // the paper's 300 x 300 x 80 m at 64 x 64 x 16
+  for (double x : {-150.0, -37.5, -0.01, 0.0, 0.3, 12.0, 149.99})
+    for (double y : {g.center.y - 5.0, g.center.y, g.center.y + 75.0})
+      for (double z : {-150.0, 7.0, 150.0}) {
+        const glm::dvec3 p(x, y, z);
+        const glm::dvec3 v = g.to_voxel(p);
+        const glm::dvec3 back = g.to_world(v);
+        EXPECT_NEAR(glm::length(back - p), 0.0, 1e-9) << x << "," << y << "," << z;
+        for (int a = 0; a < 3; ++a) {
+          EXPECT_GE(v[a], -1e-9);
+          EXPECT_LE(v[a], double(g.dims[a]) + 1e-9);
+        }
+      }
+  EXPECT_NEAR(g.to_voxel({150, g.center.y, 0}).x, 64.0, 1e-9);
+  EXPECT_NEAR(g.to_voxel({0, g.center.y + 75, 0}).z, 16.0, 1e-9);
+  EXPECT_NEAR(g.to_voxel({0, g.center.y - 5, -150}).z, 0.0, 1e-9);
+  EXPECT_NEAR(g.to_voxel({0, g.center.y - 5, -150}).y, 0.0, 1e-9);
+  // Voxels grow with distance: the first is under a metre, the last tens of metres.
+  const double near_m = g.to_world({33, 32, 8}).x - g.to_world({32, 32, 8}).x;
+  const double far_m = g.to_world({64, 32, 8}).x - g.to_world({63, 32, 8}).x;
+  EXPECT_LT(near_m, 1.0);
+  EXPECT_GT(far_m, 10.0);
+}
+
+TEST(VsgActivate, MapsAnyRawValueToValidParameters) {
+  Tensor raw = Tensor::from_vector({-1e4, 0, 1e4, 0, 0, 0, -1e4, 1e4}, {8, 1, 1, 1}, DType::F64).set_requires_grad(true);
+  Tensor p = vsg_activate(raw, 0);
+  backward(sum(p));
+  const auto v = p.to_vector();
+  EXPECT_GE(v[0], 0.0);
+  EXPECT_DOUBLE_EQ(v[2], 1e4);
+  EXPECT_GE(v[6], VsgGrid::kMinSharpness);
+  EXPECT_DOUBLE_EQ(v[7], 1.0);
+  for (double gv : raw.grad().to_vector()) EXPECT_TRUE(std::isfinite(gv));
+}
+
+TEST(RadianceQuery, EmptyVolumeReturnsTheSkyWithUnitTransmittance) {
+  const VsgGrid g = small_grid();
+  Tensor vsg = Tensor::zeros({8, 4, 4, 2}, DType::F64);  // alpha = 0 everywhere
+  Tensor env = Tensor::uniform({3, 8, 16}, 0.5, 2, 3, DType::F64);
+  const Rays r = random_rays(50, 4, DType::F64);
+  for (bool prune : {true, false}) {
+    RadianceQueryOptions opt;
+    opt.prune = prune;
+    const auto q = radiance_query(vsg, env, r.origins, r.dirs, g, opt);
+    const Tensor sky = env_lookup(env, r.dirs);
+    for (int64_t i = 0; i < 50; ++i) {
+      EXPECT_DOUBLE_EQ(q.transmittance.at({i}), 1.0);
+      for (int64_t c = 0; c < 3; ++c) EXPECT_NEAR(q.radiance.at({i, c}), sky.at({i, c}), 1e-12);
+      EXPECT_DOUBLE_EQ(q.depth.at({i}), 0.0);
+    }
+  }
+}
+
+TEST(RadianceQuery, OpaqueVolumeHidesTheSkyAndShowsTheFirstLobe) {
+  const VsgGrid g = small_grid();
+  Tensor vsg = Tensor::zeros({8, 4, 4, 2}, DType::F64);
+  slice(vsg, 0, 0, 3).fill_(2.0);   // c
+  slice(vsg, 0, 4, 5).fill_(1.0);   // μ = +y
+  slice(vsg, 0, 6, 7).fill_(1e-3);  // nearly isotropic lobe
+  slice(vsg, 0, 7, 8).fill_(1.0);   // opaque
+  Tensor env = Tensor::full({3, 8, 16}, 1e5, DType::F64);  // a blinding sky must not leak
+  Tensor o = Tensor::zeros({1, 3}, DType::F64), d = Tensor::from_vector({0.3, 0.2, -1}, {1, 3}, DType::F64);
+  const auto q = radiance_query(vsg, env, o, d, g);
+  EXPECT_DOUBLE_EQ(q.transmittance.item(), 0.0);
+  // The first sample's lobe, seen from x: 2·exp(−λ|−l̂ − μ|²/2) with μ = +y.
+  const glm::dvec3 v = -glm::normalize(glm::dvec3(0.3, 0.2, -1));
+  const double dist2 = glm::dot(v - glm::dvec3(0, 1, 0), v - glm::dvec3(0, 1, 0));
+  EXPECT_NEAR(q.radiance.at({0, 0}), 2.0 * std::exp(-1e-3 * dist2 / 2), 1e-12);
+}
+
+TEST(RadianceQuery, GradcheckNearestAndTrilinear) {
+  const VsgGrid g = small_grid();
+  for (bool tri : {false, true}) {
+    RadianceQueryOptions opt;
+    opt.samples = 6;
+    opt.trilinear = tri;
+    opt.prune = false;  // pruning thresholds are discontinuous; checked separately below
+    const Rays r = random_rays(5, 10, DType::F64);
+    auto f = [&](const TensorList& in) {
+      const auto q = radiance_query(in[0], in[1], r.origins, r.dirs, g, opt);
+      // One scalar per output: all three outputs are checked at once.
+      return concat({reshape(q.radiance, {-1}), q.transmittance, mul_scalar(q.depth, 0.1)}, 0);
+    };
+    const GradcheckResult res = gradcheck(f, {random_vsg(g, 11, DType::F64), Tensor::uniform({3, 4, 8}, 0.1, 2, 12, DType::F64)});
+    EXPECT_TRUE(res.ok) << (tri ? "trilinear: " : "nearest: ") << res.message;
+  }
+}
+
+TEST(RadianceQuery, GradcheckWithPruningAwayFromThresholds) {
+  const VsgGrid g = small_grid();
+  RadianceQueryOptions opt;
+  opt.samples = 5;
+  const Rays r = random_rays(4, 20, DType::F64);
+  auto f = [&](const TensorList& in) { return radiance_query(in[0], in[1], r.origins, r.dirs, g, opt).radiance; };
+  const GradcheckResult res =
+      gradcheck(f, {random_vsg(g, 21, DType::F64, 0.2, 0.7), Tensor::uniform({3, 4, 8}, 0.1, 2, 22, DType::F64)});
+  EXPECT_TRUE(res.ok) << res.message;
+}
+
+TEST(RadianceQuery, PrunedMatchesUnprunedWithinTheDocumentedBound) {
+  VsgGrid g;
+  g.dims = {16, 16, 8};
+  Tensor vsg = random_vsg(g, 30, DType::F32, 0.0, 0.9);
+  // A third of the voxels are empty; a sun of 1e5 sits in the sky.
+  Tensor mask = gt(Tensor::uniform({1, 16, 16, 8}, 0, 1, 31), Tensor::scalar(0.33f));
+  slice(vsg, 0, 7, 8).copy_(mul(slice(vsg, 0, 7, 8), mask));
+  Tensor env = Tensor::full({3, 16, 32}, 1.0f);
+  env.data<float>()[5 * 32 + 7] = 1e5f;
+  Tensor o = Tensor::zeros({4000, 3});
+  slice(o, 1, 1, 2).fill_(1.6);
+  Tensor d = Tensor::uniform({4000, 3}, -1, 1, 32);
+  RadianceQueryOptions full, pruned;
+  full.prune = false;
+  RadianceQueryStats stats;
+  const auto a = radiance_query(vsg, env, o, d, g, full);
+  const auto b = radiance_query(vsg, env, o, d, g, pruned, &stats);
+  const auto va = a.radiance.to_vector(), vb = b.radiance.to_vector();
+  double max_err = 0;
+  for (size_t i = 0; i < va.size(); ++i) max_err = std::max(max_err, std::abs(va[i] - vb[i]) / std::max(1.0, va[i]));
+  // Bound: min_transmittance · (1 + G_max) with G_max ≤ c ≤ softplus(1) ≈ 1.31.
+  EXPECT_LT(max_err, 1e-4 * (1 + 1.32) + 1e-5);
+  EXPECT_LT(stats.samples_evaluated, stats.samples_total);  // something was actually skipped
+  EXPECT_GT(stats.rays_terminated, 0);
+}
+
+TEST(RadianceQuery, ResultsAndGradientsAreIdenticalWithOneAndTwoThreads) {
+  const VsgGrid g = small_grid();
+  Tensor vsg = random_vsg(g, 40, DType::F32);
+  Tensor env = Tensor::uniform({3, 8, 16}, 0, 3, 41);
+  const Rays r = random_rays(3000, 42, DType::F32);
+  auto run = [&](int threads) {
+    omp_set_num_threads(threads);
+    Tensor v = vsg.clone().set_requires_grad(true), e = env.clone().set_requires_grad(true);
+    const auto q = radiance_query(v, e, r.origins, r.dirs, g);
+    backward(add(sum(square(q.radiance)), sum(q.transmittance)));
+    auto out = q.radiance.to_vector();
+    for (double x : v.grad().to_vector()) out.push_back(x);
+    for (double x : e.grad().to_vector()) out.push_back(x);
+    return out;
+  };
+  const auto one = run(1), two = run(2);
+  ASSERT_EQ(one.size(), two.size());
+  for (size_t i = 0; i < one.size(); ++i) ASSERT_EQ(one[i], two[i]) << i;
+}
+
+TEST(RadianceQuery, ExtremeLobeSharpnessAndZeroAxesStayFinite) {
+  const VsgGrid g = small_grid();
+  for (double sharp : {1e-3, 1.0, 1e4, 1e6}) {
+    Tensor vsg = random_vsg(g, 50, DType::F32);
+    slice(vsg, 0, 6, 7).fill_(sharp);
+    slice(vsg, 0, 3, 4).fill_(0.0);  // half the axes are zero vectors
+    slice(vsg, 0, 4, 6).fill_(0.0);
+    Tensor v = vsg.set_requires_grad(true);
+    Tensor env = Tensor::full({3, 8, 16}, 1e6f).set_requires_grad(true);
+    const Rays r = random_rays(200, 51, DType::F32);
+    const auto q = radiance_query(v, env, r.origins, r.dirs, g);
+    backward(sum(q.radiance));
+    for (double x : q.radiance.to_vector()) ASSERT_TRUE(std::isfinite(x)) << sharp;
+    for (double x : v.grad().to_vector()) ASSERT_TRUE(std::isfinite(x)) << sharp;
+    for (double x : env.grad().to_vector()) ASSERT_TRUE(std::isfinite(x)) << sharp;
+  }
+}
+
+TEST(RadianceQuery, BatchedQueryEqualsPerItemQueries) {
+  const VsgGrid g = small_grid();
+  Tensor v0 = random_vsg(g, 60, DType::F64), v1 = random_vsg(g, 61, DType::F64);
+  Tensor e0 = Tensor::uniform({3, 4, 8}, 0, 1, 62, DType::F64), e1 = Tensor::uniform({3, 4, 8}, 0, 1, 63, DType::F64);
+  const Rays r0 = random_rays(7, 64, DType::F64), r1 = random_rays(7, 66, DType::F64);
+  const auto b = radiance_query(stack({v0, v1}, 0), stack({e0, e1}, 0), stack({r0.origins, r1.origins}, 0),
+                                stack({r0.dirs, r1.dirs}, 0), g);
+  const auto a1 = radiance_query(v1, e1, r1.origins, r1.dirs, g);
+  EXPECT_EQ(select(b.radiance, 0, 1).to_vector(), a1.radiance.to_vector());
+}
+
+TEST(RadianceQuery, BadShapesAreErrorsNamingTheInput) {
+  const VsgGrid g = small_grid();
+  EXPECT_THROW(radiance_query(Tensor::zeros({7, 4, 4, 2}), Tensor::zeros({3, 4, 8}), Tensor::zeros({2, 3}),
+                              Tensor::zeros({2, 3}), g),
+               Error);
+  EXPECT_THROW(radiance_query(Tensor::zeros({8, 4, 4, 3}), Tensor::zeros({3, 4, 8}), Tensor::zeros({2, 3}),
+                              Tensor::zeros({2, 3}), g),
+               Error);
+}
+
+}  // namespace
+}  // namespace sl

@@ -189,7 +189,7 @@ glm::dvec3 Camera::camera_direction(double u, double v) const {
   return glm::dvec3((u - k_.cx) / k_.fx, (v - k_.cy) / k_.fy, 1.0);
 }
 
-Ray Camera::ray(double u, double v) const {
+CameraRay Camera::ray(double u, double v) const {
   return {t_, glm::normalize(r_ * camera_direction(u, v))};
 }
 

@@ -71,7 +71,7 @@ KittiProjection kitti_projection_from_values(const std::array<double, 12>& p_row
 // Camera-to-world rotation for an OpenCV camera with the given yaw, pitch and roll (see above).
 glm::dmat3 rotation_from_yaw_pitch_roll(double yaw_rad, double pitch_rad, double roll_rad);
 
-struct Ray {
+struct CameraRay {
   glm::dvec3 origin;
   glm::dvec3 direction;  // unit, world frame
 };
@@ -94,8 +94,8 @@ class Camera {
   const glm::dvec3& position() const { return t_; }
 
   // Ray through continuous pixel coordinates (u, v); pixel (col, row) is (col + 0.5, row + 0.5).
-  Ray ray(double u, double v) const;
-  Ray pixel_ray(int col, int row) const { return ray(col + 0.5, row + 0.5); }
+  CameraRay ray(double u, double v) const;
+  CameraRay pixel_ray(int col, int row) const { return ray(col + 0.5, row + 0.5); }
   // Direction in the camera frame, NOT normalised: (x/z, y/z, 1).
   glm::dvec3 camera_direction(double u, double v) const;
   // World point at camera-frame depth z along the ray through (u, v).

@@ -80,15 +80,18 @@ void EnvironmentMap::build_sampling() {
     const double omega = equirect::pixel_solid_angle(i, W, H);
     double* cdf = &col_cdf_[static_cast<size_t>(i) * (W + 1)];
     for (int j = 0; j < W; ++j) {
-      // The bilinear lookup inside texel (i, j) never exceeds the brightest of its 3×3
-      // neighbours, so sampling by that bound keeps L/pdf bounded next to a one-texel sun.
-      double bound = 0.0;
+      // Mass = the exact average of the bilinear lookup over the texel: the tent weights
+      // 9/16 (centre), 3/32 (edge neighbours) and 1/64 (corners), with the lookup's pole clamp
+      // and seam wrap. pdf > 0 wherever the lookup is > 0, and L/pdf stays within 64× of its
+      // texel average even beside a one-texel sun.
+      double avg = 0.0;
       for (int di = -1; di <= 1; ++di)
         for (int dj = -1; dj <= 1; ++dj) {
           const glm::vec3 t = texel(std::clamp(i + di, 0, H - 1), (j + dj + W) % W);
-          bound = std::max(bound, luminance(t.r, t.g, t.b));
+          const double w = (di == 0 ? 0.75 : 0.125) * (dj == 0 ? 0.75 : 0.125);
+          avg += w * luminance(t.r, t.g, t.b);
         }
-      const double m = bound * omega;
+      const double m = avg * omega;
       texel_pdf_[static_cast<size_t>(i) * W + j] = m;
       cdf[j + 1] = cdf[j] + m;
     }

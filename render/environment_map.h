@@ -8,9 +8,9 @@
 // - env_lookup(env, dirs) is the same lookup as ONE tape op over a batch of directions,
 //   differentiable with respect to the texels (and not the directions). Zero-length or
 //   non-finite directions read 0 and pass no gradient.
-// - Importance sampling: a texel is chosen with probability ∝ (the largest luminance among it
-//   and its 8 neighbours, a bound on the bilinear lookup inside it) × its solid angle
-//   (piecewise constant), then a direction uniformly in solid angle inside it. pdf() is in
+// - Importance sampling: a texel is chosen with probability ∝ (the average luminance of the
+//   bilinear lookup over it: tent weights 9/16, 3/32, 1/64 over its 3×3 neighbourhood) × its
+//   solid angle (piecewise constant), then a direction uniformly in solid angle inside it. pdf() is in
 //   solid angle (1/sr) and equals the density sample() draws from, Jacobian of the sphere
 //   (the cos θ of the elevation) included. A black map falls back to uniform sphere sampling.
 // - rotated(φ): the map seen after rotating the world by φ about +Y (azimuth φ → φ + angle).

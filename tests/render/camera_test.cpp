@@ -38,7 +38,7 @@ TEST(Camera, ProjectingAPointOnAPixelRayReturnsThatPixel) {
   for (double u : {0.0, 0.5, 100.25, 639.9})
     for (double v : {0.0, 17.5, 479.5})
       for (double depth : {0.1, 3.0, 250.0}) {
-        const sl::Ray ray = cam.ray(u, v);
+        const sl::CameraRay ray = cam.ray(u, v);
         EXPECT_NEAR(glm::length(ray.direction), 1.0, 1e-12);
         const glm::dvec3 p = cam.unproject(u, v, depth);
         const sl::Projection pr = cam.project(p);

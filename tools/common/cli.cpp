@@ -1,0 +1,142 @@
+#include "tools/common/cli.h"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <exception>
+
+#include "autodiff/error.h"
+#include "tools/common/config.h"
+
+namespace sl::cli {
+
+Args::Args(std::string program, std::string synopsis, std::vector<Flag> flags)
+    : program_(std::move(program)), synopsis_(std::move(synopsis)), flags_(std::move(flags)) {}
+
+std::string Args::help_text() const {
+  std::string s = "usage: " + program_ + " " + synopsis_ + "\n\noptions:\n";
+  for (const Flag& f : flags_) {
+    std::string left = "  " + f.name + (f.value_name.empty() ? "" : " " + f.value_name);
+    if (left.size() < 30) left.resize(30, ' ');
+    s += left + " " + f.help + (f.repeatable ? " (repeatable)" : "") + "\n";
+  }
+  s += "  --help                       print this help\n";
+  return s;
+}
+
+bool Args::parse(int argc, char** argv) {
+  std::vector<std::string> names;
+  for (const Flag& f : flags_) names.push_back(f.name);
+  for (int i = 1; i < argc; ++i) {
+    std::string a = argv[i];
+    if (a == "--help" || a == "-h") {
+      std::fputs(help_text().c_str(), stdout);
+      return false;
+    }
+    std::string value;
+    bool inline_value = false;
+    if (const size_t eq = a.find('='); a.rfind("--", 0) == 0 && eq != std::string::npos) {
+      value = a.substr(eq + 1);
+      a = a.substr(0, eq);
+      inline_value = true;
+    }
+    const Flag* flag = nullptr;
+    for (const Flag& f : flags_)
+      if (f.name == a) flag = &f;
+    if (!flag) {
+      const std::string near = nearest(a, names);
+      fail(program_, ": unknown option '", a, "'", near.empty() ? "" : " (did you mean '" + near + "'?)",
+           "; try --help");
+    }
+    if (!flag->value_name.empty() && !inline_value) {
+      SL_CHECK(i + 1 < argc, program_, ": option ", a, " needs a value (", flag->value_name, ")");
+      value = argv[++i];
+    }
+    auto& slot = values_[a];
+    SL_CHECK(flag->repeatable || slot.empty(), program_, ": option ", a, " given more than once");
+    slot.push_back(value);
+  }
+  return true;
+}
+
+bool Args::has(const std::string& name) const { return values_.count(name) > 0; }
+
+std::string Args::get(const std::string& name, const std::string& fallback) const {
+  auto it = values_.find(name);
+  return it == values_.end() ? fallback : it->second.back();
+}
+
+std::vector<std::string> Args::all(const std::string& name) const {
+  auto it = values_.find(name);
+  return it == values_.end() ? std::vector<std::string>{} : it->second;
+}
+
+double Args::number(const std::string& name, double fallback) const {
+  if (!has(name)) return fallback;
+  const std::string v = get(name);
+  try {
+    size_t used = 0;
+    const double d = std::stod(v, &used);
+    if (used == v.size()) return d;
+  } catch (const std::exception&) {
+  }
+  fail(program_, ": option ", name, " expects a number, got '", v, "'");
+}
+
+int64_t Args::integer(const std::string& name, int64_t fallback) const {
+  if (!has(name)) return fallback;
+  const std::string v = get(name);
+  try {
+    size_t used = 0;
+    const long long d = std::stoll(v, &used);
+    if (used == v.size()) return d;
+  } catch (const std::exception&) {
+  }
+  fail(program_, ": option ", name, " expects an integer, got '", v, "'");
+}
+
+int run_main(const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const sl::Error& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+  }
+}
+
+Progress::Progress(std::string label, int64_t total, double plain_interval_s)
+    : label_(std::move(label)), total_(total), interval_(plain_interval_s), tty_(isatty(STDERR_FILENO) != 0) {
+  start_ = last_ = clock::now();
+}
+
+void Progress::update(int64_t done, const std::string& extra) {
+  const auto now = clock::now();
+  const double since = std::chrono::duration<double>(now - last_).count();
+  if (!tty_ && since < interval_ && done < total_) return;
+  if (tty_ && since < 0.1 && done < total_) return;
+  last_ = now;
+  const double elapsed = std::chrono::duration<double>(now - start_).count();
+  const double rate = elapsed > 0 ? done / elapsed : 0;
+  const double eta = rate > 0 ? (total_ - done) / rate : 0;
+  if (tty_) {
+    const int width = 28, filled = total_ > 0 ? int(width * done / total_) : 0;
+    std::fprintf(stderr, "\r%s [%s%s] %lld/%lld %.2f it/s ETA %.0fs %s\033[K", label_.c_str(),
+                 std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), (long long)done,
+                 (long long)total_, rate, eta, extra.c_str());
+  } else {
+    std::fprintf(stderr, "%s %lld/%lld (%.2f it/s, ETA %.0fs) %s\n", label_.c_str(), (long long)done,
+                 (long long)total_, rate, eta, extra.c_str());
+  }
+  std::fflush(stderr);
+}
+
+void Progress::finish(const std::string& extra) {
+  const double elapsed = std::chrono::duration<double>(clock::now() - start_).count();
+  if (tty_) std::fputs("\n", stderr);
+  std::fprintf(stderr, "%s done: %lld in %.1fs %s\n", label_.c_str(), (long long)total_, elapsed, extra.c_str());
+}
+
+}  // namespace sl::cli

@@ -1,0 +1,63 @@
+// The shared style of every Streetlight executable (DESIGN: "Executables").
+//
+// Contract:
+// - Args: --help prints the synopsis and every flag and returns false from parse(); an unknown
+//   flag is an error naming it and the nearest known flag; a flag missing its value is an
+//   error. Flags may repeat when declared repeatable (--set, --checkpoint).
+// - run_main(): sl::Error -> one line "error: <message>" on stderr and exit 2 (bad input);
+//   any other exception -> "error: ..." and exit 1 (failure at run time).
+// - Progress: on a terminal, one self-overwriting bar with rate and ETA; otherwise a plain line
+//   at most every `plain_interval_s` seconds (and at the end), so logs stay short.
+#pragma once
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace sl::cli {
+
+struct Flag {
+  std::string name;        // "--config"
+  std::string value_name;  // "FILE"; empty for a switch
+  std::string help;
+  bool repeatable = false;
+};
+
+class Args {
+ public:
+  Args(std::string program, std::string synopsis, std::vector<Flag> flags);
+  bool parse(int argc, char** argv);  // false when --help was printed
+
+  bool has(const std::string& name) const;
+  std::string get(const std::string& name, const std::string& fallback = "") const;
+  std::vector<std::string> all(const std::string& name) const;
+  double number(const std::string& name, double fallback) const;
+  int64_t integer(const std::string& name, int64_t fallback) const;
+  std::string help_text() const;
+
+ private:
+  std::string program_, synopsis_;
+  std::vector<Flag> flags_;
+  std::map<std::string, std::vector<std::string>> values_;
+};
+
+int run_main(const std::function<int()>& body);
+
+class Progress {
+ public:
+  Progress(std::string label, int64_t total, double plain_interval_s = 10.0);
+  void update(int64_t done, const std::string& extra = "");
+  void finish(const std::string& extra = "");
+
+ private:
+  using clock = std::chrono::steady_clock;
+  std::string label_;
+  int64_t total_;
+  double interval_;
+  bool tty_;
+  clock::time_point start_, last_;
+};
+
+}  // namespace sl::cli

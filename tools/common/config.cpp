@@ -1,0 +1,184 @@
+#include "tools/common/config.h"
+
+#include <algorithm>
+#include <fstream>
+
+#include "autodiff/error.h"
+
+namespace sl::cli {
+
+using json = nlohmann::json;
+
+namespace {
+
+size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<size_t> prev(b.size() + 1), cur(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    cur[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j)
+      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+    std::swap(prev, cur);
+  }
+  return prev[b.size()];
+}
+
+const char* type_name(const json& j) {
+  if (j.is_boolean()) return "boolean";
+  if (j.is_number_integer()) return "integer";
+  if (j.is_number()) return "number";
+  if (j.is_string()) return "string";
+  if (j.is_array()) return "array";
+  if (j.is_object()) return "object";
+  return "null";
+}
+
+bool compatible(const json& def, const json& val) {
+  if (def.is_null()) return true;  // a default of null accepts anything (optional paths)
+  if (def.is_number_float()) return val.is_number();
+  if (def.is_number_integer()) return val.is_number_integer();
+  if (def.is_boolean()) return val.is_boolean();
+  if (def.is_string()) return val.is_string() || val.is_null();
+  if (def.is_array()) return val.is_array();
+  if (def.is_object()) return val.is_object();
+  return false;
+}
+
+void merge_into(json& target, const json& defaults, const json& src, const std::string& prefix,
+                const std::vector<std::string>& all_paths, const std::string& origin) {
+  SL_CHECK(src.is_object(), origin, ": ", prefix.empty() ? "the config" : "key '" + prefix + "'",
+           " must be an object, got ", type_name(src));
+  for (auto it = src.begin(); it != src.end(); ++it) {
+    const std::string path = prefix.empty() ? it.key() : prefix + "." + it.key();
+    if (!defaults.contains(it.key())) {
+      const std::string near = nearest(path, all_paths);
+      fail(origin, ": unknown key '", path, "'", near.empty() ? "" : " (did you mean '" + near + "'?)");
+    }
+    const json& def = defaults[it.key()];
+    if (def.is_object() && !def.empty()) {
+      merge_into(target[it.key()], def, it.value(), path, all_paths, origin);
+      continue;
+    }
+    SL_CHECK(compatible(def, it.value()), origin, ": key '", path, "' expects ", type_name(def), ", got ",
+             type_name(it.value()), " (", it.value().dump(), ")");
+    target[it.key()] = it.value();
+  }
+}
+
+}  // namespace
+
+std::vector<std::string> key_paths(const json& j, const std::string& prefix) {
+  std::vector<std::string> out;
+  if (!j.is_object()) return out;
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    const std::string path = prefix.empty() ? it.key() : prefix + "." + it.key();
+    out.push_back(path);
+    for (const auto& p : key_paths(it.value(), path)) out.push_back(p);
+  }
+  return out;
+}
+
+std::string nearest(const std::string& key, const std::vector<std::string>& candidates) {
+  std::string best;
+  size_t best_d = SIZE_MAX;
+  const std::string leaf = key.substr(key.rfind('.') == std::string::npos ? 0 : key.rfind('.') + 1);
+  for (const auto& c : candidates) {
+    const std::string cleaf = c.substr(c.rfind('.') == std::string::npos ? 0 : c.rfind('.') + 1);
+    const size_t d = std::min(edit_distance(key, c), edit_distance(leaf, cleaf) + 1);
+    if (d < best_d) {
+      best_d = d;
+      best = c;
+    }
+  }
+  return best_d <= std::max<size_t>(3, key.size() / 3) ? best : "";
+}
+
+Config::Config(json defaults) : defaults_(std::move(defaults)), value_(defaults_) {
+  SL_CHECK(defaults_.is_object(), "Config: defaults must be a JSON object");
+}
+
+void Config::merge(const json& overrides, const std::string& origin) {
+  merge_into(value_, defaults_, overrides, "", key_paths(defaults_), origin);
+}
+
+void Config::merge_file(const std::string& path) {
+  std::ifstream in(path);
+  SL_CHECK(in.good(), "cannot open config file '", path, "'");
+  json j;
+  try {
+    j = json::parse(in, nullptr, true, /*ignore_comments=*/true);
+  } catch (const json::parse_error& e) {
+    fail("config file '", path, "' is not valid JSON: ", e.what());
+  }
+  merge(j, "config file '" + path + "'");
+}
+
+void Config::set(const std::string& assignment) {
+  const size_t eq = assignment.find('=');
+  SL_CHECK(eq != std::string::npos && eq > 0, "--set expects key.path=value, got '", assignment, "'");
+  const std::string path = assignment.substr(0, eq), text = assignment.substr(eq + 1);
+  json value;
+  try {
+    value = json::parse(text);
+  } catch (const json::parse_error&) {
+    value = text;  // a bare string
+  }
+  json nested = value;
+  std::string rest = path;
+  std::vector<std::string> parts;
+  for (size_t p; (p = rest.find('.')) != std::string::npos; rest = rest.substr(p + 1)) parts.push_back(rest.substr(0, p));
+  parts.push_back(rest);
+  for (size_t i = parts.size(); i-- > 0;) nested = json{{parts[i], nested}};
+  merge(nested, "--set " + path);
+}
+
+const json& Config::at(const std::string& path) const {
+  const json* j = &value_;
+  std::string rest = path;
+  while (true) {
+    const size_t p = rest.find('.');
+    const std::string key = rest.substr(0, p);
+    SL_CHECK(j->is_object() && j->contains(key), "config has no key '", path, "'");
+    j = &(*j)[key];
+    if (p == std::string::npos) return *j;
+    rest = rest.substr(p + 1);
+  }
+}
+
+double Config::number(const std::string& path) const {
+  const json& j = at(path);
+  SL_CHECK(j.is_number(), "config key '", path, "' is ", type_name(j), ", expected a number");
+  return j.get<double>();
+}
+
+int64_t Config::integer(const std::string& path) const {
+  const json& j = at(path);
+  SL_CHECK(j.is_number_integer(), "config key '", path, "' is ", type_name(j), ", expected an integer");
+  return j.get<int64_t>();
+}
+
+bool Config::boolean(const std::string& path) const {
+  const json& j = at(path);
+  SL_CHECK(j.is_boolean(), "config key '", path, "' is ", type_name(j), ", expected a boolean");
+  return j.get<bool>();
+}
+
+std::string Config::string(const std::string& path) const {
+  const json& j = at(path);
+  if (j.is_null()) return "";
+  SL_CHECK(j.is_string(), "config key '", path, "' is ", type_name(j), ", expected a string");
+  return j.get<std::string>();
+}
+
+std::vector<double> Config::numbers(const std::string& path) const {
+  const json& j = at(path);
+  SL_CHECK(j.is_array(), "config key '", path, "' is ", type_name(j), ", expected an array of numbers");
+  std::vector<double> out;
+  for (const auto& v : j) {
+    SL_CHECK(v.is_number(), "config key '", path, "' holds ", v.dump(), ", expected numbers only");
+    out.push_back(v.get<double>());
+  }
+  return out;
+}
+
+}  // namespace sl::cli

@@ -1,0 +1,22 @@
+// The two reductions behind object insertion, as one tape node each (used by object_insertion).
+//
+// weighted_segment_sum (Eq. 2): values [R, 3] (tape), weights [R, 3] (constant), and segment
+//   offsets o[0..P] (o[0] = 0, non-decreasing, o[P] = R) give out[p] = Σ_{r ∈ [o_p, o_{p+1})}
+//   w_r ⊙ v_r, [P, 3]. The light samples of a pixel are one segment: weights carry the BRDF,
+//   cosine, 1/pdf and 1/(samples) factors.
+// shadow_ratio (Eq. 4): radiance L [R, 3] (tape), per-ray visibility m_r ∈ {I_a, 1} (constant)
+//   and offsets give S[p] = (Σ m_r L_r + ε) / (Σ L_r + ε) per channel, [P, 3]. The guard ε > 0
+//   keeps S finite and → 1 as the light vanishes. ∂S/∂L_r = (m_r − S)/(Σ L + ε).
+// Segments are independent, so both are deterministic for any thread count.
+#pragma once
+#include <vector>
+
+#include "autodiff/tensor.h"
+
+namespace sl {
+
+Tensor weighted_segment_sum(const Tensor& values, const Tensor& weights, const std::vector<int64_t>& offsets);
+Tensor shadow_ratio(const Tensor& radiance, const std::vector<double>& visibility, const std::vector<int64_t>& offsets,
+                    double epsilon);
+
+}  // namespace sl

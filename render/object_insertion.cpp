@@ -1,0 +1,372 @@
+// insert_objects(): Sec 3.3 — foreground (Eq. 2), ratio shadows (Eq. 3-4), compositing.
+// Geometry, materials and sampling are constants; the lighting (env, vsg) is on the tape. All
+// light and shadow rays go through ONE radiance query; two segment reductions and a few
+// gather/scatter ops assemble the image.
+#include "render/object_insertion.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "autodiff/ops.h"
+#include "autodiff/random.h"
+#include "render/disney_brdf.h"
+#include "render/environment_map.h"
+#include "render/insertion_ops.h"
+#include "render/sampling.h"
+
+namespace sl {
+namespace {
+
+constexpr uint64_t kTagAa = 0xA11A5EEDull, kTagLight = 0x11647ull, kTagShadow = 0x5AD0Eull, kTagChoice = 0xC401CEull;
+
+bool valid_depth(double d) { return std::isfinite(d) && d > 0.0; }
+
+float ray_epsilon(const glm::vec3& p) { return 1e-3f + 1e-4f * glm::length(p); }
+
+disney::Params material_at(const Mesh& mesh, const Hit& hit) {
+  disney::Params p;
+  if (mesh.materials.empty()) return p;
+  const uint32_t id = hit.triangle < mesh.material_ids.size() ? mesh.material_ids[hit.triangle] : 0;
+  const Material& m = mesh.materials[std::min<size_t>(id, mesh.materials.size() - 1)];
+  glm::vec2 uv(0.0f);
+  if (!mesh.uvs.empty()) {
+    const glm::uvec3 t = mesh.triangles[hit.triangle];
+    uv = (1 - hit.u - hit.v) * mesh.uvs[t.x] + hit.u * mesh.uvs[t.y] + hit.v * mesh.uvs[t.z];
+  }
+  p.base_color = glm::vec3(m.base_color(uv));
+  p.metallic = m.metallic;
+  p.roughness = m.roughness;
+  p.clearcoat = m.clearcoat;
+  p.clearcoat_gloss = 1.0f - m.clearcoat_roughness;
+  return p;
+}
+
+glm::vec3 shading_normal(const Mesh& mesh, const Hit& hit, const glm::vec3& dir) {
+  const glm::uvec3 t = mesh.triangles[hit.triangle];
+  glm::vec3 n;
+  if (mesh.normals.size() == mesh.positions.size())
+    n = (1 - hit.u - hit.v) * mesh.normals[t.x] + hit.u * mesh.normals[t.y] + hit.v * mesh.normals[t.z];
+  else
+    n = glm::cross(mesh.positions[t.y] - mesh.positions[t.x], mesh.positions[t.z] - mesh.positions[t.x]);
+  n = safe_normalize(n);
+  if (glm::dot(n, n) == 0.0f) n = -dir;
+  return glm::dot(n, dir) > 0 ? -n : n;  // face the viewer
+}
+
+// A ray leaving the object or the ground.
+struct QueryRays {
+  std::vector<float> origin, dir;  // 3 per ray
+  void push(const glm::vec3& o, const glm::vec3& d) {
+    origin.insert(origin.end(), {o.x, o.y, o.z});
+    dir.insert(dir.end(), {d.x, d.y, d.z});
+  }
+  int64_t size() const { return int64_t(origin.size() / 3); }
+};
+
+// Pixel rectangle [x0, x1) × [y0, y1) that the object's box covers (the whole image when a
+// corner is behind the camera, or when pruning is off).
+struct Rect {
+  int x0, y0, x1, y1;
+  int64_t area() const { return int64_t(std::max(0, x1 - x0)) * std::max(0, y1 - y0); }
+};
+
+Rect screen_bounds(const Bounds3& b, const Camera& cam, bool prune) {
+  const int W = cam.intrinsics().width, H = cam.intrinsics().height;
+  if (!prune) return {0, 0, W, H};
+  double u0 = 1e30, v0 = 1e30, u1 = -1e30, v1 = -1e30;
+  for (int c = 0; c < 8; ++c) {
+    const glm::dvec3 p((c & 1) ? b.hi.x : b.lo.x, (c & 2) ? b.hi.y : b.lo.y, (c & 4) ? b.hi.z : b.lo.z);
+    const Projection pr = cam.project(p);
+    if (!pr.in_front) return {0, 0, W, H};
+    u0 = std::min(u0, pr.pixel.x);
+    u1 = std::max(u1, pr.pixel.x);
+    v0 = std::min(v0, pr.pixel.y);
+    v1 = std::max(v1, pr.pixel.y);
+  }
+  return {std::clamp(int(std::floor(u0)), 0, W), std::clamp(int(std::floor(v0)), 0, H),
+          std::clamp(int(std::ceil(u1)) + 1, 0, W), std::clamp(int(std::ceil(v1)) + 1, 0, H)};
+}
+
+bool ray_hits_box(const glm::vec3& o, const glm::vec3& d, const Bounds3& b) {
+  float t0 = 0.0f, t1 = 1e30f;
+  for (int a = 0; a < 3; ++a) {
+    const float inv = 1.0f / d[a];
+    float ta = (b.lo[a] - o[a]) * inv, tb = (b.hi[a] - o[a]) * inv;
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, std::isnan(ta) ? t0 : ta);
+    t1 = std::min(t1, std::isnan(tb) ? t1 : tb);
+  }
+  return t0 <= t1;
+}
+
+struct Foreground {
+  std::vector<int64_t> pixels;   // image pixels with at least one visible sample
+  std::vector<int64_t> offsets;  // per pixel, into the light rays
+  std::vector<float> weights;    // 3 per light ray: f·cos/pdf / (N·aa), × I_a when self-occluded
+  std::vector<float> coverage, depth;  // per image pixel
+};
+
+void trace_foreground(const InsertionInputs& in, const InsertionOptions& opt, const Mesh& mesh, const Bvh& bvh,
+                      const EnvironmentMap& env_map, const double* depth, Foreground& fg, QueryRays& rays,
+                      InsertionStats& stats) {
+  const Camera& cam = in.camera;
+  const int W = cam.intrinsics().width, H = cam.intrinsics().height;
+  const Rect r = screen_bounds(mesh.bounds(), cam, opt.prune);
+  stats.image_pixels_total = int64_t(W) * H;
+  fg.coverage.assign(size_t(W) * H, 0.0f);
+  fg.depth.assign(size_t(W) * H, 0.0f);
+  const uint64_t aa_seed = hash_counter(opt.seed, kTagAa), light_seed = hash_counter(opt.seed, kTagLight);
+  const uint64_t choice_seed = hash_counter(opt.seed, kTagChoice);
+  fg.offsets.push_back(0);
+  for (int row = r.y0; row < r.y1; ++row)
+    for (int col = r.x0; col < r.x1; ++col) {
+      const int64_t pix = int64_t(row) * W + col;
+      ++stats.foreground_pixels_shaded;
+      int visible = 0;
+      double zsum = 0;
+      for (int s = 0; s < opt.aa_samples; ++s) {
+        const double u = col + uniform01(aa_seed, uint64_t(pix), 2 * s), v = row + uniform01(aa_seed, uint64_t(pix), 2 * s + 1);
+        const CameraRay cr = cam.ray(u, v);
+        Ray ray;
+        ray.origin = glm::vec3(cr.origin);
+        ray.direction = glm::vec3(cr.direction);
+        const Hit hit = bvh.intersect(ray);
+        if (!hit.hit()) continue;
+        const glm::vec3 x = ray.origin + hit.t * ray.direction;
+        const double z = cam.world_to_camera(glm::dvec3(x)).z;
+        // Scene geometry nearer than the object hides it: the photo wins.
+        if (valid_depth(depth[pix]) && depth[pix] < z * (1.0 - 1e-3)) continue;
+        ++visible;
+        zsum += z;
+        const glm::vec3 n = shading_normal(mesh, hit, ray.direction), wo = -ray.direction;
+        const disney::Params mat = material_at(mesh, hit);
+        const Frame frame(n);
+        const glm::vec3 origin = x + ray_epsilon(x) * n;
+        const uint64_t stream = uint64_t(pix) * uint64_t(opt.aa_samples) + s;
+        for (int k = 0; k < opt.light_samples; ++k) {
+          const float u1 = uniform01f(light_seed, stream, 2 * k), u2 = uniform01f(light_seed, stream, 2 * k + 1);
+          glm::vec3 l;
+          float pdf;
+          if (!opt.importance_sampling) {  // training: cosine-weighted hemisphere
+            l = frame.to_world(cosine_hemisphere(u1, u2));
+            pdf = cosine_hemisphere_pdf(glm::dot(l, n));
+          } else {  // inference: one-sample MIS of BRDF and environment sampling (balance heuristic)
+            if (uniform01f(choice_seed, stream, k) < 0.5f) {
+              l = disney::sample(mat, n, wo, u1, u2, uniform01f(choice_seed, stream, k + opt.light_samples)).wi;
+            } else {
+              l = env_map.sample(u1, u2).direction;
+            }
+            pdf = 0.5f * disney::pdf(mat, n, wo, l) + 0.5f * env_map.pdf(l);
+          }
+          const float cos_l = glm::dot(l, n);
+          glm::vec3 w(0.0f);
+          if (cos_l > 0 && pdf > 0 && std::isfinite(pdf)) {
+            w = disney::eval(mat, n, wo, l) * (cos_l / pdf) / float(opt.light_samples * opt.aa_samples);
+            if (!all_finite(w)) w = glm::vec3(0.0f);
+            Ray shadow;
+            shadow.origin = origin;
+            shadow.direction = l;
+            if (bvh.occluded(shadow)) w *= float(opt.ambient);  // blocked by the object itself
+          } else {
+            l = n;  // a harmless ray with zero weight keeps the segment layout regular
+          }
+          rays.push(origin, l);
+          fg.weights.insert(fg.weights.end(), {w.x, w.y, w.z});
+        }
+      }
+      if (visible > 0) {
+        fg.pixels.push_back(pix);
+        fg.offsets.push_back(rays.size());
+        fg.coverage[pix] = float(visible) / opt.aa_samples;
+        fg.depth[pix] = float(zsum / visible);
+      }
+    }
+}
+
+struct Shadows {
+  std::vector<int64_t> texels;   // shadow-map texels computed
+  std::vector<int64_t> offsets;  // per texel, into the shadow rays (relative to their start)
+  std::vector<double> visibility;
+  std::vector<float> texel_depth;  // per texel of the whole map (0 = hole)
+};
+
+void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const Bounds3& box, const Bvh& bvh,
+                   const double* depth, int64_t ray_base, Shadows& sh, QueryRays& rays, InsertionStats& stats) {
+  const Camera& cam = in.camera;
+  const int W = cam.intrinsics().width, H = cam.intrinsics().height;
+  const int sw = opt.shadow_width, shh = opt.shadow_height;
+  const uint64_t seed = hash_counter(opt.seed, kTagShadow);
+  const glm::vec3 up(0, 1, 0);
+  const Frame frame(up);
+  sh.texel_depth.assign(size_t(sw) * shh, 0.0f);
+  sh.offsets.push_back(0);
+  stats.shadow_pixels_total = int64_t(sw) * shh;
+  std::vector<glm::vec3> dirs(opt.shadow_rays);
+  for (int i = 0; i < shh; ++i)
+    for (int j = 0; j < sw; ++j) {
+      const int64_t t = int64_t(i) * sw + j;
+      const double u = (j + 0.5) * W / sw, v = (i + 0.5) * H / shh;
+      const double d = depth[std::min<int64_t>(H - 1, int64_t(v)) * W + std::min<int64_t>(W - 1, int64_t(u))];
+      if (!valid_depth(d)) continue;  // a hole (sky, missing depth): S = 1
+      sh.texel_depth[t] = float(d);
+      const glm::vec3 x(cam.unproject(u, v, d));
+      const glm::vec3 origin = x + ray_epsilon(x) * up;
+      bool any = !opt.prune;
+      for (int k = 0; k < opt.shadow_rays; ++k) {
+        dirs[k] = frame.to_world(cosine_hemisphere(uniform01f(seed, uint64_t(t), 2 * k), uniform01f(seed, uint64_t(t), 2 * k + 1)));
+        any = any || ray_hits_box(origin, dirs[k], box);
+      }
+      if (!any) continue;  // no direction can meet the object: S = 1 exactly
+      sh.texels.push_back(t);
+      for (int k = 0; k < opt.shadow_rays; ++k) {
+        Ray r;
+        r.origin = origin;
+        r.direction = dirs[k];
+        sh.visibility.push_back(bvh.occluded(r) ? opt.ambient : 1.0);
+        rays.push(origin, dirs[k]);
+      }
+      sh.offsets.push_back(rays.size() - ray_base);
+    }
+  stats.shadow_pixels_computed = int64_t(sh.texels.size());
+}
+
+// Edge-aware upsampling taps: 4 bilinear texels per image pixel, weighted by depth similarity
+// (σ = 5% of the pixel's depth), renormalised. Index `n_texels` is a constant-1 row for pixels
+// with no depth.
+void upsample_taps(const InsertionInputs& in, const InsertionOptions& opt, const Shadows& sh, const double* depth,
+                   std::vector<int64_t>& idx, std::vector<double>& w) {
+  const int W = in.camera.intrinsics().width, H = in.camera.intrinsics().height;
+  const int sw = opt.shadow_width, shh = opt.shadow_height;
+  const int64_t one_row = int64_t(sw) * shh;
+  idx.assign(size_t(W) * H * 4, one_row);
+  w.assign(size_t(W) * H * 4, 0.0);
+  for (int row = 0; row < H; ++row)
+    for (int col = 0; col < W; ++col) {
+      const int64_t p = int64_t(row) * W + col;
+      const double dp = depth[p];
+      if (!valid_depth(dp)) {
+        w[4 * p] = 1.0;
+        continue;
+      }
+      const double fx = (col + 0.5) * sw / W - 0.5, fy = (row + 0.5) * shh / H - 0.5;
+      const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
+      const double ax = fx - x0, ay = fy - y0;
+      double total = 0;
+      for (int c = 0; c < 4; ++c) {
+        const int x = std::clamp(x0 + (c & 1), 0, sw - 1), y = std::clamp(y0 + (c >> 1), 0, shh - 1);
+        const int64_t t = int64_t(y) * sw + x;
+        const double bil = ((c & 1) ? ax : 1 - ax) * ((c >> 1) ? ay : 1 - ay);
+        const double dt = sh.texel_depth[t];
+        const double sim = dt > 0 ? std::exp(-0.5 * std::pow((dp - dt) / (0.05 * dp), 2)) : 0.0;
+        idx[4 * p + c] = dt > 0 ? t : one_row;
+        w[4 * p + c] = bil * std::max(sim, 1e-12);
+        total += w[4 * p + c];
+      }
+      for (int c = 0; c < 4; ++c) w[4 * p + c] = total > 0 ? w[4 * p + c] / total : (c == 0 ? 1.0 : 0.0);
+    }
+}
+
+void validate(const InsertionInputs& in, const InsertionOptions& opt) {
+  const int W = in.camera.intrinsics().width, H = in.camera.intrinsics().height;
+  SL_CHECK(in.background.dim() == 3 && in.background.size(0) == 3 && in.background.size(1) == H &&
+               in.background.size(2) == W,
+           "insert_objects: background ", in.background.describe(), " does not match the camera's ", W, "x", H);
+  SL_CHECK(in.depth.dim() == 2 && in.depth.size(0) == H && in.depth.size(1) == W, "insert_objects: depth ",
+           in.depth.describe(), " does not match the camera's ", W, "x", H, " image");
+  SL_CHECK(in.env.dim() == 3 && in.env.size(0) == 3, "insert_objects: env must be [3, H, W], got ", in.env.describe());
+  SL_CHECK(!in.vsg.defined() || in.vsg.dtype() == in.env.dtype(), "insert_objects: vsg ", in.vsg.describe(),
+           " and env ", in.env.describe(), " differ in dtype");
+  SL_CHECK(opt.aa_samples >= 1 && opt.light_samples >= 1 && opt.shadow_rays >= 1, "insert_objects: sample counts (aa ",
+           opt.aa_samples, ", light ", opt.light_samples, ", shadow ", opt.shadow_rays, ") must be >= 1");
+  SL_CHECK(opt.shadow_width >= 1 && opt.shadow_height >= 1, "insert_objects: shadow map ", opt.shadow_width, "x",
+           opt.shadow_height, " is empty");
+  SL_CHECK(opt.ambient >= 0 && opt.ambient <= 1, "insert_objects: ambient I_a = ", opt.ambient, " must be in [0, 1]");
+}
+
+Tensor as_tensor(const std::vector<float>& v, const Shape& shape, DType dt) {
+  Tensor t = Tensor::empty(shape, DType::F32);
+  std::copy(v.begin(), v.end(), t.data<float>());
+  return t.to(dt);
+}
+
+}  // namespace
+
+InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions& opt) {
+  validate(in, opt);
+  const DType dt = in.env.dtype();
+  const int W = in.camera.intrinsics().width, H = in.camera.intrinsics().height;
+  const int64_t HW = int64_t(W) * H;
+  InsertionResult out;
+
+  Mesh mesh;
+  for (const PlacedObject& o : in.objects) mesh.append(o.mesh);
+  const Bvh bvh(mesh);
+  const Tensor depth_t = in.depth.detach().to(DType::F64).contiguous();
+  const double* depth = depth_t.data<double>();
+  const EnvironmentMap env_map(in.env.detach());
+
+  Foreground fg;
+  Shadows sh;
+  QueryRays rays;
+  if (!bvh.empty()) {
+    trace_foreground(in, opt, mesh, bvh, env_map, depth, fg, rays, out.stats);
+    const int64_t fg_rays = rays.size();
+    trace_shadows(in, opt, bvh.bounds(), bvh, depth, fg_rays, sh, rays, out.stats);
+  } else {
+    fg.coverage.assign(size_t(HW), 0.0f);
+    fg.depth.assign(size_t(HW), 0.0f);
+    fg.offsets = {0};
+    sh.texel_depth.assign(size_t(opt.shadow_width) * opt.shadow_height, 0.0f);
+    sh.offsets = {0};
+    out.stats.image_pixels_total = HW;
+    out.stats.shadow_pixels_total = int64_t(opt.shadow_width) * opt.shadow_height;
+  }
+  const int64_t fg_rays = fg.offsets.back(), sh_rays = rays.size() - fg_rays;
+
+  // ---- one radiance query for every light and shadow ray (Eq. 1)
+  Tensor radiance = Tensor::zeros({0, 3}, dt);
+  if (rays.size() > 0) {
+    const Tensor o = as_tensor(rays.origin, {rays.size(), 3}, dt), d = as_tensor(rays.dir, {rays.size(), 3}, dt);
+    radiance = in.vsg.defined() ? radiance_query(in.vsg, in.env, o, d, in.grid, opt.query).radiance : env_lookup(in.env, d);
+  }
+
+  // ---- foreground: C = Σ w·L per pixel (Eq. 2), scattered into the image
+  Tensor colour = Tensor::zeros({HW, 3}, dt);
+  if (!fg.pixels.empty()) {
+    const Tensor per_pixel = weighted_segment_sum(slice(radiance, 0, 0, fg_rays),
+                                                  as_tensor(fg.weights, {fg_rays, 3}, dt), fg.offsets);
+    std::vector<int64_t> idx;
+    for (int64_t p : fg.pixels) idx.insert(idx.end(), {p, p, p});
+    colour = scatter_add(colour, 0, Tensor::from_indices(idx, {int64_t(fg.pixels.size()), 3}), per_pixel);
+  }
+
+  // ---- shadows: S per computed texel (Eq. 4), 1 elsewhere, upsampled edge-aware
+  const int64_t n_texels = int64_t(opt.shadow_width) * opt.shadow_height;
+  Tensor s_map = Tensor::ones({n_texels + 1, 3}, dt);  // the extra row is the constant 1
+  if (!sh.texels.empty()) {
+    // Guard of Eq. 4: S = (Σ L' + ε)/(Σ L + ε), ε = 1e-6 · mean sky radiance (never 0/0).
+    const double eps = 1e-6 * std::max(1e-12, mean(in.env.detach().to(DType::F64)).item());
+    const Tensor s = shadow_ratio(slice(radiance, 0, fg_rays, fg_rays + sh_rays), sh.visibility, sh.offsets, eps);
+    std::vector<int64_t> idx;
+    for (int64_t t : sh.texels) idx.insert(idx.end(), {t, t, t});
+    s_map = scatter_add(s_map, 0, Tensor::from_indices(idx, {int64_t(sh.texels.size()), 3}), add_scalar(s, -1.0));
+  }
+  std::vector<int64_t> tap_idx;
+  std::vector<double> tap_w;
+  upsample_taps(in, opt, sh, depth, tap_idx, tap_w);
+  const Tensor taps = index_select(s_map, 0, Tensor::from_indices(tap_idx, {HW * 4}));
+  const Tensor tap_weights = Tensor::from_vector(tap_w, {HW * 4, 1}, dt);
+  const Tensor s_img = sum(reshape(mul(taps, tap_weights), {HW, 4, 3}), {1});  // [HW, 3]
+
+  // ---- composite: I_edit = α·I_obj + (1 − α)·(S ⊙ I); α·I_obj is `colour` (coverage-weighted)
+  const Tensor alpha = as_tensor(fg.coverage, {HW, 1}, dt);
+  const Tensor background = reshape(permute(in.background.detach().to(dt), {1, 2, 0}), {HW, 3});
+  const Tensor composite = add(colour, mul(rsub_scalar(1.0, alpha), mul(s_img, background)));
+  out.composite = reshape(permute(reshape(composite, {H, W, 3}), {2, 0, 1}), {3, H, W});
+  out.shadow_map = reshape(permute(reshape(s_img, {H, W, 3}), {2, 0, 1}), {3, H, W});
+  out.object_mask = reshape(alpha, {1, H, W});
+  out.object_depth = as_tensor(fg.depth, {1, H, W}, dt);
+  return out;
+}
+
+}  // namespace sl

@@ -54,12 +54,12 @@ Tensor weighted_segment_sum(const Tensor& values, const Tensor& weights, const s
   return out;
 }
 
-Tensor shadow_ratio(const Tensor& radiance, const std::vector<double>& visibility, const std::vector<int64_t>& offsets,
-                    double epsilon) {
+Tensor shadow_ratio(const Tensor& radiance, const std::vector<double>& weights, const std::vector<double>& visibility,
+                    const std::vector<int64_t>& offsets, double epsilon) {
   SL_CHECK(radiance.dim() == 2 && radiance.size(1) == 3, "shadow_ratio: radiance must be [R, 3], got ",
            radiance.describe());
-  SL_CHECK(int64_t(visibility.size()) == radiance.size(0), "shadow_ratio: ", visibility.size(),
-           " visibilities for ", radiance.describe());
+  SL_CHECK(int64_t(visibility.size()) == radiance.size(0) && visibility.size() == weights.size(), "shadow_ratio: ",
+           visibility.size(), " visibilities and ", weights.size(), " weights for ", radiance.describe());
   SL_CHECK(epsilon > 0, "shadow_ratio: epsilon must be > 0, got ", epsilon);
   check_offsets("shadow_ratio", offsets, radiance.size(0));
   const int64_t P = int64_t(offsets.size()) - 1;
@@ -75,8 +75,8 @@ Tensor shadow_ratio(const Tensor& radiance, const std::vector<double>& visibilit
         for (int c = 0; c < 3; ++c) {
           double num = epsilon, den = epsilon;
           for (int64_t r = offsets[p]; r < offsets[p + 1]; ++r) {
-            num += visibility[r] * pl[3 * r + c];
-            den += pl[3 * r + c];
+            num += visibility[r] * weights[r] * pl[3 * r + c];
+            den += weights[r] * pl[3 * r + c];
           }
           ps[3 * p + c] = T(num / den);
           pd[3 * p + c] = T(den);
@@ -85,7 +85,7 @@ Tensor shadow_ratio(const Tensor& radiance, const std::vector<double>& visibilit
   });
   if (needs_grad({radiance})) {
     const Tensor Sd = S.detach();
-    record("shadow_ratio", {radiance}, {S}, [Sd, denom, visibility, offsets](const TensorList& g) {
+    record("shadow_ratio", {radiance}, {S}, [Sd, denom, weights, visibility, offsets](const TensorList& g) {
       const Tensor go = g[0].contiguous();
       const int64_t R = offsets.back(), P = int64_t(offsets.size()) - 1;
       Tensor gl = Tensor::empty({R, 3}, go.dtype());
@@ -97,7 +97,7 @@ Tensor shadow_ratio(const Tensor& radiance, const std::vector<double>& visibilit
           for (int64_t p = b; p < e; ++p)
             for (int64_t r = offsets[p]; r < offsets[p + 1]; ++r)
               for (int c = 0; c < 3; ++c)
-                pr[3 * r + c] = pg[3 * p + c] * (T(visibility[r]) - ps[3 * p + c]) / pd[3 * p + c];
+                pr[3 * r + c] = pg[3 * p + c] * T(weights[r]) * (T(visibility[r]) - ps[3 * p + c]) / pd[3 * p + c];
         });
       });
       return TensorList{gl};

@@ -11,6 +11,7 @@
 #include "autodiff/random.h"
 #include "render/disney_brdf.h"
 #include "render/environment_map.h"
+#include "render/equirect.h"
 #include "render/insertion_ops.h"
 #include "render/sampling.h"
 
@@ -187,11 +188,13 @@ struct Shadows {
   std::vector<int64_t> texels;   // shadow-map texels computed
   std::vector<int64_t> offsets;  // per texel, into the shadow rays (relative to their start)
   std::vector<double> visibility;
+  std::vector<double> weights;       // cos/pdf per shadow ray
   std::vector<float> texel_depth;  // per texel of the whole map (0 = hole)
 };
 
 void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const Bounds3& box, const Bvh& bvh,
-                   const double* depth, int64_t ray_base, Shadows& sh, QueryRays& rays, InsertionStats& stats) {
+                   const EnvironmentMap& env_map, const double* depth, int64_t ray_base, Shadows& sh, QueryRays& rays,
+                   InsertionStats& stats) {
   const Camera& cam = in.camera;
   const int W = cam.intrinsics().width, H = cam.intrinsics().height;
   const int sw = opt.shadow_width, shh = opt.shadow_height;
@@ -201,7 +204,9 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
   sh.texel_depth.assign(size_t(sw) * shh, 0.0f);
   sh.offsets.push_back(0);
   stats.shadow_pixels_total = int64_t(sw) * shh;
+  const uint64_t choice_seed = hash_counter(opt.seed, kTagChoice + 1);
   std::vector<glm::vec3> dirs(opt.shadow_rays);
+  std::vector<double> w(opt.shadow_rays);
   for (int i = 0; i < shh; ++i)
     for (int j = 0; j < sw; ++j) {
       const int64_t t = int64_t(i) * sw + j;
@@ -213,7 +218,17 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
       const glm::vec3 origin = x + ray_epsilon(x) * up;
       bool any = !opt.prune;
       for (int k = 0; k < opt.shadow_rays; ++k) {
-        dirs[k] = frame.to_world(cosine_hemisphere(uniform01f(seed, uint64_t(t), 2 * k), uniform01f(seed, uint64_t(t), 2 * k + 1)));
+        const float u1 = uniform01f(seed, uint64_t(t), 2 * k), u2 = uniform01f(seed, uint64_t(t), 2 * k + 1);
+        if (!opt.importance_sampling) {  // training: cosine-weighted, w = π cancels in the ratio
+          dirs[k] = frame.to_world(cosine_hemisphere(u1, u2));
+          w[k] = 1.0;
+        } else {  // inference: cosine + environment mixture, so a hard sun is found
+          dirs[k] = uniform01f(choice_seed, uint64_t(t), k) < 0.5f ? frame.to_world(cosine_hemisphere(u1, u2))
+                                                                  : env_map.sample(u1, u2).direction;
+          const double cos_t = dirs[k].y;
+          const double pdf = 0.5 * std::max(0.0, cos_t) / equirect::kPi + 0.5 * env_map.pdf(dirs[k]);
+          w[k] = (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0;
+        }
         any = any || ray_hits_box(origin, dirs[k], box);
       }
       if (!any) continue;  // no direction can meet the object: S = 1 exactly
@@ -222,8 +237,9 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
         Ray r;
         r.origin = origin;
         r.direction = dirs[k];
-        sh.visibility.push_back(bvh.occluded(r) ? opt.ambient : 1.0);
-        rays.push(origin, dirs[k]);
+        sh.visibility.push_back(w[k] > 0 && bvh.occluded(r) ? opt.ambient : 1.0);
+        sh.weights.push_back(w[k]);
+        rays.push(origin, w[k] > 0 ? dirs[k] : up);
       }
       sh.offsets.push_back(rays.size() - ray_base);
     }
@@ -311,7 +327,7 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   if (!bvh.empty()) {
     trace_foreground(in, opt, mesh, bvh, env_map, depth, fg, rays, out.stats);
     const int64_t fg_rays = rays.size();
-    trace_shadows(in, opt, bvh.bounds(), bvh, depth, fg_rays, sh, rays, out.stats);
+    trace_shadows(in, opt, bvh.bounds(), bvh, env_map, depth, fg_rays, sh, rays, out.stats);
   } else {
     fg.coverage.assign(size_t(HW), 0.0f);
     fg.depth.assign(size_t(HW), 0.0f);
@@ -346,7 +362,7 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   if (!sh.texels.empty()) {
     // Guard of Eq. 4: S = (Σ L' + ε)/(Σ L + ε), ε = 1e-6 · mean sky radiance (never 0/0).
     const double eps = 1e-6 * std::max(1e-12, mean(in.env.detach().to(DType::F64)).item());
-    const Tensor s = shadow_ratio(slice(radiance, 0, fg_rays, fg_rays + sh_rays), sh.visibility, sh.offsets, eps);
+    const Tensor s = shadow_ratio(slice(radiance, 0, fg_rays, fg_rays + sh_rays), sh.weights, sh.visibility, sh.offsets, eps);
     std::vector<int64_t> idx;
     for (int64_t t : sh.texels) idx.insert(idx.end(), {t, t, t});
     s_map = scatter_add(s_map, 0, Tensor::from_indices(idx, {int64_t(sh.texels.size()), 3}), add_scalar(s, -1.0));

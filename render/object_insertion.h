@@ -16,9 +16,11 @@
 // by the object itself see the ambient term I_a·L instead of L — the same rule as the shadow
 // rays, so the object's self-shadowing and its cast shadow agree.
 // Background (Eq. 3-4): each shadow-map pixel is lifted to 3D from the depth map with an upward
-// normal; N_s cosine-weighted upper-hemisphere directions are traced against the objects;
-//   S = Σ_k L'(x, l_k) / Σ_k L(x, l_k),  L' = I_a·L where occluded, L elsewhere
-// (cosine weighting is in the sampling, so both sums are plain averages). S is differentiable
+// normal; N_s upper-hemisphere directions are traced against the objects;
+//   S = Σ_k w_k L'(x, l_k) / Σ_k w_k L(x, l_k),  L' = I_a·L where occluded, L elsewhere,
+// w_k = cos/pdf. Training draws l_k cosine-weighted (w constant: plain averages, the paper's
+// form); inference mixes cosine and environment sampling, so a hard sun that cosine samples
+// would almost never hit still casts its shadow. S is differentiable
 // through numerator and denominator. Guard: S = (Σ L' + ε)/(Σ L + ε) with ε = 1e-6·mean(L_env),
 // so S → 1 as the light vanishes, never 0/0. The map is upsampled to the image edge-aware
 // (bilateral in depth), then I_edit = α·I_obj + (1 − α)·(S ⊙ I), with α the object's coverage,

@@ -55,12 +55,16 @@ Shape contiguous_strides(const Shape& shape) {
 
 // ---------------------------------------------------------------- Storage
 static std::atomic<int64_t> g_live_bytes{0};
+static std::atomic<int64_t> g_peak_bytes{0};
 
 Storage::Storage(size_t bytes) : bytes_(bytes) {
   const size_t rounded = ((bytes + 63) / 64) * 64;
   data_ = std::aligned_alloc(64, rounded == 0 ? 64 : rounded);
   if (!data_) fail("out of memory allocating ", bytes, " bytes");
-  g_live_bytes += static_cast<int64_t>(bytes_);
+  const int64_t now = g_live_bytes += static_cast<int64_t>(bytes_);
+  int64_t peak = g_peak_bytes.load(std::memory_order_relaxed);
+  while (now > peak && !g_peak_bytes.compare_exchange_weak(peak, now, std::memory_order_relaxed)) {
+  }
 }
 
 Storage::~Storage() {
@@ -69,6 +73,8 @@ Storage::~Storage() {
 }
 
 int64_t Storage::live_bytes() { return g_live_bytes.load(); }
+int64_t Storage::peak_bytes() { return g_peak_bytes.load(); }
+void Storage::reset_peak_bytes() { g_peak_bytes.store(g_live_bytes.load()); }
 
 // ---------------------------------------------------------------- factories
 Tensor Tensor::empty(const Shape& shape, DType dtype) {

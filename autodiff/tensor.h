@@ -51,6 +51,9 @@ class Storage {
   void* data() const { return data_; }
   size_t bytes() const { return bytes_; }
   static int64_t live_bytes();
+  // Highest live_bytes() since the last reset_peak_bytes() (for memory benchmarks).
+  static int64_t peak_bytes();
+  static void reset_peak_bytes();
 
  private:
   void* data_ = nullptr;

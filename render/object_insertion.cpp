@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
+#include "autodiff/parallel.h"
 #include "autodiff/random.h"
 #include "render/disney_brdf.h"
 #include "render/environment_map.h"
@@ -54,12 +55,18 @@ glm::vec3 shading_normal(const Mesh& mesh, const Hit& hit, const glm::vec3& dir)
   return glm::dot(n, dir) > 0 ? -n : n;  // face the viewer
 }
 
-// A ray leaving the object or the ground.
+// Rays leaving the object or the ground, in a fixed layout (slot i is written by one thread).
 struct QueryRays {
   std::vector<float> origin, dir;  // 3 per ray
-  void push(const glm::vec3& o, const glm::vec3& d) {
-    origin.insert(origin.end(), {o.x, o.y, o.z});
-    dir.insert(dir.end(), {d.x, d.y, d.z});
+  void resize(int64_t n) {
+    origin.assign(size_t(3 * n), 0.0f);
+    dir.assign(size_t(3 * n), 0.0f);
+  }
+  void set(int64_t i, const glm::vec3& o, const glm::vec3& d) {
+    for (int c = 0; c < 3; ++c) {
+      origin[size_t(3 * i + c)] = o[c];
+      dir[size_t(3 * i + c)] = d[c];
+    }
   }
   int64_t size() const { return int64_t(origin.size() / 3); }
 };
@@ -105,83 +112,118 @@ struct Foreground {
   std::vector<int64_t> offsets;  // per pixel, into the light rays
   std::vector<float> weights;    // 3 per light ray: f·cos/pdf / (N·aa), × I_a when self-occluded
   std::vector<float> coverage, depth;  // per image pixel
+  int light_samples = 0;         // N actually used
 };
 
-void trace_foreground(const InsertionInputs& in, const InsertionOptions& opt, const Mesh& mesh, const Bvh& bvh,
-                      const EnvironmentMap& env_map, const double* depth, Foreground& fg, QueryRays& rays,
-                      InsertionStats& stats) {
+// A visible primary sample: the G-buffer entry of Eq. 2.
+struct GSample {
+  int64_t pixel;
+  uint64_t stream;  // counter-RNG stream of its light samples
+  glm::vec3 x, n, wo;
+  disney::Params material;
+};
+
+// Pass 1: primary rays against the objects, in parallel over image rows.
+std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& opt, const Mesh& mesh, const Bvh& bvh,
+                             const double* depth, Foreground& fg, InsertionStats& stats) {
   const Camera& cam = in.camera;
   const int W = cam.intrinsics().width, H = cam.intrinsics().height;
   const Rect r = screen_bounds(mesh.bounds(), cam, opt.prune);
   stats.image_pixels_total = int64_t(W) * H;
+  stats.foreground_pixels_shaded = r.area();
   fg.coverage.assign(size_t(W) * H, 0.0f);
   fg.depth.assign(size_t(W) * H, 0.0f);
-  const uint64_t aa_seed = hash_counter(opt.seed, kTagAa), light_seed = hash_counter(opt.seed, kTagLight);
-  const uint64_t choice_seed = hash_counter(opt.seed, kTagChoice);
-  fg.offsets.push_back(0);
-  for (int row = r.y0; row < r.y1; ++row)
-    for (int col = r.x0; col < r.x1; ++col) {
-      const int64_t pix = int64_t(row) * W + col;
-      ++stats.foreground_pixels_shaded;
-      int visible = 0;
-      double zsum = 0;
-      for (int s = 0; s < opt.aa_samples; ++s) {
-        const double u = col + uniform01(aa_seed, uint64_t(pix), 2 * s), v = row + uniform01(aa_seed, uint64_t(pix), 2 * s + 1);
-        const CameraRay cr = cam.ray(u, v);
-        Ray ray;
-        ray.origin = glm::vec3(cr.origin);
-        ray.direction = glm::vec3(cr.direction);
-        const Hit hit = bvh.intersect(ray);
-        if (!hit.hit()) continue;
-        const glm::vec3 x = ray.origin + hit.t * ray.direction;
-        const double z = cam.world_to_camera(glm::dvec3(x)).z;
-        // Scene geometry nearer than the object hides it: the photo wins.
-        if (valid_depth(depth[pix]) && depth[pix] < z * (1.0 - 1e-3)) continue;
-        ++visible;
-        zsum += z;
-        const glm::vec3 n = shading_normal(mesh, hit, ray.direction), wo = -ray.direction;
-        const disney::Params mat = material_at(mesh, hit);
-        const Frame frame(n);
-        const glm::vec3 origin = x + ray_epsilon(x) * n;
-        const uint64_t stream = uint64_t(pix) * uint64_t(opt.aa_samples) + s;
-        for (int k = 0; k < opt.light_samples; ++k) {
-          const float u1 = uniform01f(light_seed, stream, 2 * k), u2 = uniform01f(light_seed, stream, 2 * k + 1);
-          glm::vec3 l;
-          float pdf;
-          if (!opt.importance_sampling) {  // training: cosine-weighted hemisphere
-            l = frame.to_world(cosine_hemisphere(u1, u2));
-            pdf = cosine_hemisphere_pdf(glm::dot(l, n));
-          } else {  // inference: one-sample MIS of BRDF and environment sampling (balance heuristic)
-            if (uniform01f(choice_seed, stream, k) < 0.5f) {
-              l = disney::sample(mat, n, wo, u1, u2, uniform01f(choice_seed, stream, k + opt.light_samples)).wi;
-            } else {
-              l = env_map.sample(u1, u2).direction;
-            }
-            pdf = 0.5f * disney::pdf(mat, n, wo, l) + 0.5f * env_map.pdf(l);
-          }
-          const float cos_l = glm::dot(l, n);
-          glm::vec3 w(0.0f);
-          if (cos_l > 0 && pdf > 0 && std::isfinite(pdf)) {
-            w = disney::eval(mat, n, wo, l) * (cos_l / pdf) / float(opt.light_samples * opt.aa_samples);
-            if (!all_finite(w)) w = glm::vec3(0.0f);
-            Ray shadow;
-            shadow.origin = origin;
-            shadow.direction = l;
-            if (bvh.occluded(shadow)) w *= float(opt.ambient);  // blocked by the object itself
-          } else {
-            l = n;  // a harmless ray with zero weight keeps the segment layout regular
-          }
-          rays.push(origin, l);
-          fg.weights.insert(fg.weights.end(), {w.x, w.y, w.z});
+  const uint64_t aa_seed = hash_counter(opt.seed, kTagAa);
+  std::vector<std::vector<GSample>> rows(size_t(std::max(0, r.y1 - r.y0)));
+  parallel_for(int64_t(rows.size()), 1, [&](int64_t b, int64_t e) {
+    for (int64_t ri = b; ri < e; ++ri) {
+      const int row = r.y0 + int(ri);
+      for (int col = r.x0; col < r.x1; ++col) {
+        const int64_t pix = int64_t(row) * W + col;
+        int visible = 0;
+        double zsum = 0;
+        for (int s = 0; s < opt.aa_samples; ++s) {
+          const double u = col + uniform01(aa_seed, uint64_t(pix), 2 * s), v = row + uniform01(aa_seed, uint64_t(pix), 2 * s + 1);
+          const CameraRay cr = cam.ray(u, v);
+          Ray ray;
+          ray.origin = glm::vec3(cr.origin);
+          ray.direction = glm::vec3(cr.direction);
+          const Hit hit = bvh.intersect(ray);
+          if (!hit.hit()) continue;
+          const glm::vec3 x = ray.origin + hit.t * ray.direction;
+          const double z = cam.world_to_camera(glm::dvec3(x)).z;
+          // Scene geometry nearer than the object hides it: the photo wins.
+          if (valid_depth(depth[pix]) && depth[pix] < z * (1.0 - 1e-3)) continue;
+          ++visible;
+          zsum += z;
+          rows[ri].push_back({pix, uint64_t(pix) * uint64_t(opt.aa_samples) + uint64_t(s), x,
+                              shading_normal(mesh, hit, ray.direction), -ray.direction, material_at(mesh, hit)});
+        }
+        if (visible > 0) {
+          fg.coverage[pix] = float(visible) / opt.aa_samples;
+          fg.depth[pix] = float(zsum / visible);
         }
       }
-      if (visible > 0) {
-        fg.pixels.push_back(pix);
-        fg.offsets.push_back(rays.size());
-        fg.coverage[pix] = float(visible) / opt.aa_samples;
-        fg.depth[pix] = float(zsum / visible);
+    }
+  });
+  std::vector<GSample> all;
+  for (auto& row : rows) all.insert(all.end(), row.begin(), row.end());
+  stats.foreground_samples = int64_t(all.size());
+  return all;
+}
+
+// Pass 2: N light directions per G-buffer sample, written to fixed slots [i·N, (i+1)·N).
+void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
+                      const std::vector<GSample>& gs, Foreground& fg, QueryRays& rays) {
+  const int N = fg.light_samples;
+  const uint64_t light_seed = hash_counter(opt.seed, kTagLight), choice_seed = hash_counter(opt.seed, kTagChoice);
+  fg.weights.assign(gs.size() * size_t(N) * 3, 0.0f);
+  const float norm = 1.0f / float(N * opt.aa_samples);
+  parallel_for(int64_t(gs.size()), 16, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) {
+      const GSample& g = gs[size_t(i)];
+      const Frame frame(g.n);
+      const glm::vec3 origin = g.x + ray_epsilon(g.x) * g.n;
+      for (int k = 0; k < N; ++k) {
+        const float u1 = uniform01f(light_seed, g.stream, 2 * k), u2 = uniform01f(light_seed, g.stream, 2 * k + 1);
+        glm::vec3 l;
+        float pdf;
+        if (!opt.importance_sampling) {  // training: cosine-weighted hemisphere
+          l = frame.to_world(cosine_hemisphere(u1, u2));
+          pdf = cosine_hemisphere_pdf(glm::dot(l, g.n));
+        } else {  // inference: one-sample MIS of BRDF and environment sampling (balance heuristic)
+          if (uniform01f(choice_seed, g.stream, k) < 0.5f)
+            l = disney::sample(g.material, g.n, g.wo, u1, u2, uniform01f(choice_seed, g.stream, k + N)).wi;
+          else
+            l = env_map.sample(u1, u2).direction;
+          pdf = 0.5f * disney::pdf(g.material, g.n, g.wo, l) + 0.5f * env_map.pdf(l);
+        }
+        const float cos_l = glm::dot(l, g.n);
+        glm::vec3 w(0.0f);
+        if (cos_l > 0 && pdf > 0 && std::isfinite(pdf)) {
+          w = disney::eval(g.material, g.n, g.wo, l) * (cos_l / pdf) * norm;
+          if (!all_finite(w)) w = glm::vec3(0.0f);
+          Ray shadow;
+          shadow.origin = origin;
+          shadow.direction = l;
+          if (bvh.occluded(shadow)) w *= float(opt.ambient);  // blocked by the object itself
+        } else {
+          l = g.n;  // a harmless ray with zero weight keeps the layout regular
+        }
+        const int64_t slot = i * N + k;
+        rays.set(slot, origin, l);
+        for (int c = 0; c < 3; ++c) fg.weights[size_t(3 * slot + c)] = w[c];
       }
     }
+  });
+  fg.offsets.assign(1, 0);
+  for (size_t i = 0; i < gs.size(); ++i) {
+    if (i == 0 || gs[i].pixel != gs[i - 1].pixel) {
+      if (i > 0) fg.offsets.push_back(int64_t(i) * N);
+      fg.pixels.push_back(gs[i].pixel);
+    }
+  }
+  if (!gs.empty()) fg.offsets.push_back(int64_t(gs.size()) * N);
 }
 
 struct Shadows {
@@ -192,58 +234,76 @@ struct Shadows {
   std::vector<float> texel_depth;  // per texel of the whole map (0 = hole)
 };
 
+// The k-th shadow direction of texel t and its weight cos/pdf (0 marks an unusable sample).
+struct ShadowSampler {
+  const InsertionOptions& opt;
+  const EnvironmentMap& env_map;
+  uint64_t seed, choice_seed;
+  Frame frame{glm::vec3(0, 1, 0)};
+  std::pair<glm::vec3, double> operator()(int64_t t, int k) const {
+    const float u1 = uniform01f(seed, uint64_t(t), 2 * k), u2 = uniform01f(seed, uint64_t(t), 2 * k + 1);
+    if (!opt.importance_sampling) return {frame.to_world(cosine_hemisphere(u1, u2)), 1.0};  // w = π cancels
+    // Inference: cosine + environment mixture, so a hard sun is found.
+    const glm::vec3 d = uniform01f(choice_seed, uint64_t(t), k) < 0.5f ? frame.to_world(cosine_hemisphere(u1, u2))
+                                                                       : env_map.sample(u1, u2).direction;
+    const double cos_t = d.y, pdf = 0.5 * std::max(0.0, cos_t) / equirect::kPi + 0.5 * env_map.pdf(d);
+    return {d, (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0};
+  }
+};
+
+// Pass 1 decides which texels need rays (those with depth whose rays can meet the object's box);
+// pass 2 writes their rays into fixed slots (the caller appends them after the light rays).
 void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const Bounds3& box, const Bvh& bvh,
-                   const EnvironmentMap& env_map, const double* depth, int64_t ray_base, Shadows& sh, QueryRays& rays,
+                   const EnvironmentMap& env_map, const double* depth, Shadows& sh, QueryRays& rays,
                    InsertionStats& stats) {
   const Camera& cam = in.camera;
   const int W = cam.intrinsics().width, H = cam.intrinsics().height;
-  const int sw = opt.shadow_width, shh = opt.shadow_height;
-  const uint64_t seed = hash_counter(opt.seed, kTagShadow);
+  const int sw = opt.shadow_width, shh = opt.shadow_height, N = opt.shadow_rays;
+  const int64_t n_texels = int64_t(sw) * shh;
+  const ShadowSampler sampler{opt, env_map, hash_counter(opt.seed, kTagShadow), hash_counter(opt.seed, kTagChoice + 1)};
   const glm::vec3 up(0, 1, 0);
-  const Frame frame(up);
-  sh.texel_depth.assign(size_t(sw) * shh, 0.0f);
-  sh.offsets.push_back(0);
-  stats.shadow_pixels_total = int64_t(sw) * shh;
-  const uint64_t choice_seed = hash_counter(opt.seed, kTagChoice + 1);
-  std::vector<glm::vec3> dirs(opt.shadow_rays);
-  std::vector<double> w(opt.shadow_rays);
-  for (int i = 0; i < shh; ++i)
-    for (int j = 0; j < sw; ++j) {
-      const int64_t t = int64_t(i) * sw + j;
-      const double u = (j + 0.5) * W / sw, v = (i + 0.5) * H / shh;
+  sh.texel_depth.assign(size_t(n_texels), 0.0f);
+  std::vector<glm::vec3> origin(static_cast<size_t>(n_texels));
+  std::vector<uint8_t> needed(size_t(n_texels), 0);
+  parallel_for(n_texels, 16, [&](int64_t b, int64_t e) {
+    for (int64_t t = b; t < e; ++t) {
+      const double u = (t % sw + 0.5) * W / sw, v = (t / sw + 0.5) * H / shh;
       const double d = depth[std::min<int64_t>(H - 1, int64_t(v)) * W + std::min<int64_t>(W - 1, int64_t(u))];
       if (!valid_depth(d)) continue;  // a hole (sky, missing depth): S = 1
-      sh.texel_depth[t] = float(d);
+      sh.texel_depth[size_t(t)] = float(d);
       const glm::vec3 x(cam.unproject(u, v, d));
-      const glm::vec3 origin = x + ray_epsilon(x) * up;
+      origin[size_t(t)] = x + ray_epsilon(x) * up;
       bool any = !opt.prune;
-      for (int k = 0; k < opt.shadow_rays; ++k) {
-        const float u1 = uniform01f(seed, uint64_t(t), 2 * k), u2 = uniform01f(seed, uint64_t(t), 2 * k + 1);
-        if (!opt.importance_sampling) {  // training: cosine-weighted, w = π cancels in the ratio
-          dirs[k] = frame.to_world(cosine_hemisphere(u1, u2));
-          w[k] = 1.0;
-        } else {  // inference: cosine + environment mixture, so a hard sun is found
-          dirs[k] = uniform01f(choice_seed, uint64_t(t), k) < 0.5f ? frame.to_world(cosine_hemisphere(u1, u2))
-                                                                  : env_map.sample(u1, u2).direction;
-          const double cos_t = dirs[k].y;
-          const double pdf = 0.5 * std::max(0.0, cos_t) / equirect::kPi + 0.5 * env_map.pdf(dirs[k]);
-          w[k] = (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0;
-        }
-        any = any || ray_hits_box(origin, dirs[k], box);
-      }
-      if (!any) continue;  // no direction can meet the object: S = 1 exactly
-      sh.texels.push_back(t);
-      for (int k = 0; k < opt.shadow_rays; ++k) {
-        Ray r;
-        r.origin = origin;
-        r.direction = dirs[k];
-        sh.visibility.push_back(w[k] > 0 && bvh.occluded(r) ? opt.ambient : 1.0);
-        sh.weights.push_back(w[k]);
-        rays.push(origin, w[k] > 0 ? dirs[k] : up);
-      }
-      sh.offsets.push_back(rays.size() - ray_base);
+      for (int k = 0; k < N && !any; ++k) any = ray_hits_box(origin[size_t(t)], sampler(t, k).first, box);
+      needed[size_t(t)] = any ? 1 : 0;  // none can meet the object: S = 1 exactly
     }
-  stats.shadow_pixels_computed = int64_t(sh.texels.size());
+  });
+  for (int64_t t = 0; t < n_texels; ++t)
+    if (needed[size_t(t)]) sh.texels.push_back(t);
+  const int64_t count = int64_t(sh.texels.size());
+  stats.shadow_pixels_total = n_texels;
+  stats.shadow_pixels_computed = count;
+  sh.offsets.resize(size_t(count) + 1);
+  for (int64_t i = 0; i <= count; ++i) sh.offsets[size_t(i)] = i * N;
+  rays.resize(count * N);
+  sh.visibility.assign(size_t(count * N), 1.0);
+  sh.weights.assign(size_t(count * N), 0.0);
+  parallel_for(count, 4, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) {
+      const int64_t t = sh.texels[size_t(i)];
+      const glm::vec3 o = origin[size_t(t)];
+      for (int k = 0; k < N; ++k) {
+        const auto [dir, w] = sampler(t, k);
+        const size_t slot = size_t(i * N + k);
+        Ray r;
+        r.origin = o;
+        r.direction = dir;
+        sh.visibility[slot] = w > 0 && bvh.occluded(r) ? opt.ambient : 1.0;
+        sh.weights[slot] = w;
+        rays.set(int64_t(slot), o, w > 0 ? dir : up);
+      }
+    }
+  });
 }
 
 // Edge-aware upsampling taps: 4 bilinear texels per image pixel, weighted by depth similarity
@@ -324,20 +384,35 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   Foreground fg;
   Shadows sh;
   QueryRays rays;
+  std::vector<GSample> gs;
   if (!bvh.empty()) {
-    trace_foreground(in, opt, mesh, bvh, env_map, depth, fg, rays, out.stats);
-    const int64_t fg_rays = rays.size();
-    trace_shadows(in, opt, bvh.bounds(), bvh, env_map, depth, fg_rays, sh, rays, out.stats);
+    gs = gbuffer(in, opt, mesh, bvh, depth, fg, out.stats);
+    // Eq. 2's N: fixed per sample, or a total ray budget spread over the visible samples (the
+    // paper samples 5000 foreground rays in training).
+    fg.light_samples = opt.foreground_rays > 0
+                           ? int(std::max<int64_t>(1, opt.foreground_rays / std::max<int64_t>(1, int64_t(gs.size()))))
+                           : opt.light_samples;
   } else {
     fg.coverage.assign(size_t(HW), 0.0f);
     fg.depth.assign(size_t(HW), 0.0f);
+    out.stats.image_pixels_total = HW;
+  }
+  const int64_t fg_rays = int64_t(gs.size()) * fg.light_samples;
+  if (!bvh.empty()) {
+    rays.resize(fg_rays);
+    trace_foreground(opt, bvh, env_map, gs, fg, rays);
+    QueryRays shadow_rays;  // appended after the light rays
+    trace_shadows(in, opt, bvh.bounds(), bvh, env_map, depth, sh, shadow_rays, out.stats);
+    rays.origin.insert(rays.origin.end(), shadow_rays.origin.begin(), shadow_rays.origin.end());
+    rays.dir.insert(rays.dir.end(), shadow_rays.dir.begin(), shadow_rays.dir.end());
+  } else {
     fg.offsets = {0};
     sh.texel_depth.assign(size_t(opt.shadow_width) * opt.shadow_height, 0.0f);
     sh.offsets = {0};
-    out.stats.image_pixels_total = HW;
     out.stats.shadow_pixels_total = int64_t(opt.shadow_width) * opt.shadow_height;
   }
-  const int64_t fg_rays = fg.offsets.back(), sh_rays = rays.size() - fg_rays;
+  const int64_t sh_rays = rays.size() - fg_rays;
+  out.stats.query_rays = rays.size();
 
   // ---- one radiance query for every light and shadow ray (Eq. 1)
   Tensor radiance = Tensor::zeros({0, 3}, dt);

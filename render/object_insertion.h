@@ -66,7 +66,8 @@ PlacedObject place_object(const Mesh& mesh, const Placement& placement, const Ca
 
 struct InsertionOptions {
   int aa_samples = 4;           // primary rays per pixel
-  int light_samples = 64;       // N of Eq. 2
+  int light_samples = 64;       // N of Eq. 2 per visible primary sample...
+  int64_t foreground_rays = 0;  // ...or, when > 0, a total budget spread over them (training; the paper uses 5000)
   int shadow_width = 80, shadow_height = 45;
   int shadow_rays = 128;        // N_s of Eq. 4
   double ambient = 0.1;         // I_a
@@ -79,6 +80,8 @@ struct InsertionOptions {
 struct InsertionStats {
   int64_t shadow_pixels_total = 0, shadow_pixels_computed = 0;
   int64_t image_pixels_total = 0, foreground_pixels_shaded = 0;
+  int64_t foreground_samples = 0;  // primary rays that see the object (the "foreground rays")
+  int64_t query_rays = 0;          // rays sent to the radiance query (light + shadow)
 };
 
 struct InsertionResult {

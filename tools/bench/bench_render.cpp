@@ -26,6 +26,7 @@
 #include "render/primitives.h"
 #include "tools/bench/bench.h"
 #include "tools/bench/timing.h"
+#include "tools/common/plot.h"
 
 namespace sl::bench {
 namespace {
@@ -108,101 +109,17 @@ Camera three_quarter_view(const Bounds3& b, int width, int height) {
                 pos);
 }
 
-double rmse(const Tensor& a, const Tensor& b) {
-  const float *pa = a.data<float>(), *pb = b.data<float>();
-  double s = 0.0;
-  for (int64_t i = 0; i < a.numel(); ++i) s += double(pa[i] - pb[i]) * double(pa[i] - pb[i]);
-  return std::sqrt(s / double(a.numel()));
-}
-
-// ---- a minimal log-log line plot drawn into an RGB buffer
-
-struct Canvas {
-  int w, h;
-  std::vector<glm::vec3> px;
-  Canvas(int width, int height) : w(width), h(height), px(size_t(width) * height, glm::vec3(1.0f)) {}
-  void dot(int x, int y, const glm::vec3& c, int radius = 1) {
-    for (int dy = -radius; dy <= radius; ++dy)
-      for (int dx = -radius; dx <= radius; ++dx)
-        if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h) px[size_t(y + dy) * w + x + dx] = c;
-  }
-  void line(double x0, double y0, double x1, double y1, const glm::vec3& c, int radius = 1) {
-    const int n = std::max(1, int(std::ceil(std::max(std::abs(x1 - x0), std::abs(y1 - y0)))));
-    for (int i = 0; i <= n; ++i) {
-      const double t = double(i) / n;
-      dot(int(std::lround(x0 + t * (x1 - x0))), int(std::lround(y0 + t * (y1 - y0))), c, radius);
-    }
-  }
-  // 3×5 bitmap digits, '.', '-' and 'e' (enough for tick labels such as 1e-2), scaled ×2.
-  void text(int x, int y, const std::string& s, const glm::vec3& c) {
-    static const std::map<char, const char*> glyphs = {
-        {'0', "111101101101111"}, {'1', "010110010010111"}, {'2', "111001111100111"}, {'3', "111001111001111"},
-        {'4', "101101111001001"}, {'5', "111100111001111"}, {'6', "111100111101111"}, {'7', "111001001001001"},
-        {'8', "111101111101111"}, {'9', "111101111001111"}, {'.', "000000000000010"}, {'-', "000000111000000"},
-        {'e', "000111101110111"}};
-    for (char ch : s) {
-      auto it = glyphs.find(ch);
-      if (it != glyphs.end())
-        for (int r = 0; r < 5; ++r)
-          for (int k = 0; k < 3; ++k)
-            if (it->second[r * 3 + k] == '1')
-              for (int sy = 0; sy < 2; ++sy)
-                for (int sx = 0; sx < 2; ++sx) dot(x + 2 * k + sx, y + 2 * r + sy, c, 0);
-      x += 8;
-    }
-  }
-  Tensor tensor() const {
-    Tensor t = Tensor::empty({3, h, w});
-    float* p = t.data<float>();
-    for (int c = 0; c < 3; ++c)
-      for (size_t i = 0; i < px.size(); ++i) p[c * px.size() + i] = px[i][c];
-    return t;
-  }
-};
-
 struct Point {
   std::string method;
   int spp;
   double time_ms, rmse;
 };
 
-Tensor plot(const std::vector<Point>& pts) {
-  Canvas cv(640, 420);
-  const int left = 70, right = 620, top = 20, bottom = 370;
-  double tx0 = 1e300, tx1 = -1e300, ey0 = 1e300, ey1 = -1e300;
-  for (const Point& p : pts) {
-    tx0 = std::min(tx0, std::log10(p.time_ms));
-    tx1 = std::max(tx1, std::log10(p.time_ms));
-    ey0 = std::min(ey0, std::log10(std::max(p.rmse, 1e-12)));
-    ey1 = std::max(ey1, std::log10(std::max(p.rmse, 1e-12)));
-  }
-  tx0 = std::floor(tx0), tx1 = std::ceil(tx1 + 1e-9), ey0 = std::floor(ey0), ey1 = std::ceil(ey1 + 1e-9);
-  auto X = [&](double t) { return left + (std::log10(t) - tx0) / (tx1 - tx0) * (right - left); };
-  auto Y = [&](double e) { return bottom - (std::log10(std::max(e, 1e-12)) - ey0) / (ey1 - ey0) * (bottom - top); };
-  const glm::vec3 grey(0.8f), black(0.0f);
-  for (int k = int(tx0); k <= int(tx1); ++k) {  // decade grid and labels (time in ms)
-    const double x = X(std::pow(10.0, k));
-    cv.line(x, top, x, bottom, grey, 0);
-    cv.text(int(x) - 12, bottom + 10, "1e" + std::to_string(k), black);
-  }
-  for (int k = int(ey0); k <= int(ey1); ++k) {
-    const double y = Y(std::pow(10.0, k));
-    cv.line(left, y, right, y, grey, 0);
-    cv.text(8, int(y) - 5, "1e" + std::to_string(k), black);
-  }
-  cv.line(left, bottom, right, bottom, black);
-  cv.line(left, top, left, bottom, black);
-  const std::map<std::string, glm::vec3> colour = {{"env_mis", {0.1f, 0.3f, 0.9f}}, {"brdf_only", {0.9f, 0.15f, 0.1f}}};
-  for (const auto& [method, c] : colour) {
-    const Point* prev = nullptr;
-    for (const Point& p : pts) {
-      if (p.method != method) continue;
-      if (prev) cv.line(X(prev->time_ms), Y(prev->rmse), X(p.time_ms), Y(p.rmse), c);
-      cv.dot(int(X(p.time_ms)), int(Y(p.rmse)), c, 3);
-      prev = &p;
-    }
-  }
-  return cv.tensor();
+double rmse(const Tensor& a, const Tensor& b) {
+  const float *pa = a.data<float>(), *pb = b.data<float>();
+  double s = 0.0;
+  for (int64_t i = 0; i < a.numel(); ++i) s += double(pa[i] - pb[i]) * double(pa[i] - pb[i]);
+  return std::sqrt(s / double(a.numel()));
 }
 
 int run_render(const std::vector<std::string>& argv) {
@@ -271,7 +188,9 @@ int run_render(const std::vector<std::string>& argv) {
   SL_CHECK(std::rename(tmp.c_str(), csv.c_str()) == 0, "render: cannot rename '", tmp, "' to '", csv, "'");
   ImageWriteOptions wo;
   wo.transfer = Transfer::Linear;  // the plot's colours are display values already
-  write_image(args.out + "/render_bench.png", plot(pts), wo);
+  std::vector<cli::PlotPoint> plot_points;
+  for (const Point& p : pts) plot_points.push_back({p.method, p.time_ms, p.rmse});
+  write_image(args.out + "/render_bench.png", cli::error_time_plot(plot_points), wo);
   write_image(args.out + "/render_reference.exr", ref.radiance);
   std::fprintf(stderr, "render: wrote %s, render_bench.png, render_reference.exr\n", csv.c_str());
   return 0;

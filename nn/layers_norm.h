@@ -1,0 +1,91 @@
+// Normalisation modules: BatchNorm1d/2d/3d, GroupNorm, InstanceNorm, and make_norm.
+//
+// Contract:
+// - BatchNormNd(features): parameters `weight` (ones) and `bias` (zeros) [C] when affine;
+//   buffers `running_mean` (zeros), `running_var` (ones) [C] and `num_batches_tracked` (I64
+//   scalar) when track_running_stats — PyTorch's names, so checkpoints map one to one.
+//   Training normalises with batch statistics and updates the running ones in place
+//   (momentum as PyTorch) and counts batches; eval uses the running statistics. Without
+//   running statistics both modes use batch statistics. Expected input ranks: 1d [N, C] or
+//   [N, C, L]; 2d [N, C, H, W]; 3d [N, C, D, H, W]; other ranks or channel counts throw.
+// - GroupNorm(groups, channels): `weight`/`bias` [C] when affine; C must divide by groups.
+// - InstanceNorm(channels, affine = false): as torch.nn.InstanceNorm2d/3d without running
+//   statistics; `weight`/`bias` [C] only when affine. Any rank >= 3.
+// - make_norm(kind, channels, spatial_dims, groups): "batch", "group", "instance" (affine, as
+//   generators usually use it) or "none" (Identity). For "group" the group count is the
+//   largest divisor of `channels` not above `groups`, so any width works.
+#pragma once
+#include <memory>
+#include <string>
+
+#include "nn/module.h"
+
+namespace sl::nn {
+
+class BatchNormNd : public Module {
+ public:
+  Tensor forward(const Tensor& x) override;
+  int64_t num_features() const { return features_; }
+
+ protected:
+  BatchNormNd(const char* type_name, int spatial_dims, int64_t features, double eps, double momentum, bool affine,
+              bool track_running_stats);
+  void reset_parameters(uint64_t seed, const std::string& prefix) override;
+
+ private:
+  int dims_;
+  int64_t features_;
+  double eps_, momentum_;
+  bool affine_, track_;
+};
+
+class BatchNorm1d : public BatchNormNd {
+ public:
+  explicit BatchNorm1d(int64_t features, double eps = 1e-5, double momentum = 0.1, bool affine = true,
+                       bool track_running_stats = true)
+      : BatchNormNd("BatchNorm1d", 1, features, eps, momentum, affine, track_running_stats) {}
+};
+class BatchNorm2d : public BatchNormNd {
+ public:
+  explicit BatchNorm2d(int64_t features, double eps = 1e-5, double momentum = 0.1, bool affine = true,
+                       bool track_running_stats = true)
+      : BatchNormNd("BatchNorm2d", 2, features, eps, momentum, affine, track_running_stats) {}
+};
+class BatchNorm3d : public BatchNormNd {
+ public:
+  explicit BatchNorm3d(int64_t features, double eps = 1e-5, double momentum = 0.1, bool affine = true,
+                       bool track_running_stats = true)
+      : BatchNormNd("BatchNorm3d", 3, features, eps, momentum, affine, track_running_stats) {}
+};
+
+class GroupNorm : public Module {
+ public:
+  GroupNorm(int64_t groups, int64_t channels, double eps = 1e-5, bool affine = true);
+  Tensor forward(const Tensor& x) override;
+
+ protected:
+  void reset_parameters(uint64_t seed, const std::string& prefix) override;
+
+ private:
+  int64_t groups_, channels_;
+  double eps_;
+  bool affine_;
+};
+
+class InstanceNorm : public Module {
+ public:
+  explicit InstanceNorm(int64_t channels, double eps = 1e-5, bool affine = false);
+  Tensor forward(const Tensor& x) override;
+
+ protected:
+  void reset_parameters(uint64_t seed, const std::string& prefix) override;
+
+ private:
+  int64_t channels_;
+  double eps_;
+  bool affine_;
+};
+
+std::shared_ptr<Module> make_norm(const std::string& kind, int64_t channels, int spatial_dims, int64_t groups = 8);
+
+}  // namespace sl::nn

@@ -1,0 +1,184 @@
+#include "nn/optim.h"
+
+#include <cmath>
+
+#include "autodiff/parallel.h"
+#include "autodiff/tape.h"
+
+namespace sl::nn {
+
+namespace {
+constexpr int64_t kGrain = 1 << 14;  // elements per parallel chunk; updates are independent
+}
+
+// ---------------------------------------------------------------- Optimizer
+Optimizer::Optimizer(std::string type_name, NamedTensors params, double lr, std::vector<std::string> slots)
+    : type_name_(std::move(type_name)), params_(std::move(params)), slot_names_(std::move(slots)) {
+  set_lr(lr);
+  for (const auto& [name, p] : params_) {
+    SL_CHECK(p.defined() && p.dtype() != DType::I64, type_name_, ": parameter '", name,
+             "' must be a floating tensor, got ", p.describe());
+    SL_CHECK(p.is_leaf() && p.is_contiguous(), type_name_, ": parameter '", name,
+             "' must be a contiguous leaf, got ", p.describe());
+  }
+  state_.resize(slot_names_.size());
+  for (auto& slot : state_)
+    for (const auto& [name, p] : params_) slot.push_back(Tensor::zeros(p.shape(), p.dtype()));
+  for (size_t i = 0; i < params_.size(); ++i) steps_.push_back(Tensor::zeros({}, DType::I64));
+}
+
+void Optimizer::set_lr(double lr) {
+  SL_CHECK(std::isfinite(lr) && lr >= 0, type_name_, ": learning rate must be finite and >= 0, got ", lr);
+  lr_ = lr;
+}
+
+void Optimizer::step() {
+  NoGradGuard no_grad;
+  for (size_t i = 0; i < params_.size(); ++i) {
+    const Tensor& p = params_[i].second;
+    if (!p.grad().defined()) continue;
+    Tensor g = p.grad().contiguous();
+    if (g.dtype() != p.dtype()) g = g.to(p.dtype());
+    int64_t& t = steps_[i].data<int64_t>()[0];
+    ++t;
+    update(i, g, t);
+  }
+}
+
+void Optimizer::zero_grad() {
+  for (auto& [name, p] : params_) p.zero_grad();
+}
+
+StateDict Optimizer::state_dict() const {
+  StateDict out;
+  for (size_t i = 0; i < params_.size(); ++i) {
+    const std::string& name = params_[i].first;
+    for (size_t s = 0; s < slot_names_.size(); ++s) out.emplace(slot_names_[s] + "." + name, state_[s][i]);
+    out.emplace("step." + name, steps_[i]);
+  }
+  return out;
+}
+
+void Optimizer::load_state_dict(const StateDict& state) {
+  StateDict own = state_dict();
+  const StateMismatch m = compare_state(own, state);
+  SL_CHECK(m.empty(), type_name_, ".load_state_dict: ", m.message());
+  for (auto& [name, t] : own) t.copy_(state.at(name));
+}
+
+// ---------------------------------------------------------------- SGD
+SGD::SGD(NamedTensors params, SgdOptions options)
+    : Optimizer("SGD", std::move(params), options.lr,
+                options.momentum > 0 ? std::vector<std::string>{"momentum_buffer"} : std::vector<std::string>{}),
+      opt_(options) {
+  SL_CHECK(options.momentum >= 0 && options.weight_decay >= 0, "SGD: momentum ", options.momentum,
+           " and weight_decay ", options.weight_decay, " must be >= 0");
+  SL_CHECK(!options.nesterov || (options.momentum > 0 && options.dampening == 0),
+           "SGD: nesterov needs momentum > 0 and dampening 0");
+}
+
+void SGD::update(size_t i, const Tensor& g, int64_t t) {
+  const Tensor& p = params()[i].second;
+  const double lr = this->lr(), wd = opt_.weight_decay, mu = opt_.momentum, damp = opt_.dampening;
+  const bool nesterov = opt_.nesterov, first = t == 1;
+  Tensor buf = mu > 0 ? slot(0, i) : Tensor();
+  SL_DISPATCH_FLOAT(p.dtype(), "SGD", [&] {
+    using T = scalar_t;
+    T* pp = p.data<T>();
+    const T* pg = g.data<T>();
+    T* pb = mu > 0 ? buf.data<T>() : nullptr;
+    parallel_for(p.numel(), kGrain, [&](int64_t b, int64_t e) {
+      for (int64_t k = b; k < e; ++k) {
+        double d = double(pg[k]) + wd * double(pp[k]);
+        if (pb) {
+          const double m = first ? d : mu * double(pb[k]) + (1.0 - damp) * d;
+          pb[k] = T(m);
+          d = nesterov ? d + mu * m : m;
+        }
+        pp[k] = T(double(pp[k]) - lr * d);
+      }
+    });
+  });
+}
+
+// ---------------------------------------------------------------- Adam / AdamW
+Adam::Adam(NamedTensors params, AdamOptions options) : Adam("Adam", std::move(params), options, false) {}
+
+Adam::Adam(std::string name, NamedTensors params, AdamOptions options, bool decoupled)
+    : Optimizer(std::move(name), std::move(params), options.lr, {"exp_avg", "exp_avg_sq"}),
+      opt_(options),
+      decoupled_(decoupled) {
+  SL_CHECK(options.beta1 >= 0 && options.beta1 < 1 && options.beta2 >= 0 && options.beta2 < 1,
+           type_name(), ": betas must lie in [0, 1), got (", options.beta1, ", ", options.beta2, ")");
+  SL_CHECK(options.eps > 0 && options.weight_decay >= 0, type_name(), ": eps ", options.eps,
+           " must be > 0 and weight_decay ", options.weight_decay, " >= 0");
+}
+
+void Adam::update(size_t i, const Tensor& g, int64_t t) {
+  const Tensor& p = params()[i].second;
+  const double lr = this->lr(), wd = opt_.weight_decay, b1 = opt_.beta1, b2 = opt_.beta2, eps = opt_.eps;
+  const double bc1 = 1.0 - std::pow(b1, double(t));
+  const double sqrt_bc2 = std::sqrt(1.0 - std::pow(b2, double(t)));
+  const double step_size = lr / bc1;
+  const double decay = decoupled_ ? 1.0 - lr * wd : 1.0;
+  const double l2 = decoupled_ ? 0.0 : wd;
+  Tensor m = slot(0, i), v = slot(1, i);
+  SL_DISPATCH_FLOAT(p.dtype(), "Adam", [&] {
+    using T = scalar_t;
+    T* pp = p.data<T>();
+    const T* pg = g.data<T>();
+    T* pm = m.data<T>();
+    T* pv = v.data<T>();
+    parallel_for(p.numel(), kGrain, [&](int64_t b, int64_t e) {
+      for (int64_t k = b; k < e; ++k) {
+        const double param = double(pp[k]) * decay;
+        const double d = double(pg[k]) + l2 * double(pp[k]);
+        const double mk = b1 * double(pm[k]) + (1.0 - b1) * d;
+        const double vk = b2 * double(pv[k]) + (1.0 - b2) * d * d;
+        pm[k] = T(mk);
+        pv[k] = T(vk);
+        pp[k] = T(param - step_size * mk / (std::sqrt(vk) / sqrt_bc2 + eps));
+      }
+    });
+  });
+}
+
+AdamW::AdamW(NamedTensors params, AdamOptions options) : Adam("AdamW", std::move(params), options, true) {}
+
+// ---------------------------------------------------------------- clipping
+double clip_grad_norm(const std::vector<Tensor>& params, double max_norm) {
+  SL_CHECK(max_norm > 0, "clip_grad_norm: max_norm must be > 0, got ", max_norm);
+  double sq = 0.0;
+  for (const Tensor& p : params) {
+    if (!p.defined() || !p.grad().defined()) continue;
+    const Tensor g = p.grad().contiguous();
+    SL_DISPATCH_FLOAT(g.dtype(), "clip_grad_norm", [&] {
+      const scalar_t* pg = g.data<scalar_t>();
+      sq += deterministic_sum(g.numel(), [&](int64_t k) { return double(pg[k]) * double(pg[k]); });
+    });
+  }
+  const double norm = std::sqrt(sq);
+  if (!std::isfinite(norm)) return norm;
+  const double coef = max_norm / (norm + 1e-6);
+  if (coef >= 1.0) return norm;
+  NoGradGuard no_grad;
+  for (const Tensor& p : params) {
+    if (!p.defined() || !p.grad().defined()) continue;
+    Tensor g = p.grad().contiguous();
+    SL_DISPATCH_FLOAT(g.dtype(), "clip_grad_norm", [&] {
+      scalar_t* pg = g.data<scalar_t>();
+      for (int64_t k = 0; k < g.numel(); ++k) pg[k] = scalar_t(double(pg[k]) * coef);
+    });
+    Tensor handle = p;  // shares autograd state with p
+    handle.set_grad(g);
+  }
+  return norm;
+}
+
+double clip_grad_norm(const NamedTensors& params, double max_norm) {
+  std::vector<Tensor> list;
+  for (const auto& [name, p] : params) list.push_back(p);
+  return clip_grad_norm(list, max_norm);
+}
+
+}  // namespace sl::nn

@@ -1,0 +1,231 @@
+#!/usr/bin/python3
+"""Side-by-side convolution speed: Streetlight vs PyTorch 1.13 (CPU, oneDNN), same machine and threads.
+
+Usage (Debian's python3-torch; the pyenv `python3` on PATH has no torch):
+  /usr/bin/python3 scripts/compare_torch_ops.py [build/tools/streetlight-bench] [--threads 2]
+      [--repeat 5] [--rounds 3] [--skip-networks] [--ours-networks-cmd "CMD"]
+
+Runs the four benchmark convolutions in PyTorch with torch.set_num_threads(threads), then
+`streetlight-bench conv --json` with OMP_NUM_THREADS=threads in the same invocation, and prints
+GFLOP/s of both with per-shape ratios (ours / torch) and their geometric mean. FLOPs =
+2·N·Cout·Cin·k^d·(output voxels) per pass; forward+backward (input, weight and bias gradients)
+counts three passes. Both sides report the best of `repeat` runs after a warm-up, and the two
+sides alternate for `rounds` rounds (best kept), so that a burst of load from other processes
+does not fall on one side only.
+
+Networks: a ResNet-18 (BasicBlock, batch 4×3×128×256) and a UNet3D (base 16, 3 levels,
+1×16×64×64×16) forward+backward are timed in PyTorch. HOOK for ours: --ours-networks-cmd runs a
+command that prints JSON lines {"network": "resnet18" | "unet3d", "ms": ...}; without it the
+table shows PyTorch only.
+"""
+import argparse
+import json
+import math
+import os
+import shlex
+import subprocess
+import sys
+import time
+
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+# name, x shape, weight shape, stride, padding — must match tools/bench/bench_conv.cpp.
+SHAPES = [
+    ("conv2d_n8_c64_64x64_k3", (8, 64, 64, 64), (64, 64, 3, 3), 1, 1),
+    ("conv3d_n2_c32_32x32x32_k3", (2, 32, 32, 32, 32), (32, 32, 3, 3, 3), 1, 1),
+    ("conv2d_n4_c3_128x256_k7s2", (4, 3, 128, 256), (64, 3, 7, 7), 2, 3),
+    ("conv3d_n1_c16_64x64x16_k3", (1, 16, 64, 64, 16), (16, 16, 3, 3, 3), 1, 1),
+]
+
+
+def best_ms(fn, repeat):
+    fn()  # warm-up (oneDNN primitive creation, allocator)
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, (time.perf_counter() - t0) * 1e3)
+    return best
+
+
+def torch_conv(repeat):
+    rows = {}
+    for name, xs, ws, stride, pad in SHAPES:
+        conv = F.conv2d if len(xs) == 4 else F.conv3d
+        x = torch.randn(*xs, requires_grad=True)
+        w = (torch.randn(*ws) * 0.1).requires_grad_(True)
+        b = torch.zeros(ws[0], requires_grad=True)
+        with torch.no_grad():
+            y0 = conv(x, w, b, stride, pad)
+        flops = 2.0 * y0.numel() * math.prod(ws[1:])
+        dy = torch.randn_like(y0)
+
+        def forward():
+            with torch.no_grad():
+                conv(x, w, b, stride, pad)
+
+        def forward_backward():
+            x.grad = w.grad = b.grad = None
+            conv(x, w, b, stride, pad).backward(dy)
+
+        for pass_name, fn, passes in (("forward", forward, 1), ("forward_backward", forward_backward, 3)):
+            ms = best_ms(fn, repeat)
+            rows[(name, pass_name)] = {"ms": ms, "gflops": passes * flops / (ms * 1e6)}
+    return rows
+
+
+def ours_conv(bench, threads):
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads))
+    out = subprocess.run([bench, "conv", "--json"], env=env, check=True, capture_output=True, text=True).stdout
+    rows = {}
+    for line in out.splitlines():
+        if line.strip().startswith("{"):
+            r = json.loads(line)
+            rows[(r["op"], r["pass"])] = r
+    return rows
+
+
+# ---------------------------------------------------------------- networks (PyTorch side)
+class BasicBlock(nn.Module):
+    def __init__(self, cin, cout, stride):
+        super().__init__()
+        self.conv1 = nn.Conv2d(cin, cout, 3, stride, 1, bias=False)
+        self.bn1 = nn.BatchNorm2d(cout)
+        self.conv2 = nn.Conv2d(cout, cout, 3, 1, 1, bias=False)
+        self.bn2 = nn.BatchNorm2d(cout)
+        self.down = None
+        if stride != 1 or cin != cout:
+            self.down = nn.Sequential(nn.Conv2d(cin, cout, 1, stride, bias=False), nn.BatchNorm2d(cout))
+
+    def forward(self, x):
+        y = F.relu(self.bn1(self.conv1(x)))
+        y = self.bn2(self.conv2(y))
+        return F.relu(y + (x if self.down is None else self.down(x)))
+
+
+class ResNet18(nn.Module):
+    def __init__(self):
+        super().__init__()
+        self.stem = nn.Sequential(nn.Conv2d(3, 64, 7, 2, 3, bias=False), nn.BatchNorm2d(64), nn.ReLU(),
+                                  nn.MaxPool2d(3, 2, 1))
+        layers, cin = [], 64
+        for cout, stride in ((64, 1), (128, 2), (256, 2), (512, 2)):
+            layers += [BasicBlock(cin, cout, stride), BasicBlock(cout, cout, 1)]
+            cin = cout
+        self.layers = nn.Sequential(*layers)
+        self.fc = nn.Linear(512, 64)
+
+    def forward(self, x):
+        return self.fc(self.layers(self.stem(x)).mean(dim=(2, 3)))
+
+
+def double_conv3d(cin, cout):
+    return nn.Sequential(nn.Conv3d(cin, cout, 3, 1, 1), nn.BatchNorm3d(cout), nn.ReLU(),
+                         nn.Conv3d(cout, cout, 3, 1, 1), nn.BatchNorm3d(cout), nn.ReLU())
+
+
+class UNet3D(nn.Module):
+    """base 16, 3 levels (16, 32, 64 channels); decoder = trilinear Upsample ×2 + concat + convs."""
+
+    def __init__(self, cin=16, cout=8, base=16):
+        super().__init__()
+        self.enc1, self.enc2 = double_conv3d(cin, base), double_conv3d(base, 2 * base)
+        self.bottom = double_conv3d(2 * base, 4 * base)
+        self.dec2, self.dec1 = double_conv3d(6 * base, 2 * base), double_conv3d(3 * base, base)
+        self.head = nn.Conv3d(base, cout, 1)
+
+    def forward(self, x):
+        up = lambda t: F.interpolate(t, scale_factor=2, mode="trilinear", align_corners=False)
+        e1 = self.enc1(x)
+        e2 = self.enc2(F.max_pool3d(e1, 2))
+        b = self.bottom(F.max_pool3d(e2, 2))
+        d2 = self.dec2(torch.cat([up(b), e2], 1))
+        return self.head(self.dec1(torch.cat([up(d2), e1], 1)))
+
+
+def torch_networks(repeat):
+    torch.manual_seed(0)
+    nets = {"resnet18": (ResNet18(), torch.randn(4, 3, 128, 256)),
+            "unet3d": (UNet3D(), torch.randn(1, 16, 64, 64, 16))}
+    rows = {}
+    for name, (net, x) in nets.items():
+        net.train()
+
+        def step():
+            net.zero_grad(set_to_none=True)
+            net(x).square().mean().backward()
+
+        rows[name] = best_ms(step, max(2, repeat // 2))
+    return rows
+
+
+def ours_networks(cmd):
+    out = subprocess.run(shlex.split(cmd), check=True, capture_output=True, text=True).stdout
+    rows = {}
+    for line in out.splitlines():
+        if line.strip().startswith("{"):
+            r = json.loads(line)
+            if "network" in r:
+                rows[r["network"]] = r["ms"]
+    return rows
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("bench", nargs="?", default=os.path.join(ROOT, "build", "tools", "streetlight-bench"))
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--rounds", type=int, default=3, help="alternating torch/ours rounds; best of all kept")
+    ap.add_argument("--skip-networks", action="store_true")
+    ap.add_argument("--ours-networks-cmd", default=None,
+                    help="command printing JSON lines {\"network\": ..., \"ms\": ...} for our networks")
+    args = ap.parse_args()
+    if not os.path.exists(args.bench):
+        print(f"error: benchmark executable not found: {args.bench}", file=sys.stderr)
+        return 2
+    torch.set_num_threads(args.threads)
+    print(f"# torch {torch.__version__}, {args.threads} threads; ours: {args.bench} conv --json", file=sys.stderr)
+    # Alternate the two sides for several rounds and keep each side's best, so that load from
+    # other processes during one side's turn does not bias the ratio.
+    theirs, ours = {}, {}
+    for _ in range(args.rounds):
+        for side, rows in ((theirs, torch_conv(args.repeat)), (ours, ours_conv(args.bench, args.threads))):
+            for key, r in rows.items():
+                if key not in side or r["ms"] < side[key]["ms"]:
+                    side[key] = r
+
+    print(f"{'op':28s} {'pass':17s} {'torch ms':>9s} {'torch GF/s':>10s} {'ours ms':>9s} {'ours GF/s':>10s} {'ratio':>6s}")
+    ratios = {"forward": [], "forward_backward": []}
+    for name, *_ in SHAPES:
+        for pass_name in ("forward", "forward_backward"):
+            t, o = theirs[(name, pass_name)], ours.get((name, pass_name))
+            if o is None:
+                print(f"{name:28s} {pass_name:17s} {t['ms']:9.2f} {t['gflops']:10.1f} {'missing':>9s}")
+                continue
+            ratio = o["gflops"] / t["gflops"]
+            ratios[pass_name].append(ratio)
+            print(f"{name:28s} {pass_name:17s} {t['ms']:9.2f} {t['gflops']:10.1f} {o['ms']:9.2f} "
+                  f"{o['gflops']:10.1f} {ratio:6.2f}")
+    for pass_name, rs in ratios.items():
+        if rs:
+            gm = math.exp(sum(math.log(r) for r in rs) / len(rs))
+            print(f"geometric mean ratio ({pass_name}): {gm:.2f}   min {min(rs):.2f}")
+
+    if not args.skip_networks:
+        nets = torch_networks(args.repeat)
+        mine = ours_networks(args.ours_networks_cmd) if args.ours_networks_cmd else {}
+        print(f"\n{'network (fwd+bwd)':28s} {'torch ms':>9s} {'ours ms':>9s} {'ratio':>6s}")
+        for name, ms in nets.items():
+            if name in mine:
+                print(f"{name:28s} {ms:9.1f} {mine[name]:9.1f} {ms / mine[name]:6.2f}")
+            else:
+                print(f"{name:28s} {ms:9.1f} {'-':>9s}   (ours: pass --ours-networks-cmd)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

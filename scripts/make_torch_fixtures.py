@@ -1,0 +1,204 @@
+#!/usr/bin/python3
+"""Writes PyTorch reference fixtures for the nn ops and grid_sample (tests/fixtures/torch/).
+
+Run with Debian's python3-torch (1.13):  /usr/bin/python3 scripts/make_torch_fixtures.py
+Each family of ops goes to one safetensors file. A case `name` stores its inputs (`name.x`,
+`name.w`, ...), the output `name.out`, a fixed random weight `name.R`, and the gradients
+`name.grad.<input>` of sum(out * R). The JSON list of cases (op and parameters) is in the file's
+`__metadata__` under "cases". Seeded, float32, small shapes: the files total well under 2 MB.
+Safetensors is written by hand (Debian has no python3-safetensors): an 8-byte little-endian
+header length, the JSON header, then the raw little-endian bytes.
+"""
+import json
+import os
+import struct
+import sys
+
+import torch
+import torch.nn.functional as F
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+OUT_DIR = os.path.join(ROOT, "tests", "fixtures", "torch")
+
+
+def write_safetensors(path, tensors, metadata):
+    header, blobs, offset = {}, [], 0
+    for name in sorted(tensors):
+        t = tensors[name].detach().contiguous().to(torch.float32)
+        data = t.numpy().astype("<f4").tobytes()
+        header[name] = {"dtype": "F32", "shape": list(t.shape), "data_offsets": [offset, offset + len(data)]}
+        blobs.append(data)
+        offset += len(data)
+    header["__metadata__"] = metadata
+    text = json.dumps(header, separators=(",", ":")).encode()
+    text += b" " * ((8 - len(text) % 8) % 8)
+    tmp = path + ".tmp"
+    with open(tmp, "wb") as f:
+        f.write(struct.pack("<Q", len(text)))
+        f.write(text)
+        for b in blobs:
+            f.write(b)
+    os.replace(tmp, path)
+
+
+class Family:
+    """Collects the cases of one fixture file."""
+
+    def __init__(self, seed):
+        self.gen = torch.Generator().manual_seed(seed)
+        self.tensors, self.cases = {}, []
+
+    def randn(self, *shape, scale=1.0):
+        return torch.randn(*shape, generator=self.gen) * scale
+
+    def uniform(self, lo, hi, *shape):
+        return lo + (hi - lo) * torch.rand(*shape, generator=self.gen)
+
+    def add(self, name, op, params, inputs, fn, extra=None):
+        """inputs: ordered dict name -> tensor (None = absent); fn(*inputs) -> output."""
+        leaves = {k: (v.clone().requires_grad_(True) if v is not None else None) for k, v in inputs.items()}
+        out = fn(*leaves.values())
+        R = self.randn(*out.shape)
+        (out * R).sum().backward()
+        for k, v in leaves.items():
+            if v is None:
+                continue
+            self.tensors[f"{name}.{k}"] = v.detach()
+            if v.grad is not None:
+                self.tensors[f"{name}.grad.{k}"] = v.grad
+        self.tensors[f"{name}.out"] = out.detach()
+        self.tensors[f"{name}.R"] = R
+        for k, v in (extra or {}).items():
+            self.tensors[f"{name}.{k}"] = v.detach()
+        self.cases.append({"name": name, "op": op, **params})
+
+    def write(self, filename):
+        write_safetensors(os.path.join(OUT_DIR, filename), self.tensors,
+                          {"cases": json.dumps(self.cases), "torch": torch.__version__})
+
+
+def conv_family():
+    fam = Family(1)
+    cases2d = [  # name, x, w, stride, padding, dilation, bias
+        ("c2_s1_p1", (2, 3, 7, 8), (4, 3, 3, 3), (1, 1), (1, 1), (1, 1), True),
+        ("c2_s2_p0", (2, 3, 9, 8), (5, 3, 3, 3), (2, 2), (0, 0), (1, 1), True),
+        ("c2_d2_p2", (1, 2, 8, 9), (3, 2, 3, 3), (1, 1), (2, 2), (2, 2), True),
+        ("c2_mixed", (2, 3, 8, 10), (4, 3, 3, 2), (2, 1), (1, 2), (1, 2), True),
+        ("c2_k7s2p3", (1, 3, 12, 14), (4, 3, 7, 7), (2, 2), (3, 3), (1, 1), True),
+        ("c2_1x1_nobias", (2, 4, 5, 6), (3, 4, 1, 1), (1, 1), (0, 0), (1, 1), False),
+    ]
+    for name, xs, ws, s, p, d, bias in cases2d:
+        inputs = {"x": fam.randn(*xs), "w": fam.randn(*ws, scale=0.3), "b": fam.randn(ws[0]) if bias else None}
+        fam.add(name, "conv2d", {"stride": s, "padding": p, "dilation": d}, inputs,
+                lambda x, w, b, s=s, p=p, d=d: F.conv2d(x, w, b, s, p, d))
+    cases3d = [
+        ("c3_s1_p1", (1, 2, 5, 6, 4), (3, 2, 3, 3, 3), (1, 1, 1), (1, 1, 1), (1, 1, 1), True),
+        ("c3_s2_p1", (2, 2, 6, 5, 7), (3, 2, 3, 3, 3), (2, 2, 2), (1, 1, 1), (1, 1, 1), True),
+        ("c3_mixed", (1, 3, 6, 7, 5), (2, 3, 2, 3, 3), (1, 2, 1), (0, 2, 1), (2, 2, 1), False),
+    ]
+    for name, xs, ws, s, p, d, bias in cases3d:
+        inputs = {"x": fam.randn(*xs), "w": fam.randn(*ws, scale=0.3), "b": fam.randn(ws[0]) if bias else None}
+        fam.add(name, "conv3d", {"stride": s, "padding": p, "dilation": d}, inputs,
+                lambda x, w, b, s=s, p=p, d=d: F.conv3d(x, w, b, s, p, d))
+    fam.write("conv.safetensors")
+
+
+def upsample_family():
+    fam = Family(2)
+    for scale in (2, 3):
+        fam.add(f"nearest2d_s{scale}", "upsample_nearest2d", {"scale": scale}, {"x": fam.randn(2, 3, 4, 5)},
+                lambda x, s=scale: F.interpolate(x, scale_factor=s, mode="nearest"))
+        for ac in (False, True):
+            fam.add(f"bilinear2d_s{scale}_ac{int(ac)}", "upsample_bilinear2d", {"scale": scale, "align_corners": ac},
+                    {"x": fam.randn(2, 3, 4, 5)},
+                    lambda x, s=scale, ac=ac: F.interpolate(x, scale_factor=s, mode="bilinear", align_corners=ac))
+    fam.add("nearest3d_s2", "upsample_nearest3d", {"scale": 2}, {"x": fam.randn(1, 2, 3, 4, 5)},
+            lambda x: F.interpolate(x, scale_factor=2, mode="nearest"))
+    for ac in (False, True):
+        fam.add(f"trilinear3d_s2_ac{int(ac)}", "upsample_trilinear3d", {"scale": 2, "align_corners": ac},
+                {"x": fam.randn(1, 2, 3, 4, 5)},
+                lambda x, ac=ac: F.interpolate(x, scale_factor=2, mode="trilinear", align_corners=ac))
+    fam.write("upsample.safetensors")
+
+
+def pool_family():
+    fam = Family(3)
+    cases = [  # name, op, x, kernel, stride, padding
+        ("max2d_k3s2p1", "max_pool2d", (2, 3, 9, 8), (3, 3), (2, 2), (1, 1)),
+        ("max2d_k2s2", "max_pool2d", (1, 2, 6, 7), (2, 2), (2, 2), (0, 0)),
+        ("max2d_k3s1p1_mixed", "max_pool2d", (1, 2, 5, 6), (3, 2), (1, 2), (1, 1)),
+        ("avg2d_k3s2p1", "avg_pool2d", (2, 3, 9, 8), (3, 3), (2, 2), (1, 1)),
+        ("avg2d_k2s1", "avg_pool2d", (1, 2, 5, 6), (2, 2), (1, 1), (0, 0)),
+        ("max3d_k2s2", "max_pool3d", (1, 2, 4, 6, 5), (2, 2, 2), (2, 2, 2), (0, 0, 0)),
+        ("max3d_k3s1p1", "max_pool3d", (1, 2, 4, 5, 3), (3, 3, 3), (1, 1, 1), (1, 1, 1)),
+        ("avg3d_k3s2p1", "avg_pool3d", (2, 2, 5, 4, 6), (3, 3, 3), (2, 2, 2), (1, 1, 1)),
+    ]
+    for name, op, xs, k, s, p in cases:
+        fn = getattr(F, op)
+        fam.add(name, op, {"kernel": k, "stride": s, "padding": p}, {"x": fam.randn(*xs)},
+                lambda x, fn=fn, k=k, s=s, p=p: fn(x, k, s, p))
+    fam.add("global_avg_3d", "global_avg_pool", {}, {"x": fam.randn(2, 3, 3, 4, 2)},
+            lambda x: x.mean(dim=(2, 3, 4)))
+    fam.write("pool.safetensors")
+
+
+def norm_family():
+    fam = Family(4)
+    for name, xs in (("bn2d", (4, 3, 5, 5)), ("bn3d", (2, 3, 3, 4, 5)), ("bn1d", (6, 4))):
+        C = xs[1]
+        for training in (True, False):
+            rm, rv = fam.randn(C, scale=0.5), fam.uniform(0.5, 2.0, C)
+            rm_after, rv_after = rm.clone(), rv.clone()
+            inputs = {"x": fam.randn(*xs, scale=2.0) + 1.0, "w": fam.uniform(0.5, 1.5, C), "b": fam.randn(C)}
+            fam.add(f"{name}_{'train' if training else 'eval'}", "batch_norm",
+                    {"training": training, "momentum": 0.1, "eps": 1e-5}, inputs,
+                    lambda x, w, b, t=training, rm=rm_after, rv=rv_after: F.batch_norm(x, rm, rv, w, b, t, 0.1, 1e-5),
+                    extra={"running_mean": rm, "running_var": rv, "running_mean_after": rm_after,
+                           "running_var_after": rv_after})
+    fam.add("gn_g2", "group_norm", {"groups": 2, "eps": 1e-5},
+            {"x": fam.randn(2, 4, 5, 5), "w": fam.uniform(0.5, 1.5, 4), "b": fam.randn(4)},
+            lambda x, w, b: F.group_norm(x, 2, w, b, 1e-5))
+    fam.add("gn_g3_3d_noaffine", "group_norm", {"groups": 3, "eps": 1e-5}, {"x": fam.randn(2, 6, 3, 2, 4)},
+            lambda x: F.group_norm(x, 3, None, None, 1e-5))
+    fam.add("in_2d", "instance_norm", {"eps": 1e-5},
+            {"x": fam.randn(2, 3, 6, 6), "w": fam.uniform(0.5, 1.5, 3), "b": fam.randn(3)},
+            lambda x, w, b: F.instance_norm(x, weight=w, bias=b, eps=1e-5))
+    fam.add("in_3d_noaffine", "instance_norm", {"eps": 1e-5}, {"x": fam.randn(1, 2, 3, 4, 5)},
+            lambda x: F.instance_norm(x, eps=1e-5))
+    fam.write("norm.safetensors")
+
+
+def linear_family():
+    fam = Family(5)
+    fam.add("linear_3d", "linear", {}, {"x": fam.randn(3, 5, 7), "w": fam.randn(4, 7, scale=0.3), "b": fam.randn(4)},
+            lambda x, w, b: F.linear(x, w, b))
+    fam.add("linear_nobias", "linear", {}, {"x": fam.randn(6, 9), "w": fam.randn(5, 9, scale=0.3)},
+            lambda x, w: F.linear(x, w))
+    fam.write("linear.safetensors")
+
+
+def grid_sample_family():
+    fam = Family(6)
+    for padding in ("zeros", "border"):
+        for ac in (False, True):
+            fam.add(f"gs2d_{padding}_ac{int(ac)}", "grid_sample_2d", {"padding": padding, "align_corners": ac},
+                    {"x": fam.randn(2, 3, 5, 6), "grid": fam.uniform(-1.2, 1.2, 2, 4, 7, 2)},
+                    lambda x, g, p=padding, ac=ac: F.grid_sample(x, g, "bilinear", p, ac))
+            fam.add(f"gs3d_{padding}_ac{int(ac)}", "grid_sample_3d", {"padding": padding, "align_corners": ac},
+                    {"x": fam.randn(1, 2, 4, 5, 3), "grid": fam.uniform(-1.2, 1.2, 1, 3, 4, 2, 3)},
+                    lambda x, g, p=padding, ac=ac: F.grid_sample(x, g, "bilinear", p, ac))
+    fam.write("grid_sample.safetensors")
+
+
+def main():
+    torch.manual_seed(0)
+    torch.set_num_threads(1)
+    os.makedirs(OUT_DIR, exist_ok=True)
+    for family in (conv_family, upsample_family, pool_family, norm_family, linear_family, grid_sample_family):
+        family()
+    total = sum(os.path.getsize(os.path.join(OUT_DIR, f)) for f in os.listdir(OUT_DIR))
+    print(f"wrote {len(os.listdir(OUT_DIR))} files, {total} bytes, to {OUT_DIR}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

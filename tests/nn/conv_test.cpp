@@ -1,0 +1,194 @@
+// conv2d / conv3d: float64 gradchecks over stride, padding, dilation, bias, size-1 dims and
+// non-contiguous inputs; a direct-loop reference; determinism across thread counts; errors.
+#include "nn/conv.h"
+
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include "autodiff/test_util.h"
+
+namespace sl::nn {
+namespace {
+using sl::testing::rand64;
+
+// Direct 2-D convolution by its definition, in double.
+std::vector<double> conv2d_reference(const Tensor& x, const Tensor& w, const Tensor& b, int64_t sh, int64_t sw,
+                                     int64_t ph, int64_t pw, int64_t dh, int64_t dw, Shape& out_shape) {
+  const int64_t N = x.size(0), C = x.size(1), H = x.size(2), W = x.size(3);
+  const int64_t O = w.size(0), KH = w.size(2), KW = w.size(3);
+  const int64_t Ho = (H + 2 * ph - dh * (KH - 1) - 1) / sh + 1, Wo = (W + 2 * pw - dw * (KW - 1) - 1) / sw + 1;
+  out_shape = {N, O, Ho, Wo};
+  std::vector<double> y;
+  for (int64_t n = 0; n < N; ++n)
+    for (int64_t o = 0; o < O; ++o)
+      for (int64_t i = 0; i < Ho; ++i)
+        for (int64_t j = 0; j < Wo; ++j) {
+          double acc = b.defined() ? b.at({o}) : 0.0;
+          for (int64_t c = 0; c < C; ++c)
+            for (int64_t u = 0; u < KH; ++u)
+              for (int64_t v = 0; v < KW; ++v) {
+                const int64_t yy = i * sh - ph + u * dh, xx = j * sw - pw + v * dw;
+                if (yy >= 0 && yy < H && xx >= 0 && xx < W) acc += x.at({n, c, yy, xx}) * w.at({o, c, u, v});
+              }
+          y.push_back(acc);
+        }
+  return y;
+}
+
+TEST(Conv2d, MatchesDirectLoopForStridePaddingDilation) {
+  struct Case { int64_t s, p, d; };
+  for (Case cs : {Case{1, 0, 1}, Case{1, 1, 1}, Case{2, 1, 1}, Case{2, 3, 1}, Case{1, 2, 2}, Case{3, 0, 2}}) {
+    const Tensor x = rand64({2, 3, 9, 11}, 1), w = rand64({4, 3, 3, 3}, 2), b = rand64({4}, 3);
+    Shape ref_shape;
+    const auto ref = conv2d_reference(x, w, b, cs.s, cs.s, cs.p, cs.p, cs.d, cs.d, ref_shape);
+    const Tensor y = conv2d(x, w, b, {cs.s, cs.s}, {cs.p, cs.p}, {cs.d, cs.d});
+    ASSERT_EQ(y.shape(), ref_shape);
+    const auto got = y.to_vector();
+    for (size_t i = 0; i < ref.size(); ++i) ASSERT_NEAR(got[i], ref[i], 1e-12) << "stride " << cs.s;
+  }
+}
+
+TEST(Conv2d, GradcheckStridePaddingDilation) {
+  struct Case { std::array<int64_t, 2> s, p, d; };
+  for (Case cs : {Case{{1, 1}, {0, 0}, {1, 1}}, Case{{1, 1}, {1, 1}, {1, 1}}, Case{{2, 1}, {1, 0}, {1, 1}},
+                  Case{{2, 2}, {2, 1}, {2, 1}}, Case{{1, 3}, {0, 2}, {1, 2}}}) {
+    EXPECT_GRADCHECK([&](const TensorList& in) { return conv2d(in[0], in[1], in[2], cs.s, cs.p, cs.d); },
+                     {rand64({2, 2, 5, 6}, 1), rand64({2, 2, 3, 2}, 2), rand64({2}, 3)});
+  }
+}
+
+TEST(Conv2d, GradcheckWithoutBiasAndPointwiseKernel) {
+  EXPECT_GRADCHECK([](const TensorList& in) { return conv2d(in[0], in[1], Tensor()); },
+                   {rand64({2, 3, 4, 5}, 4), rand64({5, 3, 1, 1}, 5)});
+}
+
+TEST(Conv2d, GradcheckSizeOneDimsAndNonContiguousInput) {
+  // x is a permuted (non-contiguous) view; H = 1, batch 1, one output channel.
+  const Tensor base = rand64({1, 5, 1, 3}, 6);
+  const Tensor x = permute(base, {0, 3, 2, 1});  // [1, 3, 1, 5]
+  ASSERT_FALSE(x.is_contiguous());
+  EXPECT_GRADCHECK([](const TensorList& in) { return conv2d(in[0], in[1], in[2], {1, 1}, {1, 1}); },
+                   {x, rand64({1, 3, 3, 3}, 7), rand64({1}, 8)});
+}
+
+TEST(Conv3d, GradcheckStridePaddingDilation) {
+  struct Case { std::array<int64_t, 3> s, p, d; };
+  for (Case cs : {Case{{1, 1, 1}, {1, 1, 1}, {1, 1, 1}}, Case{{2, 1, 2}, {1, 0, 1}, {1, 1, 1}},
+                  Case{{1, 1, 1}, {0, 2, 1}, {1, 2, 1}}}) {
+    EXPECT_GRADCHECK([&](const TensorList& in) { return conv3d(in[0], in[1], in[2], cs.s, cs.p, cs.d); },
+                     {rand64({1, 2, 4, 5, 4}, 9), rand64({2, 2, 3, 3, 2}, 10), rand64({2}, 11)});
+  }
+}
+
+TEST(Conv3d, GradcheckNonContiguousInputWithSizeOneDepth) {
+  const Tensor base = rand64({2, 4, 3, 1, 2}, 12);
+  const Tensor x = transpose(base, 1, 2);  // [2, 3, 4, 1, 2]
+  ASSERT_FALSE(x.is_contiguous());
+  EXPECT_GRADCHECK([](const TensorList& in) { return conv3d(in[0], in[1], in[2], {1, 1, 1}, {1, 0, 1}); },
+                   {x, rand64({2, 3, 3, 1, 2}, 13), rand64({2}, 14)});
+}
+
+TEST(Conv3d, Float32MatchesFloat64) {
+  const Tensor x = rand64({2, 5, 6, 7, 5}, 15), w = rand64({4, 5, 3, 3, 3}, 16), b = rand64({4}, 17);
+  const Tensor y64 = conv3d(x, w, b, {1, 2, 1}, {1, 1, 0});
+  const Tensor y32 = conv3d(x.to(DType::F32), w.to(DType::F32), b.to(DType::F32), {1, 2, 1}, {1, 1, 0});
+  const auto a = y64.to_vector(), c = y32.to_vector();
+  for (size_t i = 0; i < a.size(); ++i) ASSERT_NEAR(a[i], c[i], 1e-4);
+}
+
+// The float32 kernels (implicit GEMM on padded windows for stride 1, im2col panels otherwise)
+// against the float64 path, for the output and all three gradients.
+TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
+  struct Case { Shape x, w; std::array<int64_t, 3> s, p, d; };
+  const std::vector<Case> cases = {
+      // >= 96 output positions per image: the AVX-512 kernels (implicit GEMM, panels).
+      {{2, 5, 36, 40}, {9, 5, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},        // "same" 3×3: fused backward
+      {{1, 3, 30, 50}, {17, 3, 3, 5}, {1, 1, 1}, {0, 0, 2}, {1, 1, 2}},       // dilation, 17 channels
+      {{2, 4, 32, 32}, {3, 4, 1, 1}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},        // 1×1 with padding
+      {{1, 3, 8, 12, 12}, {10, 3, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}, {1, 1, 1}},  // 3-D
+      {{1, 2, 12, 40, 20}, {4, 2, 3, 3, 3}, {2, 1, 2}, {1, 1, 1}, {1, 1, 1}},  // 3-D strided
+      // A shallow last axis: the implicit GEMM stores the volume with a long axis innermost.
+      {{2, 3, 40, 6, 5}, {5, 3, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}, {1, 1, 1}},   // "same": fused backward
+      {{1, 2, 8, 40, 4}, {3, 2, 3, 3, 3}, {1, 1, 1}, {1, 0, 2}, {1, 1, 2}},   // not "same", dilated
+      // Few positions per image: batch items folded side by side into one GEMM.
+      {{3, 16, 4, 8}, {24, 16, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
+      {{3, 8, 8, 8}, {16, 8, 3, 3}, {1, 2, 2}, {0, 1, 1}, {1, 1, 1}},
+  };
+
+  for (const Case& c : cases) {
+    std::vector<std::vector<double>> results[2];
+    for (int f32 = 0; f32 < 2; ++f32) {
+      const DType dt = f32 ? DType::F32 : DType::F64;
+      Tensor x = rand64(c.x, 31).to(dt), w = rand64(c.w, 32).to(dt), b = rand64({c.w[0]}, 33).to(dt);
+      for (Tensor* t : {&x, &w, &b}) t->set_requires_grad(true);
+      Tensor y = c.x.size() == 4 ? conv2d(x, w, b, {c.s[1], c.s[2]}, {c.p[1], c.p[2]}, {c.d[1], c.d[2]})
+                                 : conv3d(x, w, b, c.s, c.p, c.d);
+      backward(y, rand64(y.shape(), 34).to(dt));
+      results[f32] = {y.to_vector(), x.grad().to_vector(), w.grad().to_vector(), b.grad().to_vector()};
+    }
+    for (size_t k = 0; k < 4; ++k) {
+      ASSERT_EQ(results[0][k].size(), results[1][k].size());
+      for (size_t i = 0; i < results[0][k].size(); ++i)
+        ASSERT_NEAR(results[1][k][i], results[0][k][i], 1e-4 * (1 + std::abs(results[0][k][i])))
+            << "tensor " << k << " element " << i << " of case with input " << shape_str(c.x);
+    }
+  }
+}
+
+// Forward and all three gradients with 1 and with 2 threads, compared bit for bit, on every
+// kernel path: implicit GEMM (2-D, reordered 3-D), panels and reference (stride 2), and the
+// batch-folded GEMM (few positions per image).
+TEST(Conv, ForwardBackwardBitwiseIdenticalWithOneAndTwoThreads) {
+  struct Run { std::vector<double> y, gx, gw, gb; };
+  auto run = [](int threads, const Shape& xs, int64_t stride) {
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(threads);
+    const bool three_d = xs.size() == 5;
+    Tensor x = Tensor::normal(xs, 0, 1, 21);
+    Tensor w = Tensor::normal(three_d ? Shape{16, 8, 3, 3, 3} : Shape{16, 8, 3, 3}, 0, 0.2, 22);
+    Tensor b = Tensor::normal({16}, 0, 0.2, 23);
+    for (Tensor* t : {&x, &w, &b}) t->set_requires_grad(true);
+    Tensor y = three_d ? conv3d(x, w, b, {stride, stride, stride}, {1, 1, 1})
+                       : conv2d(x, w, b, {stride, stride}, {1, 1});
+    backward(y, Tensor::normal(y.shape(), 0, 1, 24));
+    Run r{y.to_vector(), x.grad().to_vector(), w.grad().to_vector(), b.grad().to_vector()};
+    omp_set_num_threads(saved);
+    return r;
+  };
+  for (const Shape& xs : {Shape{3, 8, 40, 33}, Shape{2, 8, 34, 12, 4}, Shape{6, 8, 6, 7}})
+    for (int64_t stride : {1, 2}) {
+      const Run a = run(1, xs, stride), c = run(2, xs, stride);
+      EXPECT_EQ(a.y, c.y) << shape_str(xs) << " stride " << stride;
+      EXPECT_EQ(a.gx, c.gx) << shape_str(xs) << " stride " << stride;
+      EXPECT_EQ(a.gw, c.gw) << shape_str(xs) << " stride " << stride;
+      EXPECT_EQ(a.gb, c.gb) << shape_str(xs) << " stride " << stride;
+    }
+}
+
+TEST(Conv, ErrorsNameOpAndShapes) {
+  const Tensor x = Tensor::zeros({8, 3, 16, 16}), w = Tensor::zeros({64, 4, 3, 3});
+  try {
+    conv2d(x, w, Tensor());
+    FAIL() << "expected sl::Error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "conv2d: input [8, 3, 16, 16] has 3 channels, weight [64, 4, 3, 3] expects 4");
+  }
+  EXPECT_THROW(conv3d(x, Tensor::zeros({4, 3, 3, 3}), Tensor()), Error);                      // rank
+  EXPECT_THROW(conv2d(x, Tensor::zeros({4, 3, 17, 17}), Tensor()), Error);                    // too large
+  EXPECT_THROW(conv2d(x, Tensor::zeros({4, 3, 3, 3}), Tensor::zeros({5})), Error);            // bias
+  EXPECT_THROW(conv2d(x, Tensor::zeros({4, 3, 3, 3}), Tensor(), {0, 1}), Error);              // stride
+  EXPECT_THROW(conv2d(x, Tensor::zeros({4, 3, 3, 3}, DType::F64), Tensor()), Error);          // dtype
+}
+
+TEST(Conv, OutputsAndGradientsFiniteForLargeFiniteInputs) {
+  Tensor x = Tensor::full({1, 2, 5, 5}, 1e30), w = Tensor::full({2, 2, 3, 3}, 1e-30);
+  x.set_requires_grad(true);
+  w.set_requires_grad(true);
+  Tensor y = conv2d(x, w, Tensor(), {1, 1}, {1, 1});
+  backward(sum(y));
+  EXPECT_TRUE(sl::testing::all_finite(y));
+  EXPECT_TRUE(sl::testing::all_finite(x.grad()));
+}
+
+}  // namespace
+}  // namespace sl::nn

@@ -1,0 +1,189 @@
+// Optimisers, gradient clipping and learning-rate schedules.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "autodiff/ops.h"
+#include "nn/lr_schedule.h"
+#include "nn/optim.h"
+
+namespace sl::nn {
+namespace {
+
+const std::vector<double> kP0 = {0.5, -1.25, 2.0};
+const std::vector<std::vector<double>> kGrads = {{0.1, -0.2, 0.3}, {-0.05, 0.4, 0.01}, {0.2, 0.2, -0.6}};
+
+// Runs three steps with the fixed gradients above on one F64 parameter.
+template <class Make>
+std::vector<double> run_three_steps(Make make) {
+  Tensor p = Tensor::from_vector(kP0, {3}, DType::F64).set_requires_grad(true);
+  auto opt = make(NamedTensors{{"p", p}});
+  for (const auto& g : kGrads) {
+    p.set_grad(Tensor::from_vector(g, {3}, DType::F64));
+    opt.step();
+  }
+  return p.to_vector();
+}
+
+void expect_near(const std::vector<double>& a, const std::vector<double>& b, double tol) {
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) EXPECT_NEAR(a[i], b[i], tol) << "element " << i;
+}
+
+// Expected values: PyTorch's documented algorithms (torch.optim.{SGD,Adam,AdamW}, 1.13) run by
+// hand in double precision on the same three gradients.
+TEST(SGD, MomentumWeightDecayAndNesterovFollowPyTorch) {
+  expect_near(run_three_steps([](NamedTensors p) {
+                return SGD(p, {.lr = 0.1, .momentum = 0.9, .weight_decay = 0.01});
+              }),
+              {0.4596303895, -1.28482947875, 1.965704568}, 1e-12);
+  expect_near(run_three_steps([](NamedTensors p) {
+                return SGD(p, {.lr = 0.1, .momentum = 0.9, .weight_decay = 0.01, .nesterov = true});
+              }),
+              {0.4372273119805, -1.31763754924625, 1.992362146512}, 1e-12);
+  expect_near(run_three_steps([](NamedTensors p) {
+                return SGD(p, {.lr = 0.1, .momentum = 0.9, .dampening = 0.5, .weight_decay = 0.01});
+              }),
+              {0.465588822375, -1.2386306821875, 1.939491542}, 1e-12);
+}
+
+TEST(SGD, PlainStepIsLrTimesGradient) {
+  Tensor p = Tensor::from_vector({1.0, 2.0}, {2}).set_requires_grad(true);
+  SGD opt({{"p", p}}, {.lr = 0.5});
+  p.set_grad(Tensor::from_vector({0.2, -0.4}, {2}));
+  opt.step();
+  expect_near(p.to_vector(), {0.9, 2.2}, 1e-7);
+}
+
+TEST(Adam, BiasCorrectedStepsFollowPyTorch) {
+  expect_near(run_three_steps([](NamedTensors p) { return Adam(p, {.lr = 0.01, .weight_decay = 0.1}); }),
+              {0.4752235505715115, -1.2406150051137452, 1.9791357957143945}, 1e-12);
+}
+
+TEST(Adam, FirstStepMovesEachParameterByLrAgainstItsGradientSign) {
+  // With bias correction, m̂ = g and v̂ = g² after one step: Δp = −lr·g / (|g| + eps).
+  Tensor p = Tensor::from_vector({1.0, 1.0, 1.0}, {3}).set_requires_grad(true);
+  Adam opt({{"p", p}}, {.lr = 0.1});
+  p.set_grad(Tensor::from_vector({1e-3, -5.0, 300.0}, {3}));
+  opt.step();
+  expect_near(p.to_vector(), {0.9, 1.1, 0.9}, 1e-5);
+}
+
+TEST(AdamW, DecoupledWeightDecayFollowsPyTorch) {
+  expect_near(run_three_steps([](NamedTensors p) { return AdamW(p, {.lr = 0.01, .weight_decay = 0.1}); }),
+              {0.4792796683031988, -1.2451235213470124, 1.980402295981196}, 1e-12);
+}
+
+TEST(Optimizer, SkipsParametersWithoutGradientAndDoesNotAdvanceTheirStep) {
+  Tensor a = Tensor::from_vector({1.0}, {1}).set_requires_grad(true);
+  Tensor b = Tensor::from_vector({1.0}, {1}).set_requires_grad(true);
+  Adam opt({{"a", a}, {"b", b}}, {.lr = 0.1});
+  a.set_grad(Tensor::from_vector({1.0}, {1}));
+  opt.step();
+  EXPECT_EQ(b.to_vector()[0], 1.0);
+  EXPECT_EQ(opt.state_dict().at("step.a").item(), 1);
+  EXPECT_EQ(opt.state_dict().at("step.b").item(), 0);
+}
+
+TEST(Optimizer, StateRoundTripResumesBitwiseIdentically) {
+  auto make_param = [] { return Tensor::from_vector(kP0, {3}).set_requires_grad(true); };
+  Tensor p1 = make_param(), p2 = make_param();
+  Adam a({{"w", p1}}, {.lr = 0.01});
+  for (int i = 0; i < 2; ++i) {
+    p1.set_grad(Tensor::from_vector(kGrads[i], {3}));
+    a.step();
+  }
+  const StateDict state = a.state_dict();
+  EXPECT_TRUE(state.count("exp_avg.w") && state.count("exp_avg_sq.w") && state.count("step.w"));
+  p2.copy_(p1);
+  Adam b({{"w", p2}}, {.lr = 0.01});
+  b.load_state_dict(state);
+  p1.set_grad(Tensor::from_vector(kGrads[2], {3}));
+  p2.set_grad(Tensor::from_vector(kGrads[2], {3}));
+  a.step();
+  b.step();
+  EXPECT_EQ(p1.to_vector(), p2.to_vector());
+}
+
+TEST(Optimizer, LoadStateRejectsMismatchInOneMessage) {
+  Tensor p = Tensor::zeros({3}).set_requires_grad(true);
+  SGD opt({{"w", p}}, {.lr = 0.1, .momentum = 0.9});
+  StateDict s = opt.state_dict();
+  s["momentum_buffer.w"] = Tensor::zeros({4});
+  s["exp_avg.w"] = Tensor::zeros({3});
+  try {
+    opt.load_state_dict(s);
+    FAIL();
+  } catch (const Error& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("unexpected: exp_avg.w"), std::string::npos) << m;
+    EXPECT_NE(m.find("momentum_buffer.w: expected f32[3], got f32[4]"), std::string::npos) << m;
+  }
+}
+
+TEST(Optimizer, BadHyperparametersThrow) {
+  Tensor p = Tensor::zeros({1}).set_requires_grad(true);
+  EXPECT_THROW(SGD({{"p", p}}, {.lr = -1}), Error);
+  EXPECT_THROW(Adam({{"p", p}}, {.beta1 = 1.0}), Error);
+  EXPECT_THROW(Adam({{"p", p}}, {.eps = 0}), Error);
+  EXPECT_THROW(SGD({{"p", p}}, {.nesterov = true}), Error);
+}
+
+TEST(ClipGradNorm, ScalesToMaxNormAndReturnsTheNormBefore) {
+  Tensor a = Tensor::zeros({2}).set_requires_grad(true), b = Tensor::zeros({1}).set_requires_grad(true);
+  Tensor c = Tensor::zeros({1}).set_requires_grad(true);  // no gradient: ignored
+  a.set_grad(Tensor::from_vector({3.0, 0.0}, {2}));
+  b.set_grad(Tensor::from_vector({4.0}, {1}));
+  EXPECT_NEAR(clip_grad_norm(std::vector<Tensor>{a, b, c}, 1.0), 5.0, 1e-6);
+  expect_near(a.grad().to_vector(), {0.6, 0.0}, 1e-6);
+  expect_near(b.grad().to_vector(), {0.8}, 1e-6);
+  EXPECT_NEAR(clip_grad_norm(std::vector<Tensor>{a, b}, 10.0), 1.0, 1e-6);  // below: untouched
+  expect_near(b.grad().to_vector(), {0.8}, 1e-6);
+}
+
+TEST(ClipGradNorm, NonFiniteNormIsReportedAndGradientsLeftUntouched) {
+  Tensor a = Tensor::zeros({2}).set_requires_grad(true);
+  a.set_grad(Tensor::from_vector({std::numeric_limits<double>::quiet_NaN(), 1.0}, {2}));
+  EXPECT_TRUE(std::isnan(clip_grad_norm(std::vector<Tensor>{a}, 1.0)));
+  EXPECT_EQ(a.grad().to_vector()[1], 1.0);
+  a.set_grad(Tensor::from_vector({INFINITY, 1.0}, {2}));
+  EXPECT_TRUE(std::isinf(clip_grad_norm(std::vector<Tensor>{a}, 1.0)));
+}
+
+// ---------------------------------------------------------------- schedules
+TEST(LrSchedule, StepCosineAndConstantMatchTheirFormulas) {
+  StepLr step(0.1, 10, 0.5);
+  EXPECT_DOUBLE_EQ(step.lr(0), 0.1);
+  EXPECT_DOUBLE_EQ(step.lr(9), 0.1);
+  EXPECT_DOUBLE_EQ(step.lr(10), 0.05);
+  EXPECT_DOUBLE_EQ(step.lr(25), 0.025);
+  CosineLr cos(1.0, 100, 0.1);
+  EXPECT_DOUBLE_EQ(cos.lr(0), 1.0);
+  EXPECT_NEAR(cos.lr(50), 0.55, 1e-12);
+  EXPECT_NEAR(cos.lr(100), 0.1, 1e-12);
+  EXPECT_NEAR(cos.lr(1000), 0.1, 1e-12);
+  EXPECT_DOUBLE_EQ(ConstantLr(0.3).lr(77), 0.3);
+}
+
+TEST(LrSchedule, WarmupThenCosineComposes) {
+  WarmupLr s(10, std::make_shared<CosineLr>(1.0, 100));
+  EXPECT_NEAR(s.lr(0), 0.1, 1e-12);
+  EXPECT_NEAR(s.lr(4), 0.5, 1e-12);
+  EXPECT_NEAR(s.lr(9), 1.0, 1e-12);
+  EXPECT_NEAR(s.lr(10), 1.0, 1e-12);
+  EXPECT_NEAR(s.lr(60), 0.5, 1e-12);
+  EXPECT_NEAR(s.lr(110), 0.0, 1e-12);
+  for (int64_t i = 1; i < 10; ++i) EXPECT_GT(s.lr(i), s.lr(i - 1));
+}
+
+TEST(LrSchedule, BadArgumentsThrow) {
+  EXPECT_THROW(StepLr(0.1, 0, 0.5), Error);
+  EXPECT_THROW(CosineLr(0.1, 0), Error);
+  EXPECT_THROW(WarmupLr(0, std::make_shared<ConstantLr>(1.0)), Error);
+  EXPECT_THROW(WarmupLr(5, nullptr), Error);
+  EXPECT_THROW(ConstantLr(-1.0), Error);
+}
+
+}  // namespace
+}  // namespace sl::nn

@@ -1,0 +1,114 @@
+// streetlight-bench conv [--json] [--repeat N]: see bench_conv.h.
+#include "tools/bench/bench_conv.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "autodiff/ops.h"
+#include "nn/conv.h"
+#include "tools/bench/bench.h"
+#include "tools/bench/timing.h"
+
+namespace sl::bench {
+namespace {
+
+struct ConvCase {
+  const char* name;
+  Shape x, w;
+  int64_t stride, pad;
+};
+
+// The shapes the method's networks spend their time in: a ResNet 3×3 block, the 3D UNet's
+// levels, and the ResNet stem.
+const std::vector<ConvCase>& conv_cases() {
+  static const std::vector<ConvCase> cases = {
+      {"conv2d_n8_c64_64x64_k3", {8, 64, 64, 64}, {64, 64, 3, 3}, 1, 1},
+      {"conv3d_n2_c32_32x32x32_k3", {2, 32, 32, 32, 32}, {32, 32, 3, 3, 3}, 1, 1},
+      {"conv2d_n4_c3_128x256_k7s2", {4, 3, 128, 256}, {64, 3, 7, 7}, 2, 3},
+      {"conv3d_n1_c16_64x64x16_k3", {1, 16, 64, 64, 16}, {16, 16, 3, 3, 3}, 1, 1},
+  };
+  return cases;
+}
+
+Tensor run_conv(const ConvCase& c, const Tensor& x, const Tensor& w, const Tensor& b) {
+  if (c.x.size() == 4) return nn::conv2d(x, w, b, {c.stride, c.stride}, {c.pad, c.pad});
+  return nn::conv3d(x, w, b, {c.stride, c.stride, c.stride}, {c.pad, c.pad, c.pad});
+}
+
+int run_conv_command(const std::vector<std::string>& args) {
+  bool json = false;
+  for (const auto& a : args) {
+    if (a == "--json") {
+      json = true;
+    } else if (a == "--help" || a == "-h") {
+      std::printf("usage: streetlight-bench conv [--json]\n  forward and forward+backward GFLOP/s of "
+                  "conv2d/conv3d on the PyTorch comparison shapes (OMP_NUM_THREADS threads)\n");
+      return 0;
+    } else {
+      std::fprintf(stderr, "error: conv: unknown option '%s' (try --help)\n", a.c_str());
+      return 2;
+    }
+  }
+  return run_conv_benchmarks(json);
+}
+
+const Registrar reg("conv", "conv2d/conv3d forward and forward+backward GFLOP/s", &run_conv_command);
+
+}  // namespace
+
+int run_conv_benchmarks(bool json) {
+  const int repeat = 5;
+  for (const ConvCase& c : conv_cases()) {
+    Tensor x = Tensor::normal(c.x, 0, 1, 1);
+    Tensor w = Tensor::normal(c.w, 0, 0.1, 2);
+    Tensor b = Tensor::normal({c.w[0]}, 0, 0.1, 3);
+    x.set_requires_grad(true);
+    w.set_requires_grad(true);
+    b.set_requires_grad(true);
+    Tensor y0;
+    {
+      NoGradGuard ng;
+      y0 = run_conv(c, x, w, b);
+    }
+    int64_t macs_per_out = c.w[1];
+    for (size_t d = 2; d < c.w.size(); ++d) macs_per_out *= c.w[d];
+    const double flops = 2.0 * static_cast<double>(y0.numel()) * static_cast<double>(macs_per_out);
+    const Tensor dy = Tensor::normal(y0.shape(), 0, 1, 4);
+    y0 = Tensor();
+    const double fwd = best_ms(
+        [&] {
+          NoGradGuard ng;
+          Tensor y = run_conv(c, x, w, b);
+        },
+        repeat);
+    const double fb = best_ms(
+        [&] {
+          Tensor y = run_conv(c, x, w, b);
+          backward(y, dy);
+          x.zero_grad();
+          w.zero_grad();
+          b.zero_grad();
+        },
+        repeat);
+    const std::string shape = cat(shape_str(c.x), " * ", shape_str(c.w), " stride ", c.stride, " pad ", c.pad);
+    for (int pass = 0; pass < 2; ++pass) {
+      const double ms = pass == 0 ? fwd : fb;
+      const double gflops = (pass == 0 ? flops : 3 * flops) / (ms * 1e6);
+      const char* pname = pass == 0 ? "forward" : "forward_backward";
+      if (json)
+        std::printf("{\"op\": \"%s\", \"pass\": \"%s\", \"shape\": \"%s\", \"threads\": %d, \"ms\": %.3f, "
+                    "\"gflops\": %.2f}\n",
+                    c.name, pname, shape.c_str(), omp_get_max_threads(), ms, gflops);
+      else
+        std::printf("%-28s %-17s %9.3f ms %8.1f GFLOP/s\n", c.name, pname, ms, gflops);
+      std::fflush(stdout);
+    }
+  }
+  return 0;
+}
+
+}  // namespace sl::bench

@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Installs Streetlight's build and test dependencies from Debian 12 packages. Idempotent: it
+# only calls apt-get when a package is missing. Usage: scripts/install_deps.sh [--anchors]
+#   --anchors  also install the comparison anchors (python3-torch, libembree-dev, numpy)
+set -euo pipefail
+
+packages=(cmake g++ make ccache pkg-config
+          libeigen3-dev libopenimageio-dev libopenexr-dev libtinygltf-dev libstb-dev
+          libglm-dev nlohmann-json3-dev libgtest-dev)
+for arg in "$@"; do
+  case "$arg" in
+    --anchors) packages+=(python3-torch python3-numpy libembree-dev) ;;
+    -h|--help) sed -n '2,5p' "$0"; exit 0 ;;
+    *) echo "error: unknown option '$arg' (try --help)" >&2; exit 2 ;;
+  esac
+done
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install_deps: all ${#packages[@]} packages present" >&2
+  exit 0
+fi
+echo "install_deps: installing ${missing[*]}" >&2
+sudo_cmd=()
+if [ "$(id -u)" -ne 0 ]; then sudo_cmd=(sudo); fi
+export DEBIAN_FRONTEND=noninteractive
+"${sudo_cmd[@]}" apt-get update -qq
+"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"

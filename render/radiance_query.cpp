@@ -18,6 +18,32 @@ struct Geometry {
   int64_t N, R, X, Y, Z, vox, H, W;
 };
 
+// The grid's log projection with its per-axis constants precomputed, in the query's precision:
+// voxel = dims/2 ± k± · log1p(|d| / r0) for an offset d from the centre (vsg_volume.h).
+template <class T>
+struct LogProjection {
+  int world_axis[3];
+  T centre[3], inv_r0, half_dims[3], k_pos[3], k_neg[3];
+  explicit LogProjection(const VsgGrid& g) {
+    const int map[3] = {0, 2, 1};  // X <- x, Y <- z, Z <- y
+    inv_r0 = T(1.0 / g.log_scale_m);
+    for (int a = 0; a < 3; ++a) {
+      const int w = map[a];
+      world_axis[a] = w;
+      centre[a] = T(g.center[w]);
+      half_dims[a] = T(0.5 * double(g.dims[a]));
+      k_pos[a] = T(0.5 * double(g.dims[a]) / std::log1p(g.extent_pos[w] / g.log_scale_m));
+      k_neg[a] = T(0.5 * double(g.dims[a]) / std::log1p(g.extent_neg[w] / g.log_scale_m));
+    }
+  }
+  void to_voxel(const T p[3], T v[3]) const {
+    for (int a = 0; a < 3; ++a) {
+      const T d = p[world_axis[a]] - centre[a];
+      v[a] = d >= 0 ? half_dims[a] + k_pos[a] * std::log1p(d * inv_r0) : half_dims[a] - k_neg[a] * std::log1p(-d * inv_r0);
+    }
+  }
+};
+
 template <class T>
 struct Tap {
   int64_t voxel;
@@ -51,8 +77,8 @@ sg::Lobe<T> lobe_at(const T* vsg, int64_t vox, int64_t v) {
 }
 
 template <class T>
-void march(const Geometry& geo, const VsgGrid& grid, const RadianceQueryOptions& opt, const T* vsg, const T* env,
-           const T* o, const T* l, RayMarch<T>& m) {
+void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& proj, const RadianceQueryOptions& opt,
+           const T* vsg, const T* env, const T* o, const T* l, RayMarch<T>& m) {
   m.alpha.clear();
   m.t.clear();
   m.g.clear();
@@ -82,19 +108,21 @@ void march(const Geometry& geo, const VsgGrid& grid, const RadianceQueryOptions&
   Tap<T> taps[8];
   for (int k = 0; k < opt.samples; ++k) {
     const double tk = t0 + (k + 0.5) * (t1 - t0) / opt.samples;
-    const glm::dvec3 p = grid.to_voxel(origin + tk * dir);
+    const T pw[3] = {T(o[0] + tk * m.dir[0]), T(o[1] + tk * m.dir[1]), T(o[2] + tk * m.dir[2])};
+    T p[3];
+    proj.to_voxel(pw, p);
     ++m.considered;
     int n_taps;
     if (!opt.trilinear) {
       int64_t idx[3];
-      for (int a = 0; a < 3; ++a) idx[a] = std::clamp<int64_t>(int64_t(std::floor(p[a])), 0, dims[a] - 1);
+      for (int a = 0; a < 3; ++a) idx[a] = std::clamp<int64_t>(int64_t(std::floor(p[a])), 0, dims[a] - 1);  // nearest voxel
       taps[0] = {(idx[0] * geo.Y + idx[1]) * geo.Z + idx[2], T(1)};
       n_taps = 1;
     } else {
       int64_t i0[3], i1[3];
       T fr[3];
       for (int a = 0; a < 3; ++a) {
-        const double f = p[a] - 0.5, fl = std::floor(f);
+        const double f = double(p[a]) - 0.5, fl = std::floor(f);
         fr[a] = T(f - fl);
         i0[a] = std::clamp<int64_t>(int64_t(fl), 0, dims[a] - 1);
         i1[a] = std::clamp<int64_t>(int64_t(fl) + 1, 0, dims[a] - 1);
@@ -146,12 +174,13 @@ class RadianceQueryOp : public Function {
     std::atomic<int64_t> total{0}, evaluated{0}, terminated{0};
     SL_DISPATCH_FLOAT(vsg_.dtype(), "radiance_query", [&] {
       using T = scalar_t;
+      const LogProjection<T> proj(grid_);
       parallel_for(geo_.N * geo_.R, 64, [&](int64_t b, int64_t e) {
         RayMarch<T> m;
         int64_t n_total = 0, n_eval = 0, n_term = 0;
         for (int64_t r = b; r < e; ++r) {
           const int64_t n = r / geo_.R;
-          march(geo_, grid_, opt_, vsg_.data<T>() + n * 8 * geo_.vox, env_.data<T>() + n * 3 * geo_.H * geo_.W,
+          march(geo_, grid_, proj, opt_, vsg_.data<T>() + n * 8 * geo_.vox, env_.data<T>() + n * 3 * geo_.H * geo_.W,
                 origins_.data<T>() + 3 * r, dirs_.data<T>() + 3 * r, m);
           T out[3] = {0, 0, 0}, tr = 1, d = 0;
           if (m.valid) {
@@ -228,7 +257,8 @@ class RadianceQueryOp : public Function {
                     std::vector<T>& tau_before, std::vector<T>& bv, std::vector<T>& be) const {
     const int64_t n = r / geo_.R;
     const T* vsg = vsg_.data<T>() + n * 8 * geo_.vox;
-    march(geo_, grid_, opt_, vsg, env_.data<T>() + n * 3 * geo_.H * geo_.W, origins_.data<T>() + 3 * r,
+    const LogProjection<T> proj(grid_);
+    march(geo_, grid_, proj, opt_, vsg, env_.data<T>() + n * 3 * geo_.H * geo_.W, origins_.data<T>() + 3 * r,
           dirs_.data<T>() + 3 * r, m);
     if (!m.valid) return;
     const T* gr = gR.data<T>() + 3 * r;

@@ -1,22 +1,30 @@
-#include "render/bvh.h"
-
+// Bvh queries: 8-wide box tests, blocks of watertight ray-triangle tests, ordered traversal.
+// Compiled with -ffp-contract=off (render/CMakeLists.txt): the triangle test must round each
+// edge function the same way for both triangles of a shared edge, in every lane.
 #include <omp.h>
 
 #include <algorithm>
 #include <cmath>
-#include <memory>
 
 #include "autodiff/error.h"
+#include "render/bvh.h"
+
+#if defined(__AVX2__)
+#include <immintrin.h>
+#endif
 
 namespace sl {
 namespace {
 
-// ---------------------------------------------------------------- ray-triangle (Woop et al. 2013)
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// ---------------------------------------------------------------- ray set-up (Woop et al. 2013)
 
 struct PreparedRay {
   float o[3];          // origin
   float inv[3];        // 1 / direction (±∞ for a zero component)
-  int near_at[3];      // float index of the entry slab in a BvhNode: lo[k] (k) or hi[k] (4 + k)
+  int near_row[3];     // row of BvhNode::bounds holding each axis' entry plane: lo (k) or hi (3 + k)
+  int far_row[3];      // and its exit plane
   float ox, oy, oz;    // origin permuted to (kx, ky, kz)
   float sx, sy, sz;    // shear constants, Sec. 3 of the paper
   int kx, ky, kz;
@@ -24,7 +32,7 @@ struct PreparedRay {
   bool valid;
 };
 
-PreparedRay prepare(const Ray& ray) {
+inline PreparedRay prepare(const Ray& ray) {
   PreparedRay r{};
   const float d[3] = {ray.direction.x, ray.direction.y, ray.direction.z};
   r.o[0] = ray.origin.x, r.o[1] = ray.origin.y, r.o[2] = ray.origin.z;
@@ -34,24 +42,44 @@ PreparedRay prepare(const Ray& ray) {
             !std::isnan(ray.tmin) && !std::isnan(ray.tmax);
   if (!r.valid) return r;
   // kz: the dominant axis; swapping kx and ky when d[kz] < 0 keeps the winding (paper, Fig. 2).
-  r.kz = ad[0] > ad[1] ? (ad[0] > ad[2] ? 0 : 2) : (ad[1] > ad[2] ? 1 : 2);
-  r.kx = (r.kz + 1) % 3;
-  r.ky = (r.kx + 1) % 3;
-  if (d[r.kz] < 0.0f) std::swap(r.kx, r.ky);
+  // Written with selects rather than branches: random directions would mispredict them.
+  const int k01 = ad[0] > ad[1] ? 0 : 1;
+  r.kz = ad[k01] > ad[2] ? k01 : 2;
+  const int kx = r.kz == 2 ? 0 : r.kz + 1, ky = kx == 2 ? 0 : kx + 1;
+  const bool flip = d[r.kz] < 0.0f;
+  r.kx = flip ? ky : kx;
+  r.ky = flip ? kx : ky;
+#if defined(__AVX2__)
+  // One vector division gives 1/d (whose kz lane is sz) and the shears d[kx]/d[kz], d[ky]/d[kz].
+  alignas(32) float q[8];
+  const __m256 num = _mm256_setr_ps(1.0f, 1.0f, 1.0f, d[r.kx], d[r.ky], 1.0f, 1.0f, 1.0f);
+  const __m256 den = _mm256_setr_ps(d[0], d[1], d[2], d[r.kz], d[r.kz], 1.0f, 1.0f, 1.0f);
+  _mm256_store_ps(q, _mm256_div_ps(num, den));
+  r.inv[0] = q[0], r.inv[1] = q[1], r.inv[2] = q[2], r.sx = q[3], r.sy = q[4];
+#else
+  for (int k = 0; k < 3; ++k) r.inv[k] = 1.0f / d[k];
   r.sx = d[r.kx] / d[r.kz];
   r.sy = d[r.ky] / d[r.kz];
-  r.sz = 1.0f / d[r.kz];
+#endif
+  r.sz = r.inv[r.kz];
   r.ox = r.o[r.kx], r.oy = r.o[r.ky], r.oz = r.o[r.kz];
   for (int k = 0; k < 3; ++k) {
-    r.inv[k] = 1.0f / d[k];
-    r.near_at[k] = std::signbit(r.inv[k]) ? 4 + k : k;
+    r.near_row[k] = std::signbit(r.inv[k]) ? 3 + k : k;
+    r.far_row[k] = std::signbit(r.inv[k]) ? k : 3 + k;
   }
   r.tmin = ray.tmin;
   return r;
 }
 
-// Returns true and sets t, u, v when the ray hits the triangle with tmin < t < tmax.
-inline bool hit_triangle(const PreparedRay& r, const Bvh::Triangle& tri, float tmax, float& t, float& u, float& v) {
+// ---------------------------------------------------------------- scalar ray-triangle test
+
+struct Triangle {
+  float p0[3], p1[3], p2[3];
+};
+
+// Returns true and sets t, u, v when the ray hits the triangle with tmin < t < tmax. The vector
+// test below performs these same operations lane by lane.
+inline bool hit_triangle(const PreparedRay& r, const Triangle& tri, float tmax, float& t, float& u, float& v) {
   const int kx = r.kx, ky = r.ky, kz = r.kz;
   // Vertices relative to the origin, sheared so the ray becomes the +z axis (paper Eq. 3-4).
   const float az = tri.p0[kz] - r.oz, bz = tri.p1[kz] - r.oz, cz = tri.p2[kz] - r.oz;
@@ -83,288 +111,292 @@ inline bool hit_triangle(const PreparedRay& r, const Bvh::Triangle& tri, float t
 
 // 1 + 2γ₃ with γₙ = nε/(1 - nε), ε = 2⁻²⁴ (pbrt-v3 §3.9.2, used in Bounds3::IntersectP).
 constexpr float kFarScale = 1.0f + 2.0f * (3.0f * 0x1p-24f) / (1.0f - 3.0f * 0x1p-24f);
+constexpr int kW = BvhNode::kWidth;
+constexpr int kB = Bvh::kBlockWidth;
 
-// Slab test. Returns the entry distance in tnear when [tnear, tfar] meets [tmin, tmax].
-// A zero direction component gives 0·∞ = NaN when the origin lies on that slab's plane; the
-// comparisons below are written so a NaN entry acts as −∞ and a NaN exit as +∞ (the ray runs
-// inside the plane, so that slab does not limit it).
-inline bool hit_box(const BvhNode& n, const PreparedRay& r, float tmax, float& tnear) {
-  // The node read as 8 floats: lo[0..2] at 0..2, hi[0..2] at 4..6 (static_assert on the layout).
-  const float* f = reinterpret_cast<const float*>(&n);
-  const float nx = (f[r.near_at[0]] - r.o[0]) * r.inv[0], fx = (f[r.near_at[0] ^ 4] - r.o[0]) * r.inv[0];
-  const float ny = (f[r.near_at[1]] - r.o[1]) * r.inv[1], fy = (f[r.near_at[1] ^ 4] - r.o[1]) * r.inv[1];
-  const float nz = (f[r.near_at[2]] - r.o[2]) * r.inv[2], fz = (f[r.near_at[2] ^ 4] - r.o[2]) * r.inv[2];
-  float near = r.tmin;
-  near = near < nx ? nx : near;
-  near = near < ny ? ny : near;
-  near = near < nz ? nz : near;
-  float far = std::numeric_limits<float>::infinity();
-  far = fx < far ? fx : far;
-  far = fy < far ? fy : far;
-  far = fz < far ? fz : far;
-  tnear = near;
-  return near <= far * kFarScale && near <= tmax;
+// Per-lane results of one triangle block; the closest hit is picked from these.
+struct BlockHits {
+  alignas(32) float t[kB], e1[kB], e2[kB], inv_det[kB];
+};
+
+#if defined(__AVX2__)
+// ---------------------------------------------------------------- vector tests
+
+static_assert(kW == 8 && kB == 8, "the vector tests below are written for 8 lanes");
+
+struct SimdRay {
+  __m256 o[3], inv[3], tmin;
+  __m256 sx, sy, sz;
+};
+
+inline SimdRay simd_ray(const PreparedRay& r) {
+  SimdRay s;
+  for (int k = 0; k < 3; ++k) s.o[k] = _mm256_set1_ps(r.o[k]), s.inv[k] = _mm256_set1_ps(r.inv[k]);
+  s.tmin = _mm256_set1_ps(r.tmin);
+  s.sx = _mm256_set1_ps(r.sx), s.sy = _mm256_set1_ps(r.sy), s.sz = _mm256_set1_ps(r.sz);
+  return s;
 }
 
-// ---------------------------------------------------------------- build
-
-struct PrimRef {
-  Bounds3 box;
-  glm::vec3 centroid;
-  uint32_t slot;  // index into the kept-triangle arrays
-};
-
-struct BuildNode {
-  Bounds3 box;
-  uint32_t first = 0, count = 0;
-  int axis = 0;
-  std::unique_ptr<BuildNode> child[2];
-};
-
-// Deeper than this, splits fall back to object medians, so depth stays below kMaxDepth and the
-// fixed traversal stack can never overflow.
-constexpr int kMedianDepth = 96;
-constexpr int kMaxDepth = 128;
-constexpr int kTaskThreshold = 4096;
-
-struct Builder {
-  std::vector<PrimRef>& refs;
-
-  std::unique_ptr<BuildNode> build(uint32_t begin, uint32_t end, int depth) {
-    auto node = std::make_unique<BuildNode>();
-    Bounds3 centroids;
-    for (uint32_t i = begin; i < end; ++i) {
-      node->box.extend(refs[i].box);
-      centroids.extend(refs[i].centroid);
-    }
-    const uint32_t n = end - begin;
-    node->first = begin;
-    node->count = n;
-    if (n <= 1) return node;
-
-    uint32_t mid = split(begin, end, node->box, centroids, depth, node->axis);
-    if (mid == begin || mid == end) return node;  // leaf (SAH prefers it, or it is small and flat)
-    node->count = 0;
-    if (n > kTaskThreshold) {
-#pragma omp task default(shared) firstprivate(begin, mid, depth)
-      node->child[0] = build(begin, mid, depth + 1);
-      node->child[1] = build(mid, end, depth + 1);
-#pragma omp taskwait
-    } else {
-      node->child[0] = build(begin, mid, depth + 1);
-      node->child[1] = build(mid, end, depth + 1);
-    }
-    return node;
+// Slab test of all children. Returns the mask of children whose [tnear, tfar] meets
+// [tmin, tmax] and stores their entry distances. A zero direction component gives 0·∞ = NaN
+// when the origin lies on that slab's plane; max/min return their second operand when the
+// first is NaN, so a NaN entry acts as −∞ and a NaN exit as +∞ (that slab does not limit the ray).
+inline unsigned hit_children(const BvhNode& n, const PreparedRay& r, const SimdRay& s, float tmax, float* tnear) {
+  __m256 near = s.tmin, far = _mm256_set1_ps(kInf);
+  for (int k = 0; k < 3; ++k) {
+    const __m256 tn = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.bounds[r.near_row[k]]), s.o[k]), s.inv[k]);
+    const __m256 tf = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.bounds[r.far_row[k]]), s.o[k]), s.inv[k]);
+    near = _mm256_max_ps(tn, near);
+    far = _mm256_min_ps(tf, far);
   }
+  far = _mm256_min_ps(_mm256_mul_ps(far, _mm256_set1_ps(kFarScale)), _mm256_set1_ps(tmax));
+  _mm256_store_ps(tnear, near);
+  return static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(near, far, _CMP_LE_OQ)));
+}
 
-  // Returns the partition point, or begin to request a leaf.
-  uint32_t split(uint32_t begin, uint32_t end, const Bounds3& box, const Bounds3& centroids, int depth, int& axis_out) {
-    const uint32_t n = end - begin;
-    const glm::vec3 extent = centroids.extent();
-    const int widest = extent.x >= extent.y ? (extent.x >= extent.z ? 0 : 2) : (extent.y >= extent.z ? 1 : 2);
-    axis_out = widest;
-    auto median = [&](int axis) {
-      const uint32_t mid = begin + n / 2;
-      std::nth_element(refs.begin() + begin, refs.begin() + mid, refs.begin() + end,
-                       [axis](const PrimRef& a, const PrimRef& b) { return a.centroid[axis] < b.centroid[axis]; });
-      return mid;
-    };
-    if (!(extent[widest] > 0.0f)) return n <= Bvh::kMaxLeafSize ? begin : begin + n / 2;  // all centroids equal
-    if (depth >= kMedianDepth) return median(widest);
+// a·b − c·d per lane with float inputs, computed in double and rounded to float once.
+inline __m256 edge_in_double(__m256 a, __m256 b, __m256 c, __m256 d) {
+  auto half = [](__m128 a, __m128 b, __m128 c, __m128 d) {
+    return _mm256_cvtpd_ps(_mm256_sub_pd(_mm256_mul_pd(_mm256_cvtps_pd(a), _mm256_cvtps_pd(b)),
+                                         _mm256_mul_pd(_mm256_cvtps_pd(c), _mm256_cvtps_pd(d))));
+  };
+  const __m128 lo = half(_mm256_castps256_ps128(a), _mm256_castps256_ps128(b), _mm256_castps256_ps128(c),
+                         _mm256_castps256_ps128(d));
+  const __m128 hi = half(_mm256_extractf128_ps(a, 1), _mm256_extractf128_ps(b, 1), _mm256_extractf128_ps(c, 1),
+                         _mm256_extractf128_ps(d, 1));
+  return _mm256_set_m128(hi, lo);
+}
 
-    // Binned SAH on every axis: cost = C_trav + (A_L·N_L + A_R·N_R) / A, with C_trav = 1 and
-    // one unit per triangle test; a leaf costs N.
-    struct Bin {
-      Bounds3 box;
-      uint32_t count = 0;
-    };
-    float best_cost = std::numeric_limits<float>::infinity();
-    int best_axis = -1, best_split = 0;
-    for (int axis = 0; axis < 3; ++axis) {
-      if (!(extent[axis] > 0.0f)) continue;
-      Bin bins[Bvh::kBins];
-      const float lo = centroids.lo[axis], scale = Bvh::kBins / extent[axis];
-      for (uint32_t i = begin; i < end; ++i) {
-        const int b = std::min(Bvh::kBins - 1, static_cast<int>((refs[i].centroid[axis] - lo) * scale));
-        bins[b].count++;
-        bins[b].box.extend(refs[i].box);
-      }
-      float right_area[Bvh::kBins];
-      uint32_t right_count[Bvh::kBins];
-      Bounds3 acc;
-      uint32_t cnt = 0;
-      for (int b = Bvh::kBins - 1; b > 0; --b) {
-        acc.extend(bins[b].box);
-        cnt += bins[b].count;
-        right_area[b] = acc.half_area();
-        right_count[b] = cnt;
-      }
-      acc = Bounds3();
-      cnt = 0;
-      for (int b = 0; b < Bvh::kBins - 1; ++b) {
-        acc.extend(bins[b].box);
-        cnt += bins[b].count;
-        if (cnt == 0 || right_count[b + 1] == 0) continue;
-        const float cost = acc.half_area() * cnt + right_area[b + 1] * right_count[b + 1];
-        if (cost < best_cost) best_cost = cost, best_axis = axis, best_split = b + 1;
+// Tests the lanes in `lanes` of one block. Returns the mask of lanes hit with tmin < t < tmax.
+inline unsigned hit_block(const Bvh::TriangleBlock& b, const PreparedRay& r, const SimdRay& s, float tmax,
+                          unsigned lanes, BlockHits& out) {
+  const __m256 zero = _mm256_setzero_ps();
+  auto at = [&](int vertex, int axis) { return _mm256_load_ps(b.v[vertex][axis]); };
+  const __m256 ox = s.o[r.kx], oy = s.o[r.ky], oz = s.o[r.kz];
+  const __m256 az = _mm256_sub_ps(at(0, r.kz), oz), bz = _mm256_sub_ps(at(1, r.kz), oz),
+               cz = _mm256_sub_ps(at(2, r.kz), oz);
+  const __m256 ax = _mm256_sub_ps(_mm256_sub_ps(at(0, r.kx), ox), _mm256_mul_ps(s.sx, az));
+  const __m256 ay = _mm256_sub_ps(_mm256_sub_ps(at(0, r.ky), oy), _mm256_mul_ps(s.sy, az));
+  const __m256 bx = _mm256_sub_ps(_mm256_sub_ps(at(1, r.kx), ox), _mm256_mul_ps(s.sx, bz));
+  const __m256 by = _mm256_sub_ps(_mm256_sub_ps(at(1, r.ky), oy), _mm256_mul_ps(s.sy, bz));
+  const __m256 cx = _mm256_sub_ps(_mm256_sub_ps(at(2, r.kx), ox), _mm256_mul_ps(s.sx, cz));
+  const __m256 cy = _mm256_sub_ps(_mm256_sub_ps(at(2, r.ky), oy), _mm256_mul_ps(s.sy, cz));
+  __m256 e0 = _mm256_sub_ps(_mm256_mul_ps(cx, by), _mm256_mul_ps(cy, bx));
+  __m256 e1 = _mm256_sub_ps(_mm256_mul_ps(ax, cy), _mm256_mul_ps(ay, cx));
+  __m256 e2 = _mm256_sub_ps(_mm256_mul_ps(bx, ay), _mm256_mul_ps(by, ax));
+  const __m256 has_zero = _mm256_or_ps(_mm256_or_ps(_mm256_cmp_ps(e0, zero, _CMP_EQ_OQ), _mm256_cmp_ps(e1, zero, _CMP_EQ_OQ)),
+                                       _mm256_cmp_ps(e2, zero, _CMP_EQ_OQ));
+  if (_mm256_movemask_ps(has_zero) & lanes) {
+    // Exact zeros may be rounding artefacts on a shared edge: decide those lanes in double
+    // (float products are exact in double), as the scalar test does.
+    e0 = _mm256_blendv_ps(e0, edge_in_double(cx, by, cy, bx), has_zero);
+    e1 = _mm256_blendv_ps(e1, edge_in_double(ax, cy, ay, cx), has_zero);
+    e2 = _mm256_blendv_ps(e2, edge_in_double(bx, ay, by, ax), has_zero);
+  }
+  const __m256 any_neg = _mm256_or_ps(_mm256_or_ps(_mm256_cmp_ps(e0, zero, _CMP_LT_OQ), _mm256_cmp_ps(e1, zero, _CMP_LT_OQ)),
+                                      _mm256_cmp_ps(e2, zero, _CMP_LT_OQ));
+  const __m256 any_pos = _mm256_or_ps(_mm256_or_ps(_mm256_cmp_ps(e0, zero, _CMP_GT_OQ), _mm256_cmp_ps(e1, zero, _CMP_GT_OQ)),
+                                      _mm256_cmp_ps(e2, zero, _CMP_GT_OQ));
+  const __m256 det = _mm256_add_ps(_mm256_add_ps(e0, e1), e2);
+  const __m256 scaled_t = _mm256_mul_ps(
+      s.sz, _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(e0, az), _mm256_mul_ps(e1, bz)), _mm256_mul_ps(e2, cz)));
+  const __m256 inv_det = _mm256_div_ps(_mm256_set1_ps(1.0f), det);
+  const __m256 t = _mm256_mul_ps(scaled_t, inv_det);
+  __m256 ok = _mm256_andnot_ps(_mm256_and_ps(any_neg, any_pos), _mm256_cmp_ps(det, zero, _CMP_NEQ_OQ));
+  ok = _mm256_and_ps(ok, _mm256_and_ps(_mm256_cmp_ps(t, s.tmin, _CMP_GT_OQ),
+                                       _mm256_cmp_ps(t, _mm256_set1_ps(tmax), _CMP_LT_OQ)));
+  const unsigned mask = static_cast<unsigned>(_mm256_movemask_ps(ok)) & lanes;
+  if (mask) {
+    _mm256_store_ps(out.t, t), _mm256_store_ps(out.e1, e1), _mm256_store_ps(out.e2, e2);
+    _mm256_store_ps(out.inv_det, inv_det);
+  }
+  return mask;
+}
+
+#else
+// ---------------------------------------------------------------- portable fallback
+
+struct SimdRay {};
+inline SimdRay simd_ray(const PreparedRay&) { return {}; }
+
+// The same tests as lane loops without branches, which compilers vectorise for SSE.
+inline unsigned hit_children(const BvhNode& n, const PreparedRay& r, const SimdRay&, float tmax, float* tnear) {
+  float far[kW];
+  for (int i = 0; i < kW; ++i) tnear[i] = r.tmin, far[i] = kInf;
+  for (int k = 0; k < 3; ++k) {
+    const float* lo = n.bounds[r.near_row[k]];
+    const float* hi = n.bounds[r.far_row[k]];
+    for (int i = 0; i < kW; ++i) {
+      const float tn = (lo[i] - r.o[k]) * r.inv[k], tf = (hi[i] - r.o[k]) * r.inv[k];
+      tnear[i] = tnear[i] < tn ? tn : tnear[i];  // NaN entry: keeps tnear
+      far[i] = tf < far[i] ? tf : far[i];        // NaN exit: keeps far
+    }
+  }
+  unsigned mask = 0;
+  for (int i = 0; i < kW; ++i) {
+    const float limit = far[i] * kFarScale < tmax ? far[i] * kFarScale : tmax;
+    mask |= static_cast<unsigned>(tnear[i] <= limit) << i;
+  }
+  return mask;
+}
+
+inline unsigned hit_block(const Bvh::TriangleBlock& b, const PreparedRay& r, const SimdRay&, float tmax,
+                          unsigned lanes, BlockHits& out) {
+  float az[kB], bz[kB], cz[kB], ax[kB], ay[kB], bx[kB], by[kB], cx[kB], cy[kB];
+  unsigned has_zero = 0;
+  for (int l = 0; l < kB; ++l) {
+    az[l] = b.v[0][r.kz][l] - r.oz, bz[l] = b.v[1][r.kz][l] - r.oz, cz[l] = b.v[2][r.kz][l] - r.oz;
+    ax[l] = (b.v[0][r.kx][l] - r.ox) - r.sx * az[l], ay[l] = (b.v[0][r.ky][l] - r.oy) - r.sy * az[l];
+    bx[l] = (b.v[1][r.kx][l] - r.ox) - r.sx * bz[l], by[l] = (b.v[1][r.ky][l] - r.oy) - r.sy * bz[l];
+    cx[l] = (b.v[2][r.kx][l] - r.ox) - r.sx * cz[l], cy[l] = (b.v[2][r.ky][l] - r.oy) - r.sy * cz[l];
+    out.e1[l] = ax[l] * cy[l] - ay[l] * cx[l];
+    out.e2[l] = bx[l] * ay[l] - by[l] * ax[l];
+    out.t[l] = cx[l] * by[l] - cy[l] * bx[l];  // e0 until the end
+    has_zero |= static_cast<unsigned>(out.t[l] == 0.0f || out.e1[l] == 0.0f || out.e2[l] == 0.0f) << l;
+  }
+  for (unsigned m = has_zero & lanes; m; m &= m - 1) {
+    const int l = __builtin_ctz(m);  // decided in double, as in the scalar test
+    out.t[l] = static_cast<float>(static_cast<double>(cx[l]) * by[l] - static_cast<double>(cy[l]) * bx[l]);
+    out.e1[l] = static_cast<float>(static_cast<double>(ax[l]) * cy[l] - static_cast<double>(ay[l]) * cx[l]);
+    out.e2[l] = static_cast<float>(static_cast<double>(bx[l]) * ay[l] - static_cast<double>(by[l]) * ax[l]);
+  }
+  unsigned mask = 0;
+  for (int l = 0; l < kB; ++l) {
+    const float e0 = out.t[l], e1 = out.e1[l], e2 = out.e2[l];
+    const bool mixed = (e0 < 0.0f || e1 < 0.0f || e2 < 0.0f) && (e0 > 0.0f || e1 > 0.0f || e2 > 0.0f);
+    const float det = e0 + e1 + e2;
+    const float scaled_t = r.sz * (e0 * az[l] + e1 * bz[l] + e2 * cz[l]);
+    const float inv_det = 1.0f / det;
+    const float t = scaled_t * inv_det;
+    out.t[l] = t, out.inv_det[l] = inv_det;
+    mask |= static_cast<unsigned>(!mixed && det != 0.0f && t > r.tmin && t < tmax) << l;
+  }
+  return mask & lanes;
+}
+#endif
+
+struct StackEntry {
+  uint32_t ref;
+  float tnear;  // entry distance of its box
+};
+
+// Pushes the children in `mask` (two or more) so that the nearer pop first, and returns the
+// nearest, which is visited next.
+inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const float* tnear, StackEntry* stack,
+                                      int& sp) {
+  const int first = __builtin_ctz(mask);
+  mask &= mask - 1;
+  const int second = __builtin_ctz(mask);
+  mask &= mask - 1;
+  if (!mask) {
+    const bool swap = tnear[second] < tnear[first];
+    const int near = swap ? second : first, far = swap ? first : second;
+    stack[sp++] = {n.child[far], tnear[far]};
+    return n.child[near];
+  }
+  StackEntry* base = stack + sp;
+  int count = 0;
+  base[count++] = {n.child[first], tnear[first]};
+  base[count++] = {n.child[second], tnear[second]};
+  for (; mask; mask &= mask - 1) {
+    const int i = __builtin_ctz(mask);
+    base[count++] = {n.child[i], tnear[i]};
+  }
+  for (int i = 1; i < count; ++i) {  // insertion sort, farthest at the bottom
+    const StackEntry e = base[i];
+    int j = i;
+    for (; j > 0 && base[j - 1].tnear < e.tnear; --j) base[j] = base[j - 1];
+    base[j] = e;
+  }
+  sp += count - 1;
+  return base[count - 1].ref;
+}
+
+// Tests the triangles of leaf `ref`. Closest-hit narrows tmax to each closer hit and records
+// it in `hit` and `slot` (block * kBlockWidth + lane); any-hit returns true at the first hit.
+template <bool kAnyHit>
+inline bool hit_leaf(const Bvh::TriangleBlock* blocks, uint32_t ref, const PreparedRay& r, const SimdRay& s,
+                     float& tmax, Hit& hit, uint32_t& slot) {
+  const uint32_t block = BvhNode::leaf_block(ref), count = BvhNode::leaf_count(ref);
+  bool found = false;
+  for (uint32_t i = 0; i < count; i += kB) {
+    const unsigned lanes = count - i >= static_cast<uint32_t>(kB) ? (1u << kB) - 1 : (1u << (count - i)) - 1;
+    const uint32_t b = block + i / kB;
+    BlockHits h;
+    unsigned mask = hit_block(blocks[b], r, s, tmax, lanes, h);
+    if (!mask) continue;
+    int lane = __builtin_ctz(mask);
+    if constexpr (!kAnyHit) {
+      // The closest lane; on equal t the first, as a one-by-one test would keep it.
+      for (mask &= mask - 1; mask; mask &= mask - 1) {
+        const int l = __builtin_ctz(mask);
+        if (h.t[l] < h.t[lane]) lane = l;
       }
     }
-    const float area = box.half_area();
-    const float split_cost = area > 0.0f ? 1.0f + best_cost / area : static_cast<float>(n);
-    if (best_axis < 0) return n <= Bvh::kMaxLeafSize ? begin : median(widest);
-    if (n <= Bvh::kMaxLeafSize && static_cast<float>(n) <= split_cost) return begin;
-    axis_out = best_axis;
-    const float lo = centroids.lo[best_axis], scale = Bvh::kBins / extent[best_axis];
-    auto it = std::partition(refs.begin() + begin, refs.begin() + end, [&](const PrimRef& p) {
-      return std::min(Bvh::kBins - 1, static_cast<int>((p.centroid[best_axis] - lo) * scale)) < best_split;
-    });
-    const uint32_t mid = static_cast<uint32_t>(it - refs.begin());
-    return mid == begin || mid == end ? median(widest) : mid;
+    tmax = h.t[lane];
+    hit.t = tmax, hit.u = h.e1[lane] * h.inv_det[lane], hit.v = h.e2[lane] * h.inv_det[lane];
+    slot = b * kB + lane;
+    found = true;
+    if constexpr (kAnyHit) break;
   }
-};
+  return found;
+}
 
 }  // namespace
 
-Bvh::Bvh(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>& triangles) {
-  std::vector<PrimRef> refs;
-  std::vector<Triangle> kept;
-  std::vector<uint32_t> kept_ids;
-  refs.reserve(triangles.size());
-  for (size_t t = 0; t < triangles.size(); ++t) {
-    const glm::uvec3 tri = triangles[t];
-    for (int k = 0; k < 3; ++k)
-      SL_CHECK(tri[k] < positions.size(), "Bvh: triangle ", t, " has vertex index ", tri[k], " out of range [0, ",
-               positions.size(), ")");
-    const glm::vec3 p0 = positions[tri.x], p1 = positions[tri.y], p2 = positions[tri.z];
-    const glm::vec3 n = glm::cross(p1 - p0, p2 - p0);
-    // Zero-area and non-finite triangles can never be hit (det = 0 or NaN): leave them out.
-    if (!std::isfinite(p0.x + p0.y + p0.z + p1.x + p1.y + p1.z + p2.x + p2.y + p2.z)) continue;
-    if (n.x == 0.0f && n.y == 0.0f && n.z == 0.0f) continue;
-    PrimRef r;
-    r.box.extend(p0), r.box.extend(p1), r.box.extend(p2);
-    r.centroid = r.box.centre();
-    r.slot = static_cast<uint32_t>(kept.size());
-    refs.push_back(r);
-    kept.push_back({{p0.x, p0.y, p0.z}, {p1.x, p1.y, p1.z}, {p2.x, p2.y, p2.z}});
-    kept_ids.push_back(static_cast<uint32_t>(t));
-  }
-  if (refs.empty()) return;
-
-  Builder builder{refs};
-  std::unique_ptr<BuildNode> root;
-  if (omp_in_parallel()) {
-    root = builder.build(0, static_cast<uint32_t>(refs.size()), 0);
-  } else {
-#pragma omp parallel
-#pragma omp single
-    root = builder.build(0, static_cast<uint32_t>(refs.size()), 0);
-  }
-
-  // Flatten depth-first: the first child follows its parent, so only the second needs an index.
-  triangles_.resize(refs.size());
-  ids_.resize(refs.size());
-  for (size_t i = 0; i < refs.size(); ++i) {
-    triangles_[i] = kept[refs[i].slot];
-    ids_[i] = kept_ids[refs[i].slot];
-  }
-  nodes_.reserve(2 * refs.size());
-  struct Item {
-    const BuildNode* node;
-    int64_t parent;  // flattened parent whose `offset` must point here, or -1
-    int depth;
-  };
-  std::vector<Item> todo{{root.get(), -1, 1}};
-  while (!todo.empty()) {
-    const Item item = todo.back();
-    todo.pop_back();
-    const uint32_t index = static_cast<uint32_t>(nodes_.size());
-    if (item.parent >= 0) nodes_[static_cast<size_t>(item.parent)].offset = index;
-    const BuildNode& b = *item.node;
-    BvhNode out{};
-    for (int k = 0; k < 3; ++k) out.lo[k] = b.box.lo[k], out.hi[k] = b.box.hi[k];
-    depth_ = std::max(depth_, item.depth);
-    if (!b.child[0]) {
-      // A leaf of more than 65535 identical-centroid triangles cannot occur: flat nodes split at
-      // their median above kMaxLeafSize.
-      out.offset = b.first;
-      out.count = static_cast<uint16_t>(b.count);
-      nodes_.push_back(out);
-    } else {
-      out.axis = static_cast<uint16_t>(b.axis);
-      nodes_.push_back(out);
-      todo.push_back({b.child[1].get(), index, item.depth + 1});  // popped after the whole first subtree
-      todo.push_back({b.child[0].get(), -1, item.depth + 1});
-    }
-  }
-  SL_CHECK(depth_ <= kMaxDepth, "Bvh: tree depth ", depth_, " exceeds ", kMaxDepth);
-}
-
-Bounds3 Bvh::bounds() const {
-  Bounds3 b;
-  if (!nodes_.empty()) {
-    b.lo = glm::vec3(nodes_[0].lo[0], nodes_[0].lo[1], nodes_[0].lo[2]);
-    b.hi = glm::vec3(nodes_[0].hi[0], nodes_[0].hi[1], nodes_[0].hi[2]);
-  }
-  return b;
-}
-
 template <bool kAnyHit>
-Hit Bvh::traverse(const Ray& ray) const {
+inline Hit Bvh::traverse(const Ray& ray) const {
   Hit hit;
   if (nodes_.empty()) return hit;
   const PreparedRay r = prepare(ray);
   if (!r.valid) return hit;
+  const SimdRay s = simd_ray(r);
   float tmax = ray.tmax;
-  const BvhNode* nodes = nodes_.data();
-  float tnear;
-  if (!hit_box(nodes[0], r, tmax, tnear)) return hit;
-
-  struct Entry {
-    uint32_t node;
-    float tnear;
-  };
-  Entry stack[kMaxDepth];
+  uint32_t slot = Hit::kNone;  // block * kBlockWidth + lane of the closest hit so far
+  StackEntry stack[(kW - 1) * kMaxDepth + 1];  // each level defers at most kWidth − 1 children
   int sp = 0;
-  uint32_t current = 0;
+  uint32_t ref = 0;  // the root node
   for (;;) {
-    const BvhNode& n = nodes[current];
-    if (n.count == 0) {
-      // Ordered traversal: visit the nearer child first, defer the other with its entry distance.
-      uint32_t a = current + 1, b = n.offset;
-      float ta, tb;
-      const bool ha = hit_box(nodes[a], r, tmax, ta), hb = hit_box(nodes[b], r, tmax, tb);
-      if (ha && hb) {
-        if (tb < ta) std::swap(a, b), std::swap(ta, tb);
-        stack[sp++] = {b, tb};
-        current = a;
-        continue;
-      }
-      if (ha || hb) {
-        current = ha ? a : b;
-        continue;
-      }
-    } else {
-      const Triangle* tri = triangles_.data() + n.offset;
-      for (uint32_t i = 0; i < n.count; ++i) {
-        float t, u, v;
-        if (hit_triangle(r, tri[i], tmax, t, u, v)) {
-          tmax = t;
-          hit.t = t, hit.u = u, hit.v = v, hit.triangle = n.offset + i;
-          if constexpr (kAnyHit) {
-            hit.triangle = ids_[hit.triangle];
-            return hit;
-          }
+    if (!BvhNode::is_leaf(ref)) {
+      const BvhNode& n = nodes_[ref];
+      alignas(32) float tnear[kW];
+      const unsigned mask = hit_children(n, r, s, tmax, tnear);
+      if (mask) {
+        // Start loading every child the ray enters, so their cache misses overlap.
+        for (unsigned m = mask; m; m &= m - 1) {
+          const uint32_t c = n.child[__builtin_ctz(m)];
+          const bool leaf = BvhNode::is_leaf(c);
+          const char* p = leaf ? reinterpret_cast<const char*>(&blocks_[BvhNode::leaf_block(c)])
+                               : reinterpret_cast<const char*>(&nodes_[c]);
+          const int bytes = leaf ? sizeof(TriangleBlock) : sizeof(BvhNode);
+          for (int line = 0; line < bytes; line += 64) __builtin_prefetch(p + line);
         }
+        if (!(mask & (mask - 1))) {
+          ref = n.child[__builtin_ctz(mask)];
+          continue;
+        }
+        if constexpr (kAnyHit) {
+          // Any hit ends the search, so order does not matter.
+          ref = n.child[__builtin_ctz(mask)];
+          for (unsigned m = mask & (mask - 1); m; m &= m - 1) stack[sp++] = {n.child[__builtin_ctz(m)], 0.0f};
+        } else {
+          ref = defer_all_but_nearest(n, mask, tnear, stack, sp);
+        }
+        continue;
       }
+    } else if (hit_leaf<kAnyHit>(blocks_.data(), ref, r, s, tmax, hit, slot) && kAnyHit) {
+      hit.triangle = ids_[slot];
+      return hit;
     }
+    // Pop the next subtree; closest-hit skips those that start beyond the closest hit.
     for (;;) {
       if (sp == 0) {
-        if (hit.hit()) hit.triangle = ids_[hit.triangle];
+        if (slot != Hit::kNone) hit.triangle = ids_[slot];
         return hit;
       }
-      --sp;
-      if (stack[sp].tnear <= tmax) {
-        current = stack[sp].node;
+      const StackEntry e = stack[--sp];
+      if (kAnyHit || e.tnear <= tmax) {
+        ref = e.ref;
         break;
       }
     }
@@ -397,7 +429,7 @@ Hit intersect_brute_force(const std::vector<glm::vec3>& positions, const std::ve
     SL_CHECK(t.x < positions.size() && t.y < positions.size() && t.z < positions.size(), "intersect_brute_force: ",
              "triangle ", i, " has a vertex index out of range [0, ", positions.size(), ")");
     const glm::vec3 p0 = positions[t.x], p1 = positions[t.y], p2 = positions[t.z];
-    const Bvh::Triangle tri{{p0.x, p0.y, p0.z}, {p1.x, p1.y, p1.z}, {p2.x, p2.y, p2.z}};
+    const Triangle tri{{p0.x, p0.y, p0.z}, {p1.x, p1.y, p1.z}, {p2.x, p2.y, p2.z}};
     float th, u, v;
     if (hit_triangle(r, tri, tmax, th, u, v)) {
       tmax = th;

@@ -1,13 +1,20 @@
 // Bounding volume hierarchy over a triangle mesh: closest-hit and occlusion queries.
 //
-// Build: binned SAH (Wald 2007) over all three axes with kBins bins, subtrees built as OpenMP
-// tasks, flattened depth-first into 32-byte nodes (pbrt's LinearBVHNode layout: the first child
-// follows its parent, the second is at `offset`). Leaves hold at most kMaxLeafSize triangles,
-// stored as vertex copies in leaf order so a leaf is one contiguous read.
-// Intersection: watertight ray-triangle test (Woop, Benthin & Wald, JCGT 2013): a ray through
-// an edge or vertex shared by two triangles hits at least one of them, never slips between.
-// Node boxes are tested with a precomputed inverse direction and far distances widened by
-// 1 + 2γ₃ (pbrt §6.8.2), so a triangle hit is never culled by box rounding.
+// Build (bvh_build.cpp): binned SAH (Wald 2007) over all three axes with kBins bins, grown
+// directly into an 8-wide tree: a node repeatedly splits its child of largest surface area until
+// it has kWidth children (the collapse of Wald, Benthin & Boulos 2008, done while building).
+// Subtrees are built as OpenMP tasks; the tree does not depend on the schedule. The result is laid
+// out depth-first: nodes store their children's boxes as structure-of-arrays, so one node is
+// tested against a ray with a few 8-wide vector instructions. Leaves hold at most kMaxLeafSize
+// triangles, stored as vertex copies in blocks of kBlockWidth (structure-of-arrays), so a leaf
+// is one contiguous read and its triangles are tested together.
+// Intersection (bvh.cpp): watertight ray-triangle test (Woop, Benthin & Wald, JCGT 2013): a ray
+// through an edge or vertex shared by two triangles hits at least one of them, never slips
+// between. Every lane of the vector test performs the same IEEE operations, in the same order,
+// as the scalar test of intersect_brute_force. Child boxes are tested with a precomputed inverse
+// direction and far distances widened by 1 + 2γ₃ (pbrt §6.8.2), so a triangle hit is never
+// culled by box rounding. Closest-hit visits children nearest first and skips deferred subtrees
+// that start beyond the nearest hit so far; occlusion stops at the first hit it finds.
 // Guarantees:
 //   - a hit has tmin < t < tmax; the hit point is (1-u-v)·p0 + u·p1 + v·p2 of the mesh triangle
 //     `triangle` (its index in Mesh::triangles);
@@ -16,7 +23,8 @@
 //   - a ray starting on a surface with tmin = ε > 0 does not hit that surface at t ≈ 0;
 //   - a ray with a zero or non-finite direction, or a NaN origin, misses;
 //   - an empty mesh gives an empty BVH in which every ray misses;
-//   - results do not depend on the thread count (queries are independent per ray).
+//   - results do not depend on the thread count (queries are independent per ray, and the
+//     tree does not depend on how the build was scheduled).
 // Throws: sl::Error when a triangle's vertex index is out of range.
 #pragma once
 #include <cstddef>
@@ -45,20 +53,51 @@ struct Hit {
   bool hit() const { return triangle != kNone; }
 };
 
-struct alignas(32) BvhNode {
-  float lo[3];
-  uint32_t offset;  // leaf: first triangle slot; interior: index of the second child
-  float hi[3];
-  uint16_t count;   // triangles in a leaf; 0 for an interior node
-  uint16_t axis;    // split axis of an interior node
+// One 8-wide interior node: the boxes of its children as structure-of-arrays, then their
+// references. An unused slot has an empty box (lo = +∞, hi = −∞), which no ray enters.
+struct alignas(64) BvhNode {
+  static constexpr int kWidth = 8;
+  static constexpr uint32_t kLeafBit = 0x80000000u;  // child ref: leaf (else an index into nodes())
+  static constexpr uint32_t kEmpty = 0xFFFFFFFFu;    // child ref of an unused slot
+  // bounds[a][i]: a = 0..2 lo x, y, z; a = 3..5 hi x, y, z; i = child slot.
+  float bounds[6][kWidth];
+  uint32_t child[kWidth];
+  uint32_t reserved[kWidth];  // pads the node to four cache lines
+
+  // A leaf ref packs its first triangle block and its triangle count (1..kMaxLeafSize).
+  static bool is_leaf(uint32_t ref) { return (ref & kLeafBit) != 0; }
+  static uint32_t leaf_block(uint32_t ref) { return (ref & ~kLeafBit) >> 4; }
+  static uint32_t leaf_count(uint32_t ref) { return (ref & 15u) + 1; }
 };
-static_assert(sizeof(BvhNode) == 32, "BvhNode must stay one half cache line");
-static_assert(offsetof(BvhNode, hi) == 16, "traversal reads hi[k] as float 4 + k of the node");
+static_assert(sizeof(BvhNode) == 256, "BvhNode must stay four cache lines");
+
+// Allocator for the BVH's arrays: blocks of 2 MiB and more are 2 MiB-aligned and, on Linux,
+// marked for transparent huge pages, so random traversal does not miss in the TLB at every step.
+void* bvh_allocate(size_t bytes);
+void bvh_deallocate(void* p, size_t bytes);
+template <class T>
+struct BvhAllocator {
+  using value_type = T;
+  BvhAllocator() = default;
+  template <class U>
+  BvhAllocator(const BvhAllocator<U>&) {}
+  T* allocate(size_t n) { return static_cast<T*>(bvh_allocate(n * sizeof(T))); }
+  void deallocate(T* p, size_t n) { bvh_deallocate(p, n * sizeof(T)); }
+  template <class U>
+  bool operator==(const BvhAllocator<U>&) const { return true; }
+};
 
 class Bvh {
  public:
   static constexpr int kBins = 32;
-  static constexpr int kMaxLeafSize = 4;
+  static constexpr int kBlockWidth = 8;   // triangles tested together
+  static constexpr int kMaxLeafSize = 16; // at most 16 (leaf refs keep the count in 4 bits)
+  static constexpr int kMaxDepth = 128;   // levels; the build falls back to median splits long before
+
+  // kBlockWidth triangles as structure-of-arrays: v[vertex][axis][lane]. Unused lanes are NaN.
+  struct alignas(32) TriangleBlock {
+    float v[3][3][kBlockWidth];
+  };
 
   Bvh() = default;  // empty: every ray misses
   explicit Bvh(const Mesh& mesh) : Bvh(mesh.positions, mesh.triangles) {}
@@ -73,22 +112,21 @@ class Bvh {
 
   bool empty() const { return nodes_.empty(); }
   size_t node_count() const { return nodes_.size(); }
-  size_t triangle_count() const { return ids_.size(); }  // triangles kept (non-degenerate)
-  Bounds3 bounds() const;
-  const std::vector<BvhNode>& nodes() const { return nodes_; }
-  int depth() const { return depth_; }
-
-  struct Triangle {
-    float p0[3], p1[3], p2[3];
-  };
+  size_t triangle_count() const { return triangle_count_; }  // triangles kept (non-degenerate)
+  Bounds3 bounds() const { return bounds_; }
+  // Node 0 is the root; a non-empty BVH always has one, even over a single triangle.
+  const std::vector<BvhNode, BvhAllocator<BvhNode>>& nodes() const { return nodes_; }
+  int depth() const { return depth_; }  // nodes on the longest root-to-leaf path, the leaf included
 
  private:
   template <bool kAnyHit>
   Hit traverse(const Ray& ray) const;
 
-  std::vector<BvhNode> nodes_;
-  std::vector<Triangle> triangles_;  // leaf order
-  std::vector<uint32_t> ids_;        // leaf slot -> mesh triangle index
+  std::vector<BvhNode, BvhAllocator<BvhNode>> nodes_;
+  std::vector<TriangleBlock, BvhAllocator<TriangleBlock>> blocks_;  // leaf order
+  std::vector<uint32_t> ids_;          // block * kBlockWidth + lane -> mesh triangle index
+  size_t triangle_count_ = 0;
+  Bounds3 bounds_;
   int depth_ = 0;
 };
 

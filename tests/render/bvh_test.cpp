@@ -103,6 +103,32 @@ TEST(Bvh, SharedEdgeIsWatertight) {
   }
 }
 
+TEST(Bvh, RaysThroughTheSharedVertexOfAFanAlwaysHit) {
+  // 40 triangles around one vertex: leaves are full, and a ray through the centre gives exact
+  // zero edge functions in many lanes of one block at once; along a spoke, in two lanes.
+  constexpr int kSpokes = 40;
+  sl::Mesh m;
+  m.positions.push_back({0.25f, 0.5f, 0.0f});
+  for (int i = 0; i < kSpokes; ++i) {
+    const float a = 6.2831853f * i / kSpokes;
+    m.positions.push_back({0.25f + std::cos(a), 0.5f + std::sin(a), 0.1f * std::sin(3.0f * a)});
+  }
+  for (uint32_t i = 0; i < kSpokes; ++i) m.triangles.push_back({0, 1 + i, 1 + (i + 1) % kSpokes});
+  const sl::Bvh bvh(m);
+  sl::Rng rng(6);
+  for (int k = 0; k < 500; ++k) {
+    const glm::vec3 target = k % 2 == 0 ? m.positions[0]
+                                        : glm::mix(m.positions[0], m.positions[1 + (k / 2) % kSpokes],
+                                                   static_cast<float>(rng.uniform(0.0, 1.0)));
+    sl::Ray r;
+    r.origin = target + glm::vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), 2.0f);
+    r.direction = target - r.origin;
+    EXPECT_TRUE(bvh.intersect(r).hit()) << k;
+    EXPECT_TRUE(bvh.occluded(r)) << k;
+    EXPECT_EQ(bvh.intersect(r).hit(), sl::intersect_brute_force(m.positions, m.triangles, r).hit()) << k;
+  }
+}
+
 TEST(Bvh, DegenerateTrianglesAreNeverHit) {
   sl::Mesh m;
   m.positions = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {0, 0, 0}, {0, 0, 0}};
@@ -226,13 +252,45 @@ TEST(Bvh, ResultsAreIdenticalWithOneAndTwoThreads) {
 TEST(Bvh, NodesAreCompactAndLeavesSmall) {
   const sl::Mesh m = random_soup(20000, 12);
   const sl::Bvh bvh(m);
-  size_t leaf_tris = 0;
+  size_t leaf_tris = 0, children = 0, interior_refs = 0;
   for (const auto& n : bvh.nodes()) {
-    EXPECT_LE(n.count, sl::Bvh::kMaxLeafSize);
-    leaf_tris += n.count;
+    for (int i = 0; i < sl::BvhNode::kWidth; ++i) {
+      const uint32_t ref = n.child[i];
+      if (ref == sl::BvhNode::kEmpty) {
+        EXPECT_GT(n.bounds[0][i], n.bounds[3][i]);  // an unused slot's box is empty
+        continue;
+      }
+      ++children;
+      if (sl::BvhNode::is_leaf(ref)) {
+        EXPECT_LE(sl::BvhNode::leaf_count(ref), static_cast<uint32_t>(sl::Bvh::kMaxLeafSize));
+        leaf_tris += sl::BvhNode::leaf_count(ref);
+      } else {
+        EXPECT_LT(ref, bvh.node_count());
+        ++interior_refs;
+      }
+    }
   }
   EXPECT_EQ(leaf_tris, bvh.triangle_count());
+  EXPECT_EQ(interior_refs, bvh.node_count() - 1);  // every node but the root has one parent
+  EXPECT_GT(children, 4 * bvh.node_count());  // wide nodes are mostly full
   EXPECT_LE(bvh.depth(), 64);
+}
+
+TEST(Bvh, TreeDoesNotDependOnThreadCount) {
+  const sl::Mesh m = random_soup(30000, 5);
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const sl::Bvh one(m);
+  omp_set_num_threads(2);
+  const sl::Bvh two(m);
+  omp_set_num_threads(threads);
+  ASSERT_EQ(one.node_count(), two.node_count());
+  for (size_t i = 0; i < one.node_count(); ++i) {
+    for (int c = 0; c < sl::BvhNode::kWidth; ++c) {
+      EXPECT_EQ(one.nodes()[i].child[c], two.nodes()[i].child[c]);
+      for (int a = 0; a < 6; ++a) EXPECT_EQ(one.nodes()[i].bounds[a][c], two.nodes()[i].bounds[a][c]);
+    }
+  }
 }
 
 TEST(Bvh, RealModelsMatchBruteForce) {

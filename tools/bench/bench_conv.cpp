@@ -1,4 +1,4 @@
-// streetlight-bench conv [--json] [--repeat N]: see bench_conv.h.
+// streetlight-bench conv [--json]: see bench_conv.h.
 #include "tools/bench/bench_conv.h"
 
 #include <omp.h>

@@ -103,8 +103,12 @@ std::string temporary_name(const std::string& path) {
 }
 
 // Writes interleaved pixels of `type` through a temporary file and renames it into place.
-void write_pixels(const std::string& path, const OIIO::ImageSpec& spec, const void* pixels,
+void write_pixels(const std::string& path, const OIIO::ImageSpec& spec_in, const void* pixels,
                   const char* op) {
+  // OIIO stamps EXR files with the current time (capDate) unless told otherwise; an empty
+  // DateTime keeps files a pure function of their pixels, so a seed reproduces them byte for byte.
+  OIIO::ImageSpec spec = spec_in;
+  spec.attribute("DateTime", "");
   const fs::path parent = fs::path(path).parent_path();
   std::error_code ec;
   SL_CHECK(parent.empty() || fs::is_directory(parent, ec), op, ": '", path,

@@ -1,0 +1,104 @@
+#include "data/augment.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "autodiff/error.h"
+#include "autodiff/random.h"
+
+namespace sl {
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+void check_image(const Tensor& t, const char* fn) {
+  SL_CHECK(t.defined() && (t.dim() == 3 || t.dim() == 2) && t.dtype() == DType::F32, fn,
+           ": expected an F32 [C, H, W] or [H, W] tensor, got ", t.defined() ? t.describe() : "undefined");
+}
+
+}  // namespace
+
+RandomCrop random_perspective_crop(const Tensor& pano, uint64_t seed, uint64_t stream, const CropRanges& r,
+                                   const glm::dvec3& position) {
+  SL_CHECK(r.fov_min_deg > 0.0 && r.fov_min_deg <= r.fov_max_deg && r.fov_max_deg < 179.0,
+           "random_perspective_crop: need 0 < fov_min_deg <= fov_max_deg < 179, got [", r.fov_min_deg, ", ",
+           r.fov_max_deg, "]");
+  SL_CHECK(r.pitch_range_deg >= 0.0 && r.pitch_range_deg <= 89.0 && r.roll_range_deg >= 0.0 && r.roll_range_deg <= 180.0,
+           "random_perspective_crop: pitch_range_deg must be in [0, 89] and roll_range_deg in [0, 180], got ",
+           r.pitch_range_deg, " and ", r.roll_range_deg);
+  Rng rng(seed, stream);
+  RandomCrop out;
+  out.fov_deg = rng.uniform(r.fov_min_deg, r.fov_max_deg);
+  out.yaw_deg = rng.uniform(-180.0, 180.0);
+  out.pitch_deg = rng.uniform(-r.pitch_range_deg, r.pitch_range_deg);
+  out.roll_deg = rng.uniform(-r.roll_range_deg, r.roll_range_deg);
+  PerspectiveCropParams p;
+  p.horizontal_fov_rad = out.fov_deg * kDeg;
+  p.yaw_rad = out.yaw_deg * kDeg;
+  p.pitch_rad = out.pitch_deg * kDeg;
+  p.roll_rad = out.roll_deg * kDeg;
+  p.width = r.width;
+  p.height = r.height;
+  out.crop = crop_perspective(pano, p);
+  out.crop.camera = Camera(out.crop.camera.intrinsics(), out.crop.camera.rotation(), position);
+  return out;
+}
+
+Tensor flip_horizontal(const Tensor& image) {
+  check_image(image, "flip_horizontal");
+  const Tensor src = image.contiguous();
+  Tensor out = Tensor::empty(src.shape());
+  const int64_t W = src.size(-1), rows = src.numel() / std::max<int64_t>(W, 1);
+  const float* s = src.data<float>();
+  float* d = out.data<float>();
+  for (int64_t r = 0; r < rows; ++r)
+    for (int64_t x = 0; x < W; ++x) d[r * W + x] = s[r * W + (W - 1 - x)];
+  return out;
+}
+
+glm::dvec3 mirror_direction(const glm::dvec3& d, const glm::dvec3& n) { return d - 2.0 * glm::dot(d, n) * n; }
+
+StreetView flip_view(const StreetView& view, glm::dvec3* world_direction) {
+  StreetView out;
+  out.ldr = flip_horizontal(view.ldr);
+  if (view.hdr.defined()) out.hdr = flip_horizontal(view.hdr);
+  if (view.depth.defined()) out.depth = flip_horizontal(view.depth);
+  if (view.sky_mask.defined()) out.sky_mask = flip_horizontal(view.sky_mask);
+  Intrinsics k = view.camera.intrinsics();
+  k.cx = k.width - k.cx;
+  out.camera = Camera(k, view.camera.rotation(), view.camera.position());
+  if (world_direction) *world_direction = mirror_direction(*world_direction, view.camera.rotation()[0]);
+  return out;
+}
+
+Tensor flip_panorama(const Tensor& pano) {
+  check_panorama(pano, "flip_panorama");
+  // Column j covers u ∈ [j, j+1); the mirror u → W − u maps it onto column W − 1 − j.
+  return flip_horizontal(pano);
+}
+
+double random_exposure_factor(uint64_t seed, uint64_t stream, double stops) {
+  SL_CHECK(std::isfinite(stops) && stops >= 0.0, "random_exposure_factor: stops must be finite and >= 0, got ", stops);
+  return std::exp2(Rng(seed, stream).uniform(-stops, stops));
+}
+
+Tensor scale_hdr(const Tensor& hdr, double factor) {
+  check_image(hdr, "scale_hdr");
+  SL_CHECK(std::isfinite(factor) && factor >= 0.0, "scale_hdr: factor must be finite and >= 0, got ", factor);
+  Tensor out = hdr.contiguous().clone();
+  float* p = out.data<float>();
+  for (int64_t i = 0; i < out.numel(); ++i) p[i] = static_cast<float>(p[i] * factor);
+  return out;
+}
+
+Tensor scale_ldr(const Tensor& ldr, double factor) {
+  check_image(ldr, "scale_ldr");
+  SL_CHECK(std::isfinite(factor) && factor >= 0.0, "scale_ldr: factor must be finite and >= 0, got ", factor);
+  const float g = static_cast<float>(std::pow(factor, 1.0 / 2.2));
+  Tensor out = ldr.contiguous().clone();
+  float* p = out.data<float>();
+  for (int64_t i = 0; i < out.numel(); ++i) p[i] = std::clamp(p[i] * g, 0.0f, 1.0f);
+  return out;
+}
+
+}  // namespace sl

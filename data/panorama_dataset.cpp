@@ -1,0 +1,43 @@
+#include "data/panorama_dataset.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "autodiff/error.h"
+#include "autodiff/random.h"
+#include "data/panorama.h"
+
+namespace sl {
+
+PanoramaDataset::PanoramaDataset(const std::string& folder, const CropRanges& crop, double ldr_median)
+    : folder_(folder), crop_(crop), ldr_median_(ldr_median) {
+  SL_CHECK(ldr_median > 0.0 && ldr_median < 1.0, "PanoramaDataset: ldr_median must be in (0, 1), got ", ldr_median);
+}
+
+PanoramaItem PanoramaDataset::load(size_t index, uint64_t seed) const {
+  PanoramaItem item;
+  item.file = folder_.path(index);
+  Tensor pano = folder_.load(index).contiguous();
+  float* p = pano.data<float>();
+  for (int64_t i = 0; i < pano.numel(); ++i)
+    if (!(p[i] >= 0.0f) || !std::isfinite(p[i])) p[i] = 0.0f;  // real files hold a few bad texels
+  const int64_t W = pano.size(2);
+  Rng rng(seed, 0xA0A0000ULL + index);
+  const int64_t shift = rng.randint(W);
+  item.azimuth_rad = 2.0 * 3.14159265358979323846 * static_cast<double>(shift) / static_cast<double>(W);
+  item.pano_hdr = rotate_azimuth(pano, item.azimuth_rad).contiguous();
+  item.sun = extract_sun(item.pano_hdr);
+  item.crop = random_perspective_crop(item.pano_hdr, seed, 0xC0C0000ULL + index, crop_);
+  const Tensor& c = item.crop.crop.image;
+  const int64_t n = c.size(1) * c.size(2);
+  const float* cp = c.data<float>();
+  std::vector<double> lum(static_cast<size_t>(n));
+  for (int64_t i = 0; i < n; ++i) lum[i] = luminance(cp[i], cp[n + i], cp[2 * n + i]);
+  std::nth_element(lum.begin(), lum.begin() + n / 2, lum.end());
+  item.exposure = lum[n / 2] > 1e-12 ? std::pow(ldr_median_, 2.2) / lum[n / 2] : 1.0;
+  item.crop_ldr = to_ldr(c, item.exposure);
+  return item;
+}
+
+}  // namespace sl

@@ -1,0 +1,103 @@
+// Readers of the generated street dataset (format: docs/DATASET.md; writer:
+// data/street_generator.h) for training.
+//
+// StreetDataset lists one split of index.json; load(i) reads sample ids()[i] completely:
+// HDR as linear float, LDR PNGs as their stored values in [0, 1] (they are already the paper's
+// gamma-encoded LDR, so no sRGB decoding), depth in metres (camera z, 0 where the view sees
+// sky), masks as 0/1 floats. All tensors are F32 [C, H, W] ([H, W] for depth).
+// SampleLoader walks a dataset in epochs, each a seeded shuffle (a pure function of
+// (seed, epoch)), loading up to `prefetch` samples ahead on one background thread. A load
+// error is rethrown by the next() that would have returned that sample. The destructor stops
+// and joins the thread, even while it waits on a full queue.
+// Throws: sl::Error naming the folder and split (bad index.json, unknown split), or the sample
+// folder and file (missing or corrupt file, bad meta.json key).
+#pragma once
+#include <array>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <exception>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "autodiff/tensor.h"
+#include "render/camera.h"
+
+namespace sl {
+
+struct StreetView {
+  Tensor ldr;       // [3, H, W] in [0, 1], the stored LDR values (NOT sRGB-decoded)
+  Tensor hdr;       // [3, H, W] linear HDR, or undefined when the file is absent
+  Tensor depth;     // [H, W] metres, camera z; 0 where there is no surface (sky)
+  Tensor sky_mask;  // [1, H, W] 0/1
+  Camera camera;
+};
+
+struct StreetSample {
+  std::string id;
+  Tensor sky_hdr;                            // [3, Hs, Ws] true sky (linear HDR, full sphere)
+  Tensor pano_hdr, pano_ldr, pano_sky_mask;  // [3, Hp, Wp], [3, Hp, Wp], [1, Hp, Wp]
+  glm::dvec3 pano_position{0.0};
+  glm::dvec3 sun_direction{0.0, 1.0, 0.0};
+  double exposure = 1.0;
+  std::vector<StreetView> views;
+  bool has_insertion = false;
+  // [3,H,W], [3,H,W], [1,H,W]; the mask is the object's sub-pixel coverage in [0, 1] (8-bit steps)
+  Tensor insert_with_object_hdr, insert_without_object_hdr, insert_object_mask;
+  std::string object_glb;  // absolute path of the object's .glb (object frame)
+  double object_x = 0.0, object_z = 0.0, object_yaw_deg = 0.0, object_scale = 1.0;
+  std::array<double, 4> box2d{};  // x1 y1 x2 y2 (pixels of view 0)
+  std::array<double, 7> box3d{};  // h w l x y z ry (KITTI, view 0's camera frame)
+};
+
+class StreetDataset {
+ public:
+  StreetDataset(const std::string& dir, const std::string& split);  // throws naming dir/split
+  size_t size() const { return ids_.size(); }
+  const std::vector<std::string>& ids() const { return ids_; }
+  const std::string& dir() const { return dir_; }
+  StreetSample load(size_t index) const;  // throws naming the sample folder and file
+
+ private:
+  std::string dir_, split_;
+  std::vector<std::string> ids_;
+};
+
+// The order of epoch `epoch`: a permutation of [0, n) that depends only on (seed, epoch).
+std::vector<size_t> epoch_order(size_t n, uint64_t seed, uint64_t epoch);
+
+// Shuffled (by seed and epoch, deterministic), prefetching on a background thread.
+class SampleLoader {
+ public:
+  SampleLoader(const StreetDataset& dataset, uint64_t seed, size_t prefetch = 2);
+  ~SampleLoader();
+  SampleLoader(const SampleLoader&) = delete;
+  SampleLoader& operator=(const SampleLoader&) = delete;
+
+  StreetSample next();     // the next sample; a new epoch starts after the last one
+  uint64_t epoch() const;  // 0-based epoch of the sample next() returned last (0 before the first)
+
+ private:
+  struct Item {
+    StreetSample sample;
+    uint64_t epoch = 0;
+    std::exception_ptr error;
+  };
+  void run();
+
+  const StreetDataset& dataset_;
+  uint64_t seed_;
+  size_t prefetch_;
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<Item> queue_;
+  bool stop_ = false;
+  uint64_t epoch_ = 0;
+  std::thread thread_;
+};
+
+}  // namespace sl

@@ -1,0 +1,99 @@
+// Augmentation: flips mirror the world consistently with the pixels; crops return cameras
+// that see what the panorama shows; exposure jitter is seeded.
+#include <gtest/gtest.h>
+
+#include "data/augment.h"
+#include "data/panorama_dataset.h"
+#include "render/equirect.h"
+#include "test_files.h"
+
+namespace sl {
+namespace {
+
+TEST(Augment, FlippedViewSeesTheMirroredWorld) {
+  StreetView v;
+  v.camera = Camera(intrinsics_from_fov(1.2, 40, 20), rotation_from_yaw_pitch_roll(0.4, 0.1, 0.0), {1, 1.6, -2});
+  v.ldr = Tensor::zeros({3, 20, 40});
+  v.depth = Tensor::zeros({20, 40});
+  v.ldr.data<float>()[5 * 40 + 7] = 1.0f;  // channel 0, row 5, column 7
+  v.depth.data<float>()[5 * 40 + 7] = 12.0f;
+  glm::dvec3 sun = glm::normalize(glm::dvec3(0.3, 0.8, -0.5));
+  const glm::dvec3 sun0 = sun;
+  const StreetView f = flip_view(v, &sun);
+  EXPECT_EQ(f.ldr.data<float>()[5 * 40 + (40 - 1 - 7)], 1.0f);
+  EXPECT_EQ(f.depth.data<float>()[5 * 40 + (40 - 1 - 7)], 12.0f);
+  // A world point seen at pixel (u, v) appears, after mirroring the world, at (W − u, v).
+  const glm::dvec3 p = v.camera.unproject(7.5, 5.5, 12.0);
+  const glm::dvec3 a = v.camera.rotation()[0];
+  const glm::dvec3 mirrored = p - 2.0 * glm::dot(p - v.camera.position(), a) * a;
+  const Projection pr = f.camera.project(mirrored);
+  EXPECT_NEAR(pr.pixel.x, 40 - 7.5, 1e-9);
+  EXPECT_NEAR(pr.pixel.y, 5.5, 1e-9);
+  EXPECT_NEAR(pr.depth, 12.0, 1e-9);
+  // The sun is mirrored by the same plane: flipping twice restores it.
+  EXPECT_NEAR(glm::dot(sun, a), -glm::dot(sun0, a), 1e-12);
+  glm::dvec3 back = sun;
+  flip_view(f, &back);
+  EXPECT_NEAR(glm::length(back - sun0), 0.0, 1e-12);
+}
+
+TEST(Augment, PanoramaFlipMirrorsAzimuth) {
+  Tensor pano = Tensor::zeros({3, 16, 32});
+  const glm::dvec3 d = glm::normalize(glm::dvec3(0.6, 0.3, -0.4));
+  const equirect::UV uv = equirect::direction_to_uv(d.x, d.y, d.z, 32, 16);
+  pano.data<float>()[static_cast<int>(uv.v) * 32 + static_cast<int>(uv.u)] = 1.0f;
+  const Tensor f = flip_panorama(pano);
+  const glm::dvec3 m = flip_panorama_direction(d);
+  const equirect::UV uv2 = equirect::direction_to_uv(m.x, m.y, m.z, 32, 16);
+  EXPECT_EQ(f.data<float>()[static_cast<int>(uv2.v) * 32 + static_cast<int>(uv2.u)], 1.0f);
+}
+
+TEST(Augment, RandomCropIsSeededAndReturnsItsCamera) {
+  Tensor pano = Tensor::zeros({3, 32, 64});
+  const RandomCrop a = random_perspective_crop(pano, 3, 1), b = random_perspective_crop(pano, 3, 1),
+                   c = random_perspective_crop(pano, 3, 2);
+  EXPECT_EQ(a.yaw_deg, b.yaw_deg);
+  EXPECT_NE(a.yaw_deg, c.yaw_deg);
+  // The crop camera's optical axis has the sampled yaw and pitch (render/camera.h).
+  const glm::dvec3 fwd = a.crop.camera.rotation()[2];
+  const equirect::UV uv = equirect::direction_to_uv(fwd.x, fwd.y, fwd.z, 360, 180);
+  EXPECT_NEAR(uv.u - 180.0, a.yaw_deg, 1e-6);
+  EXPECT_NEAR(90.0 - uv.v, a.pitch_deg, 1e-6);
+  EXPECT_NEAR(a.crop.camera.intrinsics().horizontal_fov_rad() * 180 / 3.14159265358979, a.fov_deg, 1e-6);
+}
+
+TEST(Augment, ExposureJitterScalesHdrAndLdrConsistently) {
+  const double k = random_exposure_factor(1, 2, 1.0);
+  EXPECT_GE(k, 0.5);
+  EXPECT_LE(k, 2.0);
+  EXPECT_EQ(k, random_exposure_factor(1, 2, 1.0));
+  const Tensor hdr = Tensor::full({3, 2, 2}, 0.1);
+  const Tensor ldr = to_ldr(hdr, 1.0);
+  const Tensor a = scale_ldr(ldr, k), b = to_ldr(scale_hdr(hdr, k), 1.0);
+  for (int i = 0; i < 12; ++i) EXPECT_NEAR(a.data<float>()[i], b.data<float>()[i], 1e-6);
+}
+
+TEST(PanoramaDataset, RotatedSunMatchesTheRotatedPeak) {
+  const std::string folder = test::shared_data("hdri");
+  if (!std::filesystem::exists(folder)) GTEST_SKIP() << "shared data folder " << folder << " is absent";
+  CropRanges r;
+  r.width = 64;
+  r.height = 32;
+  const PanoramaDataset ds(folder, r);
+  ASSERT_EQ(ds.size(), 19u);
+  size_t index = 0;  // chinese_garden: a hard sun
+  for (size_t i = 0; i < ds.size(); ++i)
+    if (ds.folder().path(i).find("chinese_garden") != std::string::npos) index = i;
+  const PanoramaItem a = ds.load(index, 1), b = ds.load(index, 2);
+  EXPECT_NE(a.azimuth_rad, b.azimuth_rad);
+  ASSERT_TRUE(a.sun.found && b.sun.found);
+  // Same elevation; azimuths differ by the difference of the rotations.
+  EXPECT_NEAR(a.sun.elevation_rad, b.sun.elevation_rad, 1e-3);
+  const double d = std::remainder((a.sun.azimuth_rad - b.sun.azimuth_rad) - (a.azimuth_rad - b.azimuth_rad),
+                                  2 * 3.14159265358979);
+  EXPECT_NEAR(d, 0.0, 1e-3);
+  EXPECT_EQ(a.crop_ldr.shape(), (Shape{3, 32, 64}));
+}
+
+}  // namespace
+}  // namespace sl

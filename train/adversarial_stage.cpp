@@ -1,0 +1,120 @@
+// Stage 3 (Sec 3.4, "Training Lighting via Object Insertion"): the predictor's lighting renders
+// a virtual object into the photo through the differentiable insertion of Sec 3.3; a
+// discriminator judges the composite against path-traced insertions of the dataset, and the
+// predictor minimises supervised + w_adv·L_adv with L_adv = −D(I_edit).
+// One step: (1) predictor forward, supervised loss, composite, generator loss with D frozen,
+// backward, update the predictor; (2) hinge loss of D on real vs detached fake, update D at
+// optim.discriminator_lr (one AdamW over both; a step only touches parameters with gradients).
+#include <cmath>
+
+#include "autodiff/ops.h"
+#include "autodiff/random.h"
+#include "data/panorama.h"
+#include "render/gltf_loader.h"
+#include "render/object_insertion.h"
+#include "train/lighting_stage.h"
+#include "train/losses.h"
+
+namespace sl::train {
+
+const Mesh& LightingStage::object_mesh(const std::string& path) {
+  auto it = meshes_.find(path);
+  if (it == meshes_.end()) it = meshes_.emplace(path, load_gltf(path)).first;
+  return it->second;
+}
+
+Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
+  const StreetSample& s = f.samples[i];
+  const StreetItem& it = f.items[i];
+  const StreetView& view = s.views[0];
+  SL_CHECK(s.has_insertion && !s.object_glb.empty(), "stage adversarial: sample '", s.id,
+           "' has no insertion ground truth (object_glb)");
+  const auto& ic = config_.at("insertion");
+  InsertionInputs in;
+  in.background = pow_scalar(view.ldr.contiguous(), 2.2);  // linearised LDR: exposure-normalised radiance
+  in.depth = view.depth;
+  in.camera = it.camera;
+  in.env = select(f.pred.env, 0, static_cast<int64_t>(i));
+  if (f.pred.vsg.defined()) in.vsg = select(f.pred.vsg, 0, static_cast<int64_t>(i));
+  in.grid = it.grid;
+  const glm::dvec3 pos = it.frame.point({s.object_x, 0.0, s.object_z});
+  Placement p;
+  p.x = pos.x;
+  p.z = pos.z;
+  p.yaw_deg = s.object_yaw_deg - it.frame.yaw_rad * 180.0 / 3.14159265358979323846;
+  p.scale = s.object_scale;
+  in.objects.push_back(place_object(object_mesh(s.object_glb), p, it.camera, view.depth));
+  InsertionOptions o;
+  o.aa_samples = ic.at("aa_samples").get<int>();
+  o.light_samples = ic.at("light_samples").get<int>();
+  o.shadow_width = ic.at("shadow_width").get<int>();
+  o.shadow_height = ic.at("shadow_height").get<int>();
+  o.shadow_rays = ic.at("shadow_rays").get<int>();
+  o.ambient = ic.at("ambient").get<double>();
+  o.seed = seed;
+  o.query.samples = config_.at("model").at("volume").at("samples").get<int>();
+  return insert_objects(in, o).composite;
+}
+
+Tensor LightingStage::real_composite_ldr(const StreetSample& s) const {
+  SL_CHECK(s.insert_with_object_hdr.defined(), "stage adversarial: sample '", s.id, "' has no insert_with_object_hdr");
+  return to_ldr(s.insert_with_object_hdr.contiguous(), s.exposure);
+}
+
+Metrics LightingStage::adversarial_step(int64_t step) {
+  predictor_->set_training(true);
+  optim_->zero_grad();
+  const Forward f = forward_train(step);
+  Metrics m;
+  Tensor total = supervised_loss(f, m);
+  // place_object() needs the footprint centre inside view 0; the generator only guarantees
+  // that some of the object is visible, so samples whose centre falls outside get no composite.
+  std::vector<size_t> insertable;
+  for (size_t i = 0; i < f.items.size(); ++i) {
+    const StreetSample& s = f.samples[i];
+    if (s.has_insertion && f.items[i].camera.project(f.items[i].frame.point({s.object_x, 0.0, s.object_z})).in_image)
+      insertable.push_back(i);
+  }
+  if (!discriminator_ || insertable.empty()) {  // the no-adversarial ablation: the same steps without D
+    for (const auto& [k, v] : m) check_finite_loss(k, v, step);
+    backward(total);
+    check_finite_gradients(optim_->params(), step);
+    m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
+    optim_->step();
+    return m;
+  }
+  TensorList fakes, reals;
+  for (size_t i : insertable) {
+    fakes.push_back(ldr_from_hdr(composite(f, i, hash_counter(seed_, static_cast<uint64_t>(step), i))));
+    reals.push_back(real_composite_ldr(f.samples[i]));
+  }
+  const Tensor fake = stack(fakes, 0), real = stack(reals, 0);
+  // (1) Predictor: supervised + w_adv · (−D(fake)), D frozen so only the predictor gets gradients.
+  discriminator_->freeze(true);
+  const Tensor adv = generator_adversarial(discriminator_->forward(fake));
+  m["adversarial"] = adv.item();
+  total = add(total, mul_scalar(adv, config_.at("loss").at("adversarial").get<double>()));
+  m["loss"] = total.item();
+  for (const auto& [k, v] : m) check_finite_loss(k, v, step);
+  backward(total);
+  discriminator_->freeze(false);
+  check_finite_gradients(optim_->params(), step);
+  m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
+  optim_->set_lr(lr_);
+  optim_->step();
+  // (2) Discriminator: hinge on real vs the detached composite.
+  optim_->zero_grad();
+  const Tensor d_loss = discriminator_hinge(discriminator_->forward(real), discriminator_->forward(fake.detach()));
+  m["d_loss"] = d_loss.item();
+  check_finite_loss("d_loss", m["d_loss"], step);
+  backward(d_loss);
+  check_finite_gradients(optim_->params(), step);
+  nn::clip_grad_norm(optim_->params(), clip_);
+  const double base = config_.at("optim").at("lr").get<double>();
+  optim_->set_lr(lr_ * config_.at("optim").at("discriminator_lr").get<double>() / base);
+  optim_->step();
+  optim_->set_lr(lr_);
+  return m;
+}
+
+}  // namespace sl::train

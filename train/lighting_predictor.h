@@ -1,0 +1,79 @@
+// The two-branch hybrid lighting predictor of Sec 3.2 / Fig. 2a.
+//
+//   image [N, 3, h, w] ─ ResNet backbone ─ pooled feature g [N, 8·width]
+//     (a) sky head: MLP(g) → raw f̂ → SkyCode → FROZEN sky decoder → HDR sky [N, 3, Hs, Ws]
+//     (b) volume: MLP(g) → coarse feature volume [N, C, X/s, Y/s, Z/s] → trilinear ×s,
+//         concatenated with the unprojected RGBα volume [N, 4, X, Y, Z] (unprojection.h),
+//         → UNet3D → raw [N, 8, X, Y, Z] → vsg_activate → VSG parameters
+//
+// Sky branch variants (the paper's ablations, Tables 1-2):
+//   "sky_decoder" — the method: the frozen decoder of the stage-1 sky autoencoder. Its
+//                   parameters never receive gradients (nn freeze()), but gradients flow
+//                   THROUGH it into the sky head and the backbone.
+//   "direct"      — without sky modelling: a small conv decoder maps g straight to a log-space
+//                   environment map (no sky vector, no frozen model).
+//   "constant"    — volume-only baseline (Wang et al.): no HDR sky model; a learned constant
+//                   low-resolution log environment map, upsampled.
+// volume_branch = false gives the sky-only baseline (Hold-Geoffroy et al.): vsg is undefined.
+//
+// Contract: forward(image, rgba) with image [N, 3, image_height, image_width] (LDR in [0, 1])
+// and rgba [N, 4, X, Y, Z] (ignored, may be undefined, without the volume branch). Outputs are
+// exposure-normalised radiance (sky_autoencoder.h). Shapes are checked, naming the input.
+// Parameter names: backbone.*, sky_head.*, sky_decoder.*, env_decoder.*, env_constant,
+// volume_mlp.*, volume_unet.*. Deterministic init from options.seed.
+#pragma once
+#include <array>
+#include <memory>
+#include <string>
+
+#include "nn/module.h"
+#include "nn/resnet.h"
+#include "train/sky_autoencoder.h"
+
+namespace sl::train {
+
+struct LightingPredictorOptions {
+  int64_t image_height = 128, image_width = 256;
+  int backbone_depth = 18;
+  int64_t backbone_width = 64;
+  int64_t head_hidden = 256;
+  std::string sky_branch = "sky_decoder";  // "sky_decoder" | "direct" | "constant"
+  bool volume_branch = true;
+  std::array<int64_t, 3> vsg_dims{64, 64, 16};
+  int64_t coarse_scale = 8;     // coarse feature volume = vsg_dims / coarse_scale
+  int64_t coarse_channels = 8;
+  int64_t unet_channels = 8;
+  int unet_depth = 3;
+  SkyAutoencoderOptions sky;    // dome size and code size (must match the stage-1 model)
+  uint64_t seed = 0;
+};
+
+struct LightingPrediction {
+  SkyCode code;     // defined for the "sky_decoder" branch only
+  Tensor log_env;   // [N, 3, Hs, Ws]
+  Tensor env;       // [N, 3, Hs, Ws] = exp(log_env) (clamped)
+  Tensor vsg;       // [N, 8, X, Y, Z] activated, or undefined without the volume branch
+};
+
+class LightingPredictor : public nn::Module {
+ public:
+  explicit LightingPredictor(const LightingPredictorOptions& options);
+  LightingPrediction predict(const Tensor& image, const Tensor& rgba);
+  const LightingPredictorOptions& options() const { return opt_; }
+  // The frozen decoder (null unless sky_branch is "sky_decoder").
+  const std::shared_ptr<SkyDecoder>& sky_decoder() const { return sky_decoder_; }
+  nn::ResNet& backbone() { return *backbone_; }
+  // Restores train/eval recursively, keeping the frozen decoder in eval mode.
+  void set_training(bool on);
+
+ private:
+  LightingPredictorOptions opt_;
+  std::shared_ptr<nn::ResNet> backbone_;
+  std::shared_ptr<nn::Module> sky_head_, env_decoder_, volume_mlp_, volume_unet_;
+  std::shared_ptr<SkyDecoder> sky_decoder_;
+  std::array<int64_t, 3> coarse_{};
+};
+
+void validate(const LightingPredictorOptions& options);
+
+}  // namespace sl::train

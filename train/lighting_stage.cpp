@@ -1,0 +1,313 @@
+// Stage 2: supervised hybrid lighting prediction (Sec 3.4). See lighting_stage.h.
+#include "train/lighting_stage.h"
+
+#include <cmath>
+#include <limits>
+
+#include "autodiff/ops.h"
+#include "autodiff/random.h"
+#include "data/panorama.h"
+#include "data/sun_extraction.h"
+#include "nn/checkpoint.h"
+#include "render/environment_map.h"
+#include "render/radiance_query.h"
+#include "train/image_strip.h"
+#include "train/losses.h"
+#include "train/metrics.h"
+#include "train/train_config.h"
+
+namespace sl::train {
+
+namespace {
+
+constexpr uint64_t kValSeed = 0x76616c5f726179ULL;
+
+class LightingModel : public nn::Module {
+ public:
+  LightingModel() : nn::Module("LightingModel") {}
+};
+
+nn::NamedTensors trainable(const nn::Module& m) {
+  nn::NamedTensors out;
+  for (auto& [n, p] : m.named_parameters())
+    if (p.requires_grad()) out.emplace_back(n, p);
+  return out;
+}
+
+Tensor dvec_rows(const std::vector<glm::dvec3>& v) {
+  std::vector<double> flat;
+  for (const auto& d : v) flat.insert(flat.end(), {d.x, d.y, d.z});
+  return Tensor::from_vector(flat, {static_cast<int64_t>(v.size()), 3});
+}
+
+glm::dvec3 row3(const Tensor& t, int64_t i) {
+  const Tensor r = select(t.detach(), 0, i).to(DType::F64).contiguous();
+  const double* p = r.data<double>();
+  return {p[0], p[1], p[2]};
+}
+
+}  // namespace
+
+SampleSource dataset_source(const std::string& dir, const std::string& split) {
+  auto ds = std::make_shared<StreetDataset>(dir, split);
+  return SampleSource{ds->size(), [ds](size_t i) { return ds->load(i); }};
+}
+
+LightingStage::LightingStage(const nlohmann::json& config, SampleSource train, SampleSource val)
+    : config_(config), train_(std::move(train)), val_(std::move(val)) {
+  adversarial_ = config.at("stage").get<std::string>() == kStageAdversarial;
+  seed_ = config.at("seed").get<uint64_t>();
+  batch_size_ = config.at("train").at("batch_size").get<int64_t>();
+  clip_ = config.at("optim").at("clip_grad_norm").get<double>();
+  SL_CHECK(train_.size > 0, "stage ", name(), ": the training split is empty");
+  const LightingPredictorOptions po = predictor_options(config);
+  batch_opt_ = StreetBatchOptions{.image_height = po.image_height,
+                                  .image_width = po.image_width,
+                                  .dome_height = po.sky.height,
+                                  .dome_width = po.sky.width,
+                                  .pano_rays = config.at("data").at("pano_rays").get<int64_t>(),
+                                  .view_rays = config.at("data").at("view_rays").get<int64_t>(),
+                                  .need_volume = po.volume_branch};
+  grid_template_ = vsg_grid(config, 1.6);
+  model_ = std::make_shared<LightingModel>();
+  predictor_ = model_->register_module("predictor", std::make_shared<LightingPredictor>(po));
+  if (po.sky_branch != "constant") {
+    teacher_ = model_->register_module("teacher", std::make_shared<SkyAutoencoder>(po.sky));
+    teacher_->freeze(true);
+    teacher_->eval();
+  }
+  if (adversarial_ && config.at("loss").at("adversarial").get<double>() > 0) {
+    const auto& d = config.at("model").at("discriminator");
+    discriminator_ = model_->register_module(
+        "discriminator", std::make_shared<nn::PatchDiscriminator>(nn::PatchDiscriminatorOptions{
+                             .base_channels = d.at("base_channels").get<int64_t>(),
+                             .layers = d.at("layers").get<int>(),
+                             .norm = d.at("norm").get<std::string>(),
+                             .seed = seed_ + 2}));
+    discriminator_->init_parameters(seed_ + 2);
+  }
+  optim_ = std::make_unique<nn::AdamW>(trainable(*model_),
+                                       nn::AdamOptions{.lr = config.at("optim").at("lr").get<double>(),
+                                                       .weight_decay = config.at("optim").at("weight_decay").get<double>()});
+}
+
+void LightingStage::initialise() {
+  const auto& init = config_.at("init");
+  const std::string sky = init.at("sky_checkpoint").get<std::string>();
+  const std::string prev = init.at("checkpoint").get<std::string>();
+  if (!prev.empty()) {
+    // Start from a stage-2 checkpoint: predictor and teacher (no discriminator, no optimiser).
+    LightingModel previous;
+    previous.register_module("predictor", predictor_);
+    if (teacher_) previous.register_module("teacher", teacher_);
+    nn::load_checkpoint(prev, previous, nullptr);
+    return;
+  }
+  if (teacher_) {
+    SL_CHECK(!sky.empty(), "stage ", name(), ": init.sky_checkpoint must name the stage-1 checkpoint");
+    nn::load_checkpoint(sky, *teacher_, nullptr);
+    if (predictor_->sky_decoder()) predictor_->sky_decoder()->load_state_dict(teacher_->decoder()->state_dict());
+  }
+}
+
+LightingStage::Forward LightingStage::forward_items(std::vector<StreetSample> samples, const std::vector<size_t>& views,
+                                                    uint64_t seed, uint64_t first_stream) {
+  Forward f;
+  TensorList images, rgba;
+  for (size_t i = 0; i < samples.size(); ++i) {
+    f.items.push_back(make_street_item(samples[i], views[i], grid_template_, batch_opt_, seed, first_stream + i));
+    images.push_back(f.items.back().image);
+    if (batch_opt_.need_volume) rgba.push_back(f.items.back().rgba);
+  }
+  f.samples = std::move(samples);
+  f.pred = predictor_->predict(stack(images, 0), rgba.empty() ? Tensor() : stack(rgba, 0));
+  return f;
+}
+
+LightingStage::Forward LightingStage::forward_train(int64_t step) {
+  std::vector<StreetSample> samples;
+  std::vector<size_t> views;
+  const uint64_t n = train_.size;
+  std::vector<size_t> order;
+  uint64_t order_epoch = std::numeric_limits<uint64_t>::max();
+  for (int64_t i = 0; i < batch_size_; ++i) {
+    const uint64_t global = static_cast<uint64_t>(step * batch_size_ + i);
+    if (global / n != order_epoch) {
+      order_epoch = global / n;
+      order = epoch_order(n, seed_, order_epoch);
+    }
+    samples.push_back(train_.load(order[global % n]));
+    Rng rng(seed_, global);
+    // Stage 3 inserts into view 0 (the view with the path-traced ground truth).
+    views.push_back(adversarial_ ? 0 : static_cast<size_t>(rng.randint(static_cast<int64_t>(samples.back().views.size()))));
+  }
+  return forward_items(std::move(samples), views, seed_, static_cast<uint64_t>(step * batch_size_));
+}
+
+LightingStage::Forward LightingStage::forward_val(size_t index) {
+  return forward_items({val_.load(index)}, {0}, seed_ ^ kValSeed, index);
+}
+
+LightingStage::Query LightingStage::query(const Forward& f, size_t i, const Tensor& origins, const Tensor& directions) {
+  const Tensor env = select(f.pred.env, 0, static_cast<int64_t>(i));
+  Query q;
+  if (f.pred.vsg.defined()) {
+    RadianceQueryOptions qo;
+    qo.samples = config_.at("model").at("volume").at("samples").get<int>();
+    qo.trilinear = config_.at("model").at("volume").at("trilinear").get<bool>();
+    const RadianceQueryResult r = radiance_query(select(f.pred.vsg, 0, static_cast<int64_t>(i)), env, origins,
+                                                 directions, f.items[i].grid, qo);
+    q.radiance = r.radiance;
+    q.transmittance = r.transmittance;
+    q.depth = r.depth;
+  } else {
+    q.radiance = env_lookup(env, directions);
+  }
+  return q;
+}
+
+Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
+  const auto& w = config_.at("loss");
+  const std::string branch = predictor_->options().sky_branch;
+  const int64_t n = static_cast<int64_t>(f.items.size());
+  Tensor total = Tensor::scalar(0.0);
+  auto add_term = [&](const std::string& key, const Tensor& value) {
+    const double weight = w.at(key).get<double>();
+    m[key] = value.item();
+    if (weight != 0) total = add(total, mul_scalar(value, weight));
+  };
+  // Sky branch (batched).
+  TensorList pano, mask;
+  std::vector<glm::dvec3> suns;
+  for (const auto& it : f.items) {
+    pano.push_back(it.pano_ldr_dome);
+    mask.push_back(it.pano_mask_dome);
+    suns.push_back(it.sun_direction);
+  }
+  const Tensor pano_b = stack(pano, 0), mask_b = stack(mask, 0);
+  if (branch != "constant") {
+    SkyAutoencoder::Output teacher;
+    {
+      NoGradGuard no_grad;
+      teacher = teacher_->run(pano_b);
+    }
+    if (branch == "sky_decoder") {
+      add_term("sky_intensity", log_encoded_l2_from_log(f.pred.code.log_intensity, teacher.code.intensity()));
+      add_term("sky_latent", l1(f.pred.code.latent, teacher.code.latent));
+      add_term("sky_direction", angular_l1(f.pred.code.dir, dvec_rows(suns)));
+    } else {
+      add_term("sky_hdr", log_encoded_l2_from_log(f.pred.log_env, teacher.sky.hdr));
+    }
+    add_term("sky_ldr", masked_l1(ldr_from_hdr(f.pred.env), pano_b, mask_b));
+  }
+  // Volume branch: per sample, radiance-queried rays (Eq. 1).
+  Tensor rad_sum = Tensor::scalar(0.0), depth_sum = Tensor::scalar(0.0), sep_sum = Tensor::scalar(0.0);
+  for (size_t i = 0; i < f.items.size(); ++i) {
+    const StreetItem& it = f.items[i];
+    const Query q = query(f, i, it.origins, it.directions);
+    rad_sum = add(rad_sum, radiance_l2(q.radiance, it.target_ldr));
+    if (q.transmittance.defined()) {
+      depth_sum = add(depth_sum, depth_consistency(q.depth, q.transmittance, it.target_distance));
+      sep_sum = add(sep_sum, sky_separation_bce(q.transmittance, it.sky));
+    }
+  }
+  add_term("radiance", mul_scalar(rad_sum, 1.0 / static_cast<double>(n)));
+  if (f.pred.vsg.defined()) {
+    add_term("depth", mul_scalar(depth_sum, 1.0 / static_cast<double>(n)));
+    add_term("sky_separation", mul_scalar(sep_sum, 1.0 / static_cast<double>(n)));
+  }
+  m["loss"] = total.item();
+  return total;
+}
+
+Metrics LightingStage::supervised_step(int64_t step) {
+  predictor_->set_training(true);
+  optim_->zero_grad();
+  const Forward f = forward_train(step);
+  Metrics m;
+  const Tensor total = supervised_loss(f, m);
+  for (const auto& [k, v] : m) check_finite_loss(k, v, step);
+  backward(total);
+  check_finite_gradients(optim_->params(), step);
+  m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
+  optim_->step();
+  return m;
+}
+
+Metrics LightingStage::step(int64_t step) { return adversarial_ ? adversarial_step(step) : supervised_step(step); }
+
+Metrics LightingStage::validate() {
+  NoGradGuard no_grad;
+  predictor_->set_training(false);
+  const size_t n = std::min<size_t>(val_.size, static_cast<size_t>(config_.at("data").at("val_size").get<int64_t>()));
+  Metrics sum_m;
+  std::vector<double> sun_err, psnrs, si_psnrs;
+  const int64_t val_h = config_.at("data").at("val_view_height").get<int64_t>();
+  for (size_t s = 0; s < n; ++s) {
+    const Forward f = forward_val(s);
+    Metrics m;
+    supervised_loss(f, m);
+    for (const auto& [k, v] : m) sum_m["val_" + k] += v / static_cast<double>(n);
+    glm::dvec3 dir;
+    if (f.pred.code.dir.defined()) {
+      dir = row3(f.pred.code.dir, 0);
+    } else {
+      dir = extract_sun(select(f.pred.env, 0, 0).contiguous().to(DType::F32)).direction;
+    }
+    sun_err.push_back(angular_error_deg(dir, f.items[0].sun_direction));
+    // Novel views: every view but the input, rendered through the radiance query.
+    for (size_t v = 1; v < f.samples[0].views.size(); ++v) {
+      const StreetView& view = f.samples[0].views[v];
+      const Camera world_cam = view.camera;
+      const double scale = static_cast<double>(val_h) / world_cam.intrinsics().height;
+      Intrinsics k = world_cam.intrinsics().scaled(scale, scale);
+      const Camera cam = f.items[0].frame.camera(Camera(k, world_cam.rotation(), world_cam.position()));
+      std::vector<double> o, d;
+      for (int r = 0; r < k.height; ++r)
+        for (int c = 0; c < k.width; ++c) {
+          const CameraRay ray = cam.pixel_ray(c, r);
+          o.insert(o.end(), {ray.origin.x, ray.origin.y, ray.origin.z});
+          d.insert(d.end(), {ray.direction.x, ray.direction.y, ray.direction.z});
+        }
+      const int64_t rays = static_cast<int64_t>(k.width) * k.height;
+      const Query q = query(f, 0, Tensor::from_vector(o, {rays, 3}), Tensor::from_vector(d, {rays, 3}));
+      const Tensor pred = permute(reshape(ldr_from_hdr(q.radiance), {k.height, k.width, 3}), {2, 0, 1}).contiguous();
+      const Tensor truth = resize_bilinear(view.ldr, k.height, k.width);
+      psnrs.push_back(psnr(pred, truth));
+      si_psnrs.push_back(si_psnr(pred, truth));
+    }
+  }
+  sum_m["val_sun_error_median_deg"] = median(sun_err);
+  sum_m["val_sun_error_mean_deg"] = mean_of(sun_err);
+  if (!psnrs.empty()) {
+    sum_m["val_psnr"] = mean_of(psnrs);
+    sum_m["val_si_psnr"] = mean_of(si_psnrs);
+  }
+  predictor_->set_training(true);
+  return sum_m;
+}
+
+void LightingStage::write_strip(const std::string& path) {
+  if (val_.size == 0) return;
+  NoGradGuard no_grad;
+  predictor_->set_training(false);
+  const Forward f = forward_val(0);
+  const StreetSample& s = f.samples[0];
+  const Tensor true_sky = s.sky_hdr.defined() ? to_ldr(f.items[0].frame.panorama(s.sky_hdr.contiguous()), s.exposure)
+                                              : f.items[0].pano_ldr_dome;
+  Tensor comp;
+  const bool centre_in_view =
+      f.items[0].camera.project(f.items[0].frame.point({s.object_x, 0.0, s.object_z})).in_image;
+  if (adversarial_ && s.has_insertion && centre_in_view) comp = ldr_from_hdr(composite(f, 0, seed_)).detach();
+  train::write_strip(path, {f.items[0].image, true_sky, ldr_from_hdr(select(f.pred.env, 0, 0)), comp});
+  predictor_->set_training(true);
+}
+
+std::unique_ptr<Stage> make_lighting_stage(const nlohmann::json& config) {
+  const auto& d = config.at("data");
+  const std::string dir = d.at("dataset").get<std::string>();
+  return std::make_unique<LightingStage>(config, dataset_source(dir, d.at("train_split").get<std::string>()),
+                                         dataset_source(dir, d.at("val_split").get<std::string>()));
+}
+
+}  // namespace sl::train

@@ -1,0 +1,188 @@
+// Training configuration defaults and their conversion. See train_config.h; every key is
+// documented in configs/README.md.
+#include "train/train_config.h"
+
+#include <string>
+
+#include "autodiff/error.h"
+
+namespace sl::train {
+
+using nlohmann::json;
+
+json default_train_config() {
+  return json{
+      {"stage", kStageSky},
+      {"seed", 0},
+      {"init", {{"sky_checkpoint", ""}, {"checkpoint", ""}}},
+      {"data",
+       {{"dataset", ""},
+        {"train_split", "train"},
+        {"val_split", "val"},
+        {"hdri_dir", ""},
+        {"hdri_fraction", 0.3},
+        {"exposure_stops", 1.0},
+        {"ldr_key", 0.25},
+        {"val_size", 16},
+        {"pano_rays", 512},
+        {"view_rays", 512},
+        {"val_view_height", 32}}},
+      {"model",
+       {{"sky",
+         {{"height", 32}, {"width", 128}, {"code_dim", 64}, {"base_channels", 16}, {"hidden", 256},
+          {"sun_lobe_texels", 1.0}}},
+        {"image_height", 128},
+        {"image_width", 256},
+        {"backbone_depth", 18},
+        {"backbone_width", 64},
+        {"head_hidden", 256},
+        {"sky_branch", "sky_decoder"},
+        {"volume_branch", true},
+        {"volume",
+         {{"dims", {64, 64, 16}},
+          {"extent_neg_m", {150.0, 5.0, 150.0}},
+          {"extent_pos_m", {150.0, 75.0, 150.0}},
+          {"log_scale_m", 5.0},
+          {"coarse_scale", 8},
+          {"coarse_channels", 8},
+          {"unet_channels", 8},
+          {"unet_depth", 3},
+          {"samples", 64},
+          {"trilinear", false}}},
+        {"discriminator", {{"base_channels", 32}, {"layers", 3}, {"norm", "instance"}}}}},
+      {"loss",
+       {{"ae_direction", 1.0},
+        {"ae_intensity", 0.1},
+        {"ae_hdr", 1.0},
+        {"sky_intensity", 0.1},
+        {"sky_latent", 1.0},
+        {"sky_direction", 1.0},
+        {"sky_ldr", 1.0},
+        {"sky_hdr", 1.0},
+        {"radiance", 1.0},
+        {"depth", 0.1},
+        {"sky_separation", 0.1},
+        {"adversarial", 0.01}}},
+      {"optim",
+       {{"lr", 1e-3},
+        {"min_lr", 1e-5},
+        {"warmup_steps", 20},
+        {"weight_decay", 0.0},
+        {"clip_grad_norm", 10.0},
+        {"discriminator_lr", 2e-4}}},
+      {"train",
+       {{"steps", 2000},
+        {"batch_size", 4},
+        {"log_every", 10},
+        {"val_every", 200},
+        {"checkpoint_every", 200},
+        {"image_every", 200}}},
+      {"insertion",
+       {{"placement", "dataset"},
+        {"aa_samples", 1},
+        {"light_samples", 16},
+        {"shadow_width", 80},
+        {"shadow_height", 45},
+        {"shadow_rays", 128},
+        {"ambient", 0.1}}},
+  };
+}
+
+namespace {
+
+void positive(const json& c, const char* section, const char* key) {
+  const double v = c.at(section).at(key).get<double>();
+  SL_CHECK(v > 0, section, ".", key, " must be positive, got ", v);
+}
+
+}  // namespace
+
+void check_train_config(const json& c) {
+  const std::string stage = c.at("stage").get<std::string>();
+  SL_CHECK(stage == kStageSky || stage == kStageLighting || stage == kStageAdversarial,
+           "stage must be \"sky_autoencoder\", \"lighting\" or \"adversarial\", got \"", stage, "\"");
+  for (const char* k : {"steps", "batch_size", "log_every", "val_every", "checkpoint_every", "image_every"})
+    positive(c, "train", k);
+  positive(c, "optim", "lr");
+  SL_CHECK(c.at("optim").at("min_lr").get<double>() >= 0, "optim.min_lr must be >= 0");
+  SL_CHECK(c.at("seed").get<int64_t>() >= 0, "seed must be >= 0, got ", c.at("seed").get<int64_t>());
+  const double frac = c.at("data").at("hdri_fraction").get<double>();
+  SL_CHECK(frac >= 0 && frac <= 1, "data.hdri_fraction must lie in [0, 1], got ", frac);
+  if (stage == kStageLighting) {
+    const std::string branch = c.at("model").at("sky_branch").get<std::string>();
+    SL_CHECK(branch == "constant" || !c.at("init").at("sky_checkpoint").get<std::string>().empty(),
+             "stage lighting starts from the frozen sky autoencoder: set init.sky_checkpoint to the stage-1 "
+             "checkpoint (e.g. runs/sky/last.safetensors)");
+    SL_CHECK(!c.at("data").at("dataset").get<std::string>().empty(),
+             "stage lighting needs data.dataset (a street-scene dataset folder)");
+  }
+  if (stage == kStageAdversarial) {
+    SL_CHECK(!c.at("init").at("checkpoint").get<std::string>().empty(),
+             "stage adversarial starts from the lighting stage: set init.checkpoint to its checkpoint "
+             "(e.g. runs/lighting/last.safetensors)");
+    SL_CHECK(!c.at("data").at("dataset").get<std::string>().empty(),
+             "stage adversarial needs data.dataset (a street-scene dataset folder)");
+    const std::string p = c.at("insertion").at("placement").get<std::string>();
+    SL_CHECK(p == "dataset", "insertion.placement must be \"dataset\" (the generator's placement on drivable ground, "
+             "collision- and occlusion-checked against the depth), got \"", p, "\"");
+  }
+  (void)sky_options(c);
+  if (stage != kStageSky) (void)predictor_options(c);
+}
+
+SkyAutoencoderOptions sky_options(const json& c) {
+  const json& s = c.at("model").at("sky");
+  SkyAutoencoderOptions o;
+  o.height = s.at("height").get<int64_t>();
+  o.width = s.at("width").get<int64_t>();
+  o.code_dim = s.at("code_dim").get<int64_t>();
+  o.base_channels = s.at("base_channels").get<int64_t>();
+  o.hidden = s.at("hidden").get<int64_t>();
+  o.sun_lobe_texels = s.at("sun_lobe_texels").get<double>();
+  o.seed = c.at("seed").get<uint64_t>();
+  return o;
+}
+
+LightingPredictorOptions predictor_options(const json& c) {
+  const json& m = c.at("model");
+  const json& v = m.at("volume");
+  LightingPredictorOptions o;
+  o.image_height = m.at("image_height").get<int64_t>();
+  o.image_width = m.at("image_width").get<int64_t>();
+  o.backbone_depth = m.at("backbone_depth").get<int>();
+  o.backbone_width = m.at("backbone_width").get<int64_t>();
+  o.head_hidden = m.at("head_hidden").get<int64_t>();
+  o.sky_branch = m.at("sky_branch").get<std::string>();
+  o.volume_branch = m.at("volume_branch").get<bool>();
+  const auto dims = v.at("dims").get<std::vector<int64_t>>();
+  SL_CHECK(dims.size() == 3 && dims[0] > 0 && dims[1] > 0 && dims[2] > 0,
+           "model.volume.dims must be three positive integers [X, Y, Z]");
+  o.vsg_dims = {dims[0], dims[1], dims[2]};
+  o.coarse_scale = v.at("coarse_scale").get<int64_t>();
+  o.coarse_channels = v.at("coarse_channels").get<int64_t>();
+  o.unet_channels = v.at("unet_channels").get<int64_t>();
+  o.unet_depth = v.at("unet_depth").get<int>();
+  o.sky = sky_options(c);
+  o.seed = c.at("seed").get<uint64_t>() + 1;
+  validate(o);
+  return o;
+}
+
+VsgGrid vsg_grid(const json& c, double camera_height_m) {
+  const json& v = c.at("model").at("volume");
+  VsgGrid g;
+  const auto dims = v.at("dims").get<std::vector<int64_t>>();
+  const auto neg = v.at("extent_neg_m").get<std::vector<double>>();
+  const auto pos = v.at("extent_pos_m").get<std::vector<double>>();
+  SL_CHECK(dims.size() == 3 && neg.size() == 3 && pos.size() == 3,
+           "model.volume.dims / extent_neg_m / extent_pos_m must each have three entries");
+  g.dims = {dims[0], dims[1], dims[2]};
+  g.center = {0.0, camera_height_m, 0.0};
+  g.extent_neg = {neg[0], neg[1], neg[2]};
+  g.extent_pos = {pos[0], pos[1], pos[2]};
+  g.log_scale_m = v.at("log_scale_m").get<double>();
+  g.validate();
+  return g;
+}
+
+}  // namespace sl::train

@@ -1,0 +1,172 @@
+// The shared training loop. See trainer.h.
+#include "train/trainer.h"
+
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <sys/resource.h>
+
+#include "autodiff/tape.h"
+#include "nn/checkpoint.h"
+#include "nn/lr_schedule.h"
+
+namespace sl::train {
+
+namespace {
+
+volatile std::sig_atomic_t g_stop = 0;
+
+extern "C" void on_stop_signal(int) { g_stop = 1; }
+
+int64_t peak_rss_kb() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<int64_t>(u.ru_maxrss);
+}
+
+nlohmann::json metrics_json(const Metrics& m) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [k, v] : m) j[k] = std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+  return j;
+}
+
+void append_line(const std::string& path, const nlohmann::json& j) {
+  std::ofstream f(path, std::ios::app);
+  SL_CHECK(f.good(), "train: cannot append to ", path);
+  f << j.dump() << "\n";
+}
+
+}  // namespace
+
+void install_stop_handlers() {
+  std::signal(SIGINT, on_stop_signal);
+  std::signal(SIGTERM, on_stop_signal);
+}
+bool stop_requested() { return g_stop != 0; }
+void request_stop(bool on) { g_stop = on ? 1 : 0; }
+
+void check_finite_loss(const std::string& what, double value, int64_t step) {
+  if (!std::isfinite(value))
+    throw NonFiniteError(cat("loss '", what, "' is ", value, " at step ", step,
+                             "; stopping (the last good checkpoint is unchanged)"));
+}
+
+void check_finite_gradients(const nn::NamedTensors& params, int64_t step) {
+  for (const auto& [name, p] : params) {
+    const Tensor& g = p.grad();
+    if (!g.defined()) continue;
+    const bool ok = SL_DISPATCH_FLOAT(g.dtype(), "check_finite_gradients", [&] {
+      const Tensor c = g.contiguous();
+      const scalar_t* d = c.data<scalar_t>();
+      for (int64_t i = 0; i < c.numel(); ++i)
+        if (!std::isfinite(d[i])) return false;
+      return true;
+    });
+    if (!ok)
+      throw NonFiniteError(cat("gradient of parameter '", name, "' has NaN or Inf at step ", step,
+                               "; stopping (the last good checkpoint is unchanged)"));
+  }
+}
+
+RunResult run_training(Stage& stage, const nlohmann::json& config, const RunOptions& options) {
+  namespace fs = std::filesystem;
+  const nlohmann::json& t = config.at("train");
+  const nlohmann::json& o = config.at("optim");
+  const int64_t total = t.at("steps").get<int64_t>();
+  const int64_t log_every = t.at("log_every").get<int64_t>(), val_every = t.at("val_every").get<int64_t>();
+  const int64_t ckpt_every = t.at("checkpoint_every").get<int64_t>(), image_every = t.at("image_every").get<int64_t>();
+  const int64_t warmup = std::min(o.at("warmup_steps").get<int64_t>(), std::max<int64_t>(total - 1, 0));
+  std::shared_ptr<const nn::LrSchedule> cosine = std::make_shared<nn::CosineLr>(
+      o.at("lr").get<double>(), std::max<int64_t>(total - warmup, 1), o.at("min_lr").get<double>());
+  std::shared_ptr<const nn::LrSchedule> schedule =
+      warmup > 0 ? std::make_shared<nn::WarmupLr>(warmup, cosine) : cosine;
+
+  std::error_code ec;
+  fs::create_directories(options.out_dir, ec);
+  SL_CHECK(!ec, "train: cannot create the output folder ", options.out_dir, ": ", ec.message());
+  const std::string last_path = (fs::path(options.out_dir) / "last.safetensors").string();
+  const std::string best_path = (fs::path(options.out_dir) / "best.safetensors").string();
+  const std::string metrics_path = (fs::path(options.out_dir) / "metrics.jsonl").string();
+  auto log = [&](const std::string& s) {
+    if (options.log) options.log(s);
+  };
+
+  int64_t step = 0;
+  double best = std::numeric_limits<double>::infinity();
+  if (!options.resume.empty()) {
+    const nn::CheckpointInfo info = nn::load_checkpoint(options.resume, stage.model(), &stage.optimizer());
+    SL_CHECK(info.stage == stage.name(), "--resume ", options.resume, ": checkpoint is from stage '", info.stage,
+             "', the config is stage '", stage.name(), "'");
+    step = info.step;
+    if (auto it = info.extra.find("best_metric"); it != info.extra.end()) best = std::stod(it->second);
+    log(cat("resumed from ", options.resume, " at step ", step));
+  } else {
+    stage.initialise();
+  }
+
+  auto save = [&](const std::string& path) {
+    nn::CheckpointInfo info;
+    info.stage = stage.name();
+    info.step = step;
+    info.config_json = config.dump();
+    if (std::isfinite(best)) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%.17g", best);
+      info.extra["best_metric"] = buf;
+    }
+    nn::save_checkpoint(path, stage.model(), &stage.optimizer(), info);
+  };
+
+  install_stop_handlers();
+  RunResult result;
+  const auto t0 = std::chrono::steady_clock::now();
+  const int64_t first = step;
+  double step_seconds = 0.0;
+  while (step < total) {
+    stage.set_lr(schedule->lr(step));
+    const auto s0 = std::chrono::steady_clock::now();
+    result.last_losses = stage.step(step);
+    step_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count();
+    ++step;
+    if (options.on_step) options.on_step(step, total, result.last_losses);
+    if (step % log_every == 0 || step == total) {
+      nlohmann::json line = metrics_json(result.last_losses);
+      line["step"] = step;
+      line["split"] = "train";
+      line["lr"] = stage.optimizer().lr();
+      append_line(metrics_path, line);
+    }
+    if (step % val_every == 0 || step == total) {
+      result.last_validation = stage.validate();
+      nlohmann::json line = metrics_json(result.last_validation);
+      line["step"] = step;
+      line["split"] = "val";
+      append_line(metrics_path, line);
+      const auto it = result.last_validation.find(stage.best_metric());
+      if (it != result.last_validation.end() && std::isfinite(it->second) && it->second < best) {
+        best = it->second;
+        save(best_path);
+        log(cat("step ", step, ": new best ", stage.best_metric(), " = ", best, " -> ", best_path));
+      }
+    }
+    if (step % image_every == 0 || step == total)
+      stage.write_strip((fs::path(options.out_dir) / cat("strip_", step, ".png")).string());
+    if (step % ckpt_every == 0 || step == total) save(last_path);
+    if (stop_requested()) {
+      save(last_path);
+      result.interrupted = true;
+      log(cat("stopped by signal at step ", step, "; saved ", last_path, " (resume with --resume ", last_path, ")"));
+      break;
+    }
+  }
+  request_stop(false);
+  result.steps_done = step;
+  result.total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  result.seconds_per_step = step > first ? step_seconds / static_cast<double>(step - first) : 0.0;
+  result.peak_rss_kb = peak_rss_kb();
+  return result;
+}
+
+}  // namespace sl::train

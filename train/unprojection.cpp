@@ -1,0 +1,49 @@
+// RGBα unprojection onto the VSG grid. See unprojection.h.
+#include "train/unprojection.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace sl::train {
+
+Tensor unproject_rgba(const Tensor& image, const Tensor& depth, const Camera& camera, const VsgGrid& grid) {
+  SL_CHECK(image.dim() == 3 && image.size(0) == 3, "unproject_rgba: image must be [3, H, W], got ", image.describe());
+  SL_CHECK(depth.dim() == 2 && depth.size(0) == image.size(1) && depth.size(1) == image.size(2),
+           "unproject_rgba: depth ", depth.describe(), " does not match image ", image.describe());
+  const auto& k = camera.intrinsics();
+  SL_CHECK(k.width == image.size(2) && k.height == image.size(1), "unproject_rgba: camera is ", k.width, "×", k.height,
+           ", image ", image.describe());
+  grid.validate();
+  const int64_t h = image.size(1), w = image.size(2);
+  const int64_t X = grid.dims[0], Y = grid.dims[1], Z = grid.dims[2], nvox = X * Y * Z;
+  const std::vector<double> rgb = image.to(DType::F64).contiguous().to_vector();
+  const std::vector<double> z = depth.to(DType::F64).contiguous().to_vector();
+  std::vector<double> acc(static_cast<size_t>(4 * nvox), 0.0);
+  for (int64_t r = 0; r < h; ++r)
+    for (int64_t c = 0; c < w; ++c) {
+      const double d = z[static_cast<size_t>(r * w + c)];
+      if (!(std::isfinite(d) && d > 0)) continue;
+      const glm::dvec3 p = camera.unproject(c + 0.5, r + 0.5, d);
+      if (!grid.contains(p)) continue;
+      const glm::dvec3 v = grid.to_voxel(p);
+      const int64_t ix = std::clamp<int64_t>(static_cast<int64_t>(std::floor(v.x)), 0, X - 1);
+      const int64_t iy = std::clamp<int64_t>(static_cast<int64_t>(std::floor(v.y)), 0, Y - 1);
+      const int64_t iz = std::clamp<int64_t>(static_cast<int64_t>(std::floor(v.z)), 0, Z - 1);
+      const int64_t vox = (ix * Y + iy) * Z + iz;
+      for (int ch = 0; ch < 3; ++ch) acc[static_cast<size_t>(ch * nvox + vox)] += rgb[static_cast<size_t>((ch * h + r) * w + c)];
+      acc[static_cast<size_t>(3 * nvox + vox)] += 1.0;
+    }
+  for (int64_t vox = 0; vox < nvox; ++vox) {
+    double& count = acc[static_cast<size_t>(3 * nvox + vox)];
+    if (count <= 0) continue;
+    for (int ch = 0; ch < 3; ++ch) {
+      double& v = acc[static_cast<size_t>(ch * nvox + vox)];
+      v = std::isfinite(v / count) ? v / count : 0.0;
+    }
+    count = 1.0;
+  }
+  return Tensor::from_vector(acc, {4, X, Y, Z});
+}
+
+}  // namespace sl::train

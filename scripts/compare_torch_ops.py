@@ -123,28 +123,33 @@ class ResNet18(nn.Module):
         return self.fc(self.layers(self.stem(x)).mean(dim=(2, 3)))
 
 
-def double_conv3d(cin, cout):
-    return nn.Sequential(nn.Conv3d(cin, cout, 3, 1, 1), nn.BatchNorm3d(cout), nn.ReLU(),
-                         nn.Conv3d(cout, cout, 3, 1, 1), nn.BatchNorm3d(cout), nn.ReLU())
+def conv_block3d(cin, cout):
+    """nn/unet.h ConvBlock: (conv 3x3x3 without bias, BatchNorm, ReLU) twice."""
+    return nn.Sequential(nn.Conv3d(cin, cout, 3, 1, 1, bias=False), nn.BatchNorm3d(cout), nn.ReLU(),
+                         nn.Conv3d(cout, cout, 3, 1, 1, bias=False), nn.BatchNorm3d(cout), nn.ReLU())
 
 
 class UNet3D(nn.Module):
-    """base 16, 3 levels (16, 32, 64 channels); decoder = trilinear Upsample ×2 + concat + convs."""
+    """Mirrors sl::nn::UNet(3, {in 16, out 8, base 16, depth 2, norm batch, upsample nearest}): three
+    levels (16, 32, 64 channels); a decoder level is Upsample x2 + conv 3x3x3, then a ConvBlock over
+    [up, skip]; a 1x1x1 head."""
 
     def __init__(self, cin=16, cout=8, base=16):
         super().__init__()
-        self.enc1, self.enc2 = double_conv3d(cin, base), double_conv3d(base, 2 * base)
-        self.bottom = double_conv3d(2 * base, 4 * base)
-        self.dec2, self.dec1 = double_conv3d(6 * base, 2 * base), double_conv3d(3 * base, base)
+        self.enc = nn.ModuleList([conv_block3d(cin, base), conv_block3d(base, 2 * base), conv_block3d(2 * base, 4 * base)])
+        self.up = nn.ModuleList([nn.Conv3d(4 * base, 2 * base, 3, 1, 1), nn.Conv3d(2 * base, base, 3, 1, 1)])
+        self.dec = nn.ModuleList([conv_block3d(4 * base, 2 * base), conv_block3d(2 * base, base)])
         self.head = nn.Conv3d(base, cout, 1)
 
     def forward(self, x):
-        up = lambda t: F.interpolate(t, scale_factor=2, mode="trilinear", align_corners=False)
-        e1 = self.enc1(x)
-        e2 = self.enc2(F.max_pool3d(e1, 2))
-        b = self.bottom(F.max_pool3d(e2, 2))
-        d2 = self.dec2(torch.cat([up(b), e2], 1))
-        return self.head(self.dec1(torch.cat([up(d2), e1], 1)))
+        skips, y = [], x
+        for i, block in enumerate(self.enc):
+            y = block(F.max_pool3d(y, 2) if i > 0 else y)
+            skips.append(y)
+        for j in range(2):
+            y = self.up[j](F.interpolate(y, scale_factor=2, mode="nearest"))
+            y = self.dec[j](torch.cat([y, skips[-2 - j]], 1))
+        return self.head(y)
 
 
 def torch_networks(repeat):

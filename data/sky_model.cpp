@@ -14,8 +14,12 @@ namespace {
 
 constexpr double kPi = equirect::kPi;
 constexpr double kSunAngularRadiusRad = 0.265 * kPi / 180.0;
-// Extraterrestrial solar illuminance (~128 klx) over the disk's solid angle, in kcd/m².
-constexpr double kSunLuminanceOutsideAtmosphere = 1.9e6;
+// Solar disk luminance before atmospheric attenuation, in kcd/m². The extraterrestrial value
+// (~128 klx over the disk's solid angle) is 1.9e6, which puts a clear-sky sun at up to 1.4e5
+// times the mean sky radiance; the project specifies 10^4-10^5 times the sky's, so the disk is
+// scaled to 1.3e6: 1.4e4 (elevation 5°) to 9.6e4 (75°) times the mean upper-hemisphere sky at
+// turbidity 3 (tests/data/sky_model_test.cpp). Below ~5° air mass dims it further, as it should.
+constexpr double kSunLuminanceOutsideAtmosphere = 1.3e6;
 constexpr int kSunSamples = 256;
 
 // Perez et al. coefficients A..E as linear functions of turbidity T (Preetham 1999, Appendix).

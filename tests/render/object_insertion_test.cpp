@@ -209,6 +209,23 @@ TEST(ObjectInsertion, FullyHiddenObjectLeavesNoForeground) {
   for (double v : r.object_mask.to_vector()) EXPECT_EQ(v, 0.0);
 }
 
+TEST(ObjectInsertion, ObjectBehindTheCameraLeavesAFiniteUntouchedPhoto) {
+  // place_object refuses such a placement; insert_objects must still behave when handed one.
+  const GroundScene s = ground_scene(32, 24, DType::F32);
+  PlacedObject obj = place_object(box_mesh(), {0, -6, 0, 1}, s.camera, s.depth);
+  for (glm::vec3& p : obj.mesh.positions) p.z += 12.0f;  // now 6 m behind the camera
+  obj.bvh = std::make_shared<Bvh>(obj.mesh);
+  Tensor env = sun_sky(16, 8, 1e5, DType::F32).set_requires_grad(true);
+  InsertionInputs in{s.background, s.depth, s.camera, env, Tensor(), VsgGrid(), {obj}};
+  const InsertionResult r = insert_objects(in, small_options());
+  for (double v : r.object_mask.to_vector()) EXPECT_EQ(v, 0.0);
+  EXPECT_TRUE(finite(r.composite));
+  if (r.composite.requires_grad()) {  // its shadow may still reach the ground in view
+    backward(sum(r.composite));
+    EXPECT_TRUE(finite(env.grad()));
+  }
+}
+
 TEST(ObjectInsertion, PlacementBehindTheCameraOrOffScreenIsAnError) {
   const GroundScene s = ground_scene(32, 24, DType::F32);
   EXPECT_THROW(place_object(box_mesh(), {0, 5, 0, 1}, s.camera, s.depth), Error);

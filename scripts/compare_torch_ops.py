@@ -179,6 +179,51 @@ def ours_networks(cmd):
     return rows
 
 
+def torch_core_ops(repeat):
+    """The autodiff kernels of `streetlight-bench ops`: matmul 1024^3 and the elementwise chain
+    y = tanh(exp(0.5 x) * sigmoid(x) + x) over 16M elements, forward and forward+backward."""
+    rows = {}
+    a, b = torch.rand(1024, 1024) * 2 - 1, torch.rand(1024, 1024) * 2 - 1
+    flops = 2.0 * 1024 ** 3
+    ms = best_ms(lambda: a @ b, repeat)
+    rows[("matmul", "forward")] = flops / (ms * 1e6), ms
+    a.requires_grad_(True)
+    b.requires_grad_(True)
+
+    def mm_step():
+        a.grad = b.grad = None
+        (a @ b).sum().backward()
+    ms = best_ms(mm_step, repeat)
+    rows[("matmul", "forward_backward")] = 3 * flops / (ms * 1e6), ms
+    x = torch.rand(16 << 20) * 4 - 2
+    chain = lambda: torch.tanh(torch.exp(0.5 * x) * torch.sigmoid(x) + x)
+    n = float(16 << 20)
+    ms = best_ms(chain, repeat)
+    rows[("elementwise_chain", "forward")] = 5 * n / (ms * 1e6), ms
+    x.requires_grad_(True)
+
+    def chain_step():
+        x.grad = None
+        chain().sum().backward()
+    ms = best_ms(chain_step, repeat)
+    rows[("elementwise_chain", "forward_backward")] = 15 * n / (ms * 1e6), ms
+    x.requires_grad_(False)
+    ms = best_ms(lambda: x.sum(), repeat)
+    rows[("sum", "forward")] = n / (ms * 1e6), ms
+    return rows
+
+
+def ours_core_ops(bench, threads):
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads))
+    out = subprocess.run([bench, "ops", "--json"], env=env, check=True, capture_output=True, text=True).stdout
+    rows = {}
+    for line in out.splitlines():
+        if line.startswith("{"):
+            r = json.loads(line)
+            rows[(r["op"], r["pass"])] = (r["gflops"], r["ms"])
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("bench", nargs="?", default=os.path.join(ROOT, "build", "tools", "streetlight-bench"))
@@ -219,6 +264,13 @@ def main():
         if rs:
             gm = math.exp(sum(math.log(r) for r in rs) / len(rs))
             print(f"geometric mean ratio ({pass_name}): {gm:.2f}   min {min(rs):.2f}")
+
+    print(f"\n{'autodiff op':28s} {'pass':17s} {'torch ms':>9s} {'torch G/s':>10s} {'ours ms':>9s} {'ours G/s':>10s} {'ratio':>6s}")
+    tc, oc = torch_core_ops(args.repeat), ours_core_ops(args.bench, args.threads)
+    for key, (tg, tms) in tc.items():
+        if key in oc:
+            og, oms = oc[key]
+            print(f"{key[0]:28s} {key[1]:17s} {tms:9.2f} {tg:10.2f} {oms:9.2f} {og:10.2f} {og / tg:6.2f}")
 
     if not args.skip_networks:
         nets = torch_networks(args.repeat)

@@ -2,6 +2,8 @@
 // nearest valid key, a missing stage checkpoint is named, and both exit 2 with one line.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -19,7 +21,10 @@ struct TrainRun {
 TrainRun run_train(const std::string& config_text, const std::string& extra = "") {
   const fs::path exe = fs::path(STREETLIGHT_BINARY_DIR) / "tools" / "streetlight-train";
   if (!fs::exists(exe)) return {};
-  const fs::path dir = fs::path(STREETLIGHT_BINARY_DIR) / "test_tmp" / "train" / "executable";
+  // One folder per process and test: ctest runs the tests of this file in parallel processes.
+  const fs::path dir = fs::path(STREETLIGHT_BINARY_DIR) / "test_tmp" / "train" /
+                       ("executable_" + std::to_string(::getpid()) + "_" +
+                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
   fs::create_directories(dir);
   std::ofstream(dir / "config.json") << config_text;
   const std::string cmd = exe.string() + " --config " + (dir / "config.json").string() + " --out " +

@@ -1,0 +1,170 @@
+// streetlight-insert end to end on a tiny synthetic photo with a random-weight checkpoint, and
+// every bad input of issue 8: one line "error: ...", exit 2, and no output folder left behind.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "data/image_io.h"
+#include "tool_fixture.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using sl::test::run_tool;
+
+struct InsertCase {
+  std::string dir, ckpt, base;
+};
+
+InsertCase setup(const std::string& name) {
+  InsertCase c;
+  c.dir = sl::test::tool_dir(name);
+  c.ckpt = sl::test::tiny_lighting_checkpoint(c.dir);
+  sl::test::tiny_photo(c.dir);
+  c.base = " --checkpoint " + c.ckpt + " --object procedural:car --aa 1 --light-samples 4 --shadow-rays 8"
+           " --shadow-width 16 --shadow-height 8 ";
+  return c;
+}
+
+void expect_clean_error(const sl::test::ToolRun& r, const std::string& out_dir, const std::string& needle) {
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
+  EXPECT_NE(r.out.find(needle), std::string::npos) << "expected '" << needle << "' in: " << r.out;
+  EXPECT_FALSE(fs::exists(out_dir)) << "partial output left in " << out_dir;
+  for (const auto& e : fs::directory_iterator(fs::path(out_dir).parent_path()))
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+}
+
+TEST(InsertTool, WritesEveryOutputWithTheGroundPlaneFallback) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP() << "streetlight-insert not built";
+  const InsertCase c = setup("insert_ok");
+  const std::string out = c.dir + "/out";
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                    "/intrinsics.json --at 0,8 --exr --out " + out + c.base);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("depth: ground-plane"), std::string::npos) << r.out;
+  for (const char* f : {"composite.png", "composite.exr", "object_mask.png", "shadow_map.png", "sky.exr", "sky.png",
+                        "depth.exr", "result.json", "label.txt"})
+    EXPECT_TRUE(fs::exists(fs::path(out) / f)) << f;
+  std::ifstream jf(out + "/result.json");
+  const auto j = nlohmann::json::parse(jf);
+  EXPECT_EQ(j["depth_source"], "ground-plane");
+  const glm::dvec3 sun(j["sun"]["direction_world"][0], j["sun"]["direction_world"][1], j["sun"]["direction_world"][2]);
+  EXPECT_NEAR(glm::length(sun), 1.0, 1e-6);
+  EXPECT_NEAR(j["box3d"]["z"].get<double>(), 8.0, 1e-6);  // 8 m ahead in the camera frame
+  EXPECT_GT(j["box2d"][2].get<double>(), j["box2d"][0].get<double>());
+  EXPECT_EQ(j["kitti_label"].get<std::string>().rfind("Car ", 0), 0u);
+  const sl::Tensor comp = sl::read_image(out + "/composite.png");
+  EXPECT_EQ(comp.size(1), 32);
+  EXPECT_EQ(comp.size(2), 64);
+}
+
+TEST(InsertTool, SunEditingMovesTheEstimatedSun) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_sun");
+  const std::string out = c.dir + "/out";
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                    "/intrinsics.json --at 0,8 --sun-azimuth 30 --sun-elevation 40"
+                                                    " --sun-intensity 2 --out " + out + c.base);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream jf(out + "/result.json");
+  const auto j = nlohmann::json::parse(jf);
+  EXPECT_NEAR(j["sun"]["azimuth_deg"].get<double>(), 30.0, 1e-3);
+  EXPECT_NEAR(j["sun"]["elevation_deg"].get<double>(), 40.0, 1e-3);
+  EXPECT_TRUE(j["sun"]["edited"].get<bool>());
+}
+
+TEST(InsertTool, MissingImageIsACleanError) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_missing");
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/nope.png --intrinsics " + c.dir +
+                                                    "/intrinsics.json --at 0,8 --out " + c.dir + "/out" + c.base);
+  expect_clean_error(r, c.dir + "/out", "nope.png");
+}
+
+TEST(InsertTool, CorruptImageIsACleanError) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_corrupt");
+  std::ofstream(c.dir + "/bad.png") << "not a png at all";
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/bad.png --intrinsics " + c.dir +
+                                                    "/intrinsics.json --at 0,8 --out " + c.dir + "/out" + c.base);
+  expect_clean_error(r, c.dir + "/out", "bad.png");
+}
+
+TEST(InsertTool, DepthOfAnotherSizeIsACleanError) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_depth");
+  sl::write_depth(c.dir + "/depth.exr", sl::Tensor::full({1, 16, 32}, 5.0));
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                    "/intrinsics.json --depth " + c.dir + "/depth.exr --at 0,8 --out " +
+                                                    c.dir + "/out" + c.base);
+  expect_clean_error(r, c.dir + "/out", "depth file");
+}
+
+TEST(InsertTool, IntrinsicsOfAnotherImageAreACleanError) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_intrinsics");
+  std::ofstream(c.dir + "/k.json") << R"({"fx": 700, "fy": 700, "cx": 609.5, "cy": 172.8})";
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                    "/k.json --at 0,8 --out " + c.dir + "/out" + c.base);
+  expect_clean_error(r, c.dir + "/out", "principal point");
+  std::ofstream(c.dir + "/k2.json") << R"({"fx": 40, "fy": 40, "cx": 32, "cy": 16, "width": 1242, "height": 375})";
+  const auto r2 = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                     "/k2.json --at 0,8 --out " + c.dir + "/out" + c.base);
+  expect_clean_error(r2, c.dir + "/out", "1242x375");
+}
+
+TEST(InsertTool, ObjectBehindTheCameraIsACleanError) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_behind");
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                    "/intrinsics.json --at 0,-6 --out " + c.dir + "/out" + c.base);
+  expect_clean_error(r, c.dir + "/out", "behind the camera");
+}
+
+TEST(InsertTool, ObjectOffTheGroundIsACleanError) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_offground");
+  // A depth map with no surface at all: nothing to stand on.
+  sl::write_depth(c.dir + "/depth.exr", sl::Tensor::zeros({1, 32, 64}));
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                    "/intrinsics.json --depth " + c.dir + "/depth.exr --at 0,8 --out " +
+                                                    c.dir + "/out" + c.base);
+  expect_clean_error(r, c.dir + "/out", "not on the ground");
+}
+
+TEST(InsertTool, CompressedGltfIsACleanError) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_draco");
+  std::ofstream(c.dir + "/draco.gltf")
+      << R"({"asset": {"version": "2.0"}, "extensionsUsed": ["KHR_draco_mesh_compression"],
+             "extensionsRequired": ["KHR_draco_mesh_compression"], "meshes": [], "nodes": [], "scenes": [{"nodes": []}]})";
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                    "/intrinsics.json --at 0,8 --out " + c.dir + "/out --checkpoint " +
+                                                    c.ckpt + " --object " + c.dir + "/draco.gltf");
+  expect_clean_error(r, c.dir + "/out", "draco");
+}
+
+TEST(InsertTool, BatchWritesAKittiLayoutDataset) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_batch");
+  std::ofstream(c.dir + "/list.json") << R"([{"image": "photo.png", "intrinsics": "intrinsics.json"},
+                                             {"image": "photo.png", "intrinsics": "intrinsics.json"}])";
+  const std::string out = c.dir + "/aug";
+  const auto r = run_tool("streetlight-insert", "--batch " + c.dir + "/list.json --out " + out + c.base);
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (const char* f : {"image_2/000000.png", "image_2/000001.png", "label_2/000000.txt", "calib/000001.txt"})
+    EXPECT_TRUE(fs::exists(fs::path(out) / f)) << f;
+  std::ifstream lf(out + "/label_2/000000.txt");
+  std::string line;
+  ASSERT_TRUE(std::getline(lf, line));
+  EXPECT_EQ(line.rfind("Car ", 0), 0u) << line;
+}
+
+}  // namespace

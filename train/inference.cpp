@@ -1,0 +1,228 @@
+// Lighting inference, sun editing and multi-view fusion. See inference.h.
+#include "train/inference.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "autodiff/ops.h"
+#include "autodiff/tape.h"
+#include "data/panorama.h"
+#include "nn/checkpoint.h"
+#include "train/train_config.h"
+#include "train/unprojection.h"
+
+namespace sl::train {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::vector<double> to_doubles(const Tensor& t) {
+  const Tensor c = t.detach().to(DType::F64).contiguous();
+  return std::vector<double>(c.data<double>(), c.data<double>() + c.numel());
+}
+
+}  // namespace
+
+glm::dvec3 direction_from_azimuth_elevation_deg(double azimuth_deg, double elevation_deg) {
+  const double az = azimuth_deg * kPi / 180.0, el = elevation_deg * kPi / 180.0;
+  // φ = atan2(d.x, −d.z), θ = asin(d.y) (render/equirect.h).
+  return {std::cos(el) * std::sin(az), std::sin(el), -std::cos(el) * std::cos(az)};
+}
+double azimuth_deg_of(const glm::dvec3& d) { return std::atan2(d.x, -d.z) * 180.0 / kPi; }
+double elevation_deg_of(const glm::dvec3& d) {
+  return std::asin(std::clamp(d.y / std::max(glm::length(d), 1e-12), -1.0, 1.0)) * 180.0 / kPi;
+}
+
+glm::dvec3 EstimatedLighting::world_direction(const glm::dvec3& c) const {
+  return rotate_direction_azimuth(c, frame.yaw_rad);
+}
+glm::dvec3 EstimatedLighting::world_point(const glm::dvec3& c) const {
+  const glm::dvec3 r = rotate_direction_azimuth(c, frame.yaw_rad);
+  return {r.x + frame.camera_world.x, r.y, r.z + frame.camera_world.z};
+}
+Tensor EstimatedLighting::env_world() const {
+  return frame.yaw_rad == 0.0 ? env : rotate_azimuth(env.contiguous(), frame.yaw_rad);
+}
+
+LightingEstimator::LightingEstimator(const std::string& path) : path_(path) {
+  const nn::CheckpointInfo info = nn::read_checkpoint_info(path);
+  stage_ = info.stage;
+  step_ = info.step;
+  SL_CHECK(stage_ == kStageLighting || stage_ == kStageAdversarial, "checkpoint '", path, "' holds stage '", stage_,
+           "'; lighting inference needs a '", kStageLighting, "' or '", kStageAdversarial, "' checkpoint");
+  try {
+    config_ = nlohmann::json::parse(info.config_json);
+  } catch (const std::exception& e) {
+    SL_CHECK(false, "checkpoint '", path, "': its config metadata is not JSON (", e.what(), ")");
+  }
+  const LightingPredictorOptions po = predictor_options(config_);
+  predictor_ = std::make_shared<LightingPredictor>(po);
+  // Load predictor.* only: the checkpoint also holds the teacher and maybe a discriminator,
+  // which load_checkpoint would report as unexpected, so read the tensors by name.
+  const nn::SafetensorsFile file = nn::read_safetensors(path);
+  nn::StateDict state;
+  for (const auto& [name, t] : file.tensors)
+    if (name.rfind("predictor.", 0) == 0) state.emplace(name.substr(10), t);
+  SL_CHECK(!state.empty(), "checkpoint '", path, "' holds no predictor.* tensors");
+  try {
+    predictor_->load_state_dict(state);
+  } catch (const Error& e) {
+    SL_CHECK(false, "checkpoint '", path, "' does not match its stored config: ", e.what());
+  }
+  predictor_->set_training(false);
+  grid_template_ = vsg_grid(config_, 1.6);
+}
+
+int LightingEstimator::volume_samples() const {
+  return config_.at("model").at("volume").at("samples").get<int>();
+}
+
+LightingEstimator::Single LightingEstimator::predict_one(const InferenceView& v) {
+  const LightingPredictorOptions& po = predictor_->options();
+  SL_CHECK(v.ldr.defined() && v.ldr.dim() == 3 && v.ldr.size(0) == 3, "lighting inference: expected an LDR image [3, H, W], got ",
+           v.ldr.defined() ? v.ldr.describe() : std::string("undefined"));
+  const Intrinsics& k = v.camera.intrinsics();
+  SL_CHECK(v.ldr.size(1) == k.height && v.ldr.size(2) == k.width, "lighting inference: image ", v.ldr.describe(),
+           " does not match the camera's ", k.width, "x", k.height);
+  Single s;
+  s.frame = canonical_frame(v.camera);
+  s.camera = s.frame.camera(v.camera);
+  s.grid = grid_template_;
+  s.grid.center = s.camera.position();
+  const Tensor image = unsqueeze(resize_bilinear(v.ldr, po.image_height, po.image_width), 0);
+  Tensor rgba;
+  if (po.volume_branch) {
+    SL_CHECK(v.depth.defined() && v.depth.dim() == 2 && v.depth.size(0) == k.height && v.depth.size(1) == k.width,
+             "lighting inference: the volume branch needs a depth map [", k.height, ", ", k.width, "], got ",
+             v.depth.defined() ? v.depth.describe() : std::string("undefined"));
+    rgba = unsqueeze(unproject_rgba(v.ldr, v.depth, s.camera, s.grid), 0);
+  }
+  s.pred = predictor_->predict(image, rgba);
+  return s;
+}
+
+EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& views, const SunEdit& edit) {
+  SL_CHECK(!views.empty(), "lighting inference: no views");
+  NoGradGuard no_grad;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<Single> singles;
+  for (const auto& v : views) singles.push_back(predict_one(v));
+  const Single& ref = singles[0];
+  EstimatedLighting out;
+  out.frame = ref.frame;
+  out.camera = ref.camera;
+  out.grid = ref.grid;
+  const bool has_code = ref.pred.code.dir.defined();
+  SL_CHECK(!edit.active() || has_code, "sun editing needs the 'sky_decoder' sky branch; checkpoint '", path_,
+           "' uses '", predictor_->options().sky_branch, "'");
+  if (has_code) {
+    // Sec 4.1: max-pool intensity and latent, average the directions rotated into view 0's frame.
+    std::vector<double> log_i = to_doubles(ref.pred.code.log_intensity), latent = to_doubles(ref.pred.code.latent);
+    glm::dvec3 dir_sum(0.0);
+    for (const Single& s : singles) {
+      const std::vector<double> li = to_doubles(s.pred.code.log_intensity), la = to_doubles(s.pred.code.latent),
+                                d = to_doubles(s.pred.code.dir);
+      for (size_t i = 0; i < log_i.size(); ++i) log_i[i] = std::max(log_i[i], li[i]);
+      for (size_t i = 0; i < latent.size(); ++i) latent[i] = std::max(latent[i], la[i]);
+      const glm::dvec3 world = rotate_direction_azimuth({d[0], d[1], d[2]}, s.frame.yaw_rad);
+      dir_sum += ref.frame.direction(world);
+    }
+    glm::dvec3 dir = glm::length(dir_sum) > 1e-12 ? glm::normalize(dir_sum) : glm::dvec3(0.0, 1.0, 0.0);
+    // Sec 3.2: edit the sky vector before decoding.
+    if (edit.azimuth_deg || edit.elevation_deg) {
+      const glm::dvec3 world = out.world_direction(dir);
+      const double az = edit.azimuth_deg.value_or(azimuth_deg_of(world));
+      const double el = edit.elevation_deg.value_or(elevation_deg_of(world));
+      dir = ref.frame.direction(direction_from_azimuth_elevation_deg(az, el));
+    }
+    SL_CHECK(std::isfinite(edit.intensity_scale) && edit.intensity_scale > 0, "sun intensity scale ",
+             edit.intensity_scale, " must be positive");
+    for (double& v : log_i) v += std::log(edit.intensity_scale);
+    SkyCode code;
+    const int64_t d_lat = static_cast<int64_t>(latent.size());
+    code.log_intensity = Tensor::from_vector(log_i, {1, 3}).to(DType::F32);
+    code.latent = Tensor::from_vector(latent, {1, d_lat}).to(DType::F32);
+    code.dir = Tensor::from_vector({dir.x, dir.y, dir.z}, {1, 3}).to(DType::F32);
+    out.env = select(predictor_->sky_decoder()->decode(code).hdr, 0, 0).contiguous();
+    out.has_sky_code = true;
+    out.sun_direction_canonical = dir;
+    out.sun_intensity_rgb = {std::exp(log_i[0]), std::exp(log_i[1]), std::exp(log_i[2])};
+  } else {
+    // No sky vector (ablations): fuse the domes by the per-texel maximum after rotation.
+    Tensor env = select(ref.pred.env, 0, 0).contiguous();
+    for (size_t k = 1; k < singles.size(); ++k) {
+      const Tensor other = rotate_azimuth(select(singles[k].pred.env, 0, 0).contiguous(),
+                                          singles[k].frame.yaw_rad - ref.frame.yaw_rad);
+      env = maximum(env, other);
+    }
+    out.env = env.contiguous();
+  }
+  if (ref.pred.vsg.defined()) {
+    if (singles.size() == 1) {
+      out.vsg = select(ref.pred.vsg, 0, 0).contiguous();
+    } else {
+      // Alpha-weighted fusion on view 0's grid.
+      const Tensor first = select(ref.pred.vsg, 0, 0).contiguous();
+      const int64_t voxels = first.numel() / 8;
+      std::vector<double> acc(static_cast<size_t>(first.numel()), 0.0), wsum(voxels, 0.0), amax(voxels, 0.0);
+      for (const Single& s : singles) {
+        const Tensor r = resample_vsg(select(s.pred.vsg, 0, 0).contiguous(), s.grid, s.frame, out.grid, out.frame);
+        const std::vector<double> v = to_doubles(r);
+        for (int64_t i = 0; i < voxels; ++i) {
+          const double a = v[7 * voxels + i], w = a + 1e-6;
+          for (int c = 0; c < 7; ++c) acc[c * voxels + i] += w * v[c * voxels + i];
+          wsum[i] += w;
+          amax[i] = std::max(amax[i], a);
+        }
+      }
+      for (int64_t i = 0; i < voxels; ++i) {
+        for (int c = 0; c < 7; ++c) acc[c * voxels + i] /= wsum[i];
+        acc[7 * voxels + i] = amax[i];
+      }
+      out.vsg = Tensor::from_vector(acc, first.shape()).to(DType::F32);
+    }
+  }
+  out.inference_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+Tensor resample_vsg(const Tensor& vsg, const VsgGrid& from_grid, const CanonicalFrame& from_frame,
+                    const VsgGrid& to_grid, const CanonicalFrame& to_frame) {
+  SL_CHECK(vsg.dim() == 4 && vsg.size(0) == 8, "resample_vsg: expected [8, X, Y, Z], got ", vsg.describe());
+  const Tensor src = vsg.detach().to(DType::F32).contiguous();
+  const float* s = src.data<float>();
+  const auto& fd = from_grid.dims;
+  const auto& td = to_grid.dims;
+  const int64_t n_from = fd[0] * fd[1] * fd[2], n_to = td[0] * td[1] * td[2];
+  Tensor out = Tensor::zeros({8, td[0], td[1], td[2]});
+  float* o = out.data<float>();
+  // to-frame → world → from-frame.
+  auto to_world_dir = [&](const glm::dvec3& d) { return rotate_direction_azimuth(d, to_frame.yaw_rad); };
+  auto from_to_world_dir = [&](const glm::dvec3& d) { return rotate_direction_azimuth(d, from_frame.yaw_rad); };
+  for (int64_t x = 0; x < td[0]; ++x)
+    for (int64_t y = 0; y < td[1]; ++y)
+      for (int64_t z = 0; z < td[2]; ++z) {
+        const glm::dvec3 p_to = to_grid.to_world({x + 0.5, y + 0.5, z + 0.5});
+        const glm::dvec3 r = to_world_dir(p_to);
+        const glm::dvec3 world(r.x + to_frame.camera_world.x, r.y, r.z + to_frame.camera_world.z);
+        const glm::dvec3 p_from = from_frame.point(world);
+        if (!from_grid.contains(p_from)) continue;
+        const glm::dvec3 vox = from_grid.to_voxel(p_from);
+        const int64_t i = std::clamp<int64_t>(static_cast<int64_t>(vox.x), 0, fd[0] - 1);
+        const int64_t j = std::clamp<int64_t>(static_cast<int64_t>(vox.y), 0, fd[1] - 1);
+        const int64_t k = std::clamp<int64_t>(static_cast<int64_t>(vox.z), 0, fd[2] - 1);
+        const int64_t si = (i * fd[1] + j) * fd[2] + k, ti = (x * td[1] + y) * td[2] + z;
+        for (int c = 0; c < 8; ++c) o[c * n_to + ti] = s[c * n_from + si];
+        // Lobe axis: from-frame → world → to-frame.
+        const glm::dvec3 axis(s[3 * n_from + si], s[4 * n_from + si], s[5 * n_from + si]);
+        const glm::dvec3 a = to_frame.direction(from_to_world_dir(axis));
+        o[3 * n_to + ti] = static_cast<float>(a.x);
+        o[4 * n_to + ti] = static_cast<float>(a.y);
+        o[5 * n_to + ti] = static_cast<float>(a.z);
+      }
+  return out;
+}
+
+}  // namespace sl::train

@@ -1,0 +1,113 @@
+// Lighting inference from a trained checkpoint: photo (+ depth + camera) → the hybrid lighting
+// of Sec 3.2 (HDR sky dome + VSG volume), with sun editing (Sec 3.2) and multi-view fusion
+// (Sec 4.1). Used by streetlight-insert and streetlight-eval.
+//
+// Frames (street_batch.h): the predictor works in the CANONICAL frame of its input camera —
+// the world rotated about +Y so that camera looks at azimuth 0 (−Z) and translated so it sits at
+// (0, y_cam, 0). The estimate below keeps everything in the canonical frame of the FIRST view
+// (`frame`) and converts explicitly: world_direction()/world_point() go canonical → world,
+// frame.direction()/frame.point() go world → canonical; env_world() is the dome rolled back to
+// the world's azimuths. Insertion must therefore be done in the canonical frame (camera via
+// frame.camera(), object position via frame.point(), yaw minus frame.yaw_rad).
+//
+// Contract:
+// - LightingEstimator(path) loads a stage-2 or stage-3 checkpoint (predictor.* with its frozen
+//   sky decoder; teacher.* and discriminator.* are ignored). Throws sl::Error naming the file
+//   when it is not a lighting checkpoint or does not match its stored config.
+// - estimate(views, edit): views[k] = LDR photo [3, H, W] in [0, 1] (the paper's LDR; an 8-bit
+//   photo read without an sRGB curve), depth [H, W] (camera z, metres, holes 0/NaN/inf; may be
+//   undefined for the sky-only branch), and the camera (world frame, intrinsics matching H×W).
+//   One view: the predictor's output. Several views (Sec 4.1): each is predicted in its own
+//   canonical frame, then the sky vectors are fused — element-wise max of log intensity and of
+//   the latent, directions rotated into view 0's frame and averaged — and decoded once; the
+//   volumes are resampled onto view 0's grid (nearest voxel, lobe axes rotated) and fused by
+//   alpha-weighted averaging of colour, axis and sharpness with the maximum alpha.
+// - SunEdit (Sec 3.2): replaces f̂_dir by the world direction of (azimuth, elevation) and/or
+//   multiplies f̂_intensity by intensity_scale before decoding. Requires the "sky_decoder"
+//   branch (throws otherwise). The volume is left as predicted.
+// - Deterministic; no tape (runs under NoGradGuard).
+#pragma once
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <nlohmann/json.hpp>
+
+#include "autodiff/tensor.h"
+#include "render/camera.h"
+#include "render/vsg_volume.h"
+#include "train/lighting_predictor.h"
+#include "train/street_batch.h"
+
+namespace sl::train {
+
+struct InferenceView {
+  Tensor ldr;    // [3, H, W] in [0, 1]
+  Tensor depth;  // [H, W] metres, camera z
+  Camera camera; // world frame
+};
+
+struct SunEdit {
+  std::optional<double> azimuth_deg, elevation_deg;  // world frame (render/equirect.h)
+  double intensity_scale = 1.0;
+  bool active() const { return azimuth_deg || elevation_deg || intensity_scale != 1.0; }
+};
+
+struct EstimatedLighting {
+  CanonicalFrame frame;  // canonical frame of view 0
+  Camera camera;         // view 0's camera in that frame
+  Tensor env;            // [3, Hs, Ws] sky dome, canonical frame, exposure-normalised radiance
+  Tensor vsg;            // [8, X, Y, Z] activated, or undefined (sky-only)
+  VsgGrid grid;          // centred on view 0's canonical camera
+  bool has_sky_code = false;
+  glm::dvec3 sun_direction_canonical{0.0, 1.0, 0.0};
+  glm::dvec3 sun_intensity_rgb{0.0};  // f_intensity (0 without a sky code: see sun_from_env)
+  double inference_ms = 0.0;          // predictor forward(s) + decoding, wall clock
+
+  glm::dvec3 world_direction(const glm::dvec3& canonical) const;
+  glm::dvec3 world_point(const glm::dvec3& canonical) const;
+  glm::dvec3 sun_direction_world() const { return world_direction(sun_direction_canonical); }
+  Tensor env_world() const;
+};
+
+class LightingEstimator {
+ public:
+  explicit LightingEstimator(const std::string& checkpoint_path);
+  EstimatedLighting estimate(const std::vector<InferenceView>& views, const SunEdit& edit = {});
+
+  const nlohmann::json& config() const { return config_; }
+  const std::string& path() const { return path_; }
+  const std::string& stage() const { return stage_; }
+  int64_t step() const { return step_; }
+  int volume_samples() const;  // model.volume.samples (K of Eq. 1)
+  LightingPredictor& predictor() { return *predictor_; }
+
+ private:
+  struct Single {
+    CanonicalFrame frame;
+    Camera camera;
+    VsgGrid grid;
+    LightingPrediction pred;
+  };
+  Single predict_one(const InferenceView& view);
+
+  std::string path_, stage_;
+  int64_t step_ = 0;
+  nlohmann::json config_;
+  std::shared_ptr<LightingPredictor> predictor_;
+  VsgGrid grid_template_;
+};
+
+// World unit direction of a panorama (azimuth, elevation) in degrees (render/equirect.h).
+glm::dvec3 direction_from_azimuth_elevation_deg(double azimuth_deg, double elevation_deg);
+double azimuth_deg_of(const glm::dvec3& d);
+double elevation_deg_of(const glm::dvec3& d);
+
+// Resamples a VSG volume from one canonical frame/grid onto another (nearest voxel; lobe axes
+// rotated); voxels that fall outside the source grid get α = 0 and zero colour.
+Tensor resample_vsg(const Tensor& vsg, const VsgGrid& from_grid, const CanonicalFrame& from_frame,
+                    const VsgGrid& to_grid, const CanonicalFrame& to_frame);
+
+}  // namespace sl::train

@@ -1,0 +1,54 @@
+// Object frame, KITTI boxes and label lines. See object_labels.h.
+#include "train/object_labels.h"
+
+#include <cmath>
+#include <cstdio>
+
+#include "data/object_placement.h"
+
+namespace sl::train {
+
+namespace {
+sl::Placement to_placement(const ObjectPose& p) { return sl::Placement{p.x_m, p.z_m, p.yaw_deg, p.scale}; }
+}  // namespace
+
+Mesh to_object_frame_mesh(const Mesh& mesh) { return to_object_frame(mesh); }
+
+double scale_for_length(const Mesh& object_frame_mesh, double length_m) {
+  return scale_to_length(object_frame_mesh, length_m);
+}
+
+std::array<double, 7> object_box3d(const Mesh& object_frame_mesh, const ObjectPose& pose, const Camera& camera) {
+  return kitti_box3d(object_frame_mesh, to_placement(pose), camera);
+}
+
+bool mask_box2d(const Tensor& mask, double threshold, std::array<double, 4>& box) {
+  SL_CHECK(mask.dim() == 3 && mask.size(0) == 1, "mask_box2d: expected [1, H, W], got ", mask.describe());
+  const Tensor m = mask.detach().to(DType::F32).contiguous();
+  const int64_t h = m.size(1), w = m.size(2);
+  const float* p = m.data<float>();
+  int64_t x0 = w, y0 = h, x1 = -1, y1 = -1;
+  for (int64_t r = 0; r < h; ++r)
+    for (int64_t c = 0; c < w; ++c)
+      if (p[r * w + c] > threshold) {
+        x0 = std::min(x0, c), x1 = std::max(x1, c), y0 = std::min(y0, r), y1 = std::max(y1, r);
+      }
+  if (x1 < 0) return false;
+  box = {static_cast<double>(x0), static_cast<double>(y0), static_cast<double>(x1 + 1), static_cast<double>(y1 + 1)};
+  return true;
+}
+
+std::string kitti_label_line(const std::string& type, double truncated, int occluded,
+                             const std::array<double, 4>& b, const std::array<double, 7>& d) {
+  constexpr double kPi = 3.14159265358979323846;
+  double alpha = d[6] - std::atan2(d[3], d[5]);
+  while (alpha > kPi) alpha -= 2 * kPi;
+  while (alpha <= -kPi) alpha += 2 * kPi;
+  char buf[512];
+  std::snprintf(buf, sizeof buf, "%s %.2f %d %.2f %.2f %.2f %.2f %.2f %.2f %.2f %.2f %.2f %.2f %.2f %.2f",
+                type.c_str(), truncated, occluded, alpha, b[0], b[1], b[2], b[3], d[0], d[1], d[2], d[3], d[4], d[5],
+                d[6]);
+  return buf;
+}
+
+}  // namespace sl::train

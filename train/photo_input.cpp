@@ -1,0 +1,136 @@
+// A user's photo, intrinsics and depth for insertion. See photo_input.h.
+#include "train/photo_input.h"
+
+#include <cmath>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "autodiff/ops.h"
+#include "data/image_io.h"
+#include "data/kitti.h"
+#include "train/photo_insertion.h"
+
+namespace sl::train {
+
+namespace {
+bool ends_with(const std::string& s, const std::string& e) {
+  return s.size() >= e.size() && s.compare(s.size() - e.size(), e.size(), e) == 0;
+}
+constexpr double kPi = 3.14159265358979323846;
+}  // namespace
+
+Intrinsics read_intrinsics(const std::string& path, int width, int height) {
+  Intrinsics k;
+  if (ends_with(path, ".json")) {
+    std::ifstream f(path);
+    SL_CHECK(f.good(), "intrinsics file '", path, "' cannot be opened");
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(f);
+      k.fx = j.at("fx").get<double>();
+      k.fy = j.at("fy").get<double>();
+      k.cx = j.at("cx").get<double>();
+      k.cy = j.at("cy").get<double>();
+    } catch (const nlohmann::json::exception& e) {
+      SL_CHECK(false, "intrinsics file '", path, "': expected a JSON object {fx, fy, cx, cy} (", e.what(), ")");
+    }
+    if (j.contains("width") || j.contains("height")) {
+      const int w = j.value("width", width), h = j.value("height", height);
+      SL_CHECK(w == width && h == height, "intrinsics file '", path, "' is for a ", w, "x", h, " image, but the image is ",
+               width, "x", height);
+    }
+    k.width = width;
+    k.height = height;
+    validate(k, path.c_str());
+  } else {
+    k = kitti_projection_from_file(path, width, height).intrinsics;
+  }
+  SL_CHECK(k.cx > 0 && k.cx < width && k.cy > 0 && k.cy < height, "intrinsics file '", path, "': principal point (",
+           k.cx, ", ", k.cy, ") lies outside the ", width, "x", height, " image; the intrinsics belong to another image");
+  return k;
+}
+
+Photo load_photo(const PhotoSources& s) {
+  SL_CHECK(!s.image.empty(), "--image is required");
+  Photo p;
+  ImageReadOptions ro;
+  ro.transfer = Transfer::Linear;
+  ro.channels = 3;
+  p.ldr = read_image(s.image, ro);
+  const int h = static_cast<int>(p.ldr.size(1)), w = static_cast<int>(p.ldr.size(2));
+  Intrinsics k;
+  if (!s.intrinsics.empty()) {
+    k = read_intrinsics(s.intrinsics, w, h);
+  } else {
+    SL_CHECK(!s.calib.empty(), "--intrinsics FILE is required (or --calib with --lidar)");
+    k = read_kitti_calibration(s.calib, w, h).p2.intrinsics;
+  }
+  SL_CHECK(s.camera_height_m > 0 && std::isfinite(s.camera_height_m), "--camera-height ", s.camera_height_m,
+           " must be positive");
+  const glm::dvec3 pos = s.position.value_or(glm::dvec3(0.0, s.camera_height_m, 0.0));
+  p.camera = Camera(k, rotation_from_yaw_pitch_roll(s.yaw_deg * kPi / 180.0, s.pitch_deg * kPi / 180.0, 0.0), pos);
+  if (!s.depth.empty()) {
+    const Tensor d = read_depth(s.depth);
+    SL_CHECK(d.size(1) == h && d.size(2) == w, "depth file '", s.depth, "' is ", d.size(2), "x", d.size(1),
+             " but the image '", s.image, "' is ", w, "x", h);
+    p.depth = reshape(d, {h, w}).contiguous();
+    p.depth_source = "depth-file";
+  } else if (!s.lidar.empty()) {
+    SL_CHECK(!s.calib.empty(), "--lidar needs --calib FILE (the lidar-to-camera calibration)");
+    const KittiFrame f = load_kitti_frame(s.image, s.calib, s.lidar, s.camera_height_m);
+    SL_CHECK(f.sparse_depth.defined(), "lidar file '", s.lidar, "' gave no depth");
+    p.depth = densify_depth(f.sparse_depth, k, f.camera_points).contiguous();
+    p.depth_source = "lidar";
+  } else {
+    p.depth = ground_plane_depth(p.camera);
+    p.depth_source = "ground-plane";
+  }
+  return p;
+}
+
+Photo load_street_view(const std::string& dir, int view, StreetPlacement* placement, bool* has_placement) {
+  const std::string meta_path = dir + "/meta.json";
+  std::ifstream f(meta_path);
+  SL_CHECK(f.good(), "street sample '", dir, "' has no meta.json");
+  Photo p;
+  try {
+    const nlohmann::json m = nlohmann::json::parse(f);
+    const auto& views = m.at("views");
+    SL_CHECK(view >= 0 && view < static_cast<int>(views.size()), "street sample '", dir, "' has no view ", view);
+    const auto& v = views.at(view);
+    const auto& k = v.at("intrinsics");
+    Intrinsics in;
+    in.fx = k.at("fx").get<double>(), in.fy = k.at("fy").get<double>();
+    in.cx = k.at("cx").get<double>(), in.cy = k.at("cy").get<double>();
+    in.width = k.at("width").get<int>(), in.height = k.at("height").get<int>();
+    const auto& r = v.at("rotation_cam_to_world");
+    glm::dmat3 rot;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) rot[j][i] = r.at(i * 3 + j).get<double>();  // row-major → glm columns
+    const auto& pos = v.at("position");
+    p.camera = Camera(in, rot, {pos.at(0).get<double>(), pos.at(1).get<double>(), pos.at(2).get<double>()});
+    ImageReadOptions ro;
+    ro.transfer = Transfer::Linear;
+    ro.channels = 3;
+    ro.width = in.width;
+    ro.height = in.height;
+    p.ldr = read_image(dir + "/" + v.at("files").at("ldr").get<std::string>(), ro);
+    const Tensor d = read_depth(dir + "/" + v.at("files").at("depth").get<std::string>(), MissingDepth::Zero, in.width,
+                                in.height);
+    p.depth = reshape(d, {in.height, in.width}).contiguous();
+    p.depth_source = "dataset";
+    if (has_placement) *has_placement = false;
+    if (placement && m.contains("object") && !m.at("object").is_null()) {
+      const auto& pl = m.at("object").at("placement");
+      *placement = {pl.at("x_m").get<double>(), pl.at("z_m").get<double>(), pl.at("yaw_deg").get<double>(),
+                    pl.at("scale").get<double>()};
+      if (has_placement) *has_placement = true;
+    }
+  } catch (const nlohmann::json::exception& e) {
+    SL_CHECK(false, "street sample '", meta_path, "': ", e.what());
+  }
+  return p;
+}
+
+}  // namespace sl::train

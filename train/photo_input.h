@@ -1,0 +1,52 @@
+// Reading a user's photo for insertion: the image, its intrinsics and a depth map from one of
+// three sources, with every mismatch reported as one sl::Error naming the file.
+//
+// Contract:
+// - read_intrinsics(path, width, height): a KITTI 3×4 projection text file (`P2:` line or 12
+//   bare numbers) or a JSON object {fx, fy, cx, cy[, width, height]} (.json). Throws when the
+//   file's width/height differ from the image or the principal point lies outside the image
+//   (intrinsics that belong to another image).
+// - load_photo(): image as stored 8-bit values in [0, 1] (treated as the paper's LDR), camera at
+//   (0, camera_height, 0) with yaw = 0 and the given pitch (world +Y up, looking down −Z)
+//   unless a pose is given; depth from, in order of preference, `depth_path` (metric EXR or
+//   KITTI 16-bit PNG; must have the image's size), `lidar_path` + `calib_path` (data/kitti.h:
+//   projected velodyne points densified by nearest fill and a fitted ground plane), or the
+//   ground plane y = 0 seen from the camera. depth_source says which ("depth-file", "lidar",
+//   "ground-plane").
+#pragma once
+#include <optional>
+#include <string>
+
+#include "autodiff/tensor.h"
+#include "render/camera.h"
+
+namespace sl::train {
+
+Intrinsics read_intrinsics(const std::string& path, int width, int height);
+
+struct PhotoSources {
+  std::string image, intrinsics, depth, lidar, calib;
+  double camera_height_m = 1.65, pitch_deg = 0.0;
+  // Optional world pose: position and yaw/pitch in degrees (multi-view rigs).
+  std::optional<glm::dvec3> position;
+  double yaw_deg = 0.0;
+};
+
+struct Photo {
+  Tensor ldr;    // [3, H, W]
+  Tensor depth;  // [H, W]
+  Camera camera;
+  std::string depth_source;
+};
+
+Photo load_photo(const PhotoSources& sources);
+
+// View `view` of a generated street sample folder (docs/DATASET.md: DIR/samples/<id>): its LDR,
+// depth and full camera pose from meta.json (depth_source "dataset"). When the sample has an
+// inserted object, *placement receives its world placement (x, z, yaw, scale) and true is returned.
+struct StreetPlacement {
+  double x_m = 0, z_m = 0, yaw_deg = 0, scale = 1;
+};
+Photo load_street_view(const std::string& sample_dir, int view, StreetPlacement* placement, bool* has_placement);
+
+}  // namespace sl::train

@@ -1,0 +1,106 @@
+// Object insertion into a photo with estimated lighting. See photo_insertion.h.
+#include "train/photo_insertion.h"
+
+#include <chrono>
+#include <cmath>
+
+#include "autodiff/ops.h"
+#include "autodiff/tape.h"
+#include "render/object_insertion.h"
+#include "train/losses.h"
+
+namespace sl::train {
+
+Tensor ground_plane_depth(const Camera& camera) {
+  const Intrinsics& k = camera.intrinsics();
+  Tensor depth = Tensor::zeros({k.height, k.width});
+  float* d = depth.data<float>();
+  const double h = camera.position().y;
+  SL_CHECK(h > 0, "ground_plane_depth: the camera must be above the ground (height ", h, " m)");
+  const glm::dvec3 forward = camera.rotation()[2];
+  for (int r = 0; r < k.height; ++r)
+    for (int c = 0; c < k.width; ++c) {
+      const CameraRay ray = camera.pixel_ray(c, r);
+      if (ray.direction.y >= -1e-6) continue;
+      const double t = h / -ray.direction.y;
+      const double z = t * glm::dot(ray.direction, forward);
+      if (z > 0 && std::isfinite(z)) d[r * k.width + c] = static_cast<float>(z);
+    }
+  return depth;
+}
+
+namespace {
+
+void check_on_ground(const Tensor& depth, const Camera& cam, const ObjectPose& pose, double max_offset) {
+  const Projection at = cam.project({pose.x_m, 0.0, pose.z_m});
+  SL_CHECK(at.in_front, "object position (x ", pose.x_m, ", z ", pose.z_m, ") is behind the camera");
+  SL_CHECK(at.in_image, "object position (x ", pose.x_m, ", z ", pose.z_m, ") is outside the image (pixel ",
+           at.pixel.x, ", ", at.pixel.y, ")");
+  const Tensor d = depth.detach().to(DType::F32).contiguous();
+  const int64_t w = d.size(1);
+  const int col = static_cast<int>(at.pixel.x), row = static_cast<int>(at.pixel.y);
+  const float z = d.data<float>()[row * w + col];
+  SL_CHECK(std::isfinite(z) && z > 0, "object position (x ", pose.x_m, ", z ", pose.z_m,
+           ") is not on the ground: the depth map has no surface at pixel (", col, ", ", row, ")");
+  // A surface nearer than the position occludes it (fine); one that lies far from y = 0 where
+  // the ray meets it, at about the position's distance, means the spot is not ground.
+  const glm::dvec3 p = cam.unproject(col + 0.5, row + 0.5, z);
+  SL_CHECK(z < at.depth * 0.8 || std::abs(p.y) <= max_offset, "object position (x ", pose.x_m, ", z ", pose.z_m,
+           ") is not on the ground: the depth map shows a surface at height ", p.y, " m there");
+}
+
+}  // namespace
+
+PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor& ldr, const Tensor& depth,
+                                 const Camera& world_camera, const Mesh& object_frame_mesh, const ObjectPose& pose,
+                                 const PhotoInsertionOptions& o) {
+  NoGradGuard no_grad;
+  const Intrinsics& k = world_camera.intrinsics();
+  SL_CHECK(ldr.dim() == 3 && ldr.size(0) == 3 && ldr.size(1) == k.height && ldr.size(2) == k.width, "insertion: image ",
+           ldr.describe(), " does not match the camera's ", k.width, "x", k.height);
+  SL_CHECK(depth.dim() == 2 && depth.size(0) == k.height && depth.size(1) == k.width, "insertion: depth ",
+           depth.describe(), " does not match the image's ", k.width, "x", k.height);
+  check_on_ground(depth, world_camera, pose, o.max_ground_offset_m);
+  const auto t0 = std::chrono::steady_clock::now();
+  InsertionInputs in;
+  in.background = pow_scalar(ldr.to(DType::F32).contiguous(), 2.2);
+  in.depth = depth.to(DType::F32).contiguous();
+  in.camera = lighting.frame.camera(world_camera);
+  in.env = lighting.env;
+  in.vsg = lighting.vsg;
+  in.grid = lighting.grid;
+  const glm::dvec3 at = lighting.frame.point({pose.x_m, 0.0, pose.z_m});
+  sl::Placement p;
+  p.x = at.x;
+  p.z = at.z;
+  p.yaw_deg = pose.yaw_deg - lighting.frame.yaw_rad * 180.0 / 3.14159265358979323846;
+  p.scale = pose.scale;
+  in.objects.push_back(place_object(object_frame_mesh, p, in.camera, in.depth));
+  PhotoInsertion out;
+  out.ground_y_m = in.objects.back().position.y;
+  SL_CHECK(std::abs(out.ground_y_m) <= o.max_ground_offset_m, "object position (x ", pose.x_m, ", z ", pose.z_m,
+           ") is not on the ground: the depth map puts the surface there at y = ", out.ground_y_m, " m");
+  InsertionOptions io;
+  io.aa_samples = o.aa_samples;
+  io.light_samples = o.light_samples;
+  io.shadow_width = o.shadow_width;
+  io.shadow_height = o.shadow_height;
+  io.shadow_rays = o.shadow_rays;
+  io.ambient = o.ambient;
+  io.importance_sampling = true;
+  io.seed = o.seed;
+  io.query.samples = o.volume_samples;
+  const InsertionResult r = insert_objects(in, io);
+  out.render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  out.composite_linear = r.composite.detach().contiguous();
+  out.composite_ldr = ldr_from_hdr(out.composite_linear).contiguous();
+  out.object_mask = r.object_mask.detach().contiguous();
+  out.shadow_map = mean(r.shadow_map.detach(), {0}, true).contiguous();
+  out.visible = mask_box2d(out.object_mask, 0.5 / 255.0, out.box2d);
+  ObjectPose world_pose = pose;
+  out.box3d = object_box3d(object_frame_mesh, world_pose, world_camera);
+  out.box3d[4] -= out.ground_y_m;  // the base sits at ground_y (camera y points down)
+  return out;
+}
+
+}  // namespace sl::train

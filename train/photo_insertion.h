@@ -1,0 +1,55 @@
+// Inserting a glTF object into a photograph with estimated lighting (Sec 3.3 at inference):
+// the glue between train/inference.h (the lighting, in view 0's canonical frame) and
+// render/object_insertion.h (Eq. 2-4), plus the depth sources a photo can have.
+//
+// Contract:
+// - ground_plane_depth(camera): camera-z depth of the plane y = 0 for every pixel whose ray
+//   goes down (camera above the plane); 0 (a hole) above the horizon.
+// - insert_into_photo(): the photo's LDR [3, H, W] is linearised (LDR^2.2: exposure-normalised
+//   radiance, configs/README.md "Units"), the object is placed at `pose` (WORLD frame of the
+//   photo's camera), re-expressed in the lighting's canonical frame, and rendered with
+//   importance sampling. Throws sl::Error when the depth does not match the image, when the
+//   position is behind the camera, outside the image, or not on the ground (no depth there,
+//   or the surface the depth map shows there is more than max_ground_offset_m from y = 0).
+// - Outputs are LDR composites clip(c^(1/2.2), 0, 1), the object mask and the shadow map
+//   (mean over channels), the 3D box in the photo camera's frame and the 2D box of the mask.
+#pragma once
+#include <array>
+#include <string>
+
+#include "autodiff/tensor.h"
+#include "render/camera.h"
+#include "render/mesh.h"
+#include "train/inference.h"
+#include "train/object_labels.h"
+
+namespace sl::train {
+
+Tensor ground_plane_depth(const Camera& camera);
+
+struct PhotoInsertionOptions {
+  int aa_samples = 4, light_samples = 64;
+  int shadow_width = 160, shadow_height = 90, shadow_rays = 128;
+  double ambient = 0.1;
+  int volume_samples = 32;  // K of Eq. 1
+  double max_ground_offset_m = 1.0;
+  uint64_t seed = 0;
+};
+
+struct PhotoInsertion {
+  Tensor composite_ldr;     // [3, H, W]
+  Tensor composite_linear;  // [3, H, W] exposure-normalised radiance
+  Tensor object_mask;       // [1, H, W]
+  Tensor shadow_map;        // [1, H, W] (1 = unshadowed)
+  bool visible = false;
+  std::array<double, 4> box2d{};
+  std::array<double, 7> box3d{};
+  double ground_y_m = 0.0;  // where the object's base was set
+  double render_ms = 0.0;
+};
+
+PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor& ldr, const Tensor& depth,
+                                 const Camera& world_camera, const Mesh& object_frame_mesh, const ObjectPose& pose,
+                                 const PhotoInsertionOptions& options);
+
+}  // namespace sl::train

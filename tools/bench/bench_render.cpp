@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <string>
@@ -177,6 +178,7 @@ int run_render(const std::vector<std::string>& argv) {
       std::fflush(stdout);
     }
 
+  std::filesystem::create_directories(args.out);
   const std::string csv = args.out + "/render_bench.csv", tmp = csv + ".tmp";
   {
     std::ofstream f(tmp, std::ios::trunc);

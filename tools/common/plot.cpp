@@ -25,15 +25,24 @@ struct Canvas {
       dot(int(std::lround(x0 + t * (x1 - x0))), int(std::lround(y0 + t * (y1 - y0))), c, radius);
     }
   }
-  // 3×5 bitmap digits, '.', '-' and 'e' (enough for tick labels such as 1e-2), scaled ×2.
-  void text(int x, int y, const std::string& s, const glm::vec3& c) {
+  // A 3×5 bitmap font (digits, upper-case letters, a few signs; lower case is drawn upper case),
+  // scaled ×2. Returns the x after the text.
+  int text(int x, int y, const std::string& s, const glm::vec3& c) {
     static const std::map<char, const char*> glyphs = {
         {'0', "111101101101111"}, {'1', "010110010010111"}, {'2', "111001111100111"}, {'3', "111001111001111"},
         {'4', "101101111001001"}, {'5', "111100111001111"}, {'6', "111100111101111"}, {'7', "111001001001001"},
         {'8', "111101111101111"}, {'9', "111101111001111"}, {'.', "000000000000010"}, {'-', "000000111000000"},
-        {'e', "000111101110111"}};
+        {'A', "010101111101101"}, {'B', "110101110101110"}, {'C', "011100100100011"},
+        {'D', "110101101101110"}, {'E', "111100110100111"}, {'F', "111100110100100"}, {'G', "011100101101011"},
+        {'H', "101101111101101"}, {'I', "111010010010111"}, {'J', "001001001101010"}, {'K', "101101110101101"},
+        {'L', "100100100100111"}, {'M', "101111111101101"}, {'N', "110101101101101"}, {'O', "010101101101010"},
+        {'P', "110101110100100"}, {'Q', "010101101110011"}, {'R', "110101110101101"}, {'S', "011100010001110"},
+        {'T', "111010010010010"}, {'U', "101101101101111"}, {'V', "101101101101010"}, {'W', "101101111111101"},
+        {'X', "101101010101101"}, {'Y', "101101010010010"}, {'Z', "111001010100111"}, {'_', "000000000000111"},
+        {'/', "001001010100100"}, {'(', "010100100100010"}, {')', "010001001001010"}, {':', "000010000010000"}};
     for (char ch : s) {
       auto it = glyphs.find(ch);
+      if (it == glyphs.end() && ch >= 'a' && ch <= 'z') it = glyphs.find(char(ch - 'a' + 'A'));
       if (it != glyphs.end())
         for (int r = 0; r < 5; ++r)
           for (int k = 0; k < 3; ++k)
@@ -42,6 +51,7 @@ struct Canvas {
                 for (int sx = 0; sx < 2; ++sx) dot(x + 2 * k + sx, y + 2 * r + sy, c, 0);
       x += 8;
     }
+    return x;
   }
   Tensor tensor() const {
     Tensor t = Tensor::empty({3, h, w});
@@ -85,6 +95,8 @@ Tensor error_time_plot(const std::vector<PlotPoint>& pts, int width, int height)
     cv.line(left, y, right, y, grey, 0);
     cv.text(8, int(y) - 5, "1e" + std::to_string(k), black);
   }
+  cv.text((left + right) / 2 - 40, bottom + 30, "time (ms)", black);
+  cv.text(left + 6, top - 14 < 0 ? 2 : top - 14, "error", black);
   cv.line(left, bottom, right, bottom, black);
   cv.line(left, top, left, bottom, black);
   std::vector<std::string> series;
@@ -100,7 +112,10 @@ Tensor error_time_plot(const std::vector<PlotPoint>& pts, int width, int height)
       cv.dot(int(X(p.time_ms)), int(Y(p.error)), c, 3);
       prev = &p;
     }
-    cv.line(right - 60, top + 8 + 14 * double(k), right - 40, top + 8 + 14 * double(k), c, 1);  // legend swatch
+    // Legend: a swatch and the series name, top right.
+    const int ly = top + 8 + 16 * int(k), lx = right - 12 - 8 * int(series[k].size()) - 28;
+    cv.line(lx, ly + 4, lx + 20, ly + 4, c, 1);
+    cv.text(lx + 26, ly, series[k], glm::vec3(0.0f));
   }
   return cv.tensor();
 }

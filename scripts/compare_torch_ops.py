@@ -31,6 +31,9 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from torch_mirrors import ResNet18  # noqa: E402
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 # name, x shape, weight shape, stride, padding — must match tools/bench/bench_conv.cpp.
@@ -90,39 +93,6 @@ def ours_conv(bench, threads):
 
 
 # ---------------------------------------------------------------- networks (PyTorch side)
-class BasicBlock(nn.Module):
-    def __init__(self, cin, cout, stride):
-        super().__init__()
-        self.conv1 = nn.Conv2d(cin, cout, 3, stride, 1, bias=False)
-        self.bn1 = nn.BatchNorm2d(cout)
-        self.conv2 = nn.Conv2d(cout, cout, 3, 1, 1, bias=False)
-        self.bn2 = nn.BatchNorm2d(cout)
-        self.down = None
-        if stride != 1 or cin != cout:
-            self.down = nn.Sequential(nn.Conv2d(cin, cout, 1, stride, bias=False), nn.BatchNorm2d(cout))
-
-    def forward(self, x):
-        y = F.relu(self.bn1(self.conv1(x)))
-        y = self.bn2(self.conv2(y))
-        return F.relu(y + (x if self.down is None else self.down(x)))
-
-
-class ResNet18(nn.Module):
-    def __init__(self):
-        super().__init__()
-        self.stem = nn.Sequential(nn.Conv2d(3, 64, 7, 2, 3, bias=False), nn.BatchNorm2d(64), nn.ReLU(),
-                                  nn.MaxPool2d(3, 2, 1))
-        layers, cin = [], 64
-        for cout, stride in ((64, 1), (128, 2), (256, 2), (512, 2)):
-            layers += [BasicBlock(cin, cout, stride), BasicBlock(cout, cout, 1)]
-            cin = cout
-        self.layers = nn.Sequential(*layers)
-        self.fc = nn.Linear(512, 64)
-
-    def forward(self, x):
-        return self.fc(self.layers(self.stem(x)).mean(dim=(2, 3)))
-
-
 def conv_block3d(cin, cout):
     """nn/unet.h ConvBlock: (conv 3x3x3 without bias, BatchNorm, ReLU) twice."""
     return nn.Sequential(nn.Conv3d(cin, cout, 3, 1, 1, bias=False), nn.BatchNorm3d(cout), nn.ReLU(),
@@ -154,7 +124,7 @@ class UNet3D(nn.Module):
 
 def torch_networks(repeat):
     torch.manual_seed(0)
-    nets = {"resnet18": (ResNet18(), torch.randn(4, 3, 128, 256)),
+    nets = {"resnet18": (ResNet18(head=64), torch.randn(4, 3, 128, 256)),
             "unet3d": (UNet3D(), torch.randn(1, 16, 64, 64, 16))}
     rows = {}
     for name, (net, x) in nets.items():

@@ -280,17 +280,6 @@ bool input_grad_is_conv(const ConvGeometry& g) {
   return as_conv;
 }
 
-// The convolution whose forward pass is the input gradient of g (stride 1 only).
-ConvGeometry input_grad_geometry(const ConvGeometry& g) {
-  ConvGeometry t = g;
-  t.C = g.O;
-  t.O = g.C;
-  t.in = g.out;
-  t.out = g.in;
-  for (int a = 0; a < 3; ++a) t.pad[a] = g.dil[a] * (g.k[a] - 1) - g.pad[a];
-  return t;
-}
-
 // wt[c][o][flipped tap] = w[o][c][tap]
 template <class T>
 std::vector<T> flipped_transposed(const ConvGeometry& g, const T* w) {

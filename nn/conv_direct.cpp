@@ -247,17 +247,6 @@ void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp,
   });
 }
 
-// The convolution whose forward pass is the input gradient of g (stride 1).
-ConvGeometry input_grad_geometry(const ConvGeometry& g) {
-  ConvGeometry t = g;
-  t.C = g.O;
-  t.O = g.C;
-  t.in = g.out;
-  t.out = g.in;
-  for (int a = 0; a < 3; ++a) t.pad[a] = g.dil[a] * (g.k[a] - 1) - g.pad[a];
-  return t;
-}
-
 // wt[c][o][flipped tap] = w[o][c][tap]
 std::vector<float> flipped_transposed(const ConvGeometry& g, const float* w) {
   const int64_t taps = g.taps();

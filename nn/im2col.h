@@ -27,6 +27,18 @@ struct ConvGeometry {
   int64_t rows() const { return C * taps(); }  // the GEMM's inner dimension
 };
 
+// The convolution whose forward pass is the input gradient of g (stride 1 only): channels and
+// spatial sizes swap and the padding becomes dil·(k − 1) − pad, run with the flipped kernel.
+inline ConvGeometry input_grad_geometry(const ConvGeometry& g) {
+  ConvGeometry t = g;
+  t.C = g.O;
+  t.O = g.C;
+  t.in = g.out;
+  t.out = g.in;
+  for (int a = 0; a < 3; ++a) t.pad[a] = g.dil[a] * (g.k[a] - 1) - g.pad[a];
+  return t;
+}
+
 // Calls seg(row_offset_in_tile, z, y, x0, len) for every run of consecutive output positions in
 // one output row (same z, y) of the tile.
 template <class Seg>

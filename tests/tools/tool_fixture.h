@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "tests/train/tiny_model.h"
 #include "data/image_io.h"
 #include "nn/checkpoint.h"
 #include "train/lighting_predictor.h"
@@ -49,18 +50,7 @@ inline std::string tool_dir(const std::string& name) {
 inline nlohmann::json tiny_lighting_config() {
   nlohmann::json c = train::default_train_config();
   c["stage"] = "lighting";
-  c["model"]["sky"] = {{"height", 8}, {"width", 32}, {"code_dim", 12}, {"base_channels", 4}, {"hidden", 16},
-                       {"sun_lobe_texels", 1.0}};
-  c["model"]["image_height"] = 32;
-  c["model"]["image_width"] = 64;
-  c["model"]["backbone_width"] = 4;
-  c["model"]["head_hidden"] = 16;
-  c["model"]["volume"]["dims"] = {8, 8, 4};
-  c["model"]["volume"]["coarse_scale"] = 4;
-  c["model"]["volume"]["coarse_channels"] = 2;
-  c["model"]["volume"]["unet_channels"] = 4;
-  c["model"]["volume"]["unet_depth"] = 1;
-  c["model"]["volume"]["samples"] = 8;
+  sl::test::apply_tiny_model(c);
   return c;
 }
 

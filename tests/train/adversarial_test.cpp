@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "tests/train/tiny_model.h"
 #include "autodiff/ops.h"
 #include "nn/checkpoint.h"
 #include "nn/discriminator.h"
@@ -94,18 +95,7 @@ TEST(AdversarialStage, StepsRunAndTheDiscriminatorLearns) {
 
   nlohmann::json c = default_train_config();
   c["stage"] = kStageAdversarial;
-  c["model"]["sky"] = {{"height", 8}, {"width", 32}, {"code_dim", 12}, {"base_channels", 4}, {"hidden", 16},
-                       {"sun_lobe_texels", 1.0}};
-  c["model"]["image_height"] = 32;
-  c["model"]["image_width"] = 64;
-  c["model"]["backbone_width"] = 4;
-  c["model"]["head_hidden"] = 16;
-  c["model"]["volume"]["dims"] = {8, 8, 4};
-  c["model"]["volume"]["coarse_scale"] = 4;
-  c["model"]["volume"]["coarse_channels"] = 2;
-  c["model"]["volume"]["unet_channels"] = 4;
-  c["model"]["volume"]["unet_depth"] = 1;
-  c["model"]["volume"]["samples"] = 8;
+  sl::test::apply_tiny_model(c);
   c["model"]["discriminator"] = {{"base_channels", 4}, {"layers", 2}, {"norm", "none"}};
   c["data"]["pano_rays"] = 32;
   c["data"]["view_rays"] = 32;

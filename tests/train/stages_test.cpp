@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "tests/train/tiny_model.h"
 #include "autodiff/ops.h"
 #include "nn/checkpoint.h"
 #include "street_fixture.h"
@@ -28,17 +29,7 @@ std::string temp_dir(const std::string& name) {
 nlohmann::json tiny_config(const std::string& stage) {
   nlohmann::json c = default_train_config();
   c["stage"] = stage;
-  c["model"]["sky"] = {{"height", 8}, {"width", 32}, {"code_dim", 12}, {"base_channels", 4}, {"hidden", 16},
-                       {"sun_lobe_texels", 1.0}};
-  c["model"]["image_height"] = 32;
-  c["model"]["image_width"] = 64;
-  c["model"]["backbone_width"] = 4;
-  c["model"]["head_hidden"] = 16;
-  c["model"]["volume"]["dims"] = {8, 8, 4};
-  c["model"]["volume"]["coarse_scale"] = 4;
-  c["model"]["volume"]["coarse_channels"] = 2;
-  c["model"]["volume"]["unet_channels"] = 4;
-  c["model"]["volume"]["unet_depth"] = 1;
+  sl::test::apply_tiny_model(c);
   c["model"]["volume"]["samples"] = 16;
   c["data"]["val_size"] = 2;
   c["data"]["pano_rays"] = 64;

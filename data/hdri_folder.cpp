@@ -28,6 +28,16 @@ HdriFolder::HdriFolder(const std::string& folder) : folder_(folder) {
   SL_CHECK(!paths_.empty(), "HdriFolder: '", folder, "' holds no .hdr or .exr files");
 }
 
+HdriFolder::HdriFolder(std::vector<std::string> paths) : paths_(std::move(paths)) {
+  SL_CHECK(!paths_.empty(), "HdriFolder: an empty list of panoramas");
+  for (const auto& p : paths_) {
+    std::error_code ec;
+    SL_CHECK(fs::is_regular_file(p, ec), "HdriFolder: panorama '", p, "' does not exist");
+  }
+  std::sort(paths_.begin(), paths_.end());
+  folder_ = fs::path(paths_[0]).parent_path().string();
+}
+
 const std::string& HdriFolder::path(size_t index) const {
   SL_CHECK(index < paths_.size(), "HdriFolder: index ", index, " out of range for ", paths_.size(),
            " files in '", folder_, "'");

@@ -35,6 +35,9 @@ struct AugmentedPanorama {
 class HdriFolder {
  public:
   explicit HdriFolder(const std::string& folder);
+  // Exactly these files (full paths, e.g. HdriSplit::split_paths), in sorted order; each must
+  // be a regular file (throws naming the missing one).
+  explicit HdriFolder(std::vector<std::string> paths);
 
   size_t size() const { return paths_.size(); }
   const std::string& path(size_t index) const;

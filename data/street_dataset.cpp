@@ -144,6 +144,10 @@ StreetSample StreetDataset::load(size_t index) const {
   const json meta = read_json(meta_path, "StreetDataset");
 
   s.sun_direction = vec3(meta, "sun_direction", meta_path);
+  // Streets lit by a real HDRI whose sun is soft carry no usable direction label.
+  if (meta.contains("lighting") && meta["lighting"].is_object() && meta["lighting"].contains("sun_hard") &&
+      meta["lighting"]["sun_hard"].is_boolean())
+    s.sun_known = meta["lighting"]["sun_hard"].get<bool>();
   s.exposure = number(meta, "exposure", meta_path);
   const json& pano = key(meta, "panorama", meta_path);
   s.pano_position = vec3(pano, "position", meta_path);

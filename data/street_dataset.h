@@ -43,6 +43,9 @@ struct StreetSample {
   Tensor pano_hdr, pano_ldr, pano_sky_mask;  // [3, Hp, Wp], [3, Hp, Wp], [1, Hp, Wp]
   glm::dvec3 pano_position{0.0};
   glm::dvec3 sun_direction{0.0, 1.0, 0.0};
+  // False where the sun direction is not a usable label (a real panorama whose sun is soft or
+  // below the horizon, data/panorama_sample.h): the direction loss and sun metrics skip it.
+  bool sun_known = true;
   double exposure = 1.0;
   std::vector<StreetView> views;
   bool has_insertion = false;

@@ -12,6 +12,7 @@
 #include "autodiff/error.h"
 #include "autodiff/random.h"
 #include "data/hdri_folder.h"
+#include "data/panorama_sample.h"
 #include "data/image_io.h"
 #include "data/object_placement.h"
 #include "data/panorama.h"
@@ -62,7 +63,8 @@ Lighting make_lighting(const StreetGeneratorConfig& c, int64_t index) {
   Rng rng = purpose_rng(c, index, kLight);
   Lighting out;
   const int env_w = c.environment_width, env_h = env_w / 2;
-  if (!c.hdri_folder.empty()) {
+  // The fraction is drawn only when HDRIs are configured, so sky-model datasets stay bit-identical.
+  if (!c.hdri_folder.empty() && (c.hdri_fraction >= 1.0 || rng.uniform() < c.hdri_fraction)) {
     const HdriFolder folder(c.hdri_folder);
     const size_t file = static_cast<size_t>(rng.randint(static_cast<int64_t>(folder.size())));
     Tensor pano = folder.load(file).contiguous();
@@ -72,14 +74,17 @@ Lighting make_lighting(const StreetGeneratorConfig& c, int64_t index) {
     const int64_t shift = rng.randint(W);
     const double rotation = 2.0 * kPi * static_cast<double>(shift) / static_cast<double>(W);
     pano = rotate_azimuth(pano, rotation).contiguous();
-    const SunEstimate sun = extract_sun(pano);
+    const SunHardness hardness = sun_hardness(pano);
+    const SunEstimate& sun = hardness.sun;
     out.sun_direction = sun.direction;
     out.env = resize_area(pano, env_h, env_w).contiguous();
     out.sky_hdr = resize_area(pano, c.sky_height, c.sky_width).contiguous();
     out.meta = {{"source", "hdri"},
                 {"hdri_file", fs::path(folder.path(file)).filename().string()},
                 {"hdri_rotation_deg", rotation / kDeg},
-                {"sun_found", sun.found}};
+                {"sun_found", sun.found},
+                {"sun_hard", hardness.hard},  // data/panorama_sample.h: only a hard sun is a direction label
+                {"sun_share", hardness.share}};
   } else {
     SkyParams p;
     p.sun_elevation_rad = rng.uniform(c.elevation_min_deg, c.elevation_max_deg) * kDeg;

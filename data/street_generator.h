@@ -52,6 +52,7 @@ struct StreetGeneratorConfig {
   // Sky.
   int sky_width = 128, sky_height = 32;
   std::string hdri_folder;  // non-empty: light with real HDRIs instead of the sky model
+  double hdri_fraction = 1.0;  // with hdri_folder: share of samples lit by an HDRI (the rest: sky model)
   double elevation_min_deg = 5.0, elevation_max_deg = 85.0;
   double turbidity_min = 2.0, turbidity_max = 8.0;
   double cloud_probability = 0.3, cloud_cover_min = 0.1, cloud_cover_max = 0.6;

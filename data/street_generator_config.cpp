@@ -33,6 +33,7 @@ json street_generator_defaults() {
        {{"width", 128},
         {"height", 32},
         {"hdri_folder", ""},
+        {"hdri_fraction", 1.0},
         {"elevation_min_deg", 5.0},
         {"elevation_max_deg", 85.0},
         {"turbidity_min", 2.0},
@@ -152,6 +153,8 @@ StreetGeneratorConfig street_generator_config(const json& t) {
   c.sky_width = static_cast<int>(integer(t, "sky", "width", 4, 8192));
   c.sky_height = static_cast<int>(integer(t, "sky", "height", 2, 4096));
   c.hdri_folder = t.at("sky").at("hdri_folder").get<std::string>();
+  c.hdri_fraction = num(t, "sky", "hdri_fraction");
+  in_range(c.hdri_fraction, 0.0, 1.0, "sky.hdri_fraction");
   c.elevation_min_deg = num(t, "sky", "elevation_min_deg");
   c.elevation_max_deg = num(t, "sky", "elevation_max_deg");
   in_range(c.elevation_min_deg, 0.0, 90.0, "sky.elevation_min_deg");

@@ -1,0 +1,138 @@
+// Real panoramas as street samples. See panorama_sample.h.
+#include "data/panorama_sample.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "autodiff/error.h"
+#include "autodiff/random.h"
+#include "data/panorama.h"
+#include "render/equirect.h"
+
+namespace sl {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180.0;
+
+double median_luminance(const Tensor& image) {
+  const int64_t n = image.size(1) * image.size(2);
+  const float* p = image.data<float>();
+  std::vector<double> lum(static_cast<size_t>(n));
+  for (int64_t i = 0; i < n; ++i) lum[static_cast<size_t>(i)] = luminance(p[i], p[n + i], p[2 * n + i]);
+  std::nth_element(lum.begin(), lum.begin() + n / 2, lum.end());
+  return lum[static_cast<size_t>(n / 2)];
+}
+
+Tensor threshold_half(Tensor m) {
+  float* p = m.data<float>();
+  for (int64_t i = 0; i < m.numel(); ++i) p[i] = p[i] >= 0.5f ? 1.0f : 0.0f;
+  return m;
+}
+
+}  // namespace
+
+Tensor sanitized_panorama(const Tensor& pano, const std::string& name) {
+  SL_CHECK(pano.defined() && pano.dim() == 3 && pano.size(0) == 3, "panorama '", name,
+           "': expected an RGB image, got ", pano.defined() ? pano.describe() : std::string("nothing"));
+  SL_CHECK(pano.size(2) == 2 * pano.size(1), "panorama '", name, "' is ", pano.size(2), "x", pano.size(1),
+           "; an equirectangular panorama is 2:1 (width = 2 x height)");
+  Tensor out = pano.to(DType::F32).contiguous().clone();
+  float* p = out.data<float>();
+  for (int64_t i = 0; i < out.numel(); ++i)
+    if (!(p[i] >= 0.0f) || !std::isfinite(p[i])) p[i] = 0.0f;
+  return out;
+}
+
+SunHardness sun_hardness(const Tensor& pano, double radius_deg, double min_share) {
+  SunHardness h;
+  h.sun = extract_sun(pano);
+  const int64_t H = pano.size(1), W = pano.size(2), plane = H * W;
+  const float* p = pano.data<float>();
+  const double cos_r = std::cos(radius_deg * kDeg);
+  const glm::dvec3 s = h.sun.direction;
+  double total = 0.0, near = 0.0;
+  for (int64_t r = 0; r < H; ++r) {
+    const double theta = (0.5 - (r + 0.5) / static_cast<double>(H)) * kPi;  // elevation of the row centre
+    const double omega = std::cos(theta);                                  // ∝ solid angle of a texel
+    for (int64_t c = 0; c < W; ++c) {
+      const int64_t i = r * W + c;
+      const double l = luminance(p[i], p[plane + i], p[2 * plane + i]) * omega;
+      total += l;
+      const auto d = equirect::uv_to_direction(c + 0.5, r + 0.5, static_cast<int>(W), static_cast<int>(H));
+      if (d.x * s.x + d.y * s.y + d.z * s.z >= cos_r) near += l;
+    }
+  }
+  h.share = total > 0.0 ? near / total : 0.0;
+  h.hard = h.sun.found && h.share >= min_share && h.sun.direction.y > 0.0;
+  return h;
+}
+
+StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id, uint64_t seed, uint64_t stream,
+                                    const PanoramaSampleOptions& o) {
+  SL_CHECK(o.pano_width == 2 * o.pano_height && o.pano_height > 0, "panorama_street_sample: pano size must be 2:1, got ",
+           o.pano_width, "x", o.pano_height);
+  SL_CHECK(o.ldr_median > 0.0 && o.ldr_median < 1.0 && o.exposure_stops >= 0.0 && o.white_balance_stops >= 0.0,
+           "panorama_street_sample: need 0 < ldr_median < 1 and non-negative jitter ranges");
+  Tensor pano = sanitized_panorama(pano_in, id);
+  Rng rng(seed, stream);
+  // Draw every number unconditionally so each choice is independent of the others' flags.
+  const int64_t W = pano.size(2);
+  const int64_t shift = rng.randint(W);
+  const bool flip = rng.uniform() < 0.5 && o.flip;
+  double gain[3];
+  for (double& g : gain) g = std::exp2(rng.uniform(-1.0, 1.0) * o.white_balance_stops);
+  const double exposure_jitter = std::exp2(rng.uniform(-1.0, 1.0) * o.exposure_stops);
+  const uint64_t crop_stream = rng.next_u64();
+
+  if (o.rotate && shift != 0) pano = rotate_azimuth(pano, 2.0 * kPi * static_cast<double>(shift) / static_cast<double>(W));
+  if (flip) pano = flip_panorama(pano);
+  {
+    const double grey = luminance(gain[0], gain[1], gain[2]);
+    float* p = pano.data<float>();
+    const int64_t plane = pano.size(1) * W;
+    for (int c = 0; c < 3; ++c)
+      for (int64_t i = 0; i < plane; ++i) p[c * plane + i] = static_cast<float>(p[c * plane + i] * gain[c] / grey);
+  }
+  pano = pano.contiguous();
+  const SunHardness sun = sun_hardness(pano, o.hard_sun_radius_deg, o.hard_sun_share);
+  const Tensor mask_full = estimate_sky_mask(pano);
+
+  const glm::dvec3 centre(0.0, o.camera_height_m, 0.0);
+  const RandomCrop crop = random_perspective_crop(pano, seed, crop_stream, o.crop, centre);
+  PerspectiveCropParams mp;
+  mp.horizontal_fov_rad = crop.fov_deg * kDeg;
+  mp.yaw_rad = crop.yaw_deg * kDeg;
+  mp.pitch_rad = crop.pitch_deg * kDeg;
+  mp.roll_rad = crop.roll_deg * kDeg;
+  mp.width = o.crop.width;
+  mp.height = o.crop.height;
+  const Tensor view_mask = threshold_half(crop_perspective(mask_full, mp).image.contiguous());
+
+  const Tensor& hdr = crop.crop.image;
+  const double med = median_luminance(hdr);
+  const double exposure = (med > 1e-12 ? std::pow(o.ldr_median, 2.2) / med : 1.0) * exposure_jitter;
+
+  StreetSample s;
+  s.id = id;
+  s.exposure = exposure;
+  s.pano_hdr = resize_area(pano, o.pano_height, o.pano_width).contiguous();
+  s.pano_ldr = to_ldr(s.pano_hdr, exposure);
+  s.pano_sky_mask = threshold_half(resize_area(mask_full, o.pano_height, o.pano_width).contiguous());
+  s.sky_hdr = s.pano_hdr;
+  s.pano_position = centre;
+  s.sun_direction = sun.sun.direction;
+  s.sun_known = sun.hard;
+  StreetView v;
+  v.hdr = hdr;
+  v.ldr = to_ldr(hdr, exposure);
+  v.depth = Tensor::zeros({o.crop.height, o.crop.width}, DType::F32);
+  v.sky_mask = view_mask;
+  v.camera = crop.crop.camera;
+  s.views.push_back(std::move(v));
+  return s;
+}
+
+}  // namespace sl

@@ -14,6 +14,7 @@
 #include "render/object_insertion.h"
 #include "train/lighting_stage.h"
 #include "train/losses.h"
+#include "train/phase_clock.h"
 
 namespace sl::train {
 
@@ -64,9 +65,17 @@ Tensor LightingStage::real_composite_ldr(const StreetSample& s) const {
 Metrics LightingStage::adversarial_step(int64_t step) {
   predictor_->set_training(true);
   optim_->zero_grad();
+  PhaseClock clock;
   const Forward f = forward_train(step);
   Metrics m;
   Tensor total = supervised_loss(f, m);
+  const double forward_ms = clock.lap() - last_data_ms_;
+  auto record_times = [&](double render_ms, double backward_ms) {
+    m["time_data_ms"] = last_data_ms_;
+    m["time_forward_ms"] = forward_ms;
+    m["time_render_ms"] = render_ms;
+    m["time_backward_ms"] = backward_ms;
+  };
   // place_object() needs the footprint centre inside view 0; the generator only guarantees
   // that some of the object is visible, so samples whose centre falls outside get no composite.
   std::vector<size_t> insertable;
@@ -78,9 +87,11 @@ Metrics LightingStage::adversarial_step(int64_t step) {
   if (!discriminator_ || insertable.empty()) {  // the no-adversarial ablation: the same steps without D
     for (const auto& [k, v] : m) check_finite_loss(k, v, step);
     backward(total);
+    record_times(0.0, clock.lap());
     check_finite_gradients(optim_->params(), step);
     m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
     optim_->step();
+    m["time_optimizer_ms"] = clock.lap();
     return m;
   }
   TensorList fakes, reals;
@@ -89,6 +100,7 @@ Metrics LightingStage::adversarial_step(int64_t step) {
     reals.push_back(real_composite_ldr(f.samples[i]));
   }
   const Tensor fake = stack(fakes, 0), real = stack(reals, 0);
+  const double render_ms = clock.lap();
   // (1) Predictor: supervised + w_adv · (−D(fake)), D frozen so only the predictor gets gradients.
   discriminator_->freeze(true);
   const Tensor adv = generator_adversarial(discriminator_->forward(fake));
@@ -97,6 +109,7 @@ Metrics LightingStage::adversarial_step(int64_t step) {
   m["loss"] = total.item();
   for (const auto& [k, v] : m) check_finite_loss(k, v, step);
   backward(total);
+  record_times(render_ms, clock.lap());
   discriminator_->freeze(false);
   check_finite_gradients(optim_->params(), step);
   m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
@@ -114,6 +127,7 @@ Metrics LightingStage::adversarial_step(int64_t step) {
   optim_->set_lr(lr_ * config_.at("optim").at("discriminator_lr").get<double>() / base);
   optim_->step();
   optim_->set_lr(lr_);
+  m["time_optimizer_ms"] = clock.lap();  // both optimiser steps and the discriminator's own pass
   return m;
 }
 

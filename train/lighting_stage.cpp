@@ -1,11 +1,15 @@
 // Stage 2: supervised hybrid lighting prediction (Sec 3.4). See lighting_stage.h.
 #include "train/lighting_stage.h"
 
+#include <chrono>
 #include <cmath>
+#include <future>
 #include <limits>
 
 #include "autodiff/ops.h"
 #include "autodiff/random.h"
+#include "data/hdri_folder.h"
+#include "data/hdri_split.h"
 #include "data/panorama.h"
 #include "data/sun_extraction.h"
 #include "nn/checkpoint.h"
@@ -13,6 +17,7 @@
 #include "render/radiance_query.h"
 #include "train/image_strip.h"
 #include "train/losses.h"
+#include "train/phase_clock.h"
 #include "train/metrics.h"
 #include "train/train_config.h"
 
@@ -48,17 +53,13 @@ glm::dvec3 row3(const Tensor& t, int64_t i) {
 
 }  // namespace
 
-SampleSource dataset_source(const std::string& dir, const std::string& split) {
-  auto ds = std::make_shared<StreetDataset>(dir, split);
-  return SampleSource{ds->size(), [ds](size_t i) { return ds->load(i); }};
-}
-
 LightingStage::LightingStage(const nlohmann::json& config, SampleSource train, SampleSource val)
     : config_(config), train_(std::move(train)), val_(std::move(val)) {
   adversarial_ = config.at("stage").get<std::string>() == kStageAdversarial;
   seed_ = config.at("seed").get<uint64_t>();
   batch_size_ = config.at("train").at("batch_size").get<int64_t>();
   clip_ = config.at("optim").at("clip_grad_norm").get<double>();
+  best_metric_ = config.at("train").value("best_metric", std::string("val_loss"));
   SL_CHECK(train_.size > 0, "stage ", name(), ": the training split is empty");
   const LightingPredictorOptions po = predictor_options(config);
   batch_opt_ = StreetBatchOptions{.image_height = po.image_height,
@@ -110,21 +111,29 @@ void LightingStage::initialise() {
   }
 }
 
-LightingStage::Forward LightingStage::forward_items(std::vector<StreetSample> samples, const std::vector<size_t>& views,
-                                                    uint64_t seed, uint64_t first_stream) {
+LightingStage::Batch LightingStage::make_batch(std::vector<StreetSample> samples, const std::vector<size_t>& views,
+                                               uint64_t seed, uint64_t first_stream) const {
+  Batch b;
+  for (size_t i = 0; i < samples.size(); ++i)
+    b.items.push_back(make_street_item(samples[i], views[i], grid_template_, batch_opt_, seed, first_stream + i));
+  b.samples = std::move(samples);
+  return b;
+}
+
+LightingStage::Forward LightingStage::run_predictor(Batch batch) {
   Forward f;
   TensorList images, rgba;
-  for (size_t i = 0; i < samples.size(); ++i) {
-    f.items.push_back(make_street_item(samples[i], views[i], grid_template_, batch_opt_, seed, first_stream + i));
-    images.push_back(f.items.back().image);
-    if (batch_opt_.need_volume) rgba.push_back(f.items.back().rgba);
+  for (const auto& it : batch.items) {
+    images.push_back(it.image);
+    if (batch_opt_.need_volume) rgba.push_back(it.rgba);
   }
-  f.samples = std::move(samples);
+  f.samples = std::move(batch.samples);
+  f.items = std::move(batch.items);
   f.pred = predictor_->predict(stack(images, 0), rgba.empty() ? Tensor() : stack(rgba, 0));
   return f;
 }
 
-LightingStage::Forward LightingStage::forward_train(int64_t step) {
+LightingStage::Batch LightingStage::train_batch(int64_t step) const {
   std::vector<StreetSample> samples;
   std::vector<size_t> views;
   const uint64_t n = train_.size;
@@ -136,16 +145,31 @@ LightingStage::Forward LightingStage::forward_train(int64_t step) {
       order_epoch = global / n;
       order = epoch_order(n, seed_, order_epoch);
     }
-    samples.push_back(train_.load(order[global % n]));
+    samples.push_back(train_.load(order[global % n], global));
     Rng rng(seed_, global);
     // Stage 3 inserts into view 0 (the view with the path-traced ground truth).
     views.push_back(adversarial_ ? 0 : static_cast<size_t>(rng.randint(static_cast<int64_t>(samples.back().views.size()))));
   }
-  return forward_items(std::move(samples), views, seed_, static_cast<uint64_t>(step * batch_size_));
+  return make_batch(std::move(samples), views, seed_, static_cast<uint64_t>(step * batch_size_));
+}
+
+LightingStage::Forward LightingStage::forward_train(int64_t step) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Batch batch;
+  if (prefetch_.valid() && prefetch_step_ == step) {
+    batch = prefetch_.get();
+  } else {
+    if (prefetch_.valid()) prefetch_.get();  // a stale prefetch (e.g. after a resume): drop it
+    batch = train_batch(step);
+  }
+  last_data_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  prefetch_step_ = step + 1;
+  prefetch_ = std::async(std::launch::async, [this, next = step + 1] { return train_batch(next); });
+  return run_predictor(std::move(batch));
 }
 
 LightingStage::Forward LightingStage::forward_val(size_t index) {
-  return forward_items({val_.load(index)}, {0}, seed_ ^ kValSeed, index);
+  return run_predictor(make_batch({val_.load(index, index)}, {0}, seed_ ^ kValSeed, index));
 }
 
 LightingStage::Query LightingStage::query(const Forward& f, size_t i, const Tensor& origins, const Tensor& directions) {
@@ -177,12 +201,14 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
     if (weight != 0) total = add(total, mul_scalar(value, weight));
   };
   // Sky branch (batched).
-  TensorList pano, mask;
+  TensorList pano, mask, known_dirs;
   std::vector<glm::dvec3> suns;
-  for (const auto& it : f.items) {
-    pano.push_back(it.pano_ldr_dome);
-    mask.push_back(it.pano_mask_dome);
-    suns.push_back(it.sun_direction);
+  for (size_t i = 0; i < f.items.size(); ++i) {
+    pano.push_back(f.items[i].pano_ldr_dome);
+    mask.push_back(f.items[i].pano_mask_dome);
+    if (!f.samples[i].sun_known) continue;  // a soft or hidden sun is no direction label
+    suns.push_back(f.items[i].sun_direction);
+    if (f.pred.code.dir.defined()) known_dirs.push_back(select(f.pred.code.dir, 0, static_cast<int64_t>(i)));
   }
   const Tensor pano_b = stack(pano, 0), mask_b = stack(mask, 0);
   if (branch != "constant") {
@@ -194,7 +220,9 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
     if (branch == "sky_decoder") {
       add_term("sky_intensity", log_encoded_l2_from_log(f.pred.code.log_intensity, teacher.code.intensity()));
       add_term("sky_latent", l1(f.pred.code.latent, teacher.code.latent));
-      add_term("sky_direction", angular_l1(f.pred.code.dir, dvec_rows(suns)));
+      add_term("sky_direction", suns.empty() ? Tensor::scalar(0.0)
+                                             : mul_scalar(angular_l1(stack(known_dirs, 0), dvec_rows(suns)),
+                                                          static_cast<double>(suns.size()) / static_cast<double>(n)));
     } else {
       add_term("sky_hdr", log_encoded_l2_from_log(f.pred.log_env, teacher.sky.hdr));
     }
@@ -223,14 +251,22 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
 Metrics LightingStage::supervised_step(int64_t step) {
   predictor_->set_training(true);
   optim_->zero_grad();
+  PhaseClock clock;
   const Forward f = forward_train(step);
   Metrics m;
   const Tensor total = supervised_loss(f, m);
+  const double forward_ms = clock.lap();
   for (const auto& [k, v] : m) check_finite_loss(k, v, step);
   backward(total);
+  const double backward_ms = clock.lap();
   check_finite_gradients(optim_->params(), step);
   m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
   optim_->step();
+  m["time_data_ms"] = last_data_ms_;
+  m["time_forward_ms"] = forward_ms - last_data_ms_;
+  m["time_render_ms"] = 0.0;
+  m["time_backward_ms"] = backward_ms;
+  m["time_optimizer_ms"] = clock.lap();
   return m;
 }
 
@@ -239,9 +275,9 @@ Metrics LightingStage::step(int64_t step) { return adversarial_ ? adversarial_st
 Metrics LightingStage::validate() {
   NoGradGuard no_grad;
   predictor_->set_training(false);
-  const size_t n = std::min<size_t>(val_.size, static_cast<size_t>(config_.at("data").at("val_size").get<int64_t>()));
+  const size_t n = val_.size;
   Metrics sum_m;
-  std::vector<double> sun_err, psnrs, si_psnrs;
+  std::vector<double> sun_err, real_err, street_err, psnrs, si_psnrs;
   const int64_t val_h = config_.at("data").at("val_view_height").get<int64_t>();
   for (size_t s = 0; s < n; ++s) {
     const Forward f = forward_val(s);
@@ -254,7 +290,11 @@ Metrics LightingStage::validate() {
     } else {
       dir = extract_sun(select(f.pred.env, 0, 0).contiguous().to(DType::F32)).direction;
     }
-    sun_err.push_back(angular_error_deg(dir, f.items[0].sun_direction));
+    if (f.samples[0].sun_known) {
+      const double e = angular_error_deg(dir, f.items[0].sun_direction);
+      sun_err.push_back(e);
+      (f.samples[0].id.rfind("hdri:", 0) == 0 ? real_err : street_err).push_back(e);
+    }
     // Novel views: every view but the input, rendered through the radiance query.
     for (size_t v = 1; v < f.samples[0].views.size(); ++v) {
       const StreetView& view = f.samples[0].views[v];
@@ -279,6 +319,8 @@ Metrics LightingStage::validate() {
   }
   sum_m["val_sun_error_median_deg"] = median(sun_err);
   sum_m["val_sun_error_mean_deg"] = mean_of(sun_err);
+  if (!street_err.empty()) sum_m["val_street_sun_error_median_deg"] = median(street_err);
+  if (!real_err.empty()) sum_m["val_real_sun_error_median_deg"] = median(real_err);
   if (!psnrs.empty()) {
     sum_m["val_psnr"] = mean_of(psnrs);
     sum_m["val_si_psnr"] = mean_of(si_psnrs);
@@ -303,11 +345,45 @@ void LightingStage::write_strip(const std::string& path) {
   predictor_->set_training(true);
 }
 
+PanoramaSampleOptions real_sample_options(const nlohmann::json& config) {
+  const auto& d = config.at("data");
+  PanoramaSampleOptions o;
+  const LightingPredictorOptions po = predictor_options(config);
+  const auto fov = d.at("real_fov_deg").get<std::vector<double>>();
+  o.crop.fov_min_deg = fov.at(0);
+  o.crop.fov_max_deg = fov.at(1);
+  o.crop.pitch_range_deg = d.at("real_pitch_deg").get<double>();
+  o.crop.width = static_cast<int>(po.image_width);
+  o.crop.height = static_cast<int>(po.image_height);
+  o.white_balance_stops = d.at("real_white_balance_stops").get<double>();
+  o.exposure_stops = d.at("real_exposure_stops").get<double>();
+  return o;
+}
+
 std::unique_ptr<Stage> make_lighting_stage(const nlohmann::json& config) {
   const auto& d = config.at("data");
   const std::string dir = d.at("dataset").get<std::string>();
-  return std::make_unique<LightingStage>(config, dataset_source(dir, d.at("train_split").get<std::string>()),
-                                         dataset_source(dir, d.at("val_split").get<std::string>()));
+  const uint64_t seed = config.at("seed").get<uint64_t>();
+  SampleSource train = dataset_source(dir, d.at("train_split").get<std::string>());
+  SampleSource val = dataset_source(dir, d.at("val_split").get<std::string>(),
+                                    static_cast<size_t>(d.at("val_size").get<int64_t>()));
+  const double real = d.value("real_fraction", 0.0);
+  if (real > 0) {
+    const auto paths = configured_hdri_paths(config, "hdri_train_split");
+    SL_CHECK(!paths.empty(), "data.real_fraction > 0 but no real panoramas were found (data.hdri_dir, data.hdri_split)");
+    train = mixed_source(std::move(train), panorama_source(paths, real_sample_options(config), seed, paths.size(), true),
+                         real);
+    const auto val_paths = configured_hdri_paths(config, "hdri_val_split");
+    const auto crops = static_cast<size_t>(d.at("real_val_crops").get<int64_t>());
+    if (!val_paths.empty() && crops > 0) {
+      PanoramaSampleOptions vo = real_sample_options(config);
+      vo.flip = false;
+      vo.white_balance_stops = 0.0;
+      vo.exposure_stops = 0.0;
+      val = concat_sources(std::move(val), panorama_source(val_paths, vo, seed ^ kValSeed, val_paths.size() * crops, false));
+    }
+  }
+  return std::make_unique<LightingStage>(config, std::move(train), std::move(val));
 }
 
 }  // namespace sl::train

@@ -15,12 +15,21 @@
 //   volume terms on radiance-queried rays (Eq. 1; env lookup only without the volume):
 //     radiance L2 in LDR, depth consistency, sky_separation BCE(τ_K, sky mask).
 // Data order: sample (step·B + i) of the epoch permutation epoch_order(n, seed, epoch); the
-// input view and the rays come from Rng(seed, step·B + i): resume is bit-identical.
-// Validation on the val split (view 0 as input, fixed rays): val_loss (best metric), sun angular
-// error median/mean (f̂_dir, or the peak of the predicted env map for the other branches), and
-// PSNR / si-PSNR of the LDR radiance of every other view rendered at data.val_view_height rows.
+// input view and the rays come from Rng(seed, step·B + i): resume is bit-identical. Sources
+// (train/sample_source.h): the street dataset, mixed with real-panorama crops at
+// data.real_fraction; samples whose sun is not a usable label (sun_known = false) get no
+// direction loss. The next step's batch is built on a background thread while the current
+// step computes; it is the same pure function of the step, so prefetching changes nothing.
+// Each step reports its phases' wall time (time_data_ms, time_forward_ms, time_render_ms,
+// time_backward_ms, time_optimizer_ms); time_data_ms is the time spent WAITING for data.
+// Validation on the val split (view 0 as input, fixed rays): val_loss, sun angular error
+// median/mean (f̂_dir, or the peak of the predicted env map for the other branches) over the
+// samples with a known sun, also split into val_street_* and val_real_* (real-panorama crops of
+// the HDRI split's val panoramas, data.real_val_crops each), and PSNR / si-PSNR of the LDR
+// radiance of every other view rendered at data.val_view_height rows. best.safetensors follows
+// train.best_metric (default val_loss).
 #pragma once
-#include <functional>
+#include <future>
 #include <map>
 #include <memory>
 
@@ -30,17 +39,11 @@
 #include "nn/discriminator.h"
 #include "render/mesh.h"
 #include "train/lighting_predictor.h"
+#include "train/sample_source.h"
 #include "train/street_batch.h"
 #include "train/trainer.h"
 
 namespace sl::train {
-
-// Where samples come from: a StreetDataset split, or in-memory samples in tests.
-struct SampleSource {
-  size_t size = 0;
-  std::function<StreetSample(size_t)> load;
-};
-SampleSource dataset_source(const std::string& dir, const std::string& split);
 
 class LightingStage : public Stage {
  public:
@@ -51,7 +54,7 @@ class LightingStage : public Stage {
   void initialise() override;
   Metrics step(int64_t step) override;
   Metrics validate() override;
-  std::string best_metric() const override { return "val_loss"; }
+  std::string best_metric() const override { return best_metric_; }
   void write_strip(const std::string& path) override;
   void set_lr(double lr) override { lr_ = lr; optim_->set_lr(lr); }
 
@@ -74,8 +77,15 @@ class LightingStage : public Stage {
   Tensor real_composite_ldr(const StreetSample& s) const;
 
  private:
-  Forward forward_items(std::vector<StreetSample> samples, const std::vector<size_t>& views, uint64_t seed,
-                        uint64_t first_stream);
+  struct Batch {
+    std::vector<StreetSample> samples;
+    std::vector<StreetItem> items;
+  };
+  // The samples and items of training step `step`: a pure function of it (thread-safe).
+  Batch train_batch(int64_t step) const;
+  Batch make_batch(std::vector<StreetSample> samples, const std::vector<size_t>& views, uint64_t seed,
+                   uint64_t first_stream) const;
+  Forward run_predictor(Batch batch);
   struct Query {
     Tensor radiance, transmittance, depth;
   };
@@ -98,6 +108,12 @@ class LightingStage : public Stage {
   std::shared_ptr<nn::PatchDiscriminator> discriminator_;
   std::unique_ptr<nn::Optimizer> optim_;
   std::map<std::string, Mesh> meshes_;
+  std::string best_metric_ = "val_loss";
+  double last_data_ms_ = 0.0;
+  // The next step's batch, built in the background; declared last so that it is waited for
+  // before anything it reads is destroyed.
+  int64_t prefetch_step_ = -1;
+  std::future<Batch> prefetch_;
 };
 
 std::unique_ptr<Stage> make_lighting_stage(const nlohmann::json& config);

@@ -52,8 +52,8 @@ SkySample make_sky_sample(const Tensor& hdr_in, double ldr_key, double exposure_
 }
 
 SkyDataSource::SkyDataSource(const SkyDataOptions& options) : opt_(options) {
-  if (opt_.hdri_dir.empty()) return;
-  const HdriFolder folder(opt_.hdri_dir);
+  if (opt_.hdri_dir.empty() && opt_.hdri_paths.empty()) return;
+  const HdriFolder folder = opt_.hdri_paths.empty() ? HdriFolder(opt_.hdri_dir) : HdriFolder(opt_.hdri_paths);
   for (size_t i = 0; i < folder.size(); ++i)
     hdris_.push_back(resize_area(folder.load(i), static_cast<int>(opt_.height), static_cast<int>(opt_.width)));
 }

@@ -31,6 +31,7 @@ struct SkySample {
 struct SkyDataOptions {
   int64_t height = 32, width = 128;
   std::string hdri_dir;         // empty: sky model only
+  std::vector<std::string> hdri_paths;  // when non-empty: exactly these files (a split)
   double hdri_fraction = 0.3;   // share of samples drawn from the HDRIs (when any)
   double ldr_key = 0.25;
   double exposure_stops = 1.0;

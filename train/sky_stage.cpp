@@ -1,6 +1,9 @@
 // Stage 1: sky autoencoder. See sky_stage.h.
 #include "train/sky_stage.h"
 
+#include "train/phase_clock.h"
+#include "train/sample_source.h"
+
 #include "autodiff/ops.h"
 #include "data/panorama.h"
 #include "train/image_strip.h"
@@ -39,6 +42,7 @@ SkyStage::SkyStage(const nlohmann::json& config) : config_(config) {
       .height = so.height,
       .width = so.width,
       .hdri_dir = d.at("hdri_dir").get<std::string>(),
+      .hdri_paths = configured_hdri_paths(config, "hdri_train_split"),
       .hdri_fraction = d.at("hdri_fraction").get<double>(),
       .ldr_key = d.at("ldr_key").get<double>(),
       .exposure_stops = d.at("exposure_stops").get<double>()});
@@ -75,16 +79,25 @@ Metrics SkyStage::losses(const Batch& b, const SkyAutoencoder::Output& out, Tens
 
 Metrics SkyStage::step(int64_t step) {
   model_->train();
+  PhaseClock clock;
   const Batch b = make_batch(seed_, static_cast<uint64_t>(step * batch_size_), batch_size_);
+  const double data_ms = clock.lap();
   optim_->zero_grad();
   const SkyAutoencoder::Output out = model_->run(b.ldr);
   Tensor total;
   Metrics m = losses(b, out, &total);
+  const double forward_ms = clock.lap();
   for (const auto& [k, v] : m) check_finite_loss(k, v, step);
   backward(total);
+  const double backward_ms = clock.lap();
   check_finite_gradients(optim_->params(), step);
   m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
   optim_->step();
+  m["time_data_ms"] = data_ms;
+  m["time_forward_ms"] = forward_ms;
+  m["time_render_ms"] = 0.0;
+  m["time_backward_ms"] = backward_ms;
+  m["time_optimizer_ms"] = clock.lap();
   return m;
 }
 

@@ -21,6 +21,15 @@ json default_train_config() {
         {"val_split", "val"},
         {"hdri_dir", ""},
         {"hdri_fraction", 0.3},
+        {"hdri_split", ""},
+        {"hdri_train_split", "train"},
+        {"hdri_val_split", "val"},
+        {"real_fraction", 0.0},
+        {"real_val_crops", 4},
+        {"real_fov_deg", {50.0, 80.0}},
+        {"real_pitch_deg", 10.0},
+        {"real_white_balance_stops", 0.15},
+        {"real_exposure_stops", 0.5},
         {"exposure_stops", 1.0},
         {"ldr_key", 0.25},
         {"val_size", 16},
@@ -76,7 +85,8 @@ json default_train_config() {
         {"log_every", 10},
         {"val_every", 200},
         {"checkpoint_every", 200},
-        {"image_every", 200}}},
+        {"image_every", 200},
+        {"best_metric", "val_loss"}}},
       {"insertion",
        {{"placement", "dataset"},
         {"aa_samples", 1},
@@ -108,6 +118,16 @@ void check_train_config(const json& c) {
   SL_CHECK(c.at("seed").get<int64_t>() >= 0, "seed must be >= 0, got ", c.at("seed").get<int64_t>());
   const double frac = c.at("data").at("hdri_fraction").get<double>();
   SL_CHECK(frac >= 0 && frac <= 1, "data.hdri_fraction must lie in [0, 1], got ", frac);
+  const double real = c.at("data").value("real_fraction", 0.0);
+  SL_CHECK(real >= 0 && real < 1, "data.real_fraction must lie in [0, 1), got ", real);
+  SL_CHECK(real == 0 || !c.at("data").at("hdri_dir").get<std::string>().empty(),
+           "data.real_fraction > 0 needs data.hdri_dir (a folder of real HDR panoramas)");
+  if (real > 0) {
+    const auto fov = c.at("data").at("real_fov_deg").get<std::vector<double>>();
+    SL_CHECK(fov.size() == 2 && fov[0] > 0 && fov[0] <= fov[1] && fov[1] < 179,
+             "data.real_fov_deg must be [min, max] with 0 < min <= max < 179");
+    SL_CHECK(c.at("data").at("real_val_crops").get<int64_t>() >= 0, "data.real_val_crops must be >= 0");
+  }
   if (stage == kStageLighting) {
     const std::string branch = c.at("model").at("sky_branch").get<std::string>();
     SL_CHECK(branch == "constant" || !c.at("init").at("sky_checkpoint").get<std::string>().empty(),

@@ -107,7 +107,7 @@ TEST(AdversarialStage, StepsRunAndTheDiscriminatorLearns) {
   c["train"]["batch_size"] = 1;
   c["optim"]["discriminator_lr"] = 1e-2;
   c["optim"]["lr"] = 1e-3;
-  auto make = [&](size_t i) {
+  auto make = [&](size_t i, uint64_t) {
     StreetSample s = test::tiny_street_sample(i + 1, 64, 32);
     s.has_insertion = true;
     s.object_glb = glb;

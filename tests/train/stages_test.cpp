@@ -44,7 +44,7 @@ nlohmann::json tiny_config(const std::string& stage) {
 }
 
 SampleSource memory_source(int n) {
-  return SampleSource{static_cast<size_t>(n), [](size_t i) { return test::tiny_street_sample(i + 1); }};
+  return SampleSource{static_cast<size_t>(n), [](size_t i, uint64_t) { return test::tiny_street_sample(i + 1); }};
 }
 
 // Steps the same batch (step index 0) `steps` times at a constant lr; returns first and last loss.

@@ -1,0 +1,67 @@
+// Sample sources for the lighting stages. See sample_source.h.
+#include "train/sample_source.h"
+
+#include <cmath>
+#include <filesystem>
+#include <memory>
+
+#include "autodiff/error.h"
+#include "data/hdri_folder.h"
+#include "data/hdri_split.h"
+
+namespace sl::train {
+
+SampleSource dataset_source(const std::string& dir, const std::string& split, size_t max_items) {
+  auto ds = std::make_shared<StreetDataset>(dir, split);
+  const size_t n = max_items > 0 ? std::min(max_items, ds->size()) : ds->size();
+  return SampleSource{n, [ds](size_t i, uint64_t) { return ds->load(i); }};
+}
+
+SampleSource panorama_source(const std::vector<std::string>& paths, const PanoramaSampleOptions& options, uint64_t seed,
+                             size_t items, bool vary_with_draw) {
+  SL_CHECK(!paths.empty(), "panorama_source: no panoramas");
+  const HdriFolder folder(paths);
+  auto panos = std::make_shared<std::vector<Tensor>>();
+  auto names = std::make_shared<std::vector<std::string>>();
+  for (size_t i = 0; i < folder.size(); ++i) {
+    const std::string name = std::filesystem::path(folder.path(i)).filename().string();
+    panos->push_back(sanitized_panorama(folder.load(i), folder.path(i)));
+    names->push_back(name);
+  }
+  const size_t n = panos->size();
+  const size_t per = std::max<size_t>(1, items / n);
+  return SampleSource{items, [panos, names, options, seed, vary_with_draw, n, per](size_t i, uint64_t draw) {
+                        const size_t k = vary_with_draw ? i % n : std::min(i / per, n - 1);
+                        const uint64_t stream = vary_with_draw ? draw : static_cast<uint64_t>(i);
+                        return panorama_street_sample((*panos)[k], "hdri:" + (*names)[k] + "#" + std::to_string(stream),
+                                                      seed, stream, options);
+                      }};
+}
+
+SampleSource mixed_source(SampleSource a, SampleSource b, double fraction_b) {
+  SL_CHECK(fraction_b >= 0 && fraction_b < 1, "mixed_source: fraction must lie in [0, 1), got ", fraction_b);
+  if (fraction_b == 0 || b.size == 0) return a;
+  const size_t extra =
+      std::max<size_t>(1, static_cast<size_t>(std::llround(static_cast<double>(a.size) * fraction_b / (1 - fraction_b))));
+  const size_t na = a.size, nb = b.size;
+  return SampleSource{na + extra, [a = std::move(a), b = std::move(b), na, nb](size_t i, uint64_t draw) {
+                        return i < na ? a.load(i, draw) : b.load((i - na) % nb, draw);
+                      }};
+}
+
+std::vector<std::string> configured_hdri_paths(const nlohmann::json& config, const std::string& split_key) {
+  const auto& d = config.at("data");
+  const std::string dir = d.value("hdri_dir", std::string()), split_file = d.value("hdri_split", std::string());
+  if (dir.empty()) return {};
+  if (split_file.empty()) return split_key == "hdri_train_split" ? HdriFolder(dir).paths() : std::vector<std::string>{};
+  return read_hdri_split(split_file).split_paths(dir, d.at(split_key).get<std::string>());
+}
+
+SampleSource concat_sources(SampleSource a, SampleSource b) {
+  const size_t na = a.size;
+  return SampleSource{na + b.size, [a = std::move(a), b = std::move(b), na](size_t i, uint64_t draw) {
+                        return i < na ? a.load(i, draw) : b.load(i - na, draw);
+                      }};
+}
+
+}  // namespace sl::train

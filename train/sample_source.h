@@ -1,0 +1,52 @@
+// Where the lighting stages (Sec 3.4) get their samples: generated street scenes
+// (data/street_dataset.h), real HDR panoramas as augmented perspective crops
+// (data/panorama_sample.h, the paper's HoliCity branch), and mixtures of the two.
+//
+// A SampleSource has `size` items; load(index, draw) returns item `index`. `draw` is the global
+// counter of samples drawn so far in training (step·batch + i): a real-panorama source uses it
+// as the augmentation stream, so the same panorama gives a new crop every time it is drawn,
+// while a street dataset ignores it. Both arguments make the result a pure function, so a run
+// resumed at any step reproduces the same samples. load() must be safe to call from a
+// background thread while the stage computes (the loader prefetches the next batch).
+//
+// mixed_source(a, b, f): a's items, then enough virtual items cycling over b that a shuffled
+// epoch draws from b with probability f (= b_items / (a.size + b_items), rounded).
+// concat_sources(a, b): a's items, then b's.
+// Throws: sl::Error naming the folder, split file or panorama (read errors surface at load()).
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "data/panorama_sample.h"
+#include "data/street_dataset.h"
+
+namespace sl::train {
+
+struct SampleSource {
+  size_t size = 0;
+  std::function<StreetSample(size_t index, uint64_t draw)> load;
+};
+
+SampleSource dataset_source(const std::string& dir, const std::string& split, size_t max_items = 0);
+
+// Real panoramas (paths: e.g. HdriSplit::split_paths), read once. Training: item i is panorama
+// i mod n with augmentation stream `draw`. Fixed (vary_with_draw = false, for validation and
+// evaluation): item i is panorama i / crops_per_panorama with stream i, and no flip or jitter
+// is added beyond what `options` says.
+SampleSource panorama_source(const std::vector<std::string>& paths, const PanoramaSampleOptions& options, uint64_t seed,
+                             size_t items, bool vary_with_draw);
+
+SampleSource mixed_source(SampleSource a, SampleSource b, double fraction_b);
+
+// The real panoramas a config names for one split: data.hdri_dir filtered by the split file
+// data.hdri_split under the split named by data.<split_key> ("hdri_train_split" or
+// "hdri_val_split"). Without a split file, every panorama of the folder is a training one and
+// there is no validation one. Empty when data.hdri_dir is empty.
+std::vector<std::string> configured_hdri_paths(const nlohmann::json& config, const std::string& split_key);
+SampleSource concat_sources(SampleSource a, SampleSource b);
+
+}  // namespace sl::train

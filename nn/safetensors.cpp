@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <bit>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -101,6 +102,27 @@ const char* file_dtype_name(DType d) {
     case DType::I64: return "I64";
   }
   return "?";
+}
+
+// binary32 -> IEEE binary16, rounding to nearest even; NaN stays NaN, overflow gives ±inf,
+// tiny values become subnormal or ±0.
+uint16_t float_to_half(float f) {
+  const uint32_t x = std::bit_cast<uint32_t>(f);
+  const uint16_t sign = static_cast<uint16_t>((x >> 16) & 0x8000u);
+  const uint32_t abs = x & 0x7fffffffu;
+  if (abs >= 0x7f800000u) return sign | 0x7c00u | (abs > 0x7f800000u ? 0x200u : 0u);  // inf / NaN
+  if (abs >= 0x477ff000u) return sign | 0x7c00u;  // rounds above 65504: overflow
+  if (abs < 0x33000001u) return sign;              // below half the smallest subnormal
+  const int e = static_cast<int>(abs >> 23) - 127;
+  uint32_t mant = (abs & 0x7fffffu) | 0x800000u;   // with the implicit bit
+  const int shift = e >= -14 ? 13 : 13 + (-14 - e);  // subnormals lose more bits
+  const uint32_t kept = mant >> shift, rest = mant & ((1u << shift) - 1), half = 1u << (shift - 1);
+  uint32_t r = kept + ((rest > half || (rest == half && (kept & 1u))) ? 1u : 0u);
+  if (e >= -14) {
+    // Normal: r holds 11 bits (implicit bit included); a carry into bit 11 bumps the exponent.
+    return sign | static_cast<uint16_t>((static_cast<uint32_t>(e + 15) << 10) + (r - 0x400u));
+  }
+  return sign | static_cast<uint16_t>(r);  // subnormal (r may round up into the smallest normal)
 }
 
 // IEEE binary16 -> binary32, exact (subnormals, infinities and NaN included).
@@ -223,21 +245,34 @@ void write_file_atomically(const std::string& path, const std::string& bytes) {
   f.commit();
 }
 
-void write_safetensors(const std::string& path, const StateDict& tensors, const Metadata& metadata) {
+void write_safetensors(const std::string& path, const StateDict& tensors, const Metadata& metadata,
+                       const SafetensorsWriteOptions& options) {
   NoGradGuard no_grad;
   json header = json::object();
-  std::vector<Tensor> data;
+  std::vector<std::string> data;
   uint64_t offset = 0;
   for (const auto& [name, t] : tensors) {  // std::map: name order
     SL_CHECK(!name.empty() && name != "__metadata__", "write ", path, ": invalid tensor name '", name, "'");
     SL_CHECK(t.defined(), "write ", path, ": tensor '", name, "' is undefined");
     const Tensor c = t.contiguous();
-    const uint64_t bytes = static_cast<uint64_t>(c.numel()) * dtype_size(c.dtype());
-    header[name] = {{"dtype", file_dtype_name(c.dtype())},
-                    {"shape", c.shape()},
-                    {"data_offsets", {offset, offset + bytes}}};
-    offset += bytes;
-    data.push_back(c);
+    std::string bytes;
+    std::string dtype = file_dtype_name(c.dtype());
+    if (options.f32_as_f16 && c.dtype() == DType::F32) {
+      dtype = "F16";
+      bytes.resize(static_cast<size_t>(c.numel()) * 2);
+      const float* src = c.data<float>();
+      for (int64_t i = 0; i < c.numel(); ++i) {
+        SL_CHECK(!std::isfinite(src[i]) || std::fabs(src[i]) <= 65504.0f, "write ", path, ": tensor '", name,
+                 "' holds ", src[i], ", beyond the F16 range; store it as F32");
+        const uint16_t h = float_to_half(src[i]);
+        std::memcpy(&bytes[static_cast<size_t>(i) * 2], &h, 2);
+      }
+    } else {
+      bytes.assign(static_cast<const char*>(c.raw_data()), static_cast<size_t>(c.numel()) * dtype_size(c.dtype()));
+    }
+    header[name] = {{"dtype", dtype}, {"shape", c.shape()}, {"data_offsets", {offset, offset + bytes.size()}}};
+    offset += bytes.size();
+    data.push_back(std::move(bytes));
   }
   if (!metadata.empty()) header["__metadata__"] = metadata;
   std::string text = header.dump();
@@ -247,7 +282,7 @@ void write_safetensors(const std::string& path, const StateDict& tensors, const 
   AtomicFile f(path);
   f.write(&n, 8);
   f.write(text.data(), text.size());
-  for (const Tensor& c : data) f.write(c.raw_data(), static_cast<size_t>(c.numel()) * dtype_size(c.dtype()));
+  for (const std::string& b : data) f.write(b.data(), b.size());
   f.commit();
 }
 

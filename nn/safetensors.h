@@ -7,7 +7,7 @@
 // its start. Files written here are readable by the official library and PyTorch.
 //
 // Contract:
-// - write_safetensors writes F32, F64 and I64 tensors of any shape (0-d and empty included)
+// - write_safetensors writes F32 (optionally as F16), F64 and I64 tensors of any shape (0-d and empty included)
 //   under their names (non-empty, not "__metadata__"), tightly packed in name order, to a
 //   temporary file in the target's folder, flushes and fsyncs it, then renames it over the
 //   target: a crash leaves either the old file or the new one, never a half-written file.
@@ -40,7 +40,13 @@ struct SafetensorsFile {
 
 inline constexpr uint64_t kMaxSafetensorsHeaderBytes = 100ull << 20;
 
-void write_safetensors(const std::string& path, const StateDict& tensors, const Metadata& metadata = {});
+// f32_as_f16: store F32 tensors as F16 (round to nearest even; a finite value beyond ±65504
+// throws naming the tensor), e.g. for released weights; the reader widens them back.
+struct SafetensorsWriteOptions {
+  bool f32_as_f16 = false;
+};
+void write_safetensors(const std::string& path, const StateDict& tensors, const Metadata& metadata = {},
+                       const SafetensorsWriteOptions& options = {});
 SafetensorsFile read_safetensors(const std::string& path);
 
 // Writes `bytes` to `path` atomically (temp file in the same folder, fsync, rename).

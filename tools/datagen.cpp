@@ -32,6 +32,8 @@ int run(int argc, char** argv) {
        {"--config", "FILE", "JSON config; every key is optional (defaults: see --print-config)"},
        {"--set", "KEY=VALUE", "override one config key, e.g. --set views.count=3", true},
        {"--samples", "N", "number of samples (overrides 'samples')"},
+       {"--shard", "K/N", "render only the samples i with i mod N = K (run N processes on one --out)"},
+       {"--skip-existing", "", "keep samples already complete in DIR (samples/<id>/meta.json exists)"},
        {"--contact-sheet", "PNG", "also write a contact sheet of the first rows to this PNG"},
        {"--contact-rows", "N", "rows of the contact sheet (default 4)"},
        {"--print-config", "", "print the effective config as JSON and exit"},
@@ -50,6 +52,19 @@ int run(int argc, char** argv) {
   const sl::StreetGeneratorConfig c = sl::street_generator_config(config.tree());
   const std::string out = args.get("--out");
   const int contact_rows = static_cast<int>(args.integer("--contact-rows", 4));
+  int64_t shard = 0, shards = 1;
+  if (args.has("--shard")) {
+    const std::string v = args.get("--shard");
+    const auto slash = v.find('/');
+    try {
+      SL_CHECK(slash != std::string::npos, "");
+      shard = std::stoll(v.substr(0, slash));
+      shards = std::stoll(v.substr(slash + 1));
+    } catch (const std::exception&) {
+      sl::fail("--shard expects K/N (e.g. 0/2), got '", v, "'");
+    }
+    SL_CHECK(shards >= 1 && shard >= 0 && shard < shards, "--shard K/N needs 0 <= K < N, got '", v, "'");
+  }
   SL_CHECK(contact_rows >= 1 && contact_rows <= 64, "--contact-rows must be in [1, 64], got ", contact_rows);
 
   // From here on every failure is a run-time failure (exit 1), not bad input.
@@ -60,28 +75,38 @@ int run(int argc, char** argv) {
     sl::cli::Progress progress("datagen", c.samples);
     std::vector<std::string> ids;
     int64_t with_object = 0;
+    int64_t rendered = 0;
     for (int64_t i = 0; i < c.samples; ++i) {
+      char id[32];
+      std::snprintf(id, sizeof id, "%06lld", static_cast<long long>(i));  // docs/DATASET.md ids
+      ids.push_back(id);
+      const bool mine = i % shards == shard;
+      if (!mine || (args.has("--skip-existing") && fs::exists(samples_dir / id / "meta.json"))) continue;
       const sl::GeneratedSample g = sl::generate_street_sample(c, i, samples_dir.string());
-      ids.push_back(g.id);
+      SL_CHECK(g.id == ids.back(), "datagen: sample ", i, " has id '", g.id, "', expected '", ids.back(), "'");
       with_object += g.has_insertion ? 1 : 0;
+      ++rendered;
       progress.update(i + 1, "sample " + g.id);
     }
     progress.finish();
+    // The index depends only on the config (a seeded split of all ids), so every shard writes
+    // the same file; it is complete once every shard has finished.
     sl::write_dataset_index(out, c, sl::split_ids(ids, c.seed, c.train_fraction, c.val_fraction));
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (args.has("--contact-sheet"))
       sl::write_contact_sheet(out, args.get("--contact-sheet"), contact_rows);
     const nlohmann::json summary = {{"out", out},
                                     {"samples", c.samples},
+                                    {"rendered", rendered},
                                     {"with_object", with_object},
                                     {"seconds", seconds},
-                                    {"samples_per_minute", seconds > 0 ? 60.0 * c.samples / seconds : 0.0},
+                                    {"samples_per_minute", seconds > 0 ? 60.0 * static_cast<double>(rendered) / seconds : 0.0},
                                     {"threads", omp_get_max_threads()}};
     if (args.has("--json"))
       std::cout << summary.dump() << "\n";
     else
       std::fprintf(stderr, "wrote %lld samples to %s in %.1f s (%.2f samples/min, %d threads)\n",
-                   static_cast<long long>(c.samples), out.c_str(), seconds, summary["samples_per_minute"].get<double>(),
+                   static_cast<long long>(rendered), out.c_str(), seconds, summary["samples_per_minute"].get<double>(),
                    omp_get_max_threads());
   } catch (const std::exception& e) {
     throw std::runtime_error(e.what());

@@ -18,20 +18,25 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <sstream>
 
+#include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
 
 #include "autodiff/ops.h"
 #include "autodiff/tape.h"
 #include "data/image_io.h"
 #include "data/panorama.h"
+#include "data/hdri_folder.h"
+#include "data/hdri_split.h"
 #include "data/panorama_dataset.h"
 #include "data/street_dataset.h"
 #include "data/sun_extraction.h"
 #include "nn/checkpoint.h"
 #include "render/environment_map.h"
 #include "render/gltf_loader.h"
+#include "render/equirect.h"
 #include "render/radiance_query.h"
 #include "tools/common/cli.h"
 #include "tools/common/plot.h"
@@ -39,6 +44,7 @@
 #include "train/losses.h"
 #include "train/metrics.h"
 #include "train/photo_insertion.h"
+#include "train/real_sky_benchmark.h"
 #include "train/sky_autoencoder.h"
 #include "train/train_config.h"
 
@@ -166,10 +172,89 @@ InsertionScore score_insertion(const EstimatedLighting& l, const StreetSample& s
   return r;
 }
 
+constexpr double kHalfPi = 1.57079632679489661923;
+
+// The real-sky benchmark's data for one folder (train/real_sky_benchmark.h): the test crops and
+// the constant baseline from the split's training panoramas.
+struct RealSkyData {
+  std::vector<RealSkyCrop> test;
+  bool has_baseline = false;
+  glm::dvec3 baseline{0.0, 1.0, 0.0};
+  std::vector<std::string> baseline_from;  // training panoramas
+};
+
+RealSkyData load_real_sky(const std::string& folder, const std::string& split_file, const std::string& split,
+                          int crops, int64_t limit) {
+  constexpr uint64_t kSeed = 0x7265616c736b79ULL;  // one fixed set of crops for every run
+  RealSkyData r;
+  std::vector<std::string> test_paths;
+  if (split_file.empty()) {
+    test_paths = HdriFolder(folder).paths();
+  } else {
+    const HdriSplit hs = read_hdri_split(split_file);
+    test_paths = hs.split_paths(folder, split);
+    if (hs.has("train")) {
+      const auto train_paths = hs.split_paths(folder, "train");
+      r.baseline = constant_baseline_direction(real_sky_crops(train_paths, crops, kSeed));
+      r.has_baseline = true;
+      for (const auto& p : train_paths) r.baseline_from.push_back(fs::path(p).filename().string());
+    }
+  }
+  if (limit > 0 && static_cast<size_t>(limit) < test_paths.size()) test_paths.resize(static_cast<size_t>(limit));
+  r.test = real_sky_crops(test_paths, crops, kSeed);
+  return r;
+}
+
+json stats_json(const std::vector<double>& e) {
+  const SunErrorStats s = sun_error_stats(e);
+  return {{"count", s.count}, {"median_deg", s.median_deg}, {"mean_deg", s.mean_deg},
+          {"within_15", s.within_15}, {"within_30", s.within_30}, {"within_45", s.within_45}};
+}
+
+json sun_stats_json(const std::vector<double>& all, const std::vector<double>& in, const std::vector<double>& out,
+                    bool split_by_crop) {
+  json j = {{"all", stats_json(all)}};
+  if (split_by_crop) j["sun_in_crop"] = stats_json(in), j["sun_outside_crop"] = stats_json(out);
+  return j;
+}
+
+// The baseline row: the constant direction scored on the same test crops.
+json baseline_json(const RealSkyData& r) {
+  std::vector<double> all, in, out;
+  for (const auto& c : r.test) {
+    if (!c.sun_known) continue;
+    const double e = angular_error_deg(r.baseline, c.sun_canonical);
+    all.push_back(e);
+    (c.sun_in_crop ? in : out).push_back(e);
+  }
+  return {{"name", "constant baseline (mean training sun)"}, {"direction", {r.baseline.x, r.baseline.y, r.baseline.z}},
+          {"from_panoramas", r.baseline_from}, {"sun_error_median_deg", median(all)},
+          {"sun_error_mean_deg", mean_of(all)}, {"sun", sun_stats_json(all, in, out, true)}};
+}
+
+// The LDR a camera at the panorama's centre sees (bilinear, render/equirect.h convention).
+Tensor render_truth(const Tensor& pano_hdr, const Camera& cam, double exposure) {
+  const Tensor p = pano_hdr.contiguous();
+  const int h = static_cast<int>(p.size(1)), w = static_cast<int>(p.size(2));
+  const Intrinsics& k = cam.intrinsics();
+  Tensor out = Tensor::empty({3, k.height, k.width});
+  float* o = out.data<float>();
+  const int64_t plane = static_cast<int64_t>(k.height) * k.width;
+  for (int r = 0; r < k.height; ++r)
+    for (int c = 0; c < k.width; ++c) {
+      const glm::dvec3 d = cam.pixel_ray(c, r).direction;
+      const auto uv = equirect::direction_to_uv(d.x, d.y, d.z, w, h);
+      float rgb[3];
+      sample_bilinear(p.data<float>(), 3, h, w, uv.u, uv.v, rgb);
+      for (int ch = 0; ch < 3; ++ch) o[ch * plane + static_cast<int64_t>(r) * k.width + c] = rgb[ch];
+    }
+  return to_ldr(out, exposure);
+}
+
 json eval_lighting(const std::string& ckpt, const std::string& data, const std::string& split, int64_t limit,
-                   int view_rows, std::vector<cli::PlotPoint>* plot, const std::string& label) {
+                   int view_rows, std::vector<cli::PlotPoint>* plot, const std::string& label, const RealSkyData* real) {
   LightingEstimator est(ckpt);
-  std::vector<double> sun_err, ps, sps, ups, usps, ins_psnr, ins_ratio, ms;
+  std::vector<double> sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, ms;
   std::map<std::string, std::vector<double>> budget_err, budget_ms;
   const bool street = fs::exists(fs::path(data) / "index.json");
   size_t count = 0;
@@ -219,25 +304,35 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
     }
     progress.finish();
   } else {
-    PanoramaDataset ds(data);
-    count = limit > 0 ? std::min<size_t>(ds.size(), static_cast<size_t>(limit)) : ds.size();
+    SL_CHECK(real != nullptr, "eval: internal: no real-sky crops for '", data, "'");
+    count = real->test.size();
+    cli::Progress progress("eval", static_cast<int64_t>(count));
     for (size_t i = 0; i < count; ++i) {
-      const PanoramaItem item = ds.load(i, 0);
-      const Camera cam = item.crop.crop.camera;
-      const Intrinsics& k = cam.intrinsics();
-      const EstimatedLighting l = est.estimate({{item.crop_ldr, Tensor::zeros({k.height, k.width}), cam}});
-      ms.push_back(l.inference_ms);
-      glm::dvec3 dir = l.has_sky_code ? l.sun_direction_canonical : extract_sun(l.env.contiguous()).direction;
-      if (item.sun.found) sun_err.push_back(angular_error_deg(dir, l.frame.direction(item.sun.direction)));
-      // A novel view: another seeded crop of the same rotated panorama.
-      const RandomCrop other = random_perspective_crop(item.pano_hdr, 0, 1000 + i);
+      const RealSkyCrop& c = real->test[i];
+      const StreetView& v = c.sample.views[0];
+      const EstimatedLighting l = est.estimate({{v.ldr, v.depth, v.camera}});
+      if (i > 0 || count == 1) ms.push_back(l.inference_ms);
+      const glm::dvec3 dir = l.has_sky_code ? l.sun_direction_canonical : extract_sun(l.env.contiguous()).direction;
+      if (c.sun_known) {
+        const double e = angular_error_deg(dir, c.sun_canonical);
+        sun_err.push_back(e);
+        (c.sun_in_crop ? sun_in : sun_out).push_back(e);
+      }
+      // A novel view: the same panorama seen 90° to the right of the input crop.
       NoGradGuard ng;
-      const auto [pred, upper] = render_view(l, other.crop.camera, view_rows, est.volume_samples());
-      const Tensor truth = resize_bilinear(to_ldr(other.crop.image.contiguous(), item.exposure), pred.size(1), pred.size(2));
+      const Camera novel(v.camera.intrinsics(), v.camera.rotation() * glm::dmat3(glm::rotate(glm::dmat4(1.0), -kHalfPi, glm::dvec3(0, 1, 0))),
+                         v.camera.position());
+      PerspectiveCropParams cp;
+      cp.width = v.camera.intrinsics().width, cp.height = v.camera.intrinsics().height;
+      const auto [pred, upper] = render_view(l, novel, view_rows, est.volume_samples());
+      const Tensor truth_full = render_truth(c.sample.pano_hdr, novel, c.sample.exposure);
+      const Tensor truth = resize_bilinear(truth_full, pred.size(1), pred.size(2));
       const MaskedPsnr all = masked_psnr(pred, truth, {}), up = masked_psnr(pred, truth, upper);
       ps.push_back(all.psnr), sps.push_back(all.si_psnr);
       if (up.valid) ups.push_back(up.psnr), usps.push_back(up.si_psnr);
+      progress.update(static_cast<int64_t>(i + 1));
     }
+    progress.finish();
   }
   if (plot) {
     std::vector<std::pair<double, double>> line;
@@ -250,6 +345,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
             {"volume_branch", est.predictor().options().volume_branch},
             {"images", count},
             {"sun_error_median_deg", median(sun_err)}, {"sun_error_mean_deg", mean_of(sun_err)},
+            {"sun", sun_stats_json(sun_err, sun_in, sun_out, real != nullptr)},
             {"psnr", mean_of(ps)}, {"si_psnr", mean_of(sps)},
             {"psnr_upper", mean_of(ups)}, {"si_psnr_upper", mean_of(usps)},
             {"inference_ms", mean_of(ms)}};
@@ -267,7 +363,8 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   return r;
 }
 
-json eval_sky(const std::string& ckpt, const std::string& data, const std::string& split, int64_t limit) {
+json eval_sky(const std::string& ckpt, const std::string& data, const std::string& split, int64_t limit,
+             const RealSkyData* real) {
   const nn::CheckpointInfo info = nn::read_checkpoint_info(ckpt);
   const json cfg = json::parse(info.config_json);
   SkyAutoencoder ae(sky_options(cfg));
@@ -297,12 +394,11 @@ json eval_sky(const std::string& ckpt, const std::string& data, const std::strin
       score(s.pano_ldr, mul_scalar(s.sky_hdr.contiguous(), s.exposure), s.sun_direction);
     }
   } else {
-    PanoramaDataset ds(data);
-    count = limit > 0 ? std::min<size_t>(ds.size(), static_cast<size_t>(limit)) : ds.size();
-    for (size_t i = 0; i < count; ++i) {
-      const PanoramaItem item = ds.load(i, 0);
-      score(to_ldr(item.pano_hdr.contiguous(), item.exposure), mul_scalar(item.pano_hdr.contiguous(), item.exposure),
-            item.sun.direction);
+    SL_CHECK(real != nullptr, "eval: internal: no real-sky panoramas for '", data, "'");
+    for (const auto& c : real->test) {  // the whole (rotated) panorama of every crop with a known sun
+      if (!c.sun_known) continue;
+      score(c.sample.pano_ldr, mul_scalar(c.sample.pano_hdr.contiguous(), c.sample.exposure), c.sample.sun_direction);
+      ++count;
     }
   }
   return {{"checkpoint", ckpt}, {"stage", info.stage}, {"step", info.step}, {"images", count},
@@ -358,52 +454,114 @@ void write_text_atomic(const std::string& path, const std::string& text) {
   fs::rename(tmp, path);
 }
 
+// Table 1 on real skies: one row per lighting checkpoint and the constant baseline.
+std::string real_sky_markdown(const std::vector<json>& rows, const json& baseline) {
+  std::ostringstream md;
+  md << "| model | crops with a hard sun | median ° | mean ° | ≤15° | ≤30° | ≤45° | sun in crop: median ° (n) | "
+        "sun outside: median ° (n) |\n|---|---|---|---|---|---|---|---|---|\n";
+  auto row = [&](const std::string& name, const json& sun) {
+    const json& a = sun.at("all");
+    char b[512];
+    std::snprintf(b, sizeof b, "| %s | %zu | %.1f | %.1f | %.2f | %.2f | %.2f | %.1f (%zu) | %.1f (%zu) |\n", name.c_str(),
+                  a.at("count").get<size_t>(), a.at("median_deg").get<double>(), a.at("mean_deg").get<double>(),
+                  a.at("within_15").get<double>(), a.at("within_30").get<double>(), a.at("within_45").get<double>(),
+                  sun.at("sun_in_crop").at("median_deg").get<double>(), sun.at("sun_in_crop").at("count").get<size_t>(),
+                  sun.at("sun_outside_crop").at("median_deg").get<double>(),
+                  sun.at("sun_outside_crop").at("count").get<size_t>());
+    md << b;
+  };
+  for (const auto& r : rows)
+    if (r.contains("sun") && r.at("sun").contains("sun_in_crop")) row(r.at("name").get<std::string>(), r.at("sun"));
+  if (!baseline.is_null()) row(baseline.at("name").get<std::string>(), baseline.at("sun"));
+  return md.str();
+}
+
 int run(int argc, char** argv) {
   cli::Args a("streetlight-eval",
-              "streetlight-eval --checkpoint CKPT [--checkpoint CKPT2 ...] --data DIR [--split test] [--out DIR] [--json]\n\n"
+              "streetlight-eval [--checkpoint CKPT ...] --data DIR [--data DIR2 ...] [--split test] [--hdri-split FILE]\n"
+              "                 [--crops K] [--out DIR] [--json]\n\n"
               "Evaluates checkpoints with the metrics of Wang et al. ECCV 2022 (Tables 1-2): sun direction angular\n"
               "error, novel-view LDR PSNR / si-PSNR (also upper hemisphere only), sky log-L2 (sky autoencoder),\n"
-              "insertion error against the generator's path-traced ground truth, and inference time. DIR is a\n"
-              "streetlight-datagen dataset or a folder of HDR panoramas (seeded random crops).",
-              {{"--checkpoint", "CKPT", "checkpoint to evaluate (one table row each)", true},
+              "insertion error against the generator's path-traced ground truth, and inference time. Each DIR is a\n"
+              "streetlight-datagen dataset or a folder of real HDR panoramas; results are reported per DIR.\n"
+              "Real panoramas (the real-sky benchmark): K seeded perspective crops per panorama of the split's\n"
+              "--split list (default: every file), sun errors over the crops whose sun is hard, also split by\n"
+              "whether the sun is inside the crop, beside the constant baseline (the mean sun direction of the\n"
+              "split file's training panoramas). Without --checkpoint: the released model\n"
+              "(models/streetlight.safetensors).",
+              {{"--checkpoint", "CKPT", "checkpoint to evaluate (one table row each; default: the released model)", true},
                {"--name", "NAME", "row name for the matching --checkpoint (default: its file path)", true},
-               {"--data", "DIR", "street dataset (index.json) or folder of .hdr/.exr panoramas"},
-               {"--split", "NAME", "dataset split (default test)"},
-               {"--limit", "N", "evaluate at most N images (default all)"},
+               {"--data", "DIR", "street dataset (index.json) or folder of .hdr/.exr panoramas (repeatable)", true},
+               {"--split", "NAME", "dataset split, or the split of --hdri-split (default test)"},
+               {"--hdri-split", "FILE", "split file for panorama folders (e.g. configs/hdri_split.json)"},
+               {"--crops", "K", "perspective crops per real panorama (default 8)"},
+               {"--limit", "N", "evaluate at most N images (panorama folders: N panoramas)"},
                {"--view-rows", "N", "rows at which novel views are rendered (default 32)"},
                {"--no-budgets", "", "skip the error-against-time sweep"},
                {"--out", "DIR", "write results.json, results.md and error_time.png here"},
                {"--json", "", "print the results as one JSON object on stdout"}});
   if (!a.parse(argc, argv)) return 0;
-  const auto ckpts = a.all("--checkpoint");
-  SL_CHECK(!ckpts.empty(), "--checkpoint CKPT is required");
-  SL_CHECK(a.has("--data"), "--data DIR is required");
-  const std::string data = a.get("--data"), split = a.get("--split", "test");
-  SL_CHECK(fs::is_directory(data), "--data '", data, "' is not a folder");
+  std::vector<std::string> ckpts = a.all("--checkpoint");
   std::vector<std::string> names = a.all("--name");
+  if (ckpts.empty()) {
+    ckpts.push_back(cli::released_model_path());
+    if (names.empty()) names.push_back("released model");
+  }
+  const std::vector<std::string> datas = a.all("--data");
+  SL_CHECK(!datas.empty(), "--data DIR is required");
+  const std::string split = a.get("--split", "test"), hdri_split = a.get("--hdri-split", "");
+  for (const auto& d : datas) SL_CHECK(fs::is_directory(d), "--data '", d, "' is not a folder");
   SL_CHECK(names.empty() || names.size() == ckpts.size(), "give one --name per --checkpoint (", ckpts.size(),
            " checkpoints, ", names.size(), " names)");
   if (names.empty()) names = ckpts;
   const int64_t limit = a.integer("--limit", 0);
   const int rows = static_cast<int>(a.integer("--view-rows", 32));
   SL_CHECK(rows > 0, "--view-rows must be positive");
-  for (const auto& c : ckpts) nn::read_checkpoint_info(c);  // fail early on a bad file
-  std::vector<json> results;
+  const int crops = static_cast<int>(a.integer("--crops", 8));
+  SL_CHECK(crops > 0, "--crops must be positive, got ", crops);
+  if (!hdri_split.empty()) (void)read_hdri_split(hdri_split);  // fail early on a bad file
+  for (const auto& c : ckpts) nn::read_checkpoint_info(c);     // fail early on a bad file
+  json datasets = json::array();
+  std::string md;
   std::vector<cli::PlotPoint> plot;
   bool plotted = false;
-  for (size_t i = 0; i < ckpts.size(); ++i) {
-    const std::string stage = nn::read_checkpoint_info(ckpts[i]).stage;
-    if (stage == kStageSky) {
-      results.push_back(eval_sky(ckpts[i], data, split, limit));
-    } else {
-      const bool want_plot = !plotted && a.has("--out") && !a.has("--no-budgets");
-      results.push_back(eval_lighting(ckpts[i], data, split, limit, rows, want_plot ? &plot : nullptr, names[i]));
-      plotted = plotted || want_plot;
+  for (const auto& data : datas) {
+    const bool street = fs::exists(fs::path(data) / "index.json");
+    std::unique_ptr<RealSkyData> real;
+    if (!street) real = std::make_unique<RealSkyData>(load_real_sky(data, hdri_split, split, crops, limit));
+    std::vector<json> results;
+    for (size_t i = 0; i < ckpts.size(); ++i) {
+      const std::string stage = nn::read_checkpoint_info(ckpts[i]).stage;
+      if (stage == kStageSky) {
+        results.push_back(eval_sky(ckpts[i], data, split, limit, real.get()));
+      } else {
+        const bool want_plot = street && !plotted && a.has("--out") && !a.has("--no-budgets");
+        results.push_back(eval_lighting(ckpts[i], data, split, limit, rows, want_plot ? &plot : nullptr, names[i],
+                                        real.get()));
+        plotted = plotted || want_plot;
+      }
+      results.back()["name"] = names[i];
     }
-    results.back()["name"] = names[i];
+    json entry = {{"data", data}, {"kind", street ? "street" : "real_panoramas"}, {"split", split}, {"results", results}};
+    json baseline;
+    if (real) {
+      entry["hdri_split"] = hdri_split;
+      entry["crops_per_panorama"] = crops;
+      if (real->has_baseline) baseline = entry["baseline"] = baseline_json(*real);
+    }
+    md += "## " + data + (street ? " (generated streets, split " + split + ")\n\n"
+                                 : " (real panoramas" + (hdri_split.empty() ? std::string() : ", " + hdri_split + " split " + split) +
+                                       ", " + std::to_string(crops) + " crops each)\n\n");
+    md += markdown(results, names);
+    if (real) {
+      md += "\nSun direction on real skies (crops whose sun is hard):\n\n" + real_sky_markdown(results, baseline);
+      if (baseline.is_null()) md += "\n(no baseline row: give --hdri-split with a \"train\" list)\n";
+    }
+    md += "\n";
+    datasets.push_back(entry);
   }
-  const std::string md = markdown(results, names);
-  const json all = {{"data", data}, {"split", split}, {"results", results}};
+  // The first data set's fields stay at the top level for single-data callers.
+  json all = {{"data", datas[0]}, {"split", split}, {"results", datasets[0]["results"]}, {"datasets", datasets}};
   if (a.has("--out")) {
     const std::string out = a.get("--out");
     fs::create_directories(out);

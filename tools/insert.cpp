@@ -152,7 +152,6 @@ PhotoSources sources_from_args(const cli::Args& a, size_t i) {
 int single(const cli::Args& a) {
   SL_CHECK(a.has("--image") || a.has("--sample"), "--image PHOTO is required (or --sample, or --batch)");
   SL_CHECK(a.has("--object"), "--object MODEL.glb is required (or procedural:car)");
-  SL_CHECK(a.has("--checkpoint"), "--checkpoint CKPT is required (a lighting or adversarial stage checkpoint)");
   SL_CHECK(a.has("--out"), "--out DIR is required");
   std::vector<Photo> photos;
   StreetPlacement sample_place;
@@ -191,7 +190,7 @@ int single(const cli::Args& a) {
   edit.intensity_scale = a.number("--sun-intensity", 1.0);
 
   StagingDir out(a.get("--out"));
-  LightingEstimator est(a.get("--checkpoint"));
+  LightingEstimator est(a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path());
   std::vector<InferenceView> views;
   for (const Photo& p : photos) views.push_back({p.ldr, p.depth, p.camera});
   const EstimatedLighting light = est.estimate(views, edit);
@@ -304,7 +303,7 @@ std::vector<PhotoSources> batch_sources(const std::string& spec, const cli::Args
 }
 
 int batch(const cli::Args& a) {
-  SL_CHECK(a.has("--checkpoint") && a.has("--out"), "--batch needs --checkpoint CKPT and --out DIR");
+  SL_CHECK(a.has("--out"), "--batch needs --out DIR");
   const std::vector<PhotoSources> sources = batch_sources(a.get("--batch"), a);
   const std::vector<std::string> specs = a.has("--object") ? a.all("--object") : std::vector<std::string>{"procedural:car"};
   std::vector<Mesh> objects;
@@ -313,7 +312,7 @@ int batch(const cli::Args& a) {
   const uint64_t seed = static_cast<uint64_t>(a.integer("--seed", 0));
   StagingDir out(a.get("--out"));
   for (const char* d : {"image_2", "label_2", "calib"}) fs::create_directories(out.path(d));
-  LightingEstimator est(a.get("--checkpoint"));
+  LightingEstimator est(a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path());
   cli::Progress progress("insert", static_cast<int64_t>(sources.size()));
   json manifest = json::array();
   for (size_t i = 0; i < sources.size(); ++i) {
@@ -368,8 +367,8 @@ int batch(const cli::Args& a) {
 int run(int argc, char** argv) {
   cli::Args a("streetlight-insert",
               "streetlight-insert --image PHOTO --intrinsics FILE --object MODEL.glb --at X,Z [--yaw DEG] [--scale S]\n"
-              "                   --checkpoint CKPT --out DIR [--depth FILE | --lidar BIN --calib FILE]\n"
-              "streetlight-insert --batch LIST.json|FOLDER --checkpoint CKPT --out DIR [--object M.glb ...]\n\n"
+              "                   [--checkpoint CKPT] --out DIR [--depth FILE | --lidar BIN --calib FILE]\n"
+              "streetlight-insert --batch LIST.json|FOLDER [--checkpoint CKPT] --out DIR [--object M.glb ...]\n\n"
               "Estimates the photo's HDR lighting with a trained checkpoint (Wang et al. ECCV 2022, Sec 3.2) and\n"
               "inserts a glTF object with its shading and cast shadow (Sec 3.3). --at X,Z is in metres in the first\n"
               "camera's ground frame: X to the right, Z forward. Depth: --depth, else --lidar + --calib, else the\n"
@@ -388,7 +387,7 @@ int run(int argc, char** argv) {
                {"--at", "X,Z", "ground position in metres (right, forward) of the first camera"},
                {"--yaw", "DEG", "object heading about +Y; 90 points its length away from the camera (default 90)"},
                {"--scale", "S", "uniform object scale (default 1)"},
-               {"--checkpoint", "CKPT", "lighting or adversarial stage checkpoint (streetlight-train)"},
+               {"--checkpoint", "CKPT", "lighting or adversarial stage checkpoint (default: the released model, models/streetlight.safetensors)"},
                {"--out", "DIR", "output folder (written atomically)"},
                {"--exr", "", "also write the composite as linear EXR"},
                {"--sun-azimuth", "DEG", "edit the sun: world azimuth (Sec 3.2 sky vector)"},

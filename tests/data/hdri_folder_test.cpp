@@ -71,7 +71,9 @@ TEST(HdriFolder, ReadsTheSharedHdris) {
   for (size_t i = 0; i < folder.size(); ++i) {
     const std::string name = std::filesystem::path(folder.path(i)).filename().string();
     EXPECT_TRUE(name.ends_with(".hdr") || name.ends_with(".exr")) << name;
-    if (i > 0) EXPECT_LT(folder.path(i - 1), folder.path(i)) << "files are listed in sorted order";
+    if (i > 0) {
+      EXPECT_LT(folder.path(i - 1), folder.path(i)) << "files are listed in sorted order";
+    }
     if (name == "chinese_garden_1k.hdr") index = i;
   }
   ASSERT_LT(index, folder.size()) << "chinese_garden_1k.hdr is missing from " << dir;

@@ -5,9 +5,15 @@
 #include <filesystem>
 #include <fstream>
 
+#include <algorithm>
+#include <iterator>
+
 #include <nlohmann/json.hpp>
 
 #include "../data/street_fixture.h"
+#include "data/image_io.h"
+#include "data/sky_model.h"
+#include "train/real_sky_benchmark.h"
 #include "tool_fixture.h"
 
 namespace fs = std::filesystem;
@@ -40,4 +46,91 @@ TEST(EvalTool, MissingDataIsACleanError) {
   const auto r = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --data " + dir + "/nothing");
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
+}
+
+namespace {
+
+// A tiny folder of real-panorama stand-ins (clear skies with a hard sun) and a split file.
+std::string tiny_panorama_folder(const std::string& dir) {
+  const std::string pano_dir = dir + "/panos";
+  fs::create_directories(pano_dir);
+  const double suns[3][2] = {{30, 10}, {60, -100}, {20, 150}};
+  const char* names[3] = {"a_1k.hdr", "b_1k.hdr", "c_1k.exr"};
+  for (int i = 0; i < 3; ++i) {
+    sl::SkyParams p;
+    p.sun_elevation_rad = suns[i][0] * 3.14159265358979 / 180;
+    p.sun_azimuth_rad = suns[i][1] * 3.14159265358979 / 180;
+    sl::write_image(pano_dir + "/" + names[i], sl::PreethamSky(p).render(32, 64));
+  }
+  std::ofstream(dir + "/split.json") << R"({"comment": "test", "train": ["a_1k.hdr", "b_1k.hdr"], "test": ["c_1k.exr"]})";
+  return pano_dir;
+}
+
+}  // namespace
+
+TEST(EvalTool, RealSkyBenchmarkReportsTable1BesideTheBaselineOfTheTrainingSplit) {
+  if (!sl::test::tool_built("streetlight-eval")) GTEST_SKIP() << "streetlight-eval not built";
+  const std::string dir = sl::test::tool_dir("eval_real");
+  const std::string panos = tiny_panorama_folder(dir);
+  const std::string ckpt = sl::test::tiny_lighting_checkpoint(dir);
+  const auto r = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --name tiny --data " + panos +
+                                                          " --hdri-split " + dir + "/split.json --crops 3 --view-rows 8 --out " +
+                                                          dir + "/out");
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream jf(dir + "/out/results.json");
+  const auto j = nlohmann::json::parse(jf);
+  const auto& d = j["datasets"][0];
+  EXPECT_EQ(d["kind"], "real_panoramas");
+  EXPECT_EQ(d["results"][0]["images"], 3);  // 3 crops of the one test panorama
+  const auto& sun = d["results"][0]["sun"];
+  for (const char* k : {"all", "sun_in_crop", "sun_outside_crop"})
+    for (const char* m : {"count", "median_deg", "mean_deg", "within_15", "within_30", "within_45"})
+      EXPECT_TRUE(sun[k].contains(m)) << k << "." << m;
+  EXPECT_EQ(sun["all"]["count"].get<int>(), sun["sun_in_crop"]["count"].get<int>() + sun["sun_outside_crop"]["count"].get<int>());
+  // The baseline comes from the training split only, computed as the library does.
+  const auto& b = d["baseline"];
+  EXPECT_EQ(b["from_panoramas"], nlohmann::json({"a_1k.hdr", "b_1k.hdr"}));
+  const auto crops = sl::train::real_sky_crops({panos + "/a_1k.hdr", panos + "/b_1k.hdr"}, 3, 0x7265616c736b79ULL);
+  const glm::dvec3 expect = sl::train::constant_baseline_direction(crops);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(b["direction"][k].get<double>(), expect[k], 1e-9);
+  const auto all3 = sl::train::real_sky_crops({panos + "/a_1k.hdr", panos + "/b_1k.hdr", panos + "/c_1k.exr"}, 3,
+                                              0x7265616c736b79ULL);
+  EXPECT_GT(glm::length(sl::train::constant_baseline_direction(all3) - expect), 1e-6) << "the test sky changes nothing";
+  std::ifstream mf(dir + "/out/results.md");
+  const std::string md((std::istreambuf_iterator<char>(mf)), std::istreambuf_iterator<char>());
+  EXPECT_NE(md.find("constant baseline"), std::string::npos) << md;
+}
+
+TEST(EvalTool, BadPanoramaInputIsOneLineNamingTheFileAndWritesNothing) {
+  if (!sl::test::tool_built("streetlight-eval")) GTEST_SKIP();
+  const std::string dir = sl::test::tool_dir("eval_real_bad");
+  const std::string panos = tiny_panorama_folder(dir);
+  const std::string ckpt = sl::test::tiny_lighting_checkpoint(dir);
+  auto expect_error = [&](const std::string& args, const std::string& names) {
+    const auto r = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " " + args + " --out " + dir + "/out");
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+    EXPECT_NE(r.out.find(names), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(dir + "/out/results.json"));
+  };
+  // A split file that names a missing panorama.
+  std::ofstream(dir + "/missing.json") << R"({"train": ["a_1k.hdr"], "test": ["gone_1k.hdr"]})";
+  expect_error("--data " + panos + " --hdri-split " + dir + "/missing.json", "gone_1k.hdr");
+  // A panorama folder holding a non-image.
+  const std::string junk = dir + "/junk";
+  fs::create_directories(junk);
+  std::ofstream(junk + "/notes_1k.hdr") << "this is not an image\n";
+  expect_error("--data " + junk, "notes_1k.hdr");
+  // A truncated EXR.
+  const std::string trunc = dir + "/trunc";
+  fs::create_directories(trunc);
+  fs::copy_file(panos + "/c_1k.exr", trunc + "/c_1k.exr");
+  fs::resize_file(trunc + "/c_1k.exr", fs::file_size(trunc + "/c_1k.exr") / 2);
+  expect_error("--data " + trunc, "c_1k.exr");
+  // A panorama that is not 2:1.
+  const std::string odd = dir + "/odd";
+  fs::create_directories(odd);
+  sl::write_image(odd + "/square_1k.hdr", sl::Tensor::uniform({3, 32, 32}, 0.1, 1.0, 3));
+  expect_error("--data " + odd, "square_1k.hdr");
 }

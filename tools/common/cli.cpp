@@ -1,5 +1,8 @@
 #include "tools/common/cli.h"
 
+#include <cstdlib>
+#include <filesystem>
+
 #include <unistd.h>
 
 #include <cstdio>
@@ -137,6 +140,22 @@ void Progress::finish(const std::string& extra) {
   const double elapsed = std::chrono::duration<double>(clock::now() - start_).count();
   if (tty_) std::fputs("\n", stderr);
   std::fprintf(stderr, "%s done: %lld in %.1fs %s\n", label_.c_str(), (long long)total_, elapsed, extra.c_str());
+}
+
+std::string released_model_path() {
+  std::vector<std::string> tried;
+  if (const char* env = std::getenv("STREETLIGHT_MODEL"); env && *env) {
+    SL_CHECK(std::filesystem::is_regular_file(env), "STREETLIGHT_MODEL names '", env, "', which is not a file");
+    return env;
+  }
+  for (const std::string& p : {std::string("models/streetlight.safetensors"),
+                               std::string(STREETLIGHT_SOURCE_DIR) + "/models/streetlight.safetensors"}) {
+    if (std::filesystem::is_regular_file(p)) return p;
+    tried.push_back(p);
+  }
+  SL_CHECK(false, "no --checkpoint given and the released model is missing (looked for '", tried[0], "' and '",
+           tried[1], "'); pass --checkpoint CKPT or set STREETLIGHT_MODEL");
+  return {};
 }
 
 }  // namespace sl::cli

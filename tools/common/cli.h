@@ -6,6 +6,10 @@
 //   error. Flags may repeat when declared repeatable (--set, --checkpoint).
 // - run_main(): sl::Error -> one line "error: <message>" on stderr and exit 2 (bad input);
 //   any other exception -> "error: ..." and exit 1 (failure at run time).
+// - released_model_path(): the released weights that streetlight-insert and streetlight-eval use
+//   when --checkpoint is omitted: $STREETLIGHT_MODEL if set, else models/streetlight.safetensors
+//   in the working directory, else in the source tree the tools were built from. Throws
+//   sl::Error listing where it looked when none exists.
 // - Progress: on a terminal, one self-overwriting bar with rate and ETA; otherwise a plain line
 //   at most every `plain_interval_s` seconds (and at the end), so logs stay short.
 #pragma once
@@ -17,6 +21,8 @@
 #include <vector>
 
 namespace sl::cli {
+
+std::string released_model_path();
 
 struct Flag {
   std::string name;        // "--config"

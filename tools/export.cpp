@@ -1,0 +1,61 @@
+// streetlight-export: turns a lighting checkpoint (stage 2 or 3) into released inference weights:
+// only the predictor's tensors (predictor.*, with its frozen sky decoder), F16 by default, with
+// the stage, step and config metadata that LightingEstimator (train/inference.h) needs, plus
+// free-form --meta key=value notes (e.g. the commit). The teacher, discriminator and optimiser
+// state are dropped. The output is written atomically and checked by loading it back.
+#include <cstdio>
+#include <filesystem>
+
+#include "nn/checkpoint.h"
+#include "nn/safetensors.h"
+#include "tools/common/cli.h"
+#include "train/inference.h"
+#include "train/train_config.h"
+
+namespace {
+
+using namespace sl;
+
+int run(int argc, char** argv) {
+  cli::Args a("streetlight-export",
+              "streetlight-export --checkpoint CKPT --out FILE.safetensors [--f32] [--meta KEY=VALUE ...]\n\n"
+              "Writes the released-weights form of a lighting checkpoint: predictor.* only, F16 unless --f32,\n"
+              "with its stage, step and config, so streetlight-insert and streetlight-eval can load it.",
+              {{"--checkpoint", "CKPT", "a lighting or adversarial stage checkpoint (streetlight-train)"},
+               {"--out", "FILE", "output .safetensors file"},
+               {"--f32", "", "keep float32 (default: float16, half the size)"},
+               {"--meta", "KEY=VALUE", "extra metadata entry (repeatable)", true}});
+  if (!a.parse(argc, argv)) return 0;
+  SL_CHECK(a.has("--checkpoint") && a.has("--out"), "--checkpoint CKPT and --out FILE are required");
+  const std::string in = a.get("--checkpoint"), out = a.get("--out");
+  const nn::CheckpointInfo info = nn::read_checkpoint_info(in);
+  SL_CHECK(info.stage == train::kStageLighting || info.stage == train::kStageAdversarial, "checkpoint '", in,
+           "' holds stage '", info.stage, "'; only lighting and adversarial checkpoints can be exported");
+  const nn::SafetensorsFile file = nn::read_safetensors(in);
+  nn::StateDict kept;
+  for (const auto& [name, t] : file.tensors)
+    if (name.rfind("predictor.", 0) == 0) kept.emplace(name, t);
+  SL_CHECK(!kept.empty(), "checkpoint '", in, "' holds no predictor.* tensors");
+  nn::Metadata meta = file.metadata;
+  for (auto it = meta.begin(); it != meta.end();) it = it->first.rfind("best", 0) == 0 ? meta.erase(it) : std::next(it);
+  meta["exported_from"] = std::filesystem::path(in).filename().string();
+  for (const auto& kv : a.all("--meta")) {
+    const auto eq = kv.find('=');
+    SL_CHECK(eq != std::string::npos && eq > 0, "--meta expects KEY=VALUE, got '", kv, "'");
+    meta[kv.substr(0, eq)] = kv.substr(eq + 1);
+  }
+  const auto parent = std::filesystem::path(out).parent_path();
+  if (!parent.empty()) std::filesystem::create_directories(parent);
+  nn::write_safetensors(out, kept, meta, {.f32_as_f16 = !a.has("--f32")});
+  train::LightingEstimator check(out);  // loads back exactly as the tools will
+  std::fprintf(stderr, "export: %zu tensors, stage %s step %lld -> %s (%.1f MB)\n", kept.size(), check.stage().c_str(),
+               static_cast<long long>(check.step()), out.c_str(),
+               static_cast<double>(std::filesystem::file_size(out)) / 1e6);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return sl::cli::run_main([&] { return run(argc, argv); });
+}

@@ -12,6 +12,7 @@
 #include "autodiff/error.h"
 #include "autodiff/random.h"
 #include "data/hdri_folder.h"
+#include "data/hdri_split.h"
 #include "data/panorama_sample.h"
 #include "data/image_io.h"
 #include "data/object_placement.h"
@@ -65,7 +66,9 @@ Lighting make_lighting(const StreetGeneratorConfig& c, int64_t index) {
   const int env_w = c.environment_width, env_h = env_w / 2;
   // The fraction is drawn only when HDRIs are configured, so sky-model datasets stay bit-identical.
   if (!c.hdri_folder.empty() && (c.hdri_fraction >= 1.0 || rng.uniform() < c.hdri_fraction)) {
-    const HdriFolder folder(c.hdri_folder);
+    const HdriFolder folder = c.hdri_split.empty()
+                                  ? HdriFolder(c.hdri_folder)
+                                  : HdriFolder(read_hdri_split(c.hdri_split).split_paths(c.hdri_folder, c.hdri_split_name));
     const size_t file = static_cast<size_t>(rng.randint(static_cast<int64_t>(folder.size())));
     Tensor pano = folder.load(file).contiguous();
     sanitize(pano);

@@ -52,6 +52,8 @@ struct StreetGeneratorConfig {
   // Sky.
   int sky_width = 128, sky_height = 32;
   std::string hdri_folder;  // non-empty: light with real HDRIs instead of the sky model
+  std::string hdri_split;   // optional split file (data/hdri_split.h): only its `hdri_split_name` list is used
+  std::string hdri_split_name = "train";
   double hdri_fraction = 1.0;  // with hdri_folder: share of samples lit by an HDRI (the rest: sky model)
   double elevation_min_deg = 5.0, elevation_max_deg = 85.0;
   double turbidity_min = 2.0, turbidity_max = 8.0;

@@ -5,6 +5,7 @@
 #include "autodiff/error.h"
 #include "data/object_placement.h"
 #include "data/street_generator.h"
+#include "data/hdri_split.h"
 #include "render/gltf_loader.h"
 
 namespace sl {
@@ -34,6 +35,8 @@ json street_generator_defaults() {
         {"height", 32},
         {"hdri_folder", ""},
         {"hdri_fraction", 1.0},
+        {"hdri_split", ""},
+        {"hdri_split_name", "train"},
         {"elevation_min_deg", 5.0},
         {"elevation_max_deg", 85.0},
         {"turbidity_min", 2.0},
@@ -154,6 +157,12 @@ StreetGeneratorConfig street_generator_config(const json& t) {
   c.sky_height = static_cast<int>(integer(t, "sky", "height", 2, 4096));
   c.hdri_folder = t.at("sky").at("hdri_folder").get<std::string>();
   c.hdri_fraction = num(t, "sky", "hdri_fraction");
+  c.hdri_split = t.at("sky").at("hdri_split").get<std::string>();
+  c.hdri_split_name = t.at("sky").at("hdri_split_name").get<std::string>();
+  if (!c.hdri_split.empty()) {
+    SL_CHECK(!c.hdri_folder.empty(), "config: 'sky.hdri_split' needs 'sky.hdri_folder'");
+    (void)read_hdri_split(c.hdri_split).split_paths(c.hdri_folder, c.hdri_split_name);  // fail early, naming the file
+  }
   in_range(c.hdri_fraction, 0.0, 1.0, "sky.hdri_fraction");
   c.elevation_min_deg = num(t, "sky", "elevation_min_deg");
   c.elevation_max_deg = num(t, "sky", "elevation_max_deg");

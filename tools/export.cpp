@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <filesystem>
 
+#include <nlohmann/json.hpp>
+
 #include "nn/checkpoint.h"
 #include "nn/safetensors.h"
 #include "tools/common/cli.h"
@@ -18,14 +20,22 @@ using namespace sl;
 
 int run(int argc, char** argv) {
   cli::Args a("streetlight-export",
-              "streetlight-export --checkpoint CKPT --out FILE.safetensors [--f32] [--meta KEY=VALUE ...]\n\n"
+              "streetlight-export --checkpoint CKPT --out FILE.safetensors [--f32] [--meta KEY=VALUE ...]\n"
+              "streetlight-export --checkpoint CKPT --info\n\n"
               "Writes the released-weights form of a lighting checkpoint: predictor.* only, F16 unless --f32,\n"
               "with its stage, step and config, so streetlight-insert and streetlight-eval can load it.",
               {{"--checkpoint", "CKPT", "a lighting or adversarial stage checkpoint (streetlight-train)"},
                {"--out", "FILE", "output .safetensors file"},
                {"--f32", "", "keep float32 (default: float16, half the size)"},
-               {"--meta", "KEY=VALUE", "extra metadata entry (repeatable)", true}});
+               {"--meta", "KEY=VALUE", "extra metadata entry (repeatable)", true},
+               {"--info", "", "print the checkpoint's metadata as JSON on stdout and exit (no --out needed)"}});
   if (!a.parse(argc, argv)) return 0;
+  if (a.has("--info")) {
+    SL_CHECK(a.has("--checkpoint"), "--info needs --checkpoint CKPT");
+    const nn::SafetensorsFile f = nn::read_safetensors(a.get("--checkpoint"));
+    std::printf("%s\n", nlohmann::json(f.metadata).dump().c_str());
+    return 0;
+  }
   SL_CHECK(a.has("--checkpoint") && a.has("--out"), "--checkpoint CKPT and --out FILE are required");
   const std::string in = a.get("--checkpoint"), out = a.get("--out");
   const nn::CheckpointInfo info = nn::read_checkpoint_info(in);

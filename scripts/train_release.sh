@@ -1,0 +1,103 @@
+#!/usr/bin/env bash
+# Trains the released lighting model from nothing and publishes it as models/streetlight.safetensors
+# with its model card (models/README.md). Steps, each resumable (a killed run continues where it
+# stopped, bit-identically for the training stages):
+#   1. the synthetic streets (configs/release_datagen.json), a third of them lit by the training
+#      panoramas of configs/hdri_split.json, rendered by two processes;
+#   2. stage 1, the sky autoencoder (configs/release_sky.json) on the split's training panoramas
+#      and sky-model skies;
+#   3. stage 2, the lighting predictor (configs/release_lighting.json) on the streets mixed with
+#      perspective crops of the training panoramas;
+#   4. stage 3, end to end through object insertion (configs/release_adversarial.json);
+#   5. evaluation of stages 2 and 3 on the real-sky test split and the synthetic test split;
+#   6. the release: of stages 2 and 3, the checkpoint with the lower VALIDATION sun error (never a
+#      test figure) is exported (F16) with a model card that lists data, configs, steps, wall
+#      times, commit and the test metrics beside the constant baseline.
+# Usage: scripts/train_release.sh [--runs DIR] [--build-dir DIR] [--skip-build] [--no-publish]
+#   --runs DIR     run folder (default ../streetlight-runs/release, outside the repository)
+#   --no-publish   train and evaluate only; leave models/ untouched
+# Needs ../shared/data/hdri (the real panoramas). Logs go to DIR/*.log; progress to stderr.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+runs=../streetlight-runs/release; build_dir=build; build=1; publish=1
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --runs) runs="$2"; shift ;;
+    --build-dir) build_dir="$2"; shift ;;
+    --skip-build) build=0 ;;
+    --no-publish) publish=0 ;;
+    -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
+    *) echo "error: unknown option '$1' (try --help)" >&2; exit 2 ;;
+  esac
+  shift
+done
+hdri=../shared/data/hdri
+[ -d "$hdri" ] || { echo "error: $hdri is missing: the release trains on the real panoramas there" >&2; exit 2; }
+if [ "$build" = 1 ]; then bash scripts/install_deps.sh; build_dir=$(bash scripts/build.sh --dir "$build_dir" | tail -n 1); fi
+bin="$build_dir/tools"
+mkdir -p "$runs"
+runs=$(cd "$runs" && pwd)
+hdri=$(cd "$hdri" && pwd)
+start=$(date +%s)
+say() { echo "train_release: [$(( $(date +%s) - start )) s] $*" >&2; }
+timed() {  # timed NAME CMD...: runs CMD unless NAME is done; records its wall time
+  local name=$1; shift
+  if [ -f "$runs/$name.done" ]; then say "$name: done before ($(cat "$runs/$name.done") s)"; return 0; fi
+  local t0; t0=$(date +%s)
+  "$@"
+  echo $(( $(date +%s) - t0 )) > "$runs/$name.done"
+}
+# Resumes a stage from its last checkpoint when one exists.
+train_stage() {  # train_stage NAME CONFIG [--set ...]
+  local name=$1 config=$2; shift 2
+  local resume=()
+  [ -f "$runs/$name/last.safetensors" ] && resume=(--resume "$runs/$name/last.safetensors")
+  say "stage $name ($config)${resume:+, resuming}"
+  "$bin/streetlight-train" --config "$config" "$@" "${resume[@]}" --out "$runs/$name" --json \
+    > "$runs/$name.json" 2> >(tee -a "$runs/$name.log" >&2)
+}
+
+datagen() {
+  say "1/6 synthetic streets (configs/release_datagen.json), 2 processes"
+  local pids=()
+  for k in 0 1; do
+    OMP_NUM_THREADS=1 "$bin/streetlight-datagen" --config configs/release_datagen.json \
+      --set "sky.hdri_folder=$hdri" --set sky.hdri_split=configs/hdri_split.json \
+      --out "$runs/street" --shard "$k/2" --skip-existing --json > "$runs/datagen_$k.json" 2> "$runs/datagen_$k.log" &
+    pids+=($!)
+  done
+  for p in "${pids[@]}"; do wait "$p"; done
+}
+timed datagen datagen
+timed sky train_stage sky configs/release_sky.json --set "data.hdri_dir=$hdri"
+timed lighting train_stage lighting configs/release_lighting.json --set "data.hdri_dir=$hdri" \
+  --set "data.dataset=$runs/street" --set "init.sky_checkpoint=$runs/sky/best.safetensors"
+timed adversarial train_stage adversarial configs/release_adversarial.json --set "data.hdri_dir=$hdri" \
+  --set "data.dataset=$runs/street" --set "init.checkpoint=$runs/lighting/best.safetensors"
+
+say "5/6 evaluating stages 2 and 3 (real-sky test split, 8 crops per panorama; synthetic test split)"
+evaluate() {
+  "$bin/streetlight-eval" --data "$hdri" --hdri-split configs/hdri_split.json --split test --crops 8 \
+    --data "$runs/street" --no-budgets --out "$runs/eval" \
+    --checkpoint "$runs/lighting/best.safetensors" --name "stage 2 (lighting)" \
+    --checkpoint "$runs/adversarial/best.safetensors" --name "stage 3 (adversarial)" > /dev/null
+}
+timed eval evaluate
+
+# The release is chosen on validation: the best_metric each stage stored with its best checkpoint.
+best_of() {  # the best_metric value a stage stored with its best checkpoint
+  "$bin/streetlight-export" --checkpoint "$1" --info | sed -n 's/.*"best_metric":"\([^"]*\)".*/\1/p'
+}
+v2=$(best_of "$runs/lighting/best.safetensors"); v3=$(best_of "$runs/adversarial/best.safetensors")
+chosen=lighting
+awk -v a="$v3" -v b="$v2" 'BEGIN { exit !(a + 0 < b + 0) }' && chosen=adversarial
+say "6/6 validation sun error: stage 2 $v2, stage 3 $v3 -> releasing stage $chosen"
+echo "$chosen" > "$runs/chosen"
+if [ "$publish" = 1 ]; then
+  commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
+  "$bin/streetlight-export" --checkpoint "$runs/$chosen/best.safetensors" --out models/streetlight.safetensors \
+    --meta "commit=$commit" --meta "script=scripts/train_release.sh" --meta "license=see models/README.md"
+  bash scripts/write_model_card.sh "$runs" > models/README.md.tmp && mv models/README.md.tmp models/README.md
+  say "published models/streetlight.safetensors and models/README.md"
+fi
+say "done in $(( $(date +%s) - start )) s (this invocation); per-step wall times in $runs/*.done"

@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# Writes the model card of the released weights (models/README.md) to stdout from a finished
+# scripts/train_release.sh run folder: data and licences, configs, steps, wall times, commit, the
+# test metrics beside the constant baseline (copied from the run's streetlight-eval results.md)
+# and the known limits. Usage: scripts/write_model_card.sh RUN_DIR
+set -euo pipefail
+cd "$(dirname "$0")/.."
+runs=${1:?usage: scripts/write_model_card.sh RUN_DIR}
+[ -f "$runs/eval/results.md" ] || { echo "error: $runs/eval/results.md is missing: run scripts/train_release.sh first" >&2; exit 2; }
+chosen=$(cat "$runs/chosen")
+secs() { cat "$runs/$1.done" 2>/dev/null || echo "?"; }
+total=0
+for s in datagen sky lighting adversarial eval; do v=$(secs $s); [ "$v" != "?" ] && total=$(( total + v )); done
+steps() { sed -n 's/.*"steps": *\([0-9]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
+commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
+size=$(du -h models/streetlight.safetensors 2>/dev/null | cut -f1)
+cat <<EOF
+# Model card: \`streetlight.safetensors\`
+
+The lighting predictor of Streetlight (Wang et al., ECCV 2022, Sec 3.2: ResNet-18 backbone, sky head
+with the frozen sky decoder, volume branch with its 3D UNet), trained by \`scripts/train_release.sh\`
+on this repository's 2-core CPU machine. It is what \`streetlight-insert\` and \`streetlight-eval\` use
+when \`--checkpoint\` is omitted. Released stage: **$chosen** (of stages 2 and 3, the one with the lower
+validation sun error; stage 3 is the end-to-end fine-tuning through object insertion). Stored as F16
+($size); it loads into the float32 model. Made at commit \`$commit\`.
+
+## Data
+- **Real panoramas**: the 26 training panoramas of \`configs/hdri_split.json\` (\`../shared/data/hdri\`,
+  Poly Haven, CC0). 4 are validation, 10 test; the split is scene-disjoint and no validation or test
+  sky is ever trained on (stage 1, stage-2/3 crops, or the light of generated streets).
+- **Synthetic streets**: \`configs/release_datagen.json\`, rendered by \`streetlight-datagen\` (path
+  traced, 16 spp); a third of them lit by the training panoramas, the rest by the Preetham sky model.
+  Objects inserted by the generator are procedural cars.
+- Mixed in stages 2-3 at \`data.real_fraction\` (crops of real panoramas: random azimuth rotation,
+  flips, white balance and exposure jitter). The sun direction is supervised only where the sun is
+  hard (data/panorama_sample.h: ≥ 25% of the panorama's light within 5° of its peak, above the
+  horizon).
+
+## Training (configs, steps, wall time on this machine)
+| step | config | steps | wall time |
+|---|---|---|---|
+| synthetic streets | \`configs/release_datagen.json\` | $(sed -n 's/.*"samples": *\([0-9]*\).*/\1/p' configs/release_datagen.json) samples | $(secs datagen) s |
+| stage 1, sky autoencoder | \`configs/release_sky.json\` | $(steps sky) | $(secs sky) s |
+| stage 2, lighting | \`configs/release_lighting.json\` | $(steps lighting) | $(secs lighting) s |
+| stage 3, adversarial | \`configs/release_adversarial.json\` | $(steps adversarial) | $(secs adversarial) s |
+| evaluation | \`streetlight-eval\` (below) | | $(secs eval) s |
+| **total** | | | **$total s** |
+
+Reproduce: \`bash scripts/train_release.sh\` (resumable; \`--runs DIR\` for the run folder). Wall times
+were measured while other jobs shared the machine unless the closing note of the release says otherwise.
+
+## Metrics (test splits, never trained or selected on)
+Command: \`streetlight-eval --data ../shared/data/hdri --hdri-split configs/hdri_split.json --split test
+--crops 8 --data RUN/street --checkpoint RUN/lighting/best.safetensors --checkpoint RUN/adversarial/best.safetensors\`.
+Sun errors in degrees. The constant baseline always answers the mean sun direction of the training
+panoramas' crops (in the camera's frame); a model that does not beat it has learned nothing.
+
+$(cat "$runs/eval/results.md")
+
+## Known limits
+- Trained on 26 real panoramas (9 with a hard sun) and a few hundred synthetic streets: far less than
+  the paper's HoliCity crops. Expect errors on skies unlike these (night, heavy overcast, snow).
+- Where the sun is soft (overcast), the sun direction has no meaning and was not supervised.
+- The real crops have no depth, so the volume branch learns geometry only from the synthetic streets.
+- Sizes are the CPU-scale defaults (dome 32×128, input 128×256, VSG 64×64×16), not the paper's.
+EOF

@@ -39,7 +39,9 @@ step "1/5 generating the synthetic street dataset (configs/datagen_quickstart.js
   --contact-sheet "$out/dataset.png" > "$runs/datagen.json"
 
 step "2/5 stage 1: sky autoencoder${hdri:+ (with the HDRIs in $hdri)}"
-"$bin/streetlight-train" --config configs/quickstart_sky.json --set "data.hdri_dir=$hdri" \
+split=()  # with the real panoramas, stage 1 sees only the training skies of configs/hdri_split.json
+[ -n "$hdri" ] && split=(--set data.hdri_split=configs/hdri_split.json)
+"$bin/streetlight-train" --config configs/quickstart_sky.json --set "data.hdri_dir=$hdri" "${split[@]}" \
   --out "$runs/sky" > "$runs/sky.json"
 step "3/5 stage 2: lighting predictor"
 "$bin/streetlight-train" --config configs/quickstart_lighting.json --set "data.dataset=$runs/street" \

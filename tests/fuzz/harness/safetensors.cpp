@@ -22,7 +22,8 @@ void fuzz_safetensors(const uint8_t* data, size_t size) {
       bytes += static_cast<uint64_t>(t.numel()) * dtype_size(t.dtype());
     }
     if (bytes > 8 * static_cast<uint64_t>(size))
-      violation(target, "tensors hold " + std::to_string(bytes) + " bytes from a " + std::to_string(size) + "-byte file");
+      violation(target,
+                "tensors hold " + std::to_string(bytes) + " bytes from a " + std::to_string(size) + "-byte file");
   });
   refuses_cleanly_or_runs(target, [&] { nn::read_checkpoint_info(path); });
   refuses_cleanly_or_runs(target, [&] {

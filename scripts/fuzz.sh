@@ -46,8 +46,10 @@ for t in "${targets[@]}"; do
   mkdir -p "$work" "$crashes" "$(dirname "$log")"
   start=$(date +%s)
   # One thread: OpenMP loops in the loaders would otherwise compete with other users' work.
+  # -timeout is wall-clock: on a shared, loaded machine 10 s flagged ordinary inputs (a dataset
+  # sample reads a dozen images), so only inputs stuck for a minute count as hangs.
   OMP_NUM_THREADS=1 nice -n 10 "$build/tests/fuzz/libfuzzer/fuzz_$t" "$work" "$root/tests/fuzz/corpus/$t" \
-    -max_total_time="$seconds" -runs="$runs" -timeout=10 -rss_limit_mb=4096 -malloc_limit_mb=3072 \
+    -max_total_time="$seconds" -runs="$runs" -timeout=60 -rss_limit_mb=4096 -malloc_limit_mb=3072 \
     -artifact_prefix="$crashes/" -print_final_stats=1 >"$log" 2>&1 || true
   elapsed=$(( $(date +%s) - start ))
   # Final stats after a clean stop; after a crash, the last progress line ("#N ...").

@@ -74,6 +74,9 @@ template <class T>
 std::vector<T> read_pixels(OpenedInput& f, OIIO::TypeDesc type, const std::string& path,
                            const char* op) {
   const size_t n = static_cast<size_t>(f.spec.width) * f.spec.height * f.spec.nchannels;
+  SL_CHECK(n <= static_cast<size_t>(kMaxImageValues), op, ": '", path, "' declares ", f.spec.width, "x",
+           f.spec.height, "x", f.spec.nchannels, " values, above the limit of ", kMaxImageValues,
+           " (corrupt or hostile header?)");
   std::vector<T> buf(n);
   const bool ok = f.in->read_image(0, 0, 0, f.spec.nchannels, type, buf.data());
   std::string message = f.in->geterror();

@@ -21,8 +21,11 @@
 // Throws sl::Error naming the file and the problem for: missing, unreadable, truncated or
 // corrupt files; unsupported extensions; channel counts that do not fit the request or the
 // format (.hdr needs 3 channels; a depth map needs 1); sizes that differ from the requested
-// size; tensors that are not F32/F64 [C, H, W].
+// size; tensors that are not F32/F64 [C, H, W]; and files whose header declares more than
+// kMaxImageValues values (width · height · channels), refused before any pixel memory is
+// allocated, so a tiny hostile header cannot claim gigabytes (reading costs 8 bytes per value).
 #pragma once
+#include <cstdint>
 #include <string>
 
 #include "autodiff/tensor.h"
@@ -30,6 +33,9 @@
 namespace sl {
 
 enum class Transfer { Auto, Linear, SRGB };
+
+// 2^28 values: a 16384 × 16384 RGBA image, 2 GiB while reading.
+inline constexpr int64_t kMaxImageValues = int64_t{1} << 28;
 
 struct ImageReadOptions {
   Transfer transfer = Transfer::Auto;

@@ -25,7 +25,12 @@ glm::dmat4 mat4_row_major(const json& m, const std::string& path, const char* ke
   for (int i = 0; i < static_cast<int>(m.size()) && i < 4; ++i) {
     SL_CHECK(m[i].is_array() && m[i].size() == 4, "read_kitti_calibration: '", path, "': '", key, "' row ", i,
              " must hold 4 numbers");
-    for (int j = 0; j < 4; ++j) out[j][i] = m[i][j].get<double>();
+    for (int j = 0; j < 4; ++j) {
+      SL_CHECK(m[i][j].is_number() && std::isfinite(m[i][j].get<double>()), "read_kitti_calibration: '", path,
+               "': '", key, "' row ", i, " must hold 4 finite numbers, got ",
+               m[i][j].is_number() ? m[i][j].dump() : std::string(m[i][j].type_name()));
+      out[j][i] = m[i][j].get<double>();
+    }
   }
   return out;
 }

@@ -89,6 +89,13 @@ Tensor read_mask(const fs::path& dir, const std::string& file) {
   return m;
 }
 
+int image_size(const json& k, const std::string& name, const fs::path& meta) {
+  const double v = number(k, name, meta);
+  SL_CHECK(v >= 1 && v <= 65536 && v == static_cast<double>(static_cast<int>(v)), "StreetDataset: '",
+           meta.string(), "': intrinsics key '", name, "' must be an integer in [1, 65536], got ", v);
+  return static_cast<int>(v);
+}
+
 Camera read_camera(const json& v, const fs::path& meta) {
   const json& k = key(v, "intrinsics", meta);
   Intrinsics in;
@@ -96,8 +103,8 @@ Camera read_camera(const json& v, const fs::path& meta) {
   in.fy = number(k, "fy", meta);
   in.cx = number(k, "cx", meta);
   in.cy = number(k, "cy", meta);
-  in.width = static_cast<int>(number(k, "width", meta));
-  in.height = static_cast<int>(number(k, "height", meta));
+  in.width = image_size(k, "width", meta);
+  in.height = image_size(k, "height", meta);
   const auto r = numbers<9>(v, "rotation_cam_to_world", meta);
   glm::dmat3 rot;
   for (int i = 0; i < 3; ++i)
@@ -106,11 +113,21 @@ Camera read_camera(const json& v, const fs::path& meta) {
                    [&] { return Camera(in, rot, vec3(v, "position", meta)); });
 }
 
+// Sample ids and the file names of meta.json name entries of ONE folder: a path separator,
+// "." or ".." would let a hostile index or meta.json make the reader open any file.
+bool plain_name(const std::string& name) {
+  return !name.empty() && name != "." && name != ".." && name.find('/') == std::string::npos &&
+         name.find('\0') == std::string::npos;
+}
+
 std::string file_name(const json& files, const std::string& k, const fs::path& meta) {
   const json& v = key(files, k, meta);
   SL_CHECK(v.is_string(), "StreetDataset: '", meta.string(), "': files key '", k, "' must be a string");
+  SL_CHECK(plain_name(v.get<std::string>()), "StreetDataset: '", meta.string(), "': files key '", k,
+           "' must be a file name in the sample folder, got '", v.get<std::string>(), "'");
   return v.get<std::string>();
 }
+
 
 }  // namespace
 
@@ -119,15 +136,17 @@ StreetDataset::StreetDataset(const std::string& dir, const std::string& split) :
   const std::string what = "StreetDataset('" + dir + "', '" + split + "')";
   SL_CHECK(fs::is_regular_file(index), what, ": no index.json in '", dir, "'");
   const json j = read_json(index, what);
-  SL_CHECK(j.is_object() && j.value("format", "") == "streetlight-dataset", what, ": '", index.string(),
-           "' is not a streetlight-dataset index (key 'format')");
-  SL_CHECK(j.value("version", 0) == 1, what, ": '", index.string(), "' has unsupported version ",
-           j.value("version", 0));
+  SL_CHECK(j.is_object() && j.contains("format") && j["format"] == "streetlight-dataset", what, ": '",
+           index.string(), "' is not a streetlight-dataset index (key 'format')");
+  SL_CHECK(j.contains("version") && j["version"] == 1, what, ": '", index.string(), "' has unsupported version ",
+           j.contains("version") ? j["version"].dump() : std::string("(none)"));
   SL_CHECK(j.contains("splits") && j["splits"].is_object(), what, ": '", index.string(), "' lacks 'splits'");
   SL_CHECK(j["splits"].contains(split), what, ": unknown split '", split, "' in '", index.string(),
            "' (splits: train, val, test)");
   for (const json& id : j["splits"][split]) {
     SL_CHECK(id.is_string(), what, ": '", index.string(), "': split '", split, "' holds a non-string id");
+    SL_CHECK(plain_name(id.get<std::string>()), what, ": '", index.string(), "': split '", split,
+             "' holds the id '", id.get<std::string>(), "', which is not a folder name");
     ids_.push_back(id.get<std::string>());
   }
 }
@@ -163,8 +182,8 @@ StreetSample StreetDataset::load(size_t index) const {
     const Intrinsics& k = view.camera.intrinsics();
     const json& f = key(v, "files", meta_path);
     view.ldr = read_stored(d, file_name(f, "ldr", meta_path), 3);
-    if (f.contains("hdr") && fs::exists(d / f["hdr"].get<std::string>()))
-      view.hdr = read_float(d, f["hdr"].get<std::string>(), 3);
+    if (f.is_object() && f.contains("hdr") && fs::exists(d / file_name(f, "hdr", meta_path)))
+      view.hdr = read_float(d, file_name(f, "hdr", meta_path), 3);
     const std::string depth = file_name(f, "depth", meta_path);
     view.depth = reshape(in_sample(d, depth,
                                    [&] { return read_depth((d / depth).string(), MissingDepth::Zero, k.width, k.height); })

@@ -216,10 +216,15 @@ Entry parse_entry(const std::string& path, const std::string& name, const json& 
   const json& shape = v["shape"];
   SL_CHECK(shape.is_array() && shape.size() <= 64, path, ": ", where, ": shape must be an array of at most 64 dims");
   // numel · bytes must fit comfortably in 63 bits; larger claims cannot match a real file.
-  unsigned __int128 bytes = dt->bytes;
+  // The extent (product of max(dim, 1)) is bounded too: a zero dimension makes numel 0 but the
+  // other dimensions still multiply into the tensor's strides, which must not overflow int64.
+  unsigned __int128 bytes = dt->bytes, extent = 1;
   for (const json& d : shape) {
     const uint64_t s = as_u64(path, where + " shape entry", d);
     SL_CHECK(s <= (uint64_t(1) << 62), path, ": ", where, ": dimension ", s, " is too large");
+    extent *= std::max<uint64_t>(s, 1);
+    SL_CHECK(extent <= (unsigned __int128)(uint64_t(1) << 62), path, ": ", where, ": shape ", shape.dump(),
+             " spans more than 2^62 elements");
     e.shape.push_back(static_cast<int64_t>(s));
     bytes *= s;
     if (bytes > (unsigned __int128)(uint64_t(1) << 62)) bytes = (unsigned __int128)(uint64_t(1) << 62) + 1;

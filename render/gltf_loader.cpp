@@ -132,6 +132,10 @@ class Importer {
              index, " but has ", m_.nodes.size(), " nodes");
     SL_CHECK(!on_path_.count(index) && depth < 1024, "gltf: '", path_, "' has a cycle in its node hierarchy at node ",
              index);
+    // glTF 2.0 §3.5.3: the hierarchy is a set of disjoint trees. A node reached twice (a DAG, e.g.
+    // each node listing the next one twice) would multiply the mesh exponentially in the depth.
+    SL_CHECK(visited_.insert(index).second, "gltf: '", path_, "' reaches node ", index,
+             " twice: the node hierarchy must be a set of disjoint trees");
     on_path_.insert(index);
     const tinygltf::Node& node = m_.nodes[index];
     const glm::dmat4 world = parent * local_transform(node);
@@ -164,7 +168,9 @@ class Importer {
     SL_CHECK(bv.buffer >= 0 && bv.buffer < static_cast<int>(m_.buffers.size()), "gltf: '", path_, "' bufferView ",
              a.bufferView, " references missing buffer ", bv.buffer);
     const auto& buf = m_.buffers[bv.buffer];
-    SL_CHECK(static_cast<uint64_t>(bv.byteOffset) + bv.byteLength <= buf.data.size(), "gltf: '", path_,
+    // Each sum is bounded term by term: offsets and lengths are arbitrary 64-bit numbers in the
+    // file, and a wrapped sum would pass a naive check.
+    SL_CHECK(bv.byteOffset <= buf.data.size() && bv.byteLength <= buf.data.size() - bv.byteOffset, "gltf: '", path_,
              "' bufferView ", a.bufferView, " spans bytes [", bv.byteOffset, ", ", bv.byteOffset + bv.byteLength,
              ") but buffer ", bv.buffer, " has ", buf.data.size(), " bytes (missing or truncated buffer)");
     View v;
@@ -175,8 +181,9 @@ class Importer {
              accessor_index, " has an invalid component type ", a.componentType, ", type ", a.type,
              " or byteStride ", bv.byteStride);
     const uint64_t elem = static_cast<uint64_t>(comp_size) * v.components;
-    SL_CHECK(a.count == 0 || (a.count < (uint64_t{1} << 32) &&
-                              a.byteOffset + static_cast<uint64_t>(stride) * (a.count - 1) + elem <= bv.byteLength),
+    // count < 2^32 and stride < 2^31 keep stride·(count − 1) + elem below 2^63.
+    SL_CHECK(a.count == 0 || (a.count < (uint64_t{1} << 32) && a.byteOffset <= bv.byteLength &&
+                              static_cast<uint64_t>(stride) * (a.count - 1) + elem <= bv.byteLength - a.byteOffset),
              "gltf: '", path_, "' ", what, " accessor ", accessor_index, " (", a.count,
              " elements) reads past the end of bufferView ", a.bufferView, " (", bv.byteLength, " bytes)");
     v.data = buf.data.data() + bv.byteOffset + a.byteOffset;
@@ -404,7 +411,7 @@ class Importer {
   const tinygltf::Model& m_;
   std::string path_;
   Mesh out_;
-  std::set<int> on_path_;
+  std::set<int> on_path_, visited_;
   std::map<int, uint32_t> slot_of_material_;
   std::map<int, std::shared_ptr<const Texture>> textures_;
 };

@@ -23,6 +23,7 @@
 #include "data/procedural_car.h"
 #include "render/gltf_loader.h"
 #include "tools/common/cli.h"
+#include "train/batch_list.h"
 #include "train/inference.h"
 #include "train/losses.h"
 #include "train/photo_input.h"
@@ -272,31 +273,7 @@ std::vector<PhotoSources> batch_sources(const std::string& spec, const cli::Args
       out.push_back(base(s));
     }
   } else {
-    std::ifstream f(spec);
-    SL_CHECK(f.good(), "--batch '", spec, "' is neither a folder nor a readable JSON list");
-    json j;
-    try {
-      j = json::parse(f);
-    } catch (const std::exception& e) {
-      fail("--batch '", spec, "' is not valid JSON: ", e.what());
-    }
-    SL_CHECK(j.is_array(), "--batch '", spec, "' must hold a JSON array of {image, intrinsics, ...}");
-    const fs::path root = fs::path(spec).parent_path();
-    auto rel = [&](const json& e, const char* k) {
-      if (!e.contains(k)) return std::string();
-      const fs::path p(e.at(k).get<std::string>());
-      return (p.is_absolute() ? p : root / p).string();
-    };
-    for (const auto& e : j) {
-      PhotoSources s;
-      s.image = rel(e, "image");
-      s.intrinsics = rel(e, "intrinsics");
-      s.depth = rel(e, "depth");
-      s.lidar = rel(e, "lidar");
-      s.calib = rel(e, "calib");
-      SL_CHECK(!s.image.empty(), "--batch '", spec, "': an entry has no \"image\"");
-      out.push_back(base(s));
-    }
+    for (const PhotoSources& s : read_batch_list(spec)) out.push_back(base(s));
   }
   SL_CHECK(!out.empty(), "--batch '", spec, "' lists no images");
   return out;

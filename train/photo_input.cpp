@@ -36,6 +36,10 @@ Intrinsics read_intrinsics(const std::string& path, int width, int height) {
       SL_CHECK(false, "intrinsics file '", path, "': expected a JSON object {fx, fy, cx, cy} (", e.what(), ")");
     }
     if (j.contains("width") || j.contains("height")) {
+      for (const char* key : {"width", "height"})
+        SL_CHECK(!j.contains(key) || (j[key].is_number_integer() && j[key].get<int64_t>() >= 0 &&
+                                      j[key].get<int64_t>() <= 1 << 20),
+                 "intrinsics file '", path, "': ", key, " must be a pixel count, got ", j[key].type_name());
       const int w = j.value("width", width), h = j.value("height", height);
       SL_CHECK(w == width && h == height, "intrinsics file '", path, "' is for a ", w, "x", h, " image, but the image is ",
                width, "x", height);

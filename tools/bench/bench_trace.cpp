@@ -24,6 +24,7 @@
 #include "render/bvh.h"
 #include "render/gltf_loader.h"
 #include "render/gltf_writer.h"
+#include "render/ray_file.h"
 #include "tools/bench/bench.h"
 
 namespace sl::bench {
@@ -100,27 +101,6 @@ Mesh load_mesh(const std::string& command, const std::string& path) {
   return m;
 }
 
-std::vector<Ray> read_rays(const std::string& path) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  SL_CHECK(in.good(), "trace: cannot open --rays '", path, "'");
-  const std::streamoff size = in.tellg();
-  SL_CHECK(size > 0 && size % 24 == 0, "trace: --rays '", path, "' has ", size,
-           " bytes, expected a positive multiple of 24 (6 float32 per ray)");
-  std::vector<float> raw(static_cast<size_t>(size) / 4);
-  in.seekg(0);
-  in.read(reinterpret_cast<char*>(raw.data()), size);
-  SL_CHECK(in.good(), "trace: cannot read --rays '", path, "'");
-  std::vector<Ray> rays(raw.size() / 6);
-  for (size_t i = 0; i < rays.size(); ++i) {
-    const float* p = &raw[6 * i];
-    for (int k = 0; k < 6; ++k)
-      SL_CHECK(std::isfinite(p[k]), "trace: --rays '", path, "' ray ", i, " has a non-finite value ", p[k]);
-    rays[i].origin = {p[0], p[1], p[2]};
-    rays[i].direction = {p[3], p[4], p[5]};
-  }
-  return rays;
-}
-
 double now_ms() {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
@@ -137,7 +117,7 @@ int run_trace(const std::vector<std::string>& args) {
   const Options o("trace", args, {"--mesh", "--rays", "--hits-out"}, {"--json"});
   const std::string mesh_path = o.get("trace", "--mesh"), rays_path = o.get("trace", "--rays");
   const Mesh mesh = load_mesh("trace", mesh_path);
-  const std::vector<Ray> rays = read_rays(rays_path);
+  const std::vector<Ray> rays = read_ray_file(rays_path, "trace: --rays");
 
   const double t0 = now_ms();
   const Bvh bvh(mesh);

@@ -33,6 +33,10 @@ const char* type_name(const json& j) {
   return "null";
 }
 
+// A value for a message. --set values that are not JSON are kept as raw strings, which may hold
+// invalid UTF-8; plain dump() would throw json::type_error on them.
+std::string shown(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
+
 bool compatible(const json& def, const json& val) {
   if (def.is_null()) return true;  // a default of null accepts anything (optional paths)
   if (def.is_number_float()) return val.is_number();
@@ -60,7 +64,7 @@ void merge_into(json& target, const json& defaults, const json& src, const std::
       continue;
     }
     SL_CHECK(compatible(def, it.value()), origin, ": key '", path, "' expects ", type_name(def), ", got ",
-             type_name(it.value()), " (", it.value().dump(), ")");
+             type_name(it.value()), " (", shown(it.value()), ")");
     target[it.key()] = it.value();
   }
 }
@@ -175,7 +179,7 @@ std::vector<double> Config::numbers(const std::string& path) const {
   SL_CHECK(j.is_array(), "config key '", path, "' is ", type_name(j), ", expected an array of numbers");
   std::vector<double> out;
   for (const auto& v : j) {
-    SL_CHECK(v.is_number(), "config key '", path, "' holds ", v.dump(), ", expected numbers only");
+    SL_CHECK(v.is_number(), "config key '", path, "' holds ", shown(v), ", expected numbers only");
     out.push_back(v.get<double>());
   }
   return out;

@@ -1,0 +1,51 @@
+#include "train/batch_list.h"
+
+#include <filesystem>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "autodiff/error.h"
+
+namespace sl::train {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+std::vector<PhotoSources> read_batch_list(const std::string& path) {
+  std::ifstream f(path);
+  SL_CHECK(f.good(), "--batch '", path, "' is neither a folder nor a readable JSON list");
+  json j;
+  try {
+    j = json::parse(f);
+  } catch (const std::exception& e) {
+    fail("--batch '", path, "' is not valid JSON: ", e.what());
+  }
+  SL_CHECK(j.is_array(), "--batch '", path, "' must hold a JSON array of {image, intrinsics, ...}");
+  const fs::path root = fs::path(path).parent_path();
+  std::vector<PhotoSources> out;
+  for (size_t i = 0; i < j.size(); ++i) {
+    const json& e = j[i];
+    SL_CHECK(e.is_object(), "--batch '", path, "': entry ", i, " must be an object {image, intrinsics, ...}, got ",
+             e.type_name());
+    auto rel = [&](const char* k) {
+      if (!e.contains(k)) return std::string();
+      SL_CHECK(e.at(k).is_string(), "--batch '", path, "': entry ", i, " key \"", k, "\" must be a path string, got ",
+               e.at(k).type_name());
+      const fs::path p(e.at(k).get<std::string>());
+      return (p.is_absolute() ? p : root / p).string();
+    };
+    PhotoSources s;
+    s.image = rel("image");
+    s.intrinsics = rel("intrinsics");
+    s.depth = rel("depth");
+    s.lidar = rel("lidar");
+    s.calib = rel("calib");
+    SL_CHECK(!s.image.empty(), "--batch '", path, "': an entry has no \"image\"");
+    out.push_back(s);
+  }
+  SL_CHECK(!out.empty(), "--batch '", path, "' lists no images");
+  return out;
+}
+
+}  // namespace sl::train

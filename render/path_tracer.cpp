@@ -166,7 +166,8 @@ glm::vec3 PathTracer::radiance(const glm::vec3& origin, const glm::vec3& directi
     if (!hit.hit()) {
       // Veach's MIS: a BRDF-sampled direction could also have come from the environment sampler.
       float w = 1.0f;
-      if (bounce > 0 && o.environment_sampling) w = power_heuristic(brdf_pdf, sc.env.pdf(ray.direction));
+      if (bounce > 0 && o.environment_sampling)
+        w = power_heuristic(brdf_pdf, independent ? sc.env.pdf(ray.direction) : sc.env.pdf_bilinear(ray.direction));
       L += beta * w * sc.env.lookup(ray.direction);
       break;
     }
@@ -179,7 +180,7 @@ glm::vec3 PathTracer::radiance(const glm::vec3& origin, const glm::vec3& directi
 
     if (o.environment_sampling) {  // next-event estimation towards the environment
       const glm::vec2 u = pair(bounce, 0);
-      const EnvironmentMap::Sample ls = sc.env.sample(u.x, u.y);
+      const EnvironmentMap::Sample ls = independent ? sc.env.sample(u.x, u.y) : sc.env.sample_bilinear(u.x, u.y);
       const float cos_i = glm::dot(s.ns, ls.direction);
       if (ls.pdf > 0.0f && cos_i > 0.0f && glm::dot(s.ng, ls.direction) > 0.0f &&
           glm::dot(ls.radiance, ls.radiance) > 0.0f) {

@@ -14,10 +14,13 @@
 //   Stratified (default): every 2D decision of a path — the sub-pixel position, and at each
 //     bounce the environment sample, the BRDF direction, the (lobe choice, roulette) pair — is
 //     its own Owen-scrambled Sobol pattern (render/qmc_sampler.h), so the first 2^m samples of
-//     a pixel are stratified in each of them. Russian roulette survives with probability
-//     min(1, max throughput): a path that still carries full weight is never killed.
+//     a pixel are stratified in each of them. The environment is sampled ∝ its bilinear
+//     lookup (EnvironmentMap::sample_bilinear), so a sun costs almost no variance. Russian
+//     roulette survives with probability min(1, max throughput): a path that still carries
+//     full weight is never killed.
 //   Independent: the estimator before issue 19, kept for reproducible comparisons: independent
-//     uniform01f(seed, pixel, counter) numbers, survival probability capped at 0.95.
+//     uniform01f(seed, pixel, counter) numbers, the texel environment sampler
+//     (EnvironmentMap::sample), survival probability capped at 0.95.
 // Both are unbiased and estimate the same image; they differ in noise.
 // Determinism: every random number is a pure function of (seed, pixel index, sample, bounce,
 // use), so images are bitwise identical for any thread count.

@@ -89,9 +89,9 @@ struct MirrorScene {
     mirror.roughness = 0.0f;
     write_glb(make_icosphere({0, 0, 0}, 1.0f, 5, mirror), sphere);
   }
-  std::string args(const std::string& out, const std::string& extra = "") const {
+  std::string args(const std::string& out, const std::string& extra = "", int spp = 16) const {
     return "--scene " + sphere + " --hdri " + hdri + " --cam 0,0,4 --look 0,0,0 --fov 40 --width 64 --height 64 " +
-           "--spp 16 --out " + out + " " + extra;
+           "--spp " + std::to_string(spp) + " --out " + out + " " + extra;
   }
 };
 
@@ -128,7 +128,7 @@ TEST(RenderTool, TimeAndNoiseBudgetsStopTheRenderAndReportIt) {
   const MirrorScene s;
   const std::string out = s.dir + "/noise.png";
   const test::ToolRun r =
-      test::run_tool("streetlight-render", s.args(out, "--target-noise 0.02 --spp 4096 --exposure 1 --json"));
+      test::run_tool("streetlight-render", s.args(out, "--target-noise 0.02 --exposure 1 --json", 4096));
   ASSERT_EQ(r.code, 0) << r.out;
   const nlohmann::json j = nlohmann::json::parse(r.out.substr(r.out.rfind('{')));
   EXPECT_LE(j["noise"].get<double>(), 0.02);
@@ -136,7 +136,7 @@ TEST(RenderTool, TimeAndNoiseBudgetsStopTheRenderAndReportIt) {
   EXPECT_LT(j["spp"].get<int>(), 4096);
   EXPECT_TRUE(fs::exists(out));
   const std::string timed = s.dir + "/timed.exr";
-  const test::ToolRun t = test::run_tool("streetlight-render", s.args(timed, "--seconds 0.5 --spp 1000000 --json"));
+  const test::ToolRun t = test::run_tool("streetlight-render", s.args(timed, "--seconds 0.5 --json", 1000000));
   ASSERT_EQ(t.code, 0) << t.out;
   const nlohmann::json jt = nlohmann::json::parse(t.out.substr(t.out.rfind('{')));
   EXPECT_LT(jt["spp"].get<int>(), 1000000);

@@ -130,7 +130,8 @@ StreetGeneratorConfig street_generator_config(const json& t) {
   c.spp = static_cast<int>(integer(t, "render", "spp", 1, 1 << 16));
   c.max_depth = static_cast<int>(integer(t, "render", "max_depth", 1, 64));
   c.environment_width = static_cast<int>(integer(t, "render", "environment_width", 16, 8192));
-  c.target_noise = num(t, "render", "target_noise");
+  // Optional inside "render" (trees written before the key existed mean exactly `spp` samples).
+  c.target_noise = t.at("render").contains("target_noise") ? num(t, "render", "target_noise") : 0.0;
   in_range(c.target_noise, 0.0, 0.5, "render.target_noise");
   SL_CHECK(c.target_noise == 0.0 || c.spp >= 2, "config: 'render.target_noise' needs 'render.spp' >= 2 (the cap), got ",
            c.spp);

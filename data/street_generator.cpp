@@ -25,6 +25,7 @@
 #include "render/equirect.h"
 #include "render/gltf_writer.h"
 #include "render/path_tracer.h"
+#include "render/progressive_render.h"
 
 namespace sl {
 
@@ -121,7 +122,7 @@ struct PanoramaRender {
 };
 
 // The path tracer's estimator over equirectangular pixels, with render()'s counter layout:
-// sample s of pixel p uses stream p and counters [s·stride, (s + 1)·stride).
+// sample s of pixel p is path sample s of stream p (PathTracer::pixel_jitter, then radiance()).
 PanoramaRender render_panorama(const PathTracer& tracer, const glm::dvec3& origin, int H, int W,
                                const PathTracerOptions& o) {
   PathTracer::validate(o);
@@ -129,7 +130,6 @@ PanoramaRender render_panorama(const PathTracer& tracer, const glm::dvec3& origi
   float* rad = out.radiance.data<float>();
   float* sky = out.sky_mask.data<float>();
   const size_t plane = static_cast<size_t>(H) * W;
-  const uint64_t stride = path_random::stride(o.max_depth);
   const glm::vec3 org(origin);
 #pragma omp parallel for schedule(dynamic, 1)
   for (int row = 0; row < H; ++row) {
@@ -137,10 +137,10 @@ PanoramaRender render_panorama(const PathTracer& tracer, const glm::dvec3& origi
       const uint64_t pixel = static_cast<uint64_t>(row) * W + col;
       glm::dvec3 sum(0.0);
       int kept = 0;
-      for (int s = 0; s < o.spp; ++s) {
-        const uint64_t ctr = static_cast<uint64_t>(s) * stride;
-        const double u = col + uniform01f(o.seed, pixel, ctr), v = row + uniform01f(o.seed, pixel, ctr + 1);
-        const equirect::Dir d = equirect::uv_to_direction(u, v, W, H);
+      for (int k = 0; k < o.spp; ++k) {
+        const uint64_t s = static_cast<uint64_t>(o.sample_offset) + k;
+        const glm::vec2 jitter = PathTracer::pixel_jitter(pixel, s, o);
+        const equirect::Dir d = equirect::uv_to_direction(col + double(jitter.x), row + double(jitter.y), W, H);
         const glm::vec3 L = tracer.radiance(org, glm::vec3(d.x, d.y, d.z), pixel, s, o);
         if (std::isfinite(L.x + L.y + L.z)) sum += glm::dvec3(L), ++kept;
       }
@@ -361,17 +361,60 @@ GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t i
     opt.spp = c.spp;
     opt.max_depth = c.max_depth;
 
+    // Every image: exactly c.spp samples, or progressive passes to c.target_noise (capped by c.spp).
+    ProgressiveOptions prog;
+    prog.max_spp = c.spp;
+    prog.target_noise = c.target_noise;
+    prog.two_seeds = c.target_noise > 0.0;
+    prog.auto_median_ldr = c.ldr_median;
+    prog.single_pass_without_budget = true;
+    json noise_meta = json::object();
+    auto note = [&](const std::string& image, const ProgressiveStatus& st) {
+      noise_meta[image] = {{"spp", st.spp}, {"noise", st.noise}};
+    };
+
     const glm::dvec3 pano_pos(0.0, c.camera_height_m, 0.0);
-    opt.seed = hash_counter(c.seed, static_cast<uint64_t>(index), kPanoSeed);
-    const PanoramaRender pano = render_panorama(tracer, pano_pos, c.pano_height, c.pano_width, opt);
+    prog.seed = hash_counter(c.seed, static_cast<uint64_t>(index), kPanoSeed);
+    PanoramaRender pano;
+    const ProgressiveResult pano_r = render_progressive(
+        [&](uint64_t seed, int64_t offset, int n) {
+          PathTracerOptions o = opt;
+          o.seed = seed, o.sample_offset = offset, o.spp = n;
+          PanoramaRender pass = render_panorama(tracer, pano_pos, c.pano_height, c.pano_width, o);
+          if (!pano.sky_mask.defined()) pano.sky_mask = pass.sky_mask;
+          return pass.radiance;
+        },
+        prog);
+    pano.radiance = pano_r.radiance;
+    note("pano", pano_r.status);
 
     const std::vector<Camera> views = make_views(c, index);
     std::vector<PathTracerImage> renders;
     std::vector<uint64_t> view_seeds;
+    std::vector<int> view_spp;
+    // A view's progressive render; the depth, normal and mask come from any pass (pixel centres).
+    auto render_view = [&](const PathTracer& t, const Camera& cam, const ProgressiveOptions& po) {
+      PathTracerImage img;
+      const ProgressiveResult r = render_progressive(
+          [&](uint64_t seed, int64_t offset, int n) {
+            PathTracerOptions o = opt;
+            o.seed = seed, o.sample_offset = offset, o.spp = n;
+            PathTracerImage pass = t.render(cam, o);
+            if (!img.mask.defined()) img = pass;
+            img.nonfinite_samples += pass.nonfinite_samples;
+            return pass.radiance;
+          },
+          po);
+      img.radiance = r.radiance;
+      return std::pair{img, r.status};
+    };
     for (size_t v = 0; v < views.size(); ++v) {
-      opt.seed = hash_counter(c.seed, static_cast<uint64_t>(index), kViewSeed + v);
-      view_seeds.push_back(opt.seed);
-      renders.push_back(tracer.render(views[v], opt));
+      prog.seed = hash_counter(c.seed, static_cast<uint64_t>(index), kViewSeed + v);
+      view_seeds.push_back(prog.seed);
+      auto [img, st] = render_view(tracer, views[v], prog);
+      renders.push_back(img);
+      view_spp.push_back(st.spp);
+      note("view_" + std::to_string(v), st);
     }
     const double median = median_luminance(renders[0].radiance);
     const double exposure = median > 1e-12 ? std::pow(c.ldr_median, 2.2) / median : 1.0;
@@ -401,8 +444,14 @@ GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t i
         Mesh with = scene.mesh;
         with.append(place_object(ins.object, ins.placement));
         const PathTracer with_tracer(with, env);
-        opt.seed = view_seeds[0];  // the same per-pixel streams as view 0 (see header)
-        const PathTracerImage img = with_tracer.render(views[0], opt);
+        // The same per-pixel streams and samples as view 0 (see header).
+        ProgressiveOptions same = prog;
+        same.seed = view_seeds[0];
+        same.max_spp = view_spp[0];
+        same.target_noise = 0.0;
+        same.single_pass_without_budget = !prog.two_seeds;  // view 0's pass sizes: bitwise the same streams
+        auto [img, st] = render_view(with_tracer, views[0], same);
+        note("insert_with_object", st);
         write_image(file("insert_with_object_hdr.exr"), img.radiance);
         write_ldr(file("insert_with_object_ldr.png"), img.radiance, exposure);
         write_image(file("insert_without_object_hdr.exr"), renders[0].radiance);
@@ -432,7 +481,12 @@ GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t i
                  {"lighting", light.meta},
                  {"exposure", exposure},
                  {"ldr", "clip((exposure*L)^(1/2.2), 0, 1)"},
-                 {"render", {{"spp", c.spp}, {"max_depth", c.max_depth}, {"environment_width", c.environment_width}}},
+                 {"render",
+                  {{"spp", c.spp},
+                   {"max_depth", c.max_depth},
+                   {"environment_width", c.environment_width},
+                   {"target_noise", c.target_noise},
+                   {"images", noise_meta}}},
                  {"scene",
                   {{"road_half_width_m", scene.road_half_width_m},
                    {"sidewalk_width_m", scene.sidewalk_width_m},

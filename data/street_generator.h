@@ -12,6 +12,9 @@
 //     with its placement, KITTI-style 2D and 3D boxes and coverage mask.
 // LDR is the paper's clip((exposure·L)^(1/2.2), 0, 1) (Sec 3.4) with one exposure per sample,
 // chosen so view 0's median luminance maps to `ldr_median`.
+// Noise: with render.target_noise > 0 every image is rendered to that LDR noise level (adaptive
+// samples per image, capped by render.spp); meta.json records the samples and the estimated
+// noise of each image.
 //
 // Determinism: every random choice and every path-tracer seed is a pure function of
 // (config, dataset seed, sample index), so the same seed writes the same files with any
@@ -41,6 +44,10 @@ struct StreetGeneratorConfig {
   double train_fraction = 0.8, val_fraction = 0.1;  // test gets the rest
   // Path tracing.
   int spp = 16, max_depth = 3;
+  // > 0: render every image progressively (render/progressive_render.h, two seeds) until its
+  // estimated LDR noise — the standard deviation of a 0-1 LDR pixel value at the sample's
+  // exposure rule — is at most this, with `spp` as the cap. 0: exactly `spp` samples.
+  double target_noise = 0.0;
   int environment_width = 256;  // the lighting map (height = width / 2)
   // Street camera and panorama.
   double camera_height_m = 1.6;

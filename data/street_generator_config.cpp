@@ -18,7 +18,7 @@ json street_generator_defaults() {
       {"seed", 0},
       {"samples", 40},
       {"splits", {{"train", 0.8}, {"val", 0.1}}},
-      {"render", {{"spp", 16}, {"max_depth", 3}, {"environment_width", 256}}},
+      {"render", {{"spp", 16}, {"max_depth", 3}, {"environment_width", 256}, {"target_noise", 0.0}}},
       {"camera_height_m", 1.6},
       {"panorama", {{"width", 128}, {"height", 64}}},
       {"views",
@@ -134,6 +134,11 @@ StreetGeneratorConfig street_generator_config(const json& t) {
   c.spp = static_cast<int>(integer(t, "render", "spp", 1, 1 << 16));
   c.max_depth = static_cast<int>(integer(t, "render", "max_depth", 1, 64));
   c.environment_width = static_cast<int>(integer(t, "render", "environment_width", 16, 8192));
+  // Optional inside "render" (trees written before the key existed mean exactly `spp` samples).
+  c.target_noise = t.at("render").contains("target_noise") ? num(t, "render", "target_noise") : 0.0;
+  in_range(c.target_noise, 0.0, 0.5, "render.target_noise");
+  SL_CHECK(c.target_noise == 0.0 || c.spp >= 2, "config: 'render.target_noise' needs 'render.spp' >= 2 (the cap), got ",
+           c.spp);
   c.camera_height_m = num(t, "camera_height_m");
   in_range(c.camera_height_m, 0.3, 20.0, "camera_height_m");
   c.pano_width = static_cast<int>(integer(t, "panorama", "width", 4, 16384));

@@ -14,6 +14,8 @@ float unit01(float x) { return x > 0.0f ? (x < 1.0f ? x : 1.0f) : 0.0f; }
 struct Prepared {
   glm::vec3 base, cspec0, csheen;
   float metallic, roughness, alpha, sheen, clearcoat, clearcoat_alpha;
+  float dielectric_f0;  // 0.08·specular: the IOR of the exact Fresnel option
+  bool exact_fresnel;
 };
 
 Prepared prepare(const Params& p) {
@@ -31,6 +33,8 @@ Prepared prepare(const Params& p) {
   const glm::vec3 spec_tint = glm::mix(glm::vec3(1.0f), tint, unit01(p.specular_tint));
   m.cspec0 = glm::mix(unit01(p.specular) * 0.08f * spec_tint, m.base, m.metallic);
   m.csheen = glm::mix(glm::vec3(1.0f), tint, unit01(p.sheen_tint));
+  m.dielectric_f0 = 0.08f * unit01(p.specular);
+  m.exact_fresnel = p.exact_fresnel;
   return m;
 }
 
@@ -64,16 +68,18 @@ glm::vec3 eval_lobes(const Prepared& m, const Cosines& c) {
   const glm::vec3 sheen = fh * m.sheen * m.csheen;
   const glm::vec3 diffuse = (1.0f - m.metallic) * (m.base * (fd / kPiF) + sheen);
 
-  // Specular: GGX D, Schlick F towards white at grazing l·h, separable Smith G with the same α.
+  // Specular: GGX D, F towards white at grazing l·h (Schlick, or the exact dielectric curve),
+  // separable Smith G with the same α.
   const float ds = ggx_d(c.nh, m.alpha);
-  const glm::vec3 fs = glm::mix(m.cspec0, glm::vec3(1.0f), fh);
+  const float fw = m.exact_fresnel ? fresnel_weight(c.lh, m.dielectric_f0, true) : fh;
+  const glm::vec3 fs = glm::mix(m.cspec0, glm::vec3(1.0f), fw);
   const float vs = smith_v1(c.nl, m.alpha) * smith_v1(c.nv, m.alpha);
   const glm::vec3 specular = ds * vs * fs;
 
   glm::vec3 f = diffuse + specular;
   if (m.clearcoat > 0.0f) {
     const float dr = gtr1_d(c.nh, m.clearcoat_alpha);
-    const float fr = 0.04f + 0.96f * fh;
+    const float fr = 0.04f + 0.96f * (m.exact_fresnel ? fresnel_weight(c.lh, 0.04f, true) : fh);
     const float vr = smith_v1(c.nl, kClearcoatG) * smith_v1(c.nv, kClearcoatG);
     f += glm::vec3(0.25f * m.clearcoat * dr * fr * vr);
   }

@@ -48,6 +48,10 @@ struct Params {
   float sheen_tint = 0.5f;
   float clearcoat = 0.0f;
   float clearcoat_gloss = 1.0f;
+  // false: Schlick's Fresnel (Burley's). true: the exact dielectric Fresnel of the IOR that
+  // gives F0 = 0.08·specular (1.5 for the clearcoat), interpolated towards C_spec0 as Blender
+  // Cycles' principled BSDF does: F = C_spec0 + (1 − C_spec0)·(F_exact(l·h) − F0)/(1 − F0).
+  bool exact_fresnel = false;
 };
 
 struct Sample {
@@ -69,6 +73,31 @@ inline float schlick_fresnel(float f0, float cos_theta) {
 }
 inline glm::vec3 schlick_fresnel(const glm::vec3& f0, float cos_theta) {
   return f0 + (glm::vec3(1.0f) - f0) * schlick_weight(cos_theta);
+}
+
+// Exact Fresnel reflectance of unpolarised light at a dielectric boundary of relative IOR
+// eta > 0 (light arriving from the outside), cos_theta the cosine of incidence; 1 under total
+// internal reflection (eta < 1 at grazing angles).
+inline float fresnel_dielectric(float cos_theta, float eta) {
+  const float c = std::clamp(std::abs(cos_theta), 0.0f, 1.0f);
+  float g = eta * eta - 1.0f + c * c;
+  if (!(g > 0.0f)) return 1.0f;
+  g = std::sqrt(g);
+  const float a = (g - c) / (g + c);
+  const float b = (c * (g + c) - 1.0f) / (c * (g - c) + 1.0f);
+  return std::clamp(0.5f * a * a * (1.0f + b * b), 0.0f, 1.0f);
+}
+// The IOR whose normal-incidence reflectance is f0 in [0, 1): (1 + √f0) / (1 − √f0).
+inline float ior_from_f0(float f0) {
+  const float r = std::sqrt(std::clamp(f0, 0.0f, 0.99f));
+  return (1.0f + r) / (1.0f - r);
+}
+// The weight that takes F0 to 1: Schlick's (1 − cos)^5, or the exact curve normalised,
+// (F_exact(cos) − F0)/(1 − F0) for the IOR of f0.
+inline float fresnel_weight(float cos_theta, float f0, bool exact) {
+  if (!exact) return schlick_weight(cos_theta);
+  const float f = std::clamp(f0, 0.0f, 0.99f);
+  return std::clamp((fresnel_dielectric(cos_theta, ior_from_f0(f)) - f) / (1.0f - f), 0.0f, 1.0f);
 }
 
 // Trowbridge-Reitz / GGX normal distribution (Walter et al. 2007, Eq. 33):

@@ -13,6 +13,7 @@ namespace {
 constexpr double kTwoPi = 2.0 * equirect::kPi;
 
 double luminance(double r, double g, double b) { return 0.2126 * r + 0.7152 * g + 0.0722 * b; }
+bool all_finite3(const glm::vec3& d) { return std::isfinite(d.x) && std::isfinite(d.y) && std::isfinite(d.z); }
 
 // sin(elevation) at the top edge of row i (row 0 starts at the zenith, sin = 1).
 double row_top_sin(int i, int height) { return std::sin((0.5 - static_cast<double>(i) / height) * equirect::kPi); }
@@ -70,6 +71,127 @@ glm::vec3 EnvironmentMap::lookup(const glm::vec3& d) const {
   return v;
 }
 
+namespace {
+
+// Cell row k of an H-row map: its v range and the texel rows at its top and bottom corners.
+struct CellRow {
+  double v0, v1;
+  int top, bottom;
+};
+CellRow cell_row(int k, int H) {
+  return {std::max(0.0, k - 0.5), std::min(double(H), k + 0.5), std::max(k - 1, 0), std::min(k, H - 1)};
+}
+
+// Solid angle per unit (u, v) area at v: cos(elevation) · (2π / W) · (π / H).
+double jacobian(double v, int W, int H) {
+  return std::cos((0.5 - v / H) * equirect::kPi) * (kTwoPi / W) * (equirect::kPi / H);
+}
+
+// Inverse CDF of the density ∝ lerp(x, a, b) on [0, 1] (a, b ≥ 0, not both 0).
+double sample_linear(double u, double a, double b) {
+  if (a == b) return u;
+  const double x = u * (a + b) / (a + std::sqrt(std::max(0.0, (1 - u) * a * a + u * b * b)));
+  return std::clamp(x, 0.0, 1.0);
+}
+
+}  // namespace
+
+void EnvironmentMap::build_bilinear_sampling() {
+  const int H = height_, W = width_;
+  lum_.resize(static_cast<size_t>(H) * W);
+  for (int i = 0; i < H; ++i)
+    for (int j = 0; j < W; ++j) {
+      const glm::vec3 t = texel(i, j);
+      lum_[static_cast<size_t>(i) * W + j] = float(luminance(t.r, t.g, t.b));
+    }
+  cell_prob_.assign(static_cast<size_t>(H + 1) * W, 0.0);
+  cell_col_cdf_.assign(static_cast<size_t>(H + 1) * (W + 1), 0.0);
+  cell_row_cdf_.assign(static_cast<size_t>(H) + 2, 0.0);
+  for (int k = 0; k <= H; ++k) {
+    const CellRow r = cell_row(k, H);
+    const double area_weight = (r.v1 - r.v0) * jacobian(0.5 * (r.v0 + r.v1), W, H);
+    double* cdf = &cell_col_cdf_[static_cast<size_t>(k) * (W + 1)];
+    for (int c = 0; c < W; ++c) {
+      const int c1 = (c + 1) % W;
+      const double corners = lum_[size_t(r.top) * W + c] + lum_[size_t(r.top) * W + c1] +
+                             lum_[size_t(r.bottom) * W + c] + lum_[size_t(r.bottom) * W + c1];
+      const double m = 0.25 * corners * area_weight;
+      cell_prob_[static_cast<size_t>(k) * W + c] = m;
+      cdf[c + 1] = cdf[c] + m;
+    }
+    cell_row_cdf_[k + 1] = cell_row_cdf_[k] + cdf[W];
+  }
+  const double total = cell_row_cdf_[H + 1];
+  if (!(total > 0.0)) {  // cannot happen when some texel is positive; fall back to the texel sampler
+    cell_prob_.clear();
+    return;
+  }
+  for (double& m : cell_prob_) m /= total;
+  for (double& c : cell_row_cdf_) c /= total;
+  for (int k = 0; k <= H; ++k) {
+    double* cdf = &cell_col_cdf_[static_cast<size_t>(k) * (W + 1)];
+    const double mass = cdf[W];
+    for (int c = 0; c <= W; ++c) cdf[c] = mass > 0 ? cdf[c] / mass : static_cast<double>(c) / W;
+  }
+}
+
+EnvironmentMap::Sample EnvironmentMap::sample_bilinear(float u1, float u2) const {
+  if (cell_prob_.empty()) return sample(u1, u2);  // black map: the uniform sphere (as pdf_bilinear)
+  const int H = height_, W = width_;
+  auto pick = [](const double* cdf, int n, double u, double& frac) {
+    int k = static_cast<int>(std::upper_bound(cdf, cdf + n + 1, u) - cdf) - 1;
+    k = std::clamp(k, 0, n - 1);
+    while (k > 0 && cdf[k + 1] - cdf[k] <= 0.0) --k;
+    while (k < n - 1 && cdf[k + 1] - cdf[k] <= 0.0) ++k;
+    const double w = cdf[k + 1] - cdf[k];
+    frac = w > 0 ? std::clamp((u - cdf[k]) / w, 0.0, 1.0) : 0.5;
+    return k;
+  };
+  double fr, fc;
+  const int k = pick(cell_row_cdf_.data(), H + 1, u1, fr);
+  const int c = pick(&cell_col_cdf_[static_cast<size_t>(k) * (W + 1)], W, u2, fc);
+  const CellRow r = cell_row(k, H);
+  const int c1 = (c + 1) % W;
+  const double a = lum_[size_t(r.top) * W + c], b = lum_[size_t(r.top) * W + c1];
+  const double cc = lum_[size_t(r.bottom) * W + c], d = lum_[size_t(r.bottom) * W + c1];
+  // The bilinear patch: marginal in y ∝ lerp(y, a + b, c + d), then x | y ∝ lerp(x, left, right).
+  const double y = sample_linear(fr, a + b, cc + d);
+  const double x = sample_linear(fc, (1 - y) * a + y * cc, (1 - y) * b + y * d);
+  const double v = r.v0 + y * (r.v1 - r.v0);
+  double u = c + 0.5 + x;
+  if (u >= W) u -= W;
+  const equirect::Dir dir = equirect::uv_to_direction(u, v, W, H);
+  Sample s;
+  s.direction = glm::vec3(float(dir.x), float(dir.y), float(dir.z));
+  s.radiance = lookup(s.direction);
+  s.pdf = pdf_bilinear(s.direction);
+  return s;
+}
+
+float EnvironmentMap::pdf_bilinear(const glm::vec3& d) const {
+  if (cell_prob_.empty()) return pdf(d);
+  if (!(glm::dot(d, d) > 0.0f) || !all_finite3(d)) return 0.0f;
+  const int H = height_, W = width_;
+  const auto uv = equirect::direction_to_uv(d.x, d.y, d.z, W, H);
+  const int k = std::clamp(static_cast<int>(std::floor(uv.v + 0.5)), 0, H);
+  const CellRow r = cell_row(k, H);
+  double fu = uv.u - 0.5;
+  const double fl = std::floor(fu);
+  const int c = ((static_cast<int>(fl) % W) + W) % W, c1 = (c + 1) % W;
+  const double x = std::clamp(fu - fl, 0.0, 1.0);
+  const double y = std::clamp((uv.v - r.v0) / (r.v1 - r.v0), 0.0, 1.0);
+  const double a = lum_[size_t(r.top) * W + c], b = lum_[size_t(r.top) * W + c1];
+  const double cc = lum_[size_t(r.bottom) * W + c], dd = lum_[size_t(r.bottom) * W + c1];
+  const double mean = 0.25 * (a + b + cc + dd);
+  if (!(mean > 0.0)) return 0.0f;
+  const double value = (1 - y) * ((1 - x) * a + x * b) + y * ((1 - x) * cc + x * dd);
+  const double j = jacobian(uv.v, W, H);
+  if (!(j > 1e-12)) return 0.0f;
+  // (u, v) density P_cell · value / ∫cell value, with ∫cell value = mean · (v1 − v0).
+  const double p = cell_prob_[static_cast<size_t>(k) * W + c] * value / (mean * (r.v1 - r.v0)) / j;
+  return std::isfinite(p) ? float(p) : 0.0f;
+}
+
 void EnvironmentMap::build_sampling() {
   const int H = height_, W = width_;
   texel_pdf_.assign(static_cast<size_t>(H) * W, 0.0);
@@ -101,8 +223,10 @@ void EnvironmentMap::build_sampling() {
   const double total = row_cdf_[H];
   if (!(total > 0.0)) {  // black map: sample() falls back to the uniform sphere
     texel_pdf_.clear();
+    cell_prob_.clear();
     return;
   }
+  build_bilinear_sampling();
   for (double& m : texel_pdf_) m /= total;
   for (double& c : row_cdf_) c /= total;
   for (int i = 0; i < H; ++i) {

@@ -13,6 +13,16 @@
 //   solid angle (piecewise constant), then a direction uniformly in solid angle inside it. pdf() is in
 //   solid angle (1/sr) and equals the density sample() draws from, Jacobian of the sphere
 //   (the cos θ of the elevation) included. A black map falls back to uniform sphere sampling.
+// - Bilinear importance sampling (sample_bilinear / pdf_bilinear, issue 19): the density is
+//   proportional to the luminance of the bilinear lookup itself, at full resolution. A cell of
+//   the lookup (between four texel centres; half cells at the poles, where rows clamp) is
+//   chosen with probability ∝ its integral of luminance × solid angle (at the cell centre),
+//   then a point inside it ∝ the bilinear luminance (exact inversion of its marginal and
+//   conditional, both linear). So L/pdf is nearly constant inside every cell — a sun spread
+//   over a few texels is sampled with almost no variance, where the texel sampler above
+//   leaves L/pdf varying up to 64× next to it. pdf_bilinear() is the exact solid-angle density
+//   of sample_bilinear() (0 only where the lookup is black, and at the two pole points).
+//   Black map: uniform sphere, as above.
 // - rotated(φ): the map seen after rotating the world by φ about +Y (azimuth φ → φ + angle).
 // - resized(W', H'): area-weighted (solid-angle) averaging, so the integral of radiance over
 //   the sphere is preserved; never point-samples a sun.
@@ -43,6 +53,8 @@ class EnvironmentMap {
   };
   Sample sample(float u1, float u2) const;
   float pdf(const glm::vec3& direction) const;
+  Sample sample_bilinear(float u1, float u2) const;
+  float pdf_bilinear(const glm::vec3& direction) const;
 
   // Integral of radiance over the sphere, per channel (W/m²/sr × sr).
   glm::dvec3 integral() const;
@@ -52,6 +64,7 @@ class EnvironmentMap {
 
  private:
   void build_sampling();
+  void build_bilinear_sampling();
 
   Tensor radiance_;
   int width_ = 0, height_ = 0;
@@ -59,6 +72,13 @@ class EnvironmentMap {
   std::vector<double> row_cdf_;    // H+1 entries, marginal over rows
   std::vector<double> col_cdf_;    // H×(W+1), conditional per row
   std::vector<double> texel_pdf_;  // probability of each texel (sums to 1)
+  // Bilinear sampling over (H + 1) × W lookup cells: cell row k spans v in [k − ½, k + ½]
+  // clamped to [0, H], between texel rows k − 1 and k (clamped); column c spans u in
+  // [c + ½, c + 3/2] between texel columns c and c + 1 (wrapping).
+  std::vector<float> lum_;           // H×W texel luminance
+  std::vector<double> cell_row_cdf_;  // H+2 entries
+  std::vector<double> cell_col_cdf_;  // (H+1)×(W+1), conditional per cell row
+  std::vector<double> cell_prob_;     // (H+1)×W probability of each cell
 };
 
 // The four texels and weights of the bilinear lookup in direction (x, y, z) of an H×W map:

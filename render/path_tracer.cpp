@@ -9,6 +9,7 @@
 #include "autodiff/random.h"
 #include "render/bvh.h"
 #include "render/disney_brdf.h"
+#include "render/qmc_sampler.h"
 #include "render/sampling.h"
 
 namespace sl {
@@ -82,7 +83,7 @@ struct Bsdf {
   }
 };
 
-Bsdf material_at(const Mesh& mesh, const SurfacePoint& s, bool lambertian) {
+Bsdf material_at(const Mesh& mesh, const SurfacePoint& s, bool lambertian, bool exact_fresnel) {
   const Material& m = mesh.materials[mesh.material_ids[s.triangle]];
   Bsdf b;
   b.lambertian = lambertian;
@@ -93,6 +94,7 @@ Bsdf material_at(const Mesh& mesh, const SurfacePoint& s, bool lambertian) {
   b.params.specular = 0.5f;
   b.params.clearcoat = m.clearcoat;
   b.params.clearcoat_gloss = 1.0f - m.clearcoat_roughness;
+  b.params.exact_fresnel = exact_fresnel;
   return b;
 }
 
@@ -123,14 +125,33 @@ void PathTracer::validate(const PathTracerOptions& o) {
   SL_CHECK(o.max_depth >= 1 && o.max_depth <= 1024, "PathTracer: options.max_depth must be in [1, 1024], got ",
            o.max_depth);
   SL_CHECK(o.roulette_depth >= 1, "PathTracer: options.roulette_depth must be >= 1, got ", o.roulette_depth);
+  SL_CHECK(o.sample_offset >= 0 && o.sample_offset + o.spp <= (int64_t(1) << 32),
+           "PathTracer: options.sample_offset must be in [0, 2^32 - spp], got ", o.sample_offset);
+}
+
+// Random dimensions of one path sample: 2 for the sub-pixel position, then per bounce b the
+// pairs (environment u1, u2), (BRDF u1, u2), (lobe choice, roulette) at 2 + 6b + 2·use.
+namespace {
+glm::vec2 path_pair(const PathTracerOptions& o, uint64_t stream, uint64_t sample, uint32_t dim) {
+  if (o.estimator == PathEstimator::Independent) {
+    const uint64_t c = sample * path_random::stride(o.max_depth) + dim;
+    return {uniform01f(o.seed, stream, c), uniform01f(o.seed, stream, c + 1)};
+  }
+  return qmc::owen_pair(o.seed, stream, sample, dim / 2);
+}
+}  // namespace
+
+glm::vec2 PathTracer::pixel_jitter(uint64_t stream, uint64_t sample, const PathTracerOptions& o) {
+  return path_pair(o, stream, sample, 0);
 }
 
 glm::vec3 PathTracer::radiance(const glm::vec3& origin, const glm::vec3& direction, uint64_t stream,
                                uint64_t sample, const PathTracerOptions& o) const {
   const Scene& sc = *scene_;
-  const uint64_t base = sample * path_random::stride(o.max_depth) + path_random::kPixelDims;
-  auto rnd = [&](int bounce, int k) {
-    return uniform01f(o.seed, stream, base + static_cast<uint64_t>(bounce) * path_random::kBounceDims + k);
+  const bool independent = o.estimator == PathEstimator::Independent;
+  auto pair = [&](int bounce, int use) {
+    return path_pair(o, stream, sample,
+                     static_cast<uint32_t>(path_random::kPixelDims + bounce * path_random::kBounceDims + 2 * use));
   };
 
   glm::vec3 L(0.0f), beta(1.0f);
@@ -145,7 +166,8 @@ glm::vec3 PathTracer::radiance(const glm::vec3& origin, const glm::vec3& directi
     if (!hit.hit()) {
       // Veach's MIS: a BRDF-sampled direction could also have come from the environment sampler.
       float w = 1.0f;
-      if (bounce > 0 && o.environment_sampling) w = power_heuristic(brdf_pdf, sc.env.pdf(ray.direction));
+      if (bounce > 0 && o.environment_sampling)
+        w = power_heuristic(brdf_pdf, independent ? sc.env.pdf(ray.direction) : sc.env.pdf_bilinear(ray.direction));
       L += beta * w * sc.env.lookup(ray.direction);
       break;
     }
@@ -153,10 +175,12 @@ glm::vec3 PathTracer::radiance(const glm::vec3& origin, const glm::vec3& directi
     const glm::vec3 wo = -ray.direction;
     const SurfacePoint s = surface_point(sc.mesh, sc.face_normals, hit, wo);
     if (glm::dot(s.ng, s.ng) == 0.0f) break;
-    const Bsdf bsdf = material_at(sc.mesh, s, o.lambertian);
+    const Bsdf bsdf = material_at(sc.mesh, s, o.lambertian, o.exact_fresnel);
+    const glm::vec2 u_lobe_roulette = pair(bounce, 2);
 
     if (o.environment_sampling) {  // next-event estimation towards the environment
-      const EnvironmentMap::Sample ls = sc.env.sample(rnd(bounce, 0), rnd(bounce, 1));
+      const glm::vec2 u = pair(bounce, 0);
+      const EnvironmentMap::Sample ls = independent ? sc.env.sample(u.x, u.y) : sc.env.sample_bilinear(u.x, u.y);
       const float cos_i = glm::dot(s.ns, ls.direction);
       if (ls.pdf > 0.0f && cos_i > 0.0f && glm::dot(s.ng, ls.direction) > 0.0f &&
           glm::dot(ls.radiance, ls.radiance) > 0.0f) {
@@ -168,16 +192,22 @@ glm::vec3 PathTracer::radiance(const glm::vec3& origin, const glm::vec3& directi
       }
     }
 
-    const disney::Sample bs = bsdf.sample(s.ns, wo, rnd(bounce, 2), rnd(bounce, 3), rnd(bounce, 4));
+    const glm::vec2 ub = pair(bounce, 1);
+    const disney::Sample bs = bsdf.sample(s.ns, wo, ub.x, ub.y, u_lobe_roulette.x);
     const float cos_i = glm::dot(s.ns, bs.wi);
     if (!(bs.pdf > 0.0f) || !(cos_i > 0.0f) || !(glm::dot(s.ng, bs.wi) > 0.0f)) break;
     beta *= bs.f * (cos_i / bs.pdf);
     brdf_pdf = bs.pdf;
 
     if (bounce + 1 >= o.roulette_depth) {
-      const float q = std::min(0.95f, std::max(beta.x, std::max(beta.y, beta.z)));
-      if (!(q > 0.0f) || rnd(bounce, 5) >= q) break;
-      beta /= q;
+      // Survival ∝ throughput. The old cap at 0.95 killed 5% of full-weight paths and added
+      // variance at every depth; uncapped, a path is only gambled once its weight has dropped.
+      const float q = std::min(independent ? 0.95f : 1.0f, std::max(beta.x, std::max(beta.y, beta.z)));
+      if (!(q > 0.0f)) break;
+      if (q < 1.0f) {
+        if (u_lobe_roulette.y >= q) break;
+        beta /= q;
+      }
     }
     ray = spawn_ray(s.p, s.ng, bs.wi);
   }

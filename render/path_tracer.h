@@ -10,8 +10,20 @@
 // an environment hit after a BRDF bounce carries the complementary weight. Russian roulette
 // from `roulette_depth` bounces on keeps long paths unbiased. With environment_sampling off,
 // only BRDF sampling is used (the baseline of `streetlight-bench render`).
-// Determinism: each random number is uniform01f(seed, pixel index, counter) with the counter a
-// fixed function of (sample, bounce, use), so images are bitwise identical for any thread count.
+// Sample patterns (issue 19; `estimator`):
+//   Stratified (default): every 2D decision of a path — the sub-pixel position, and at each
+//     bounce the environment sample, the BRDF direction, the (lobe choice, roulette) pair — is
+//     its own Owen-scrambled Sobol pattern (render/qmc_sampler.h), so the first 2^m samples of
+//     a pixel are stratified in each of them. The environment is sampled ∝ its bilinear
+//     lookup (EnvironmentMap::sample_bilinear), so a sun costs almost no variance. Russian
+//     roulette survives with probability min(1, max throughput): a path that still carries
+//     full weight is never killed.
+//   Independent: the estimator before issue 19, kept for reproducible comparisons: independent
+//     uniform01f(seed, pixel, counter) numbers, the texel environment sampler
+//     (EnvironmentMap::sample), survival probability capped at 0.95.
+// Both are unbiased and estimate the same image; they differ in noise.
+// Determinism: every random number is a pure function of (seed, pixel index, sample, bounce,
+// use), so images are bitwise identical for any thread count.
 //
 // Requires: the Mesh and EnvironmentMap outlive the PathTracer (it keeps references) and the
 // Mesh passes validate(); the map is non-empty. Options are validated before any parallel
@@ -41,8 +53,16 @@ inline constexpr uint64_t kBounceDims = 6;  // environment sample 2, BRDF sample
 constexpr uint64_t stride(int max_depth) { return kPixelDims + kBounceDims * (max_depth + 1); }
 }  // namespace path_random
 
+enum class PathEstimator { Stratified, Independent };
+
 struct PathTracerOptions {
   int spp = 16;              // samples per pixel (jittered inside the pixel)
+  // render() computes samples [sample_offset, sample_offset + spp) of each pixel and returns
+  // their mean: successive calls with offsets 0, n, 2n, ... continue one stratified sequence
+  // (progressive rendering; average the passes weighted by their spp).
+  int64_t sample_offset = 0;
+  PathEstimator estimator = PathEstimator::Stratified;
+  bool exact_fresnel = false;  // disney::Params::exact_fresnel for every material
   int max_depth = 8;         // surface interactions per path; 1 = direct lighting only
   int roulette_depth = 3;    // Russian roulette applies after this many bounces
   uint64_t seed = 0;
@@ -80,6 +100,10 @@ class PathTracer {
     glm::vec3 normal{0.0f};    // shading normal facing the ray origin
   };
   PrimaryHit first_hit(const glm::vec3& origin, const glm::vec3& direction) const;
+
+  // The sub-pixel position in [0, 1)² of sample `sample` of pixel `stream` (the first two
+  // random dimensions of the path), for image loops outside render() (e.g. panoramas).
+  static glm::vec2 pixel_jitter(uint64_t stream, uint64_t sample, const PathTracerOptions& options);
 
   static void validate(const PathTracerOptions& options);
 

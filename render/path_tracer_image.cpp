@@ -30,7 +30,6 @@ PathTracerImage PathTracer::render(const Camera& camera, const PathTracerOptions
   float* mask = out.mask.data<float>();
   const size_t plane = static_cast<size_t>(H) * W;
   const glm::dvec3 forward = camera.rotation()[2];  // camera +z in world coordinates
-  const uint64_t stride = path_random::stride(options.max_depth);
   std::vector<int64_t> row_nonfinite(H, 0);
 
   // Rows are independent and every random number is keyed by (pixel, counter), so the
@@ -41,11 +40,10 @@ PathTracerImage PathTracer::render(const Camera& camera, const PathTracerOptions
       const uint64_t pixel = static_cast<uint64_t>(row) * W + col;
       const size_t o = pixel;
       glm::dvec3 sum(0.0);
-      for (int s = 0; s < options.spp; ++s) {
-        const uint64_t c = static_cast<uint64_t>(s) * stride;
-        const double u = col + uniform01f(options.seed, pixel, c);
-        const double v = row + uniform01f(options.seed, pixel, c + 1);
-        const sl::CameraRay r = camera.ray(u, v);
+      for (int k = 0; k < options.spp; ++k) {
+        const uint64_t s = static_cast<uint64_t>(options.sample_offset) + k;
+        const glm::vec2 jitter = pixel_jitter(pixel, s, options);
+        const sl::CameraRay r = camera.ray(col + double(jitter.x), row + double(jitter.y));
         const glm::vec3 L = radiance(glm::vec3(r.origin), glm::vec3(r.direction), pixel, s, options);
         if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z))
           sum += glm::dvec3(L);

@@ -321,3 +321,57 @@ TEST(DisneyBrdf, ScalarTermsAreFiniteAtTheirLimits) {
 }
 
 }  // namespace
+
+namespace {
+
+// Exact dielectric Fresnel (issue 19), against closed forms: at normal incidence
+// ((η − 1)/(η + 1))², at grazing incidence 1, and at 60° for η = 1.5 the mean of
+// Fresnel's s- and p-reflectances written out from Snell's law.
+TEST(DisneyBrdf, ExactFresnelMatchesFresnelsEquations) {
+  EXPECT_NEAR(disney::fresnel_dielectric(1.0f, 1.5f), 0.04f, 1e-6f);
+  EXPECT_NEAR(disney::fresnel_dielectric(0.0f, 1.5f), 1.0f, 1e-6f);
+  EXPECT_NEAR(disney::ior_from_f0(0.04f), 1.5f, 1e-5f);
+  const double eta = 1.5, ci = 0.5, si = std::sqrt(1 - ci * ci), st = si / eta, ct = std::sqrt(1 - st * st);
+  const double rs = (ci - eta * ct) / (ci + eta * ct), rp = (eta * ci - ct) / (eta * ci + ct);
+  EXPECT_NEAR(disney::fresnel_dielectric(0.5f, 1.5f), 0.5 * (rs * rs + rp * rp), 1e-6);
+  // Total internal reflection from the dense side.
+  EXPECT_EQ(disney::fresnel_dielectric(0.1f, 1.0f / 1.5f), 1.0f);
+  // The normalised weight runs from 0 at normal incidence to 1 at grazing, like Schlick's.
+  EXPECT_NEAR(disney::fresnel_weight(1.0f, 0.04f, true), 0.0f, 1e-6f);
+  EXPECT_NEAR(disney::fresnel_weight(0.0f, 0.04f, true), 1.0f, 1e-6f);
+  for (float c = 0.0f; c <= 1.0f; c += 0.05f) {
+    const float w = disney::fresnel_weight(c, 0.04f, true);
+    EXPECT_TRUE(w >= 0.0f && w <= 1.0f) << c;
+    EXPECT_NEAR(w, disney::schlick_weight(c), 0.06f) << c;  // Schlick approximates this curve
+  }
+}
+
+// With exact Fresnel the BRDF stays reciprocal, finite, and differs from Schlick only in its
+// specular lobes: a pure diffuse-free, coat-free dielectric at 60° shows the closed-form ratio.
+TEST(DisneyBrdf, ExactFresnelOptionIsReciprocalAndChangesOnlyTheFresnelTerm) {
+  for (uint64_t i = 0; i < 500; ++i) {
+    disney::Params p;
+    p.base_color = glm::vec3(sl::uniform01f(9, i, 10), sl::uniform01f(9, i, 11), sl::uniform01f(9, i, 12));
+    p.metallic = sl::uniform01f(9, i, 13);
+    p.roughness = sl::uniform01f(9, i, 14);
+    p.clearcoat = sl::uniform01f(9, i, 18);
+    p.exact_fresnel = true;
+    const glm::vec3 a = random_hemisphere(10, i), b = random_hemisphere(11, i);
+    const glm::vec3 fab = disney::eval(p, kUp, a, b), fba = disney::eval(p, kUp, b, a);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_TRUE(std::isfinite(fab[k]));
+      EXPECT_NEAR(fab[k], fba[k], 1e-4f * std::max(1.0f, std::abs(fab[k]))) << i;
+    }
+  }
+  // Black dielectric (no diffuse), mirror direction at 60°: f ∝ F(l·h) with l·h = cos 60°.
+  disney::Params p = white(0.0f, 0.3f, 0.5f, 0.0f);
+  p.base_color = glm::vec3(0.0f);
+  const glm::vec3 wo = view_at(kPi / 3), wi(-wo.x, -wo.y, wo.z);
+  const float schlick = disney::eval(p, kUp, wo, wi).g;
+  p.exact_fresnel = true;
+  const float exact = disney::eval(p, kUp, wo, wi).g;
+  const float f0 = 0.04f;
+  EXPECT_NEAR(exact / schlick, disney::fresnel_dielectric(0.5f, 1.5f) / disney::schlick_fresnel(f0, 0.5f), 1e-4f);
+}
+
+}  // namespace

@@ -4,6 +4,7 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "autodiff/buffer_cache.h"
 #include "autodiff/random.h"
 #include "autodiff/strided.h"
 #include "autodiff/tape.h"
@@ -58,8 +59,9 @@ static std::atomic<int64_t> g_live_bytes{0};
 static std::atomic<int64_t> g_peak_bytes{0};
 
 Storage::Storage(size_t bytes) : bytes_(bytes) {
-  const size_t rounded = ((bytes + 63) / 64) * 64;
-  data_ = std::aligned_alloc(64, rounded == 0 ? 64 : rounded);
+  const Buffer b = acquire_buffer(bytes);
+  data_ = b.data;
+  capacity_ = b.capacity;
   if (!data_) fail("out of memory allocating ", bytes, " bytes");
   const int64_t now = g_live_bytes += static_cast<int64_t>(bytes_);
   int64_t peak = g_peak_bytes.load(std::memory_order_relaxed);
@@ -68,7 +70,7 @@ Storage::Storage(size_t bytes) : bytes_(bytes) {
 }
 
 Storage::~Storage() {
-  std::free(data_);
+  release_buffer({data_, capacity_});
   g_live_bytes -= static_cast<int64_t>(bytes_);
 }
 

@@ -40,8 +40,9 @@ using Shape = std::vector<int64_t>;
 int64_t shape_numel(const Shape& shape);
 Shape contiguous_strides(const Shape& shape);
 
-// A 64-byte aligned byte buffer. live_bytes() counts every live Storage in the process, which
-// lets tests prove that memory returns to its level from before a forward pass.
+// A 64-byte aligned byte buffer (from autodiff/buffer_cache.h: buffers of 1 MiB and more are
+// reused after release). live_bytes() counts every live Storage in the process (never the
+// cache), which lets tests prove that memory returns to its level from before a forward pass.
 class Storage {
  public:
   explicit Storage(size_t bytes);
@@ -58,6 +59,7 @@ class Storage {
  private:
   void* data_ = nullptr;
   size_t bytes_ = 0;
+  size_t capacity_ = 0;
 };
 
 struct Node;

@@ -3,7 +3,9 @@
 #include <cmath>
 
 #include "autodiff/map.h"
+#include "autodiff/parallel.h"
 #include "autodiff/tape.h"
+#include "autodiff/vector_math.h"
 
 namespace sl {
 namespace {
@@ -13,6 +15,45 @@ using detail::map_n;
 template <class Fwd, class Bwd>
 Tensor unary(const char* op, const Tensor& x, Fwd fwd, Bwd bwd) {
   Tensor y = map_n(op, fwd, x);
+  if (needs_grad({x})) {
+    const Tensor xd = x.detach(), yd = y.detach();
+    record(op, {x}, {y}, [=](const TensorList& g) { return TensorList{map_n(op, bwd, g[0], xd, yd)}; });
+  }
+  return y;
+}
+
+// Elements per parallel chunk of the vectorised paths (fixed: results never depend on threads).
+constexpr int64_t kVectorGrain = 32768;
+
+// Float32 contiguous operands go through the vectorised kernels of vector_math.h (one chunk per
+// kVectorGrain elements); other dtypes and layouts through map_n with libm.
+template <class Vec, class Scalar>
+Tensor map_vm(const char* op, const Tensor& x, Vec vec, Scalar scalar) {
+  if (x.dtype() != DType::F32 || !x.is_contiguous()) return map_n(op, scalar, x);
+  Tensor y = Tensor::empty(x.shape(), DType::F32);
+  const float* px = x.data<float>();
+  float* py = y.data<float>();
+  parallel_for(x.numel(), kVectorGrain, [&](int64_t b, int64_t e) { vec(px + b, py + b, e - b); });
+  return y;
+}
+
+// Same for a binary kernel dx = vec(g, x).
+template <class Vec, class Scalar>
+Tensor map_vm2(const char* op, const Tensor& g, const Tensor& x, Vec vec, Scalar scalar) {
+  if (g.dtype() != DType::F32 || x.dtype() != DType::F32 || !g.is_contiguous() || !x.is_contiguous() ||
+      g.shape() != x.shape())
+    return map_n(op, scalar, g, x);
+  Tensor y = Tensor::empty(x.shape(), DType::F32);
+  const float *pg = g.data<float>(), *px = x.data<float>();
+  float* py = y.data<float>();
+  parallel_for(x.numel(), kVectorGrain, [&](int64_t b, int64_t e) { vec(pg + b, px + b, py + b, e - b); });
+  return y;
+}
+
+// unary() with a vectorised float32 forward.
+template <class Vec, class Fwd, class Bwd>
+Tensor unary_vm(const char* op, const Tensor& x, Vec vec, Fwd fwd, Bwd bwd) {
+  Tensor y = map_vm(op, x, vec, fwd);
   if (needs_grad({x})) {
     const Tensor xd = x.detach(), yd = y.detach();
     record(op, {x}, {y}, [=](const TensorList& g) { return TensorList{map_n(op, bwd, g[0], xd, yd)}; });
@@ -33,11 +74,13 @@ Tensor neg(const Tensor& x) {
 }
 
 Tensor exp(const Tensor& x) {
-  return unary("exp", x, [](auto v) { return std::exp(v); }, [](auto g, auto, auto y) { return g * y; });
+  return unary_vm("exp", x, vm::exp, [](auto v) { return std::exp(v); },
+                  [](auto g, auto, auto y) { return g * y; });
 }
 
 Tensor log(const Tensor& x) {
-  return unary("log", x, [](auto v) { return std::log(v); }, [](auto g, auto v, auto) { return g / v; });
+  return unary_vm("log", x, vm::log, [](auto v) { return std::log(v); },
+                  [](auto g, auto v, auto) { return g / v; });
 }
 
 Tensor log1p(const Tensor& x) {
@@ -64,15 +107,28 @@ Tensor abs(const Tensor& x) {
                [](auto g, auto v, auto) { return v > 0 ? g : (v < 0 ? -g : SL_T(0)); });
 }
 
+// Backward: p·x^(p-1) with x^(p-1) vectorised in float32 (pow_vm), g multiplied after.
 Tensor pow_scalar(const Tensor& x, double p) {
-  return unary("pow_scalar", x, [p](auto v) { return std::pow(v, static_cast<decltype(v)>(p)); },
-               [p](auto g, auto v, auto) {
-                 using T = SL_T;
-                 if (p == 0.0) return T(0);
-                 if (p == 1.0) return g;
-                 if (p == 2.0) return T(2) * g * v;
-                 return g * static_cast<T>(p) * std::pow(v, static_cast<T>(p - 1.0));
-               });
+  const auto fwd = [p](auto v) { return std::pow(v, static_cast<decltype(v)>(p)); };
+  const auto pow_vm = [](double q) {
+    return [qf = static_cast<float>(q)](const float* a, float* b, int64_t n) { vm::pow(a, qf, b, n); };
+  };
+  Tensor y = map_vm("pow_scalar", x, pow_vm(p), fwd);
+  if (needs_grad({x})) {
+    const Tensor xd = x.detach();
+    record("pow_scalar", {x}, {y}, [=](const TensorList& g) {
+      if (p == 0.0) return TensorList{map_n("pow_scalar", [](auto gv) { return decltype(gv)(0); }, g[0])};
+      if (p == 1.0) return TensorList{g[0]};
+      if (p == 2.0)
+        return TensorList{map_n("pow_scalar", [](auto gv, auto v) { return decltype(gv)(2) * gv * v; }, g[0], xd)};
+      const Tensor xpm1 = map_vm("pow_scalar", xd, pow_vm(p - 1.0), [p](auto v) {
+        return std::pow(v, static_cast<decltype(v)>(p - 1.0));
+      });
+      return TensorList{map_n(
+          "pow_scalar", [p](auto gv, auto q) { return gv * static_cast<decltype(gv)>(p) * q; }, g[0], xpm1)};
+    });
+  }
+  return y;
 }
 
 Tensor clamp(const Tensor& x, double lo, double hi) {
@@ -102,8 +158,8 @@ Tensor elu(const Tensor& x, double alpha) {
 }
 
 Tensor sigmoid(const Tensor& x) {
-  return unary(
-      "sigmoid", x,
+  return unary_vm(
+      "sigmoid", x, vm::sigmoid,
       [](auto v) {
         using T = decltype(v);
         if (v >= 0) return T(1) / (T(1) + std::exp(-v));
@@ -114,19 +170,24 @@ Tensor sigmoid(const Tensor& x) {
 }
 
 Tensor softplus(const Tensor& x) {
-  return unary(
-      "softplus", x,
-      [](auto v) { return (v > 0 ? v : decltype(v)(0)) + std::log1p(std::exp(-std::abs(v))); },
-      [](auto g, auto v, auto) {
-        using T = SL_T;
+  Tensor y = map_vm("softplus", x, vm::softplus,
+                    [](auto v) { return (v > 0 ? v : decltype(v)(0)) + std::log1p(std::exp(-std::abs(v))); });
+  if (needs_grad({x})) {
+    const Tensor xd = x.detach();
+    record("softplus", {x}, {y}, [=](const TensorList& g) {
+      return TensorList{map_vm2("softplus", g[0], xd, vm::softplus_backward, [](auto gv, auto v) {
+        using T = decltype(gv);
         const T s = v >= 0 ? T(1) / (T(1) + std::exp(-v)) : std::exp(v) / (T(1) + std::exp(v));
-        return g * s;
-      });
+        return gv * s;
+      })};
+    });
+  }
+  return y;
 }
 
 Tensor tanh(const Tensor& x) {
-  return unary("tanh", x, [](auto v) { return std::tanh(v); },
-               [](auto g, auto, auto y) { return g * (SL_T(1) - y * y); });
+  return unary_vm("tanh", x, vm::tanh, [](auto v) { return std::tanh(v); },
+                  [](auto g, auto, auto y) { return g * (SL_T(1) - y * y); });
 }
 
 Tensor sin(const Tensor& x) {

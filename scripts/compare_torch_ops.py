@@ -3,7 +3,7 @@
 
 Usage (Debian's python3-torch; the pyenv `python3` on PATH has no torch):
   /usr/bin/python3 scripts/compare_torch_ops.py [build/tools/streetlight-bench] [--threads 2]
-      [--repeat 5] [--rounds 3] [--skip-networks] [--ours-networks-cmd "CMD"]
+      [--repeat 5] [--rounds 3] [--skip-networks] [--skip-train] [--ours-networks-cmd "CMD"]
 
 Runs the four benchmark convolutions in PyTorch with torch.set_num_threads(threads), then
 `streetlight-bench conv --json` with OMP_NUM_THREADS=threads in the same invocation, and prints
@@ -13,10 +13,13 @@ counts three passes. Both sides report the best of `repeat` runs after a warm-up
 sides alternate for `rounds` rounds (best kept), so that a burst of load from other processes
 does not fall on one side only.
 
-Networks: a ResNet-18 (BasicBlock, batch 4×3×128×256) and a UNet3D (base 16, 3 levels,
-1×16×64×64×16) forward+backward are timed in PyTorch. HOOK for ours: --ours-networks-cmd runs a
-command that prints JSON lines {"network": "resnet18" | "unet3d", "ms": ...}; without it the
-table shows PyTorch only.
+Then the autodiff core (`streetlight-bench ops`: matmul, the elementwise chain
+tanh(exp(x/2)·σ(x)+x) on 16M floats forward and forward+backward), the networks (a ResNet-18,
+BasicBlock, batch 4×3×128×256, and a UNet3D, base 16, 3 levels, 1×16×64×64×16, forward+backward;
+ours from `streetlight-bench networks --json` or --ours-networks-cmd) and the default lighting
+predictor's AdamW training step (scripts/compare_torch_train.py's two sides). Every part runs in
+each round, torch and ours back to back, and the last lines print every PyTorch row of issue 16's
+table with its ratio.
 """
 import argparse
 import json
@@ -194,6 +197,16 @@ def ours_core_ops(bench, threads):
     return rows
 
 
+def best_rows(rows_list, key_ms):
+    """Per key, the row with the smallest time over all rounds."""
+    best = {}
+    for rows in rows_list:
+        for key, r in rows.items():
+            if key not in best or key_ms(r) < key_ms(best[key]):
+                best[key] = r
+    return best
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("bench", nargs="?", default=os.path.join(ROOT, "build", "tools", "streetlight-bench"))
@@ -201,23 +214,41 @@ def main():
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--rounds", type=int, default=3, help="alternating torch/ours rounds; best of all kept")
     ap.add_argument("--skip-networks", action="store_true")
+    ap.add_argument("--skip-train", action="store_true", help="leave out the predictor training step")
     ap.add_argument("--ours-networks-cmd", default=None,
-                    help="command printing JSON lines {\"network\": ..., \"ms\": ...} for our networks")
+                    help="command printing JSON lines {\"network\": ..., \"ms\": ...} for our networks "
+                         "(default: BENCH networks --json)")
     args = ap.parse_args()
     if not os.path.exists(args.bench):
         print(f"error: benchmark executable not found: {args.bench}", file=sys.stderr)
         return 2
+    if args.threads < 1 or args.rounds < 1 or args.repeat < 1:
+        print("error: --threads, --rounds and --repeat must be >= 1", file=sys.stderr)
+        return 2
     torch.set_num_threads(args.threads)
-    print(f"# torch {torch.__version__}, {args.threads} threads; ours: {args.bench} conv --json", file=sys.stderr)
+    networks_cmd = args.ours_networks_cmd or f"env OMP_NUM_THREADS={args.threads} {shlex.quote(args.bench)} networks --json"
+    build = os.path.dirname(os.path.dirname(os.path.abspath(args.bench)))
+    print(f"# torch {torch.__version__}, {args.threads} threads, {args.rounds} interleaved rounds; ours: {args.bench}",
+          file=sys.stderr)
     # Alternate the two sides for several rounds and keep each side's best, so that load from
     # other processes during one side's turn does not bias the ratio.
-    theirs, ours = {}, {}
+    rounds = {k: [] for k in ("tconv", "oconv", "tcore", "ocore", "tnet", "onet", "ttrain", "otrain")}
     for _ in range(args.rounds):
-        for side, rows in ((theirs, torch_conv(args.repeat)), (ours, ours_conv(args.bench, args.threads))):
-            for key, r in rows.items():
-                if key not in side or r["ms"] < side[key]["ms"]:
-                    side[key] = r
+        rounds["tconv"].append(torch_conv(args.repeat))
+        rounds["oconv"].append(ours_conv(args.bench, args.threads))
+        rounds["tcore"].append(torch_core_ops(args.repeat))
+        rounds["ocore"].append(ours_core_ops(args.bench, args.threads))
+        if not args.skip_networks:
+            rounds["tnet"].append(torch_networks(args.repeat))
+            rounds["onet"].append(ours_networks(networks_cmd))
+        if not args.skip_train:
+            import compare_torch_train as ctt  # noqa: E402 (imports torch mirrors of the predictor)
+            rounds["ttrain"].append({"step": ctt.torch_step_ms(2, 1)})
+            rounds["otrain"].append({"step": ctt.ours_step(build, 2, args.threads)["ms"]})
+    theirs = best_rows(rounds["tconv"], lambda r: r["ms"])
+    ours = best_rows(rounds["oconv"], lambda r: r["ms"])
 
+    summary = []  # (issue table row, ratio)
     print(f"{'op':28s} {'pass':17s} {'torch ms':>9s} {'torch GF/s':>10s} {'ours ms':>9s} {'ours GF/s':>10s} {'ratio':>6s}")
     ratios = {"forward": [], "forward_backward": []}
     for name, *_ in SHAPES:
@@ -230,27 +261,46 @@ def main():
             ratios[pass_name].append(ratio)
             print(f"{name:28s} {pass_name:17s} {t['ms']:9.2f} {t['gflops']:10.1f} {o['ms']:9.2f} "
                   f"{o['gflops']:10.1f} {ratio:6.2f}")
+            if pass_name == "forward_backward":
+                summary.append((f"conv forward+backward, {name}", ratio))
     for pass_name, rs in ratios.items():
         if rs:
             gm = math.exp(sum(math.log(r) for r in rs) / len(rs))
             print(f"geometric mean ratio ({pass_name}): {gm:.2f}   min {min(rs):.2f}")
+            if pass_name == "forward_backward":
+                summary.insert(0, ("conv forward+backward, geomean of the 4 shapes", gm))
 
     print(f"\n{'autodiff op':28s} {'pass':17s} {'torch ms':>9s} {'torch G/s':>10s} {'ours ms':>9s} {'ours G/s':>10s} {'ratio':>6s}")
-    tc, oc = torch_core_ops(args.repeat), ours_core_ops(args.bench, args.threads)
+    tc = best_rows(rounds["tcore"], lambda r: r[1])
+    oc = best_rows(rounds["ocore"], lambda r: r[1])
     for key, (tg, tms) in tc.items():
         if key in oc:
             og, oms = oc[key]
             print(f"{key[0]:28s} {key[1]:17s} {tms:9.2f} {tg:10.2f} {oms:9.2f} {og:10.2f} {og / tg:6.2f}")
+            if key[0] == "elementwise_chain":
+                summary.append((f"elementwise chain tanh(exp(x/2)*sigmoid(x)+x), {key[1].replace('_', '+')}", og / tg))
 
     if not args.skip_networks:
-        nets = torch_networks(args.repeat)
-        mine = ours_networks(args.ours_networks_cmd) if args.ours_networks_cmd else {}
+        nets = best_rows(rounds["tnet"], lambda ms: ms)
+        mine = best_rows(rounds["onet"], lambda ms: ms)
         print(f"\n{'network (fwd+bwd)':28s} {'torch ms':>9s} {'ours ms':>9s} {'ratio':>6s}")
         for name, ms in nets.items():
             if name in mine:
                 print(f"{name:28s} {ms:9.1f} {mine[name]:9.1f} {ms / mine[name]:6.2f}")
+                summary.append((f"{name} forward+backward", ms / mine[name]))
             else:
-                print(f"{name:28s} {ms:9.1f} {'-':>9s}   (ours: pass --ours-networks-cmd)")
+                print(f"{name:28s} {ms:9.1f} {'-':>9s}   (ours missing)")
+    if not args.skip_train:
+        t = min(r["step"] for r in rounds["ttrain"])
+        o = min(r["step"] for r in rounds["otrain"])
+        print(f"\n{'predictor AdamW step (b=2)':28s} {'torch ms':>9s} {'ours ms':>9s} {'ratio':>6s}")
+        print(f"{'lighting predictor':28s} {t:9.1f} {o:9.1f} {t / o:6.2f}")
+        summary.append(("default predictor AdamW step", t / o))
+
+    print(f"\nissue table (ours against PyTorch {torch.__version__}, {args.threads} threads, best of {args.rounds} "
+          f"interleaved rounds; > 1 means ours is faster)")
+    for row, ratio in summary:
+        print(f"  {row:62s} {ratio:5.2f}x")
     return 0
 
 

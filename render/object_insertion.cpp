@@ -234,9 +234,11 @@ void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
       const Frame frame(g.n);
       const glm::vec3 origin = g.x + ray_epsilon(g.x) * g.n;
       for (int k = 0; k < N; ++k) {
-        const float u1 = uniform01f(light_seed, g.stream, 2 * k), u2 = uniform01f(light_seed, g.stream, 2 * k + 1);
         glm::vec3 l;
         float pdf;
+        const bool split = opt.importance_sampling && n_brdf > 0;
+        const float u1 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k);
+        const float u2 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k + 1);
         if (!opt.importance_sampling) {  // training: cosine-weighted hemisphere
           l = frame.to_world(cosine_hemisphere(u1, u2));
           pdf = cosine_hemisphere_pdf(glm::dot(l, g.n));
@@ -343,6 +345,8 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
       sh.texel_depth[size_t(t)] = float(d);
       const glm::vec3 x(cam.unproject(u, v, d));
       origin[size_t(t)] = x + ray_epsilon(x) * up;
+      // Only rays with d.y > 0 carry weight; a box wholly below the origin meets none of them.
+      if (opt.prune && box.hi.y <= origin[size_t(t)].y) continue;
       bool any = !opt.prune;
       for (int k = 0; k < N && !any; ++k) any = ray_hits_box(origin[size_t(t)], sampler(t, k).first, box);
       needed[size_t(t)] = any ? 1 : 0;  // none can meet the object: S = 1 exactly
@@ -386,30 +390,32 @@ void upsample_taps(const InsertionInputs& in, const InsertionOptions& opt, const
   const int64_t one_row = int64_t(sw) * shh;
   idx.assign(size_t(W) * H * 4, one_row);
   w.assign(size_t(W) * H * 4, 0.0);
-  for (int row = 0; row < H; ++row)
-    for (int col = 0; col < W; ++col) {
-      const int64_t p = int64_t(row) * W + col;
-      const double dp = depth[p];
-      if (!valid_depth(dp)) {
-        w[4 * p] = 1.0;
-        continue;
+  parallel_for(H, 4, [&](int64_t r0, int64_t r1) {
+    for (int row = int(r0); row < int(r1); ++row)
+      for (int col = 0; col < W; ++col) {
+        const int64_t p = int64_t(row) * W + col;
+        const double dp = depth[p];
+        if (!valid_depth(dp)) {
+          w[4 * p] = 1.0;
+          continue;
+        }
+        const double fx = (col + 0.5) * sw / W - 0.5, fy = (row + 0.5) * shh / H - 0.5;
+        const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
+        const double ax = fx - x0, ay = fy - y0;
+        double total = 0;
+        for (int c = 0; c < 4; ++c) {
+          const int x = std::clamp(x0 + (c & 1), 0, sw - 1), y = std::clamp(y0 + (c >> 1), 0, shh - 1);
+          const int64_t t = int64_t(y) * sw + x;
+          const double bil = ((c & 1) ? ax : 1 - ax) * ((c >> 1) ? ay : 1 - ay);
+          const double dt = sh.texel_depth[t];
+          const double sim = dt > 0 ? std::exp(-0.5 * std::pow((dp - dt) / (0.05 * dp), 2)) : 0.0;
+          idx[4 * p + c] = dt > 0 ? t : one_row;
+          w[4 * p + c] = bil * std::max(sim, 1e-12);
+          total += w[4 * p + c];
+        }
+        for (int c = 0; c < 4; ++c) w[4 * p + c] = total > 0 ? w[4 * p + c] / total : (c == 0 ? 1.0 : 0.0);
       }
-      const double fx = (col + 0.5) * sw / W - 0.5, fy = (row + 0.5) * shh / H - 0.5;
-      const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
-      const double ax = fx - x0, ay = fy - y0;
-      double total = 0;
-      for (int c = 0; c < 4; ++c) {
-        const int x = std::clamp(x0 + (c & 1), 0, sw - 1), y = std::clamp(y0 + (c >> 1), 0, shh - 1);
-        const int64_t t = int64_t(y) * sw + x;
-        const double bil = ((c & 1) ? ax : 1 - ax) * ((c >> 1) ? ay : 1 - ay);
-        const double dt = sh.texel_depth[t];
-        const double sim = dt > 0 ? std::exp(-0.5 * std::pow((dp - dt) / (0.05 * dp), 2)) : 0.0;
-        idx[4 * p + c] = dt > 0 ? t : one_row;
-        w[4 * p + c] = bil * std::max(sim, 1e-12);
-        total += w[4 * p + c];
-      }
-      for (int c = 0; c < 4; ++c) w[4 * p + c] = total > 0 ? w[4 * p + c] / total : (c == 0 ? 1.0 : 0.0);
-    }
+  });
 }
 
 // The radiance cache of the header: V = Σ τ α G and τ_K per probe and direction, read
@@ -428,7 +434,7 @@ class RadianceCache {
     lo_ = lo;
     for (int a = 0; a < 3; ++a) {
       const float ext = std::max(0.0f, hi[a] - lo[a]);
-      n_[a] = std::clamp(int(std::ceil(ext / opt.cache_spacing_m)) + 1, 2, 6);
+      n_[a] = std::clamp(int(std::ceil(ext / opt.cache_spacing_m)) + 1, 2, a == 1 ? 3 : 4);
       step_[a] = ext > 0 ? ext / float(n_[a] - 1) : 1.0f;
     }
     const int64_t D = int64_t(H_) * W_, P = int64_t(n_[0]) * n_[1] * n_[2];
@@ -538,9 +544,17 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   const int64_t HW = int64_t(W) * H;
   InsertionResult out;
 
-  Mesh mesh;
-  for (const PlacedObject& o : in.objects) mesh.append(o.mesh);
-  const Bvh bvh(mesh);
+  // One object: its own BVH, built once by place_object() and reused across calls.
+  Mesh merged;
+  std::shared_ptr<const Bvh> own;
+  if (in.objects.size() == 1 && in.objects[0].bvh) {
+    own = in.objects[0].bvh;
+  } else {
+    for (const PlacedObject& o : in.objects) merged.append(o.mesh);
+    own = std::make_shared<const Bvh>(merged);
+  }
+  const Mesh& mesh = in.objects.size() == 1 && in.objects[0].bvh ? in.objects[0].mesh : merged;
+  const Bvh& bvh = *own;
   const Tensor depth_t = in.depth.detach().to(DType::F64).contiguous();
   const double* depth = depth_t.data<double>();
   const EnvironmentMap env_map(in.env.detach());

@@ -32,8 +32,8 @@
 // independent cosine samples of the paper.
 // Radiance cache (radiance_cache, inference): Eq. 1 splits into the volume's own radiance
 // V(x, l) = Σ τ α G and its transmittance τ_K(x, l), with L = V + τ_K L_env(l). V and τ_K are
-// queried once per probe (a grid of at most 6³ points over the origins of the light and shadow
-// rays, cache_spacing_m apart) and direction (cache_height × cache_width texel centres); a ray
+// queried once per probe (a grid of at most 4×3×4 points (x, y, z) over the origins of the light
+// and shadow rays, cache_spacing_m apart or sparser) and direction (cache_height × cache_width texel centres); a ray
 // reads them trilinearly in position and bilinearly in direction, and L_env(l) exactly, so a
 // sun in the sky keeps its full sharpness. Error against exact queries: streetlight-bench insert.
 // Lean: shadows are computed only inside the screen-space region the object can shadow (its
@@ -91,7 +91,7 @@ struct InsertionOptions {
   // volume through probes instead of each marching it (see "Radiance cache" above).
   bool radiance_cache = false;
   int cache_height = 32, cache_width = 64;  // probe directions (equirect texel centres)
-  double cache_spacing_m = 2.0;             // probe spacing over the rays' origins (≤ 6 per axis)
+  double cache_spacing_m = 2.0;             // probe spacing over the rays' origins (≤ 4 per axis, 3 vertically)
 };
 
 struct InsertionStats {

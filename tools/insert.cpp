@@ -7,6 +7,7 @@
 //   composite.png (+ composite.exr with --exr), object_mask.png, shadow_map.png, sky.exr,
 //   sky.png (tone-mapped, world azimuths), depth.exr (the depth used), result.json (sun, placement,
 //   boxes, KITTI label line, timings), label.txt (the KITTI line).
+// Batch mode writes a KITTI folder in place, frame by frame (see batch() below), and resumes.
 #include <algorithm>
 #include <csignal>
 #include <cmath>

@@ -321,7 +321,7 @@ Mesh raised_car() {
 // renders the ground with and without the car, direct light only (max_depth 1), which is Eq. 4
 // with I_a = 0; the insertion runs its inference sampling with I_a = 0.
 TEST(ObjectInsertion, ContactShadowUnderACarMatchesThePathTracer) {
-  const int W = 160, H = 96;
+  const int W = 120, H = 72;
   const GroundScene s = ground_scene(W, H, DType::F32, -20.0);
   const Tensor env = sun_sky(64, 32, 2000.0, DType::F32, 8, 0);  // azimuth 180°: behind the camera
   Material ground_mat;
@@ -333,7 +333,7 @@ TEST(ObjectInsertion, ContactShadowUnderACarMatchesThePathTracer) {
   full.append(car.mesh);
   const EnvironmentMap env_map(env);
   PathTracerOptions pt;
-  pt.spp = 256;
+  pt.spp = 128;
   pt.max_depth = 1;
   pt.lambertian = true;
   const Tensor without = PathTracer(ground, env_map).render(s.camera, pt).radiance;
@@ -364,7 +364,7 @@ TEST(ObjectInsertion, ContactShadowUnderACarMatchesThePathTracer) {
     darkest = std::min(darkest, ratio);
     ++n;
   }
-  ASSERT_GT(n, 40) << "the car darkens too few ground pixels";
+  ASSERT_GT(n, 30) << "the car darkens too few ground pixels";
   EXPECT_LT(darkest, 0.8) << "the sky occlusion under the car is visible";
   std::fprintf(stderr, "contact region %d px: insertion / path tracer = %.4f\n", n, ins / ref);
   EXPECT_NEAR(ins / ref, 1.0, 0.10);

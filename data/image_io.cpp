@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdio>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -69,7 +70,51 @@ OpenedInput open_input(const std::string& path, const char* op) {
   return r;
 }
 
-// Reads all channels interleaved as `type`; fails with the reader's message on damaged data.
+// Collects what is written to file descriptor 2 while alive. libpng's default error handler
+// prints "libpng error: ..." straight to stderr, and OpenImageIO prints any error still
+// pending when a reader is destroyed; a damaged file must give the caller ONE line, so the
+// reader's output is collected and handed back (put into the error, or passed on when the
+// read succeeds). The descriptor is process-wide: output of other threads during the read is
+// collected too, and passed on.
+class StderrCapture {
+ public:
+  StderrCapture() {
+    std::fflush(stderr);
+    file_ = std::tmpfile();
+    saved_ = file_ ? ::dup(STDERR_FILENO) : -1;
+    if (saved_ >= 0) ::dup2(::fileno(file_), STDERR_FILENO);
+  }
+  ~StderrCapture() { finish(); }
+  std::string finish() {
+    std::string text;
+    if (saved_ < 0) return text;
+    std::fflush(stderr);
+    ::dup2(saved_, STDERR_FILENO);
+    ::close(saved_);
+    saved_ = -1;
+    std::rewind(file_);
+    char buf[1024];
+    size_t got;
+    while ((got = std::fread(buf, 1, sizeof buf, file_)) > 0) text.append(buf, got);
+    std::fclose(file_);
+    file_ = nullptr;
+    return text;
+  }
+
+ private:
+  std::FILE* file_ = nullptr;
+  int saved_ = -1;
+};
+
+std::string one_line(std::string s) {
+  for (char& c : s)
+    if (c == '\n' || c == '\r') c = ' ';
+  while (!s.empty() && s.back() == ' ') s.pop_back();
+  return s;
+}
+
+// Reads all channels interleaved as `type`; fails with the reader's message on damaged data,
+// as one line (every message of the reader and of libpng is collected into it).
 template <class T>
 std::vector<T> read_pixels(OpenedInput& f, OIIO::TypeDesc type, const std::string& path,
                            const char* op) {
@@ -78,13 +123,20 @@ std::vector<T> read_pixels(OpenedInput& f, OIIO::TypeDesc type, const std::strin
            f.spec.height, "x", f.spec.nchannels, " values, above the limit of ", kMaxImageValues,
            " (corrupt or hostile header?)");
   std::vector<T> buf(n);
+  StderrCapture capture;
   const bool ok = f.in->read_image(0, 0, 0, f.spec.nchannels, type, buf.data());
   std::string message = f.in->geterror();
   const bool closed = f.in->close();
-  if (message.empty()) message = f.in->geterror();
-  SL_CHECK(ok && closed && message.empty(), op, ": '", path,
-           "': truncated or corrupt image data: ", message.empty() ? "read failed" : message);
-  return buf;
+  const std::string on_close = f.in->geterror();  // retrieved, so nothing is left to print later
+  if (message.empty()) message = on_close;
+  const bool good = ok && closed && message.empty();
+  if (!good) f.in.reset();  // destroyed while collected
+  const std::string printed = capture.finish();
+  if (good) {
+    if (!printed.empty()) std::fputs(printed.c_str(), stderr);
+    return buf;
+  }
+  fail(op, ": '", path, "': truncated or corrupt image data: ", one_line(message.empty() ? "read failed" : message));
 }
 
 void check_size(const OIIO::ImageSpec& spec, int width, int height, const std::string& path,

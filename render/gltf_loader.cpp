@@ -8,6 +8,7 @@
 #include <fstream>
 #include <map>
 #include <set>
+#include <string_view>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
@@ -59,6 +60,16 @@ void check_glb_container(const std::vector<unsigned char>& b, const std::string&
   }
 }
 
+// Compressed geometry makes tinygltf fail with unrelated messages ("Invalid byteLength",
+// "invalid bufferView"), so the JSON text is scanned for the extension names before parsing:
+// a name in quotes is an extension key or an entry of extensionsUsed/extensionsRequired.
+void reject_compression(const char* json, size_t size, const std::string& path) {
+  const std::string_view text(json, size);
+  for (const char* ext : kCompressionExtensions)
+    SL_CHECK(text.find(std::string("\"") + ext + "\"") == std::string_view::npos, "gltf: '", path, "' uses ", ext,
+             ": compressed geometry is not supported (decompress it first, e.g. gltf-transform copy)");
+}
+
 std::string directory_of(const std::string& path) {
   const size_t slash = path.find_last_of('/');
   return slash == std::string::npos ? std::string(".") : path.substr(0, slash);
@@ -106,10 +117,10 @@ class Importer {
     for (const char* ext : kCompressionExtensions) {
       for (const auto& list : {m_.extensionsRequired, m_.extensionsUsed})
         for (const auto& e : list)
-          SL_CHECK(e != ext, "gltf: '", path_, "' uses ", ext, ", compressed geometry is unsupported");
+          SL_CHECK(e != ext, "gltf: '", path_, "' uses ", ext, ": compressed geometry is not supported");
       for (size_t i = 0; i < m_.bufferViews.size(); ++i)
         SL_CHECK(!m_.bufferViews[i].extensions.count(ext), "gltf: '", path_, "' bufferView ", i, " uses ", ext,
-                 ", compressed geometry is unsupported");
+                 ": compressed geometry is not supported");
     }
   }
 
@@ -279,7 +290,7 @@ class Importer {
     const std::string what = cat("mesh ", mesh_index, " primitive ", prim_index);
     for (const char* ext : kCompressionExtensions)
       SL_CHECK(!prim.extensions.count(ext), "gltf: '", path_, "' ", what, " uses ", ext,
-               ", compressed geometry is unsupported");
+               ": compressed geometry is not supported");
     const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
     if (mode < TINYGLTF_MODE_TRIANGLES) assemble(mode, {}, what);  // throws, naming the mode
     const auto pos_it = prim.attributes.find("POSITION");
@@ -428,10 +439,12 @@ Mesh load_gltf(const std::string& path) {
   try {
     if (is_glb) {
       check_glb_container(bytes, path);
+      reject_compression(reinterpret_cast<const char*>(bytes.data()) + 20, read_u32(&bytes[12]), path);
       ok = parser.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(), static_cast<unsigned int>(bytes.size()),
                                        directory_of(path));
     } else {
       SL_CHECK(!bytes.empty(), "gltf: '", path, "' is empty");
+      reject_compression(reinterpret_cast<const char*>(bytes.data()), bytes.size(), path);
       ok = parser.LoadASCIIFromString(&model, &err, &warn, reinterpret_cast<const char*>(bytes.data()),
                                       static_cast<unsigned int>(bytes.size()), directory_of(path));
     }

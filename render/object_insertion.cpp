@@ -10,6 +10,7 @@
 #include "autodiff/ops.h"
 #include "autodiff/parallel.h"
 #include "autodiff/random.h"
+#include "autodiff/tape.h"
 #include "render/disney_brdf.h"
 #include "render/environment_map.h"
 #include "render/equirect.h"
@@ -21,7 +22,48 @@ namespace {
 
 constexpr uint64_t kTagAa = 0xA11A5EEDull, kTagLight = 0x11647ull, kTagShadow = 0x5AD0Eull, kTagChoice = 0xC401CEull;
 
+constexpr uint64_t kTagRotation = 0x2071A7Eull;
+
 bool valid_depth(double d) { return std::isfinite(d) && d > 0.0; }
+
+// The seed of one family of light/shadow samples; lighting_seed = 0 leaves the seeds of
+// earlier versions unchanged (the trainer's bits do not move).
+uint64_t sample_seed(const InsertionOptions& opt, uint64_t tag) {
+  const uint64_t base = hash_counter(opt.seed, tag);
+  return opt.lighting_seed == 0 ? base : hash_counter(base, opt.lighting_seed);
+}
+
+float radical_inverse2(uint32_t i) {
+  i = (i << 16) | (i >> 16);
+  i = ((i & 0x00ff00ffu) << 8) | ((i & 0xff00ff00u) >> 8);
+  i = ((i & 0x0f0f0f0fu) << 4) | ((i & 0xf0f0f0f0u) >> 4);
+  i = ((i & 0x33333333u) << 2) | ((i & 0xccccccccu) >> 2);
+  i = ((i & 0x55555555u) << 1) | ((i & 0xaaaaaaaau) >> 1);
+  return float(i) * 0x1.0p-32f;
+}
+
+float wrap01(float x) {
+  x -= std::floor(x);
+  return x < 1.0f ? x : 0.0f;
+}
+
+// Point j of an m-point Hammersley set, shifted by (r1, r2) modulo 1 (Cranley-Patterson):
+// stratified in both coordinates, and unbiased because the shift is uniform.
+glm::vec2 rotated_hammersley(int j, int m, float r1, float r2) {
+  return {wrap01((float(j) + 0.5f) / float(m) + r1), wrap01(radical_inverse2(uint32_t(j)) + r2)};
+}
+
+// Inference: sample k of n goes to technique 0 (k < n0) or 1, and is point j of its technique's
+// stratified set; the rotation is per stream and technique.
+struct SplitSample {
+  int technique;
+  glm::vec2 u;
+};
+SplitSample split_sample(uint64_t rot_seed, uint64_t stream, int k, int n, int n0) {
+  const int technique = k < n0 ? 0 : 1, j = technique == 0 ? k : k - n0, m = technique == 0 ? n0 : n - n0;
+  const float r1 = uniform01f(rot_seed, stream, 2 * technique), r2 = uniform01f(rot_seed, stream, 2 * technique + 1);
+  return {technique, rotated_hammersley(j, m, r1, r2)};
+}
 
 float ray_epsilon(const glm::vec3& p) { return 1e-3f + 1e-4f * glm::length(p); }
 
@@ -112,6 +154,7 @@ struct Foreground {
   std::vector<int64_t> offsets;  // per pixel, into the light rays
   std::vector<float> weights;    // 3 per light ray: f·cos/pdf / (N·aa), × I_a when self-occluded
   std::vector<float> coverage, depth;  // per image pixel
+  std::vector<float> silhouette;       // per image pixel: coverage before the photo's occlusion
   int light_samples = 0;         // N actually used
 };
 
@@ -133,6 +176,7 @@ std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& 
   stats.foreground_pixels_shaded = r.area();
   fg.coverage.assign(size_t(W) * H, 0.0f);
   fg.depth.assign(size_t(W) * H, 0.0f);
+  fg.silhouette.assign(size_t(W) * H, 0.0f);
   const uint64_t aa_seed = hash_counter(opt.seed, kTagAa);
   std::vector<std::vector<GSample>> rows(size_t(std::max(0, r.y1 - r.y0)));
   parallel_for(int64_t(rows.size()), 1, [&](int64_t b, int64_t e) {
@@ -140,7 +184,7 @@ std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& 
       const int row = r.y0 + int(ri);
       for (int col = r.x0; col < r.x1; ++col) {
         const int64_t pix = int64_t(row) * W + col;
-        int visible = 0;
+        int visible = 0, hits = 0;
         double zsum = 0;
         for (int s = 0; s < opt.aa_samples; ++s) {
           const double u = col + uniform01(aa_seed, uint64_t(pix), 2 * s), v = row + uniform01(aa_seed, uint64_t(pix), 2 * s + 1);
@@ -152,6 +196,7 @@ std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& 
           if (!hit.hit()) continue;
           const glm::vec3 x = ray.origin + hit.t * ray.direction;
           const double z = cam.world_to_camera(glm::dvec3(x)).z;
+          ++hits;
           // Scene geometry nearer than the object hides it: the photo wins.
           if (valid_depth(depth[pix]) && depth[pix] < z * (1.0 - 1e-3)) continue;
           ++visible;
@@ -159,6 +204,7 @@ std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& 
           rows[ri].push_back({pix, uint64_t(pix) * uint64_t(opt.aa_samples) + uint64_t(s), x,
                               shading_normal(mesh, hit, ray.direction), -ray.direction, material_at(mesh, hit)});
         }
+        fg.silhouette[pix] = float(hits) / opt.aa_samples;
         if (visible > 0) {
           fg.coverage[pix] = float(visible) / opt.aa_samples;
           fg.depth[pix] = float(zsum / visible);
@@ -176,7 +222,10 @@ std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& 
 void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
                       const std::vector<GSample>& gs, Foreground& fg, QueryRays& rays) {
   const int N = fg.light_samples;
-  const uint64_t light_seed = hash_counter(opt.seed, kTagLight), choice_seed = hash_counter(opt.seed, kTagChoice);
+  const uint64_t light_seed = sample_seed(opt, kTagLight), choice_seed = sample_seed(opt, kTagChoice);
+  const uint64_t rot_seed = sample_seed(opt, kTagRotation);
+  const int n_brdf = N / 2;  // inference: BRDF samples first, then environment samples
+  const float c_brdf = float(n_brdf) / float(N), c_env = 1.0f - c_brdf;
   fg.weights.assign(gs.size() * size_t(N) * 3, 0.0f);
   const float norm = 1.0f / float(N * opt.aa_samples);
   parallel_for(int64_t(gs.size()), 16, [&](int64_t b, int64_t e) {
@@ -185,18 +234,27 @@ void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
       const Frame frame(g.n);
       const glm::vec3 origin = g.x + ray_epsilon(g.x) * g.n;
       for (int k = 0; k < N; ++k) {
-        const float u1 = uniform01f(light_seed, g.stream, 2 * k), u2 = uniform01f(light_seed, g.stream, 2 * k + 1);
         glm::vec3 l;
         float pdf;
+        const bool split = opt.importance_sampling && n_brdf > 0;
+        const float u1 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k);
+        const float u2 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k + 1);
         if (!opt.importance_sampling) {  // training: cosine-weighted hemisphere
           l = frame.to_world(cosine_hemisphere(u1, u2));
           pdf = cosine_hemisphere_pdf(glm::dot(l, g.n));
-        } else {  // inference: one-sample MIS of BRDF and environment sampling (balance heuristic)
+        } else if (n_brdf == 0) {  // a single sample: one-sample MIS (balance heuristic)
           if (uniform01f(choice_seed, g.stream, k) < 0.5f)
             l = disney::sample(g.material, g.n, g.wo, u1, u2, uniform01f(choice_seed, g.stream, k + N)).wi;
           else
             l = env_map.sample(u1, u2).direction;
           pdf = 0.5f * disney::pdf(g.material, g.n, g.wo, l) + 0.5f * env_map.pdf(l);
+        } else {  // inference: stratified multi-sample MIS of BRDF and environment sampling
+          const SplitSample sp = split_sample(rot_seed, g.stream, k, N, n_brdf);
+          if (sp.technique == 0)
+            l = disney::sample(g.material, g.n, g.wo, sp.u.x, sp.u.y, uniform01f(choice_seed, g.stream, k + N)).wi;
+          else
+            l = env_map.sample(sp.u.x, sp.u.y).direction;
+          pdf = c_brdf * disney::pdf(g.material, g.n, g.wo, l) + c_env * env_map.pdf(l);
         }
         const float cos_l = glm::dot(l, g.n);
         glm::vec3 w(0.0f);
@@ -238,15 +296,28 @@ struct Shadows {
 struct ShadowSampler {
   const InsertionOptions& opt;
   const EnvironmentMap& env_map;
-  uint64_t seed, choice_seed;
+  uint64_t seed, choice_seed, rot_seed;
   Frame frame{glm::vec3(0, 1, 0)};
   std::pair<glm::vec3, double> operator()(int64_t t, int k) const {
-    const float u1 = uniform01f(seed, uint64_t(t), 2 * k), u2 = uniform01f(seed, uint64_t(t), 2 * k + 1);
-    if (!opt.importance_sampling) return {frame.to_world(cosine_hemisphere(u1, u2)), 1.0};  // w = π cancels
-    // Inference: cosine + environment mixture, so a hard sun is found.
-    const glm::vec3 d = uniform01f(choice_seed, uint64_t(t), k) < 0.5f ? frame.to_world(cosine_hemisphere(u1, u2))
-                                                                       : env_map.sample(u1, u2).direction;
-    const double cos_t = d.y, pdf = 0.5 * std::max(0.0, cos_t) / equirect::kPi + 0.5 * env_map.pdf(d);
+    if (!opt.importance_sampling) {
+      const float u1 = uniform01f(seed, uint64_t(t), 2 * k), u2 = uniform01f(seed, uint64_t(t), 2 * k + 1);
+      return {frame.to_world(cosine_hemisphere(u1, u2)), 1.0};  // w = π cancels
+    }
+    // Inference: cosine + environment samples, so a hard sun is found; split and stratified
+    // (a single ray: one-sample mixture).
+    const int N = opt.shadow_rays, n_cos = N / 2;
+    glm::vec3 d;
+    double c_cos = 0.5;
+    if (n_cos == 0) {
+      const float u1 = uniform01f(seed, uint64_t(t), 2 * k), u2 = uniform01f(seed, uint64_t(t), 2 * k + 1);
+      d = uniform01f(choice_seed, uint64_t(t), k) < 0.5f ? frame.to_world(cosine_hemisphere(u1, u2))
+                                                         : env_map.sample(u1, u2).direction;
+    } else {
+      const SplitSample sp = split_sample(rot_seed, uint64_t(t), k, N, n_cos);
+      d = sp.technique == 0 ? frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y)) : env_map.sample(sp.u.x, sp.u.y).direction;
+      c_cos = double(n_cos) / N;
+    }
+    const double cos_t = d.y, pdf = c_cos * std::max(0.0, cos_t) / equirect::kPi + (1.0 - c_cos) * env_map.pdf(d);
     return {d, (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0};
   }
 };
@@ -260,7 +331,8 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
   const int W = cam.intrinsics().width, H = cam.intrinsics().height;
   const int sw = opt.shadow_width, shh = opt.shadow_height, N = opt.shadow_rays;
   const int64_t n_texels = int64_t(sw) * shh;
-  const ShadowSampler sampler{opt, env_map, hash_counter(opt.seed, kTagShadow), hash_counter(opt.seed, kTagChoice + 1)};
+  const ShadowSampler sampler{opt, env_map, sample_seed(opt, kTagShadow), sample_seed(opt, kTagChoice + 1),
+                              sample_seed(opt, kTagRotation + 1)};
   const glm::vec3 up(0, 1, 0);
   sh.texel_depth.assign(size_t(n_texels), 0.0f);
   std::vector<glm::vec3> origin(static_cast<size_t>(n_texels));
@@ -273,6 +345,8 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
       sh.texel_depth[size_t(t)] = float(d);
       const glm::vec3 x(cam.unproject(u, v, d));
       origin[size_t(t)] = x + ray_epsilon(x) * up;
+      // Only rays with d.y > 0 carry weight; a box wholly below the origin meets none of them.
+      if (opt.prune && box.hi.y <= origin[size_t(t)].y) continue;
       bool any = !opt.prune;
       for (int k = 0; k < N && !any; ++k) any = ray_hits_box(origin[size_t(t)], sampler(t, k).first, box);
       needed[size_t(t)] = any ? 1 : 0;  // none can meet the object: S = 1 exactly
@@ -316,31 +390,121 @@ void upsample_taps(const InsertionInputs& in, const InsertionOptions& opt, const
   const int64_t one_row = int64_t(sw) * shh;
   idx.assign(size_t(W) * H * 4, one_row);
   w.assign(size_t(W) * H * 4, 0.0);
-  for (int row = 0; row < H; ++row)
-    for (int col = 0; col < W; ++col) {
-      const int64_t p = int64_t(row) * W + col;
-      const double dp = depth[p];
-      if (!valid_depth(dp)) {
-        w[4 * p] = 1.0;
-        continue;
+  parallel_for(H, 4, [&](int64_t r0, int64_t r1) {
+    for (int row = int(r0); row < int(r1); ++row)
+      for (int col = 0; col < W; ++col) {
+        const int64_t p = int64_t(row) * W + col;
+        const double dp = depth[p];
+        if (!valid_depth(dp)) {
+          w[4 * p] = 1.0;
+          continue;
+        }
+        const double fx = (col + 0.5) * sw / W - 0.5, fy = (row + 0.5) * shh / H - 0.5;
+        const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
+        const double ax = fx - x0, ay = fy - y0;
+        double total = 0;
+        for (int c = 0; c < 4; ++c) {
+          const int x = std::clamp(x0 + (c & 1), 0, sw - 1), y = std::clamp(y0 + (c >> 1), 0, shh - 1);
+          const int64_t t = int64_t(y) * sw + x;
+          const double bil = ((c & 1) ? ax : 1 - ax) * ((c >> 1) ? ay : 1 - ay);
+          const double dt = sh.texel_depth[t];
+          const double sim = dt > 0 ? std::exp(-0.5 * std::pow((dp - dt) / (0.05 * dp), 2)) : 0.0;
+          idx[4 * p + c] = dt > 0 ? t : one_row;
+          w[4 * p + c] = bil * std::max(sim, 1e-12);
+          total += w[4 * p + c];
+        }
+        for (int c = 0; c < 4; ++c) w[4 * p + c] = total > 0 ? w[4 * p + c] / total : (c == 0 ? 1.0 : 0.0);
       }
-      const double fx = (col + 0.5) * sw / W - 0.5, fy = (row + 0.5) * shh / H - 0.5;
-      const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
-      const double ax = fx - x0, ay = fy - y0;
-      double total = 0;
-      for (int c = 0; c < 4; ++c) {
-        const int x = std::clamp(x0 + (c & 1), 0, sw - 1), y = std::clamp(y0 + (c >> 1), 0, shh - 1);
-        const int64_t t = int64_t(y) * sw + x;
-        const double bil = ((c & 1) ? ax : 1 - ax) * ((c >> 1) ? ay : 1 - ay);
-        const double dt = sh.texel_depth[t];
-        const double sim = dt > 0 ? std::exp(-0.5 * std::pow((dp - dt) / (0.05 * dp), 2)) : 0.0;
-        idx[4 * p + c] = dt > 0 ? t : one_row;
-        w[4 * p + c] = bil * std::max(sim, 1e-12);
-        total += w[4 * p + c];
-      }
-      for (int c = 0; c < 4; ++c) w[4 * p + c] = total > 0 ? w[4 * p + c] / total : (c == 0 ? 1.0 : 0.0);
-    }
+  });
 }
+
+// The radiance cache of the header: V = Σ τ α G and τ_K per probe and direction, read
+// trilinearly × bilinearly; L_env is looked up exactly per ray.
+class RadianceCache {
+ public:
+  RadianceCache(const InsertionInputs& in, const InsertionOptions& opt, const EnvironmentMap& env_map,
+                const QueryRays& rays)
+      : env_map_(env_map), H_(opt.cache_height), W_(opt.cache_width) {
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (int64_t r = 0; r < rays.size(); ++r) {
+      const glm::vec3 o(rays.origin[size_t(3 * r)], rays.origin[size_t(3 * r + 1)], rays.origin[size_t(3 * r + 2)]);
+      lo = glm::min(lo, o);
+      hi = glm::max(hi, o);
+    }
+    lo_ = lo;
+    for (int a = 0; a < 3; ++a) {
+      const float ext = std::max(0.0f, hi[a] - lo[a]);
+      n_[a] = std::clamp(int(std::ceil(ext / opt.cache_spacing_m)) + 1, 2, a == 1 ? 3 : 4);
+      step_[a] = ext > 0 ? ext / float(n_[a] - 1) : 1.0f;
+    }
+    const int64_t D = int64_t(H_) * W_, P = int64_t(n_[0]) * n_[1] * n_[2];
+    std::vector<float> o(size_t(3 * P * D)), d(size_t(3 * P * D));
+    std::vector<glm::vec3> dirs(static_cast<size_t>(D));
+    for (int64_t t = 0; t < D; ++t) {
+      const equirect::Dir e = equirect::uv_to_direction(double(t % W_) + 0.5, double(t / W_) + 0.5, W_, H_);
+      dirs[size_t(t)] = glm::vec3(float(e.x), float(e.y), float(e.z));
+    }
+    for (int64_t p = 0; p < P; ++p)
+      for (int64_t t = 0; t < D; ++t)
+        for (int c = 0; c < 3; ++c) {
+          o[size_t(3 * (p * D + t) + c)] = probe(p)[c];
+          d[size_t(3 * (p * D + t) + c)] = dirs[size_t(t)][c];
+        }
+    Tensor ot = Tensor::empty({P * D, 3}, DType::F32), dt = Tensor::empty({P * D, 3}, DType::F32);
+    std::copy(o.begin(), o.end(), ot.data<float>());
+    std::copy(d.begin(), d.end(), dt.data<float>());
+    const RadianceQueryResult q = radiance_query(in.vsg.detach().to(DType::F32).contiguous(),
+                                                 in.env.detach().to(DType::F32).contiguous(), ot, dt, in.grid, opt.query);
+    const Tensor rad = q.radiance.contiguous(), tau = q.transmittance.contiguous();
+    const float* rp = rad.data<float>();
+    const float* tp = tau.data<float>();
+    cache_.resize(size_t(4 * P * D));
+    for (int64_t i = 0; i < P * D; ++i) {
+      const glm::vec3 sky = env_map_.lookup(dirs[size_t(i % D)]);
+      for (int c = 0; c < 3; ++c) cache_[size_t(4 * i + c)] = rp[3 * i + c] - tp[i] * sky[c];
+      cache_[size_t(4 * i + 3)] = tp[i];
+    }
+  }
+
+  glm::vec3 radiance(const float* origin, const float* dir) const {
+    const glm::vec3 l(dir[0], dir[1], dir[2]);
+    if (!(glm::dot(l, l) > 0.0f) || !all_finite(l)) return glm::vec3(0.0f);
+    int i0[3];
+    float f[3];
+    for (int a = 0; a < 3; ++a) {
+      const float x = std::clamp((origin[a] - lo_[a]) / step_[a], 0.0f, float(n_[a] - 1));
+      i0[a] = std::min(int(x), n_[a] - 2);
+      f[a] = x - float(i0[a]);
+    }
+    const EnvTaps taps = env_bilinear_taps(l.x, l.y, l.z, W_, H_);
+    const int64_t D = int64_t(H_) * W_;
+    glm::vec4 acc(0.0f);
+    for (int c = 0; c < 8; ++c) {
+      const int ix = i0[0] + (c & 1), iy = i0[1] + ((c >> 1) & 1), iz = i0[2] + (c >> 2);
+      const float wc = ((c & 1) ? f[0] : 1 - f[0]) * (((c >> 1) & 1) ? f[1] : 1 - f[1]) * ((c >> 2) ? f[2] : 1 - f[2]);
+      if (wc == 0.0f) continue;
+      const float* base = &cache_[size_t(4 * ((int64_t(iz) * n_[1] + iy) * n_[0] + ix) * D)];
+      for (int k = 0; k < 4; ++k) {
+        const float w = wc * float(taps.weight[k]);
+        const float* e = base + 4 * taps.index[k];
+        acc += w * glm::vec4(e[0], e[1], e[2], e[3]);
+      }
+    }
+    return glm::vec3(acc) + acc.w * env_map_.lookup(glm::normalize(l));
+  }
+
+ private:
+  glm::vec3 probe(int64_t p) const {
+    const int ix = int(p % n_[0]), iy = int(p / n_[0] % n_[1]), iz = int(p / (int64_t(n_[0]) * n_[1]));
+    return lo_ + glm::vec3(float(ix) * step_[0], float(iy) * step_[1], float(iz) * step_[2]);
+  }
+  const EnvironmentMap& env_map_;
+  int H_, W_;
+  glm::vec3 lo_{0.0f};
+  int n_[3] = {2, 2, 2};
+  float step_[3] = {1, 1, 1};
+  std::vector<float> cache_;  // [probe][direction][V rgb, τ]
+};
 
 void validate(const InsertionInputs& in, const InsertionOptions& opt) {
   const int W = in.camera.intrinsics().width, H = in.camera.intrinsics().height;
@@ -357,6 +521,12 @@ void validate(const InsertionInputs& in, const InsertionOptions& opt) {
   SL_CHECK(opt.shadow_width >= 1 && opt.shadow_height >= 1, "insert_objects: shadow map ", opt.shadow_width, "x",
            opt.shadow_height, " is empty");
   SL_CHECK(opt.ambient >= 0 && opt.ambient <= 1, "insert_objects: ambient I_a = ", opt.ambient, " must be in [0, 1]");
+  SL_CHECK(!opt.radiance_cache || (opt.cache_height >= 2 && opt.cache_width >= 2 && opt.cache_spacing_m > 0),
+           "insert_objects: radiance cache ", opt.cache_width, "x", opt.cache_height, " with spacing ",
+           opt.cache_spacing_m, " m is invalid");
+  SL_CHECK(!opt.radiance_cache || !grad_enabled() ||
+               !(in.env.requires_grad() || (in.vsg.defined() && in.vsg.requires_grad())),
+           "insert_objects: radiance_cache is for inference; gradients into env/vsg need exact queries");
 }
 
 Tensor as_tensor(const std::vector<float>& v, const Shape& shape, DType dt) {
@@ -374,9 +544,17 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   const int64_t HW = int64_t(W) * H;
   InsertionResult out;
 
-  Mesh mesh;
-  for (const PlacedObject& o : in.objects) mesh.append(o.mesh);
-  const Bvh bvh(mesh);
+  // One object: its own BVH, built once by place_object() and reused across calls.
+  Mesh merged;
+  std::shared_ptr<const Bvh> own;
+  if (in.objects.size() == 1 && in.objects[0].bvh) {
+    own = in.objects[0].bvh;
+  } else {
+    for (const PlacedObject& o : in.objects) merged.append(o.mesh);
+    own = std::make_shared<const Bvh>(merged);
+  }
+  const Mesh& mesh = in.objects.size() == 1 && in.objects[0].bvh ? in.objects[0].mesh : merged;
+  const Bvh& bvh = *own;
   const Tensor depth_t = in.depth.detach().to(DType::F64).contiguous();
   const double* depth = depth_t.data<double>();
   const EnvironmentMap env_map(in.env.detach());
@@ -395,6 +573,7 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   } else {
     fg.coverage.assign(size_t(HW), 0.0f);
     fg.depth.assign(size_t(HW), 0.0f);
+    fg.silhouette.assign(size_t(HW), 0.0f);
     out.stats.image_pixels_total = HW;
   }
   const int64_t fg_rays = int64_t(gs.size()) * fg.light_samples;
@@ -416,7 +595,17 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
 
   // ---- one radiance query for every light and shadow ray (Eq. 1)
   Tensor radiance = Tensor::zeros({0, 3}, dt);
-  if (rays.size() > 0) {
+  if (rays.size() > 0 && in.vsg.defined() && opt.radiance_cache) {
+    const RadianceCache cache(in, opt, env_map, rays);
+    std::vector<float> l(size_t(3 * rays.size()));
+    parallel_for(rays.size(), 256, [&](int64_t b, int64_t e) {
+      for (int64_t r = b; r < e; ++r) {
+        const glm::vec3 v = cache.radiance(&rays.origin[size_t(3 * r)], &rays.dir[size_t(3 * r)]);
+        for (int c = 0; c < 3; ++c) l[size_t(3 * r + c)] = v[c];
+      }
+    });
+    radiance = as_tensor(l, {rays.size(), 3}, dt);
+  } else if (rays.size() > 0) {
     const Tensor o = as_tensor(rays.origin, {rays.size(), 3}, dt), d = as_tensor(rays.dir, {rays.size(), 3}, dt);
     radiance = in.vsg.defined() ? radiance_query(in.vsg, in.env, o, d, in.grid, opt.query).radiance : env_lookup(in.env, d);
   }
@@ -457,6 +646,7 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   out.shadow_map = reshape(permute(reshape(s_img, {H, W, 3}), {2, 0, 1}), {3, H, W});
   out.object_mask = reshape(alpha, {1, H, W});
   out.object_depth = as_tensor(fg.depth, {1, H, W}, dt);
+  out.object_silhouette = as_tensor(fg.silhouette, {1, H, W}, dt);
   return out;
 }
 

@@ -25,6 +25,17 @@
 // so S → 1 as the light vanishes, never 0/0. The map is upsampled to the image edge-aware
 // (bilateral in depth), then I_edit = α·I_obj + (1 − α)·(S ⊙ I), with α the object's coverage,
 // and pixels whose depth is nearer than the object keep the photo (occlusion).
+// Inference sampling (importance_sampling): the N light samples of a primary sample are split
+// deterministically between the two techniques (multi-sample MIS, balance heuristic with
+// n_brdf = ⌊N/2⌋) and stratified within each (a Hammersley set, Cranley-Patterson rotated per
+// stream); shadow rays likewise split cosine and environment samples. Training mode keeps the
+// independent cosine samples of the paper.
+// Radiance cache (radiance_cache, inference): Eq. 1 splits into the volume's own radiance
+// V(x, l) = Σ τ α G and its transmittance τ_K(x, l), with L = V + τ_K L_env(l). V and τ_K are
+// queried once per probe (a grid of at most 4×3×4 points (x, y, z) over the origins of the light
+// and shadow rays, cache_spacing_m apart or sparser) and direction (cache_height × cache_width texel centres); a ray
+// reads them trilinearly in position and bilinearly in direction, and L_env(l) exactly, so a
+// sun in the sky keeps its full sharpness. Error against exact queries: streetlight-bench insert.
 // Lean: shadows are computed only inside the screen-space region the object can shadow (its
 // bounds swept along the light directions that carry energy, clipped to the image) and shading
 // only inside the object's screen bounds. stats reports the fraction skipped; the result equals
@@ -73,8 +84,14 @@ struct InsertionOptions {
   double ambient = 0.1;         // I_a
   bool importance_sampling = false;  // inference: BRDF + environment MIS
   bool prune = true;            // skip pixels the object cannot affect
-  uint64_t seed = 0;
+  uint64_t seed = 0;            // anti-aliasing jitter, and (with lighting_seed 0) every other sample
+  uint64_t lighting_seed = 0;   // != 0: light and shadow samples drawn independently of `seed`
   RadianceQueryOptions query;
+  // Inference only (throws when env or vsg requires a gradient): light and shadow rays read the
+  // volume through probes instead of each marching it (see "Radiance cache" above).
+  bool radiance_cache = false;
+  int cache_height = 32, cache_width = 64;  // probe directions (equirect texel centres)
+  double cache_spacing_m = 2.0;             // probe spacing over the rays' origins (≤ 4 per axis, 3 vertically)
 };
 
 struct InsertionStats {
@@ -89,6 +106,7 @@ struct InsertionResult {
   Tensor object_mask;   // [1, H, W] coverage α in [0, 1]
   Tensor shadow_map;    // [3, H, W] S per channel at image resolution (1 where unaffected)
   Tensor object_depth;  // [1, H, W] camera-z depth of the object (0 where absent)
+  Tensor object_silhouette;  // [1, H, W] coverage ignoring the photo's depth (α before occlusion)
   InsertionStats stats;
 };
 

@@ -1,6 +1,7 @@
 #include "train/batch_list.h"
 
 #include <filesystem>
+#include <cstdio>
 #include <fstream>
 
 #include <nlohmann/json.hpp>
@@ -12,7 +13,7 @@ namespace sl::train {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-std::vector<PhotoSources> read_batch_list(const std::string& path) {
+std::vector<BatchListEntry> read_batch_list(const std::string& path) {
   std::ifstream f(path);
   SL_CHECK(f.good(), "--batch '", path, "' is neither a folder nor a readable JSON list");
   json j;
@@ -23,7 +24,7 @@ std::vector<PhotoSources> read_batch_list(const std::string& path) {
   }
   SL_CHECK(j.is_array(), "--batch '", path, "' must hold a JSON array of {image, intrinsics, ...}");
   const fs::path root = fs::path(path).parent_path();
-  std::vector<PhotoSources> out;
+  std::vector<BatchListEntry> out;
   for (size_t i = 0; i < j.size(); ++i) {
     const json& e = j[i];
     SL_CHECK(e.is_object(), "--batch '", path, "': entry ", i, " must be an object {image, intrinsics, ...}, got ",
@@ -42,7 +43,21 @@ std::vector<PhotoSources> read_batch_list(const std::string& path) {
     s.lidar = rel("lidar");
     s.calib = rel("calib");
     SL_CHECK(!s.image.empty(), "--batch '", path, "': an entry has no \"image\"");
-    out.push_back(s);
+    BatchListEntry entry;
+    entry.sources = s;
+    entry.labels = rel("labels");
+    char index_id[32];
+    std::snprintf(index_id, sizeof index_id, "%06zu", i);
+    entry.id = index_id;
+    if (e.contains("id")) {
+      SL_CHECK(e.at("id").is_string(), "--batch '", path, "': entry ", i, " key \"id\" must be a string, got ",
+               e.at("id").type_name());
+      entry.id = e.at("id").get<std::string>();
+      SL_CHECK(!entry.id.empty() && entry.id != "." && entry.id != ".." && entry.id.find('/') == std::string::npos &&
+                   entry.id.find('\\') == std::string::npos,
+               "--batch '", path, "': entry ", i, " id '", entry.id, "' is not a plain file name");
+    }
+    out.push_back(entry);
   }
   SL_CHECK(!out.empty(), "--batch '", path, "' lists no images");
   return out;

@@ -1,6 +1,7 @@
 // Object insertion into a photo with estimated lighting. See photo_insertion.h.
 #include "train/photo_insertion.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -49,7 +50,40 @@ void check_on_ground(const Tensor& depth, const Camera& cam, const ObjectPose& p
            ") is not on the ground: the depth map shows a surface at height ", p.y, " m there");
 }
 
+// KITTI truncation: 1 − (area of the projected box's 2D extent inside the image) / (its area);
+// a box reaching behind the camera counts as fully truncated.
+double box_truncation(const std::array<double, 7>& b, const Intrinsics& k) {
+  const double h = b[0], w = b[1], l = b[2], c = std::cos(b[6]), s = std::sin(b[6]);
+  double u0 = 1e300, v0 = 1e300, u1 = -1e300, v1 = -1e300;
+  for (int i = 0; i < 8; ++i) {
+    const double dx = ((i & 1) ? 0.5 : -0.5) * l, dz = ((i & 2) ? 0.5 : -0.5) * w, dy = (i & 4) ? -h : 0.0;
+    const double x = b[3] + c * dx + s * dz, y = b[4] + dy, z = b[5] - s * dx + c * dz;
+    if (z <= 0.1) return 1.0;
+    const double u = k.fx * x / z + k.cx, v = k.fy * y / z + k.cy;
+    u0 = std::min(u0, u), u1 = std::max(u1, u), v0 = std::min(v0, v), v1 = std::max(v1, v);
+  }
+  const double area = (u1 - u0) * (v1 - v0);
+  const double in_w = std::max(0.0, std::min(u1, double(k.width)) - std::max(u0, 0.0));
+  const double in_h = std::max(0.0, std::min(v1, double(k.height)) - std::max(v0, 0.0));
+  return area > 0 ? std::clamp(1.0 - in_w * in_h / area, 0.0, 1.0) : 1.0;
+}
+
 }  // namespace
+
+InsertionOptions insertion_options(const PhotoInsertionOptions& o) {
+  InsertionOptions io;
+  io.aa_samples = o.aa_samples;
+  io.light_samples = o.light_samples;
+  io.shadow_width = o.shadow_width;
+  io.shadow_height = o.shadow_height;
+  io.shadow_rays = o.shadow_rays;
+  io.ambient = o.ambient;
+  io.importance_sampling = true;
+  io.seed = o.seed;
+  io.query.samples = o.volume_samples;
+  io.radiance_cache = o.radiance_cache;
+  return io;
+}
 
 PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor& ldr, const Tensor& depth,
                                  const Camera& world_camera, const Mesh& object_frame_mesh, const ObjectPose& pose,
@@ -80,17 +114,7 @@ PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor
   out.ground_y_m = in.objects.back().position.y;
   SL_CHECK(std::abs(out.ground_y_m) <= o.max_ground_offset_m, "object position (x ", pose.x_m, ", z ", pose.z_m,
            ") is not on the ground: the depth map puts the surface there at y = ", out.ground_y_m, " m");
-  InsertionOptions io;
-  io.aa_samples = o.aa_samples;
-  io.light_samples = o.light_samples;
-  io.shadow_width = o.shadow_width;
-  io.shadow_height = o.shadow_height;
-  io.shadow_rays = o.shadow_rays;
-  io.ambient = o.ambient;
-  io.importance_sampling = true;
-  io.seed = o.seed;
-  io.query.samples = o.volume_samples;
-  const InsertionResult r = insert_objects(in, io);
+  const InsertionResult r = insert_objects(in, insertion_options(o));
   out.render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   out.composite_linear = r.composite.detach().contiguous();
   out.composite_ldr = ldr_from_hdr(out.composite_linear).contiguous();
@@ -100,6 +124,11 @@ PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor
   ObjectPose world_pose = pose;
   out.box3d = object_box3d(object_frame_mesh, world_pose, world_camera);
   out.box3d[4] -= out.ground_y_m;  // the base sits at ground_y (camera y points down)
+  out.object_depth = r.object_depth.detach().to(DType::F32).contiguous();
+  const double seen = sum(r.object_mask.detach().to(DType::F64)).item();
+  const double whole = sum(r.object_silhouette.detach().to(DType::F64)).item();
+  out.hidden_fraction = whole > 0 ? std::clamp(1.0 - seen / whole, 0.0, 1.0) : 0.0;
+  out.truncated = box_truncation(out.box3d, world_camera.intrinsics());
   return out;
 }
 

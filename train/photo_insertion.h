@@ -12,7 +12,10 @@
 //   position is behind the camera, outside the image, or not on the ground (no depth there,
 //   or the surface the depth map shows there is more than max_ground_offset_m from y = 0).
 // - Outputs are LDR composites clip(c^(1/2.2), 0, 1), the object mask and the shadow map
-//   (mean over channels), the 3D box in the photo camera's frame and the 2D box of the mask.
+//   (mean over channels), the 3D box in the photo camera's frame and the 2D box of the mask,
+//   and for KITTI labels the fraction of the object hidden by the photo (1 − Σ mask / Σ
+//   silhouette) and its truncation (the part of its projected 3D box's 2D extent outside the
+//   image).
 #pragma once
 #include <array>
 #include <string>
@@ -20,6 +23,7 @@
 #include "autodiff/tensor.h"
 #include "render/camera.h"
 #include "render/mesh.h"
+#include "render/object_insertion.h"
 #include "train/inference.h"
 #include "train/object_labels.h"
 
@@ -28,20 +32,27 @@ namespace sl::train {
 Tensor ground_plane_depth(const Camera& camera);
 
 struct PhotoInsertionOptions {
-  int aa_samples = 4, light_samples = 64;
-  int shadow_width = 160, shadow_height = 90, shadow_rays = 128;
+  int aa_samples = 4, light_samples = 16;  // 64 light samples per fully covered pixel
+  int shadow_width = 160, shadow_height = 90, shadow_rays = 64;
   double ambient = 0.1;
   int volume_samples = 32;  // K of Eq. 1
   double max_ground_offset_m = 1.0;
   uint64_t seed = 0;
+  bool radiance_cache = true;  // render/object_insertion.h: probes instead of per-ray volume marches
 };
+
+// The renderer's options for a photo insertion (importance sampling, the inference path).
+InsertionOptions insertion_options(const PhotoInsertionOptions& options);
 
 struct PhotoInsertion {
   Tensor composite_ldr;     // [3, H, W]
   Tensor composite_linear;  // [3, H, W] exposure-normalised radiance
   Tensor object_mask;       // [1, H, W]
   Tensor shadow_map;        // [1, H, W] (1 = unshadowed)
+  Tensor object_depth;      // [1, H, W] camera-z depth of the object's visible pixels (0 elsewhere)
   bool visible = false;
+  double hidden_fraction = 0.0;  // of the object's silhouette, hidden by the photo's nearer surfaces
+  double truncated = 0.0;        // KITTI truncation: fraction of the projected 3D box outside the image
   std::array<double, 4> box2d{};
   std::array<double, 7> box3d{};
   double ground_y_m = 0.0;  // where the object's base was set

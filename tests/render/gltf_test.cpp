@@ -189,6 +189,57 @@ TEST(Gltf, MeshoptCompressionIsRejected) {
   expect_error_mentions(path, "EXT_meshopt_compression");
 }
 
+// What a compressing exporter actually writes: the accessors have no bufferView, the primitive
+// points at a compressed bufferView, and the buffer is shorter than declared. tinygltf alone
+// fails here with "Invalid byteLength"; the user must instead hear which extension it is.
+std::string compressed_gltf(const std::string& ext, bool required) {
+  const std::string primitive_ext = ext == "KHR_draco_mesh_compression"
+                                        ? R"(,"extensions":{"KHR_draco_mesh_compression":{"bufferView":0,"attributes":{"POSITION":0}}})"
+                                        : "";
+  const std::string view_ext = ext == "EXT_meshopt_compression"
+                                   ? R"(,"extensions":{"EXT_meshopt_compression":{"buffer":0,"byteLength":36,"byteStride":12,"count":3,"mode":"ATTRIBUTES"}})"
+                                   : "";
+  return std::string(R"({"asset":{"version":"2.0"},"extensionsUsed":[")") + ext + R"("],)" +
+         (required ? R"("extensionsRequired":[")" + ext + R"("],)" : std::string()) +
+         R"("buffers":[{"byteLength":4096,"uri":"data:application/octet-stream;base64,AAAA"}],)"
+         R"("bufferViews":[{"buffer":0,"byteLength":4096)" + view_ext + R"(}],)"
+         R"("accessors":[{"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}],)"
+         R"("meshes":[{"primitives":[{"attributes":{"POSITION":0})" + primitive_ext + R"(}]}],)"
+         R"("nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}]})";
+}
+
+std::string glb_of(const std::string& json) {
+  std::string j = json;
+  while (j.size() % 4) j += ' ';
+  auto u32 = [](uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
+  return "glTF" + u32(2) + u32(uint32_t(12 + 8 + j.size())) + u32(uint32_t(j.size())) + u32(0x4E4F534Au) + j;
+}
+
+void expect_unsupported_extension(const std::string& path, const std::string& ext) {
+  try {
+    sl::load_gltf(path);
+    ADD_FAILURE() << path << " loaded";
+  } catch (const sl::Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find(ext), std::string::npos) << msg;
+    EXPECT_NE(msg.find("not supported"), std::string::npos) << msg;
+    EXPECT_EQ(msg.find("byteLength"), std::string::npos) << msg;
+    EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+  }
+}
+
+TEST(Gltf, CompressedGeometryNamesTheExtensionInGltfAndGlb) {
+  for (const std::string ext : {"KHR_draco_mesh_compression", "EXT_meshopt_compression"})
+    for (bool required : {true, false}) {  // false: the extension is only in extensionsUsed
+      const std::string tag = ext.substr(0, 8) + (required ? "_req" : "_used");
+      const std::string gltf = temp_path("compressed_" + tag + ".gltf"), glb = temp_path("compressed_" + tag + ".glb");
+      write_text(gltf, compressed_gltf(ext, required));
+      write_text(glb, glb_of(compressed_gltf(ext, required)));
+      expect_unsupported_extension(gltf, ext);
+      expect_unsupported_extension(glb, ext);
+    }
+}
+
 TEST(Gltf, MissingExternalBufferFails) {
   const std::string path = temp_path("missing_buffer.gltf");
   std::string text = one_triangle_gltf("");

@@ -97,6 +97,23 @@ TEST(InsertTool, CorruptImageIsACleanError) {
   expect_clean_error(r, c.dir + "/out", "bad.png");
 }
 
+// libpng and OpenImageIO each print their own lines for a cut-off PNG; the user gets one.
+TEST(InsertTool, TruncatedPngIsOneLine) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_truncated");
+  sl::Tensor noise = sl::Tensor::uniform({3, 120, 240}, 0.0, 1.0, 7);
+  sl::ImageWriteOptions lin;
+  lin.transfer = sl::Transfer::Linear;
+  sl::write_image(c.dir + "/big.png", noise, lin);
+  const auto size = fs::file_size(c.dir + "/big.png");
+  fs::resize_file(c.dir + "/big.png", size / 2);
+  std::ofstream(c.dir + "/k.json") << R"({"fx": 150, "fy": 150, "cx": 120, "cy": 60})";
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/big.png --intrinsics " + c.dir +
+                                                    "/k.json --at 0,8 --out " + c.dir + "/out" + c.base);
+  expect_clean_error(r, c.dir + "/out", "big.png");
+  EXPECT_NE(r.out.find("truncated or corrupt"), std::string::npos) << r.out;
+}
+
 TEST(InsertTool, DepthOfAnotherSizeIsACleanError) {
   if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
   const InsertCase c = setup("insert_depth");
@@ -149,6 +166,27 @@ TEST(InsertTool, CompressedGltfIsACleanError) {
                                                     "/intrinsics.json --at 0,8 --out " + c.dir + "/out --checkpoint " +
                                                     c.ckpt + " --object " + c.dir + "/draco.gltf");
   expect_clean_error(r, c.dir + "/out", "draco");
+}
+
+// A real exporter's Draco file: no bufferView on the accessor, a short buffer. The tool must
+// name the extension, not tinygltf's "Invalid byteLength".
+TEST(InsertTool, DracoGlbWithBrokenBuffersNamesTheExtension) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_draco_glb");
+  std::string j = R"({"asset":{"version":"2.0"},"extensionsUsed":["KHR_draco_mesh_compression"],)"
+                  R"("buffers":[{"byteLength":4096}],"bufferViews":[{"buffer":0,"byteLength":4096}],)"
+                  R"("accessors":[{"componentType":5126,"count":3,"type":"VEC3"}],)"
+                  R"("meshes":[{"primitives":[{"attributes":{"POSITION":0},"extensions":{"KHR_draco_mesh_compression":)"
+                  R"({"bufferView":0,"attributes":{"POSITION":0}}}}]}],"nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}]})";
+  while (j.size() % 4) j += ' ';
+  auto u32 = [](uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
+  std::ofstream(c.dir + "/draco.glb", std::ios::binary)
+      << "glTF" + u32(2) + u32(uint32_t(20 + j.size())) + u32(uint32_t(j.size())) + u32(0x4E4F534Au) + j;
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                    "/intrinsics.json --at 0,8 --out " + c.dir + "/out --checkpoint " +
+                                                    c.ckpt + " --object " + c.dir + "/draco.glb");
+  expect_clean_error(r, c.dir + "/out", "KHR_draco_mesh_compression");
+  EXPECT_NE(r.out.find("not supported"), std::string::npos) << r.out;
 }
 
 TEST(InsertTool, BatchWritesAKittiLayoutDataset) {

@@ -7,19 +7,32 @@
 // Part 1: forward time and RMSE of the composite against a high-sample reference, at
 //   increasing light/shadow sample counts, with uniform (training) and importance (inference)
 //   sampling -> OUT/insert_bench.csv and OUT/insert_bench.png.
-// Part 2: forward and backward time and peak tensor memory at the training defaults (a budget
-//   of 2048 foreground light rays; 80×45 shadow map, 128 rays; VSG 64×64×16) and the paper's
-//   (5000; 160×90, 450; VSG 256×256×64), cosine sampling as in training.
+// Part 2: forward and backward time and peak tensor memory of exactly what the trainer runs
+//   (train/adversarial_stage.cpp with default_train_config(): a 128×64 view, aa 1, 16 light
+//   samples per primary sample, an 80×45 shadow map with 128 rays, I_a 0.1, K = 64 volume
+//   samples, VSG 64×64×16, cosine sampling) and the paper's (5000 foreground rays; 160×90, 450;
+//   VSG 256×256×64).
+// --size kitti|nuscenes: the production table of issue 14 — lighting (default-size model,
+//   random initial weights) plus insertion at 1242×375 (KITTI 000008 with lidar depth) or
+//   1600×900 (nuScenes CAM_FRONT intrinsics, ground plane), error against a 4096-samples-per-
+//   pixel reference of the same renderer over the object and its shadow region.
+#include <omp.h>
 #include <sys/resource.h>
+#include <time.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <tuple>
 
 #include "autodiff/ops.h"
 #include "data/image_io.h"
+#include "data/procedural_car.h"
+#include "nn/checkpoint.h"
 #include "data/sky_model.h"
+#include "data/street_generator.h"
 #include "render/gltf_loader.h"
 #include "render/object_insertion.h"
 #include "render/path_tracer.h"
@@ -27,6 +40,12 @@
 #include "tools/bench/bench.h"
 #include "tools/bench/timing.h"
 #include "tools/common/plot.h"
+#include "train/inference.h"
+#include "train/lighting_predictor.h"
+#include "train/object_labels.h"
+#include "train/photo_input.h"
+#include "train/photo_insertion.h"
+#include "train/train_config.h"
 
 namespace sl::bench {
 namespace {
@@ -101,30 +120,262 @@ long max_rss_mb() {
   return u.ru_maxrss / 1024;
 }
 
+// ---- production sizes (issue 14): lighting + insertion at KITTI 1242×375 and nuScenes 1600×900
+
+// Relative RMSE of the composite over the object and its shadow region: pixels the reference's
+// object covers, or whose reference shadow ratio differs from 1 by more than 1e-3. Both
+// renders use the same anti-aliasing samples (same seed), so coverage is identical and the
+// error is the lighting estimate's alone.
+// CPU time of the whole process (all threads): on a loaded machine, wall time ≈ this / threads
+// is what an idle machine would show.
+double process_cpu_ms() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return double(t.tv_sec) * 1e3 + double(t.tv_nsec) * 1e-6;
+}
+
+struct RegionError {
+  double rel_rmse = 0;
+  int64_t pixels = 0;
+};
+
+RegionError region_error(const InsertionResult& a, const InsertionResult& ref) {
+  const auto va = a.composite.to_vector(), vr = ref.composite.to_vector();
+  const auto mr = ref.object_mask.to_vector(), sr = ref.shadow_map.to_vector();
+  const size_t hw = mr.size();
+  double e = 0, r2 = 0;
+  RegionError out;
+  for (size_t p = 0; p < hw; ++p) {
+    const double s = (sr[p] + sr[hw + p] + sr[2 * hw + p]) / 3.0;
+    if (mr[p] <= 0 && std::abs(s - 1.0) <= 1e-3) continue;
+    ++out.pixels;
+    for (size_t c = 0; c < 3; ++c) {
+      const double d = va[c * hw + p] - vr[c * hw + p];
+      e += d * d;
+      r2 += vr[c * hw + p] * vr[c * hw + p];
+    }
+  }
+  out.rel_rmse = r2 > 0 ? std::sqrt(e / r2) : 0.0;
+  return out;
+}
+
+struct ProductionScene {
+  std::string name, depth_source;
+  train::Photo photo;
+  Mesh object;  // object frame (train/object_labels.h)
+  train::ObjectPose pose;
+};
+
+ProductionScene production_scene(const std::string& size, const std::string& data) {
+  ProductionScene s;
+  const std::string kitti = data + "/street/kitti_000008", truck = data + "/models/CesiumMilkTruck.glb";
+  s.object = train::to_object_frame_mesh(std::filesystem::exists(truck) ? load_gltf(truck) : make_procedural_car());
+  s.pose.yaw_deg = 60.0;
+  if (size == "kitti" && std::filesystem::exists(kitti + "/000008.png")) {
+    train::PhotoSources src;
+    src.image = kitti + "/000008.png";
+    src.intrinsics = kitti + "/000008.txt";
+    src.lidar = kitti + "/000008_velodyne.bin";
+    src.calib = kitti + "/000008_calib.json";
+    s.photo = train::load_photo(src);
+    s.name = "KITTI 000008 (lidar depth)";
+    s.pose.x_m = 1.5;
+    s.pose.z_m = -11.0;
+  } else {
+    const bool nus = size == "nuscenes";
+    const int W = nus ? 1600 : 1242, H = nus ? 900 : 375;
+    Intrinsics k;
+    k.width = W;
+    k.height = H;
+    k.fx = k.fy = nus ? 1266.4 : 721.5;
+    k.cx = nus ? 816.3 : 609.6;
+    k.cy = nus ? 491.5 : 172.9;
+    s.photo.camera = Camera(k, rotation_from_yaw_pitch_roll(0, 0, 0), {0.0, nus ? 1.5 : 1.65, 0.0});
+    s.photo.depth = train::ground_plane_depth(s.photo.camera);
+    s.photo.depth_source = "ground-plane";
+    Tensor img = Tensor::zeros({3, H, W});
+    float* p = img.data<float>();
+    for (int c = 0; c < 3; ++c)
+      for (int r = 0; r < H; ++r)
+        for (int x = 0; x < W; ++x) p[(int64_t(c) * H + r) * W + x] = r < int(k.cy) ? 0.55f + 0.1f * c : 0.38f;
+    s.photo.ldr = img;
+    s.name = nus ? "nuScenes-size CAM_FRONT intrinsics (ground plane)" : "KITTI-size (ground plane; data absent)";
+    s.pose.x_m = 1.5;
+    s.pose.z_m = -11.0;
+  }
+  return s;
+}
+
+// Lighting inference time with the default-size model (random initial weights: the timing does
+// not depend on the weights), as streetlight-insert runs it. The model is left in
+// OUT/random_default_lighting.safetensors.
+double lighting_ms(const train::Photo& photo, const std::string& dir) {
+  nlohmann::json c = train::default_train_config();
+  c["stage"] = "lighting";
+  nn::Module holder("LightingModel");
+  holder.register_module("predictor", std::make_shared<train::LightingPredictor>(train::predictor_options(c)));
+  const std::string path = dir + "/random_default_lighting.safetensors";
+  nn::save_checkpoint(path, holder, nullptr, nn::CheckpointInfo{.stage = "lighting", .step = 0, .config_json = c.dump()});
+  train::LightingEstimator est(path);  // kept: streetlight-insert --checkpoint can time a batch with it
+  double cpu = 1e300;
+  const double ms = best_ms([&] {
+    const double c0 = process_cpu_ms();
+    est.estimate({{photo.ldr, photo.depth, photo.camera}});
+    cpu = std::min(cpu, process_cpu_ms() - c0);
+  }, 2, 1);
+  std::fprintf(stderr, "lighting CPU time %.0f ms\n", cpu);
+  return ms;
+}
+
+int run_production(const std::string& size, bool json, const std::string& data, const std::string& out, bool quick,
+                   int reference_spp, bool reference_cache) {
+  SL_CHECK(size == "kitti" || size == "nuscenes", "insert: --size must be kitti or nuscenes, got '", size, "'");
+  std::filesystem::create_directories(out);
+  const ProductionScene s = production_scene(size, data);
+  const Intrinsics& k = s.photo.camera.intrinsics();
+  std::fprintf(stderr, "insert bench (%s): %s, %dx%d, %d threads\n", size.c_str(), s.name.c_str(), k.width, k.height,
+               omp_get_max_threads());
+  const double light_ms = lighting_ms(s.photo, out);
+  std::fprintf(stderr, "lighting (default-size model, random initial weights): %.0f ms\n", light_ms);
+
+  // Insertion lighting: a real sky with a sun at the model's dome size, and a default-size VSG
+  // volume of random parameters, so the radiance query does the work a trained model gives it.
+  const std::string hdri = data + "/hdri/chinese_garden_1k.hdr";
+  InsertionInputs in;
+  in.background = pow_scalar(s.photo.ldr.to(DType::F32).contiguous(), 2.2);
+  in.depth = s.photo.depth.to(DType::F32).contiguous();
+  in.camera = s.photo.camera;
+  in.env = std::filesystem::exists(hdri) ? resize_panorama(read_image(hdri), 128, 32)
+                                         : resize_panorama(PreethamSky(SkyParams{}).render(128, 256), 128, 32);
+  in.grid.center = s.photo.camera.position();
+  in.vsg = vsg_activate(Tensor::uniform({8, in.grid.dims[0], in.grid.dims[1], in.grid.dims[2]}, -4, 0, 11), 0).detach().contiguous();
+  Placement pl;
+  pl.x = s.pose.x_m;
+  pl.z = s.pose.z_m;
+  pl.yaw_deg = s.pose.yaw_deg;
+  in.objects.push_back(place_object(s.object, pl, in.camera, in.depth));
+
+  const train::PhotoInsertionOptions production;  // what streetlight-insert runs by default
+  // The reference: `reference_spp` light samples per pixel and shadow rays, as the mean of
+  // passes of 64 light samples per primary ray and 256 shadow rays with independent lighting
+  // seeds (same anti-aliasing samples), so memory stays that of one pass.
+  InsertionOptions ref = train::insertion_options(production);
+  ref.light_samples = 64;
+  ref.shadow_rays = 256;
+  ref.radiance_cache = reference_cache;
+  const int passes = std::max({1, reference_spp / (ref.aa_samples * ref.light_samples), reference_spp / ref.shadow_rays});
+  double ref_ms = 0;
+  InsertionResult reference;
+  {
+    const double t0 = now_ms();
+    Tensor comp, shadow;
+    for (int p = 0; p < passes; ++p) {
+      ref.lighting_seed = uint64_t(1000 + p);  // independent of the rows' light and shadow samples
+      InsertionResult r = insert_objects(in, ref);
+      comp = p == 0 ? r.composite : add(comp, r.composite);
+      shadow = p == 0 ? r.shadow_map : add(shadow, r.shadow_map);
+      if (p == 0) reference = r;
+    }
+    reference.composite = mul_scalar(comp, 1.0 / passes).contiguous();
+    reference.shadow_map = mul_scalar(shadow, 1.0 / passes).contiguous();
+    ref_ms = now_ms() - t0;
+  }
+  std::fprintf(stderr, "reference (%d passes: %d light samples per pixel, %d shadow rays, %s): %.1f s\n", passes,
+               passes * ref.aa_samples * ref.light_samples, passes * ref.shadow_rays,
+               reference_cache ? "radiance cache" : "exact queries", ref_ms / 1000);
+  struct Row {
+    std::string name;
+    InsertionOptions opt;
+  };
+  std::vector<Row> rows;
+  rows.push_back({"production", train::insertion_options(production)});
+  if (!quick) {
+    InsertionOptions exact = train::insertion_options(production);
+    exact.radiance_cache = false;
+    rows.push_back({"production_exact_queries", exact});
+    for (int n : {8, 16, 32}) {
+      InsertionOptions o = train::insertion_options(production);
+      o.light_samples = n;
+      o.shadow_rays = 4 * n;
+      rows.push_back({"light" + std::to_string(n), o});
+    }
+    for (const auto& [h, w, sp] : std::vector<std::tuple<int, int, double>>{{64, 128, 2.0}, {32, 64, 1.0}, {64, 128, 1.0}}) {
+      InsertionOptions o = train::insertion_options(production);
+      o.cache_height = h;
+      o.cache_width = w;
+      o.cache_spacing_m = sp;
+      rows.push_back({"cache" + std::to_string(w) + "x" + std::to_string(h) + "_" + std::to_string(int(sp)) + "m", o});
+    }
+  }
+  for (const Row& row : rows) {
+    InsertionResult r;
+    double cpu_ms = 1e300;
+    const double ms = best_ms([&] {
+      const double c0 = process_cpu_ms();
+      r = insert_objects(in, row.opt);
+      cpu_ms = std::min(cpu_ms, process_cpu_ms() - c0);
+    }, 2, 0);
+    const RegionError err = region_error(r, reference);
+    const double total = light_ms + ms;
+    if (json)
+      std::printf("{\"bench\": \"insert_production\", \"size\": \"%s\", \"row\": \"%s\", \"width\": %d, \"height\": %d, "
+                  "\"aa\": %d, \"light_samples\": %d, \"shadow_rays\": %d, \"shadow_map\": \"%dx%d\", \"radiance_cache\": %s, "
+                  "\"lighting_ms\": %.1f, \"insertion_ms\": %.1f, \"ms\": %.1f, \"rel_rmse\": %.5f, \"region_pixels\": %lld, "
+                  "\"insertion_cpu_ms\": %.1f, \"object_samples\": %lld, \"query_rays\": %lld, \"shadow_texels_computed\": %lld, "
+                  "\"reference_ms\": %.0f}\n",
+                  size.c_str(), row.name.c_str(), k.width, k.height, row.opt.aa_samples, row.opt.light_samples,
+                  row.opt.shadow_rays, row.opt.shadow_width, row.opt.shadow_height, row.opt.radiance_cache ? "true" : "false",
+                  light_ms, ms, total, err.rel_rmse, (long long)err.pixels, cpu_ms, (long long)r.stats.foreground_samples,
+                  (long long)r.stats.query_rays, (long long)r.stats.shadow_pixels_computed, ref_ms);
+    else
+      std::printf("%-26s aa %d light %4d shadow %4d (%dx%d)  lighting %6.0f ms + insertion %7.0f ms = %7.0f ms  "
+                  "rel RMSE %.4f over %lld px  (CPU %.0f ms; object samples %lld, query rays %lld, shadow texels %lld)\n",
+                  row.name.c_str(), row.opt.aa_samples, row.opt.light_samples, row.opt.shadow_rays, row.opt.shadow_width,
+                  row.opt.shadow_height, light_ms, ms, total, err.rel_rmse, (long long)err.pixels, cpu_ms,
+                  (long long)r.stats.foreground_samples, (long long)r.stats.query_rays,
+                  (long long)r.stats.shadow_pixels_computed);
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
 int run_insert(const std::vector<std::string>& args) {
   bool json = false, quick = false;
-  std::string out = "insert-bench", data = "../shared/data";
+  std::string out = "insert-bench", data = "../shared/data", size;
+  int reference_spp = 4096;
+  bool reference_cache = false;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     if (a == "--help" || a == "-h") {
       std::printf(
-          "usage: streetlight-bench insert [--data DIR] [--out DIR] [--quick] [--json]\n"
+          "usage: streetlight-bench insert [--size kitti|nuscenes] [--data DIR] [--out DIR] [--quick] [--json]\n"
           "  Object insertion error against time (uniform vs importance sampling) and the forward/backward\n"
           "  time and peak memory at the training defaults and the paper's settings.\n"
           "  --data DIR  shared data folder (default ../shared/data; falls back to a box and a Preetham sky)\n"
           "  --out DIR   where to write insert_bench.csv and insert_bench.png (default insert-bench)\n"
-          "  --quick     skip the paper-scale run\n");
+          "  --quick     skip the paper-scale run (with --size: only the production row)\n"
+          "  --size S    production table: lighting + insertion at KITTI (1242x375) or nuScenes (1600x900)\n"
+          "              size, error against a 4096-samples-per-pixel reference; --json gives ms and rel_rmse\n"
+          "  --reference-spp N  light samples per pixel and shadow rays of that reference (default 4096)\n"
+          "  --reference-cache  the reference reads the volume through the radiance cache too (measures sampling\n"
+          "                     error alone; the default marches the volume for every ray)\n");
       return 0;
     } else if (a == "--json") {
       json = true;
     } else if (a == "--quick") {
       quick = true;
-    } else if ((a == "--out" || a == "--data") && i + 1 < args.size()) {
-      (a == "--out" ? out : data) = args[++i];
+    } else if (a == "--reference-cache") {
+      reference_cache = true;
+    } else if (a == "--reference-spp" && i + 1 < args.size()) {
+      reference_spp = std::stoi(args[++i]);
+      SL_CHECK(reference_spp >= 1, "insert: --reference-spp must be >= 1");
+    } else if ((a == "--out" || a == "--data" || a == "--size") && i + 1 < args.size()) {
+      (a == "--out" ? out : a == "--data" ? data : size) = args[++i];
     } else {
       fail("insert: unknown option '", a, "' (try --help)");
     }
   }
+  if (!size.empty()) return run_production(size, json, data, out, quick, reference_spp, reference_cache);
   std::filesystem::create_directories(out);
   const Scene s = make_scene(data);
   const PlacedObject obj = place_object(s.object, {0.8, -10.0, 30.0, 1.0}, s.camera, s.depth);
@@ -171,21 +422,44 @@ int run_insert(const std::vector<std::string>& args) {
   // ---- part 2: training-scale cost, forward + backward into env and vsg
   struct Setting {
     const char* name;
-    int64_t foreground_rays;
-    int sw, sh, rays;
+    InsertionOptions opt;
     VsgGrid grid;
+    Camera camera;
+    Tensor depth, background;
   };
+  // The training row builds its options exactly as train/adversarial_stage.cpp does from the
+  // default config, on a view of the street dataset's size (data/street_generator.h).
+  const nlohmann::json tc = train::default_train_config();
+  const auto& ic = tc.at("insertion");
+  InsertionOptions train_opt;
+  train_opt.aa_samples = ic.at("aa_samples").get<int>();
+  train_opt.light_samples = ic.at("light_samples").get<int>();
+  train_opt.shadow_width = ic.at("shadow_width").get<int>();
+  train_opt.shadow_height = ic.at("shadow_height").get<int>();
+  train_opt.shadow_rays = ic.at("shadow_rays").get<int>();
+  train_opt.ambient = ic.at("ambient").get<double>();
+  train_opt.query.samples = tc.at("model").at("volume").at("samples").get<int>();
+  VsgGrid train_grid = grid;
+  const auto dims = tc.at("model").at("volume").at("dims");
+  train_grid.dims = {dims[0].get<int64_t>(), dims[1].get<int64_t>(), dims[2].get<int64_t>()};
+  const StreetGeneratorConfig gen;
+  const Camera train_cam(intrinsics_from_fov(60 * kDeg, gen.view_width, gen.view_height),
+                         rotation_from_yaw_pitch_roll(0, -10 * kDeg, 0), {0, 1.6, 0});
+  const Tensor train_depth = train::ground_plane_depth(train_cam);
+  const Tensor train_bg = Tensor::full({3, gen.view_height, gen.view_width}, 0.3);
+  InsertionOptions paper_opt;
+  paper_opt.aa_samples = 1;
+  paper_opt.foreground_rays = 5000;
+  paper_opt.shadow_width = 160;
+  paper_opt.shadow_height = 90;
+  paper_opt.shadow_rays = 450;
   VsgGrid paper_grid = grid;
   paper_grid.dims = {256, 256, 64};
-  std::vector<Setting> settings = {{"training_defaults", 2048, 80, 45, 128, grid}};
-  if (!quick) settings.push_back({"paper", 5000, 160, 90, 450, paper_grid});
+  std::vector<Setting> settings = {{"training", train_opt, train_grid, train_cam, train_depth, train_bg}};
+  if (!quick) settings.push_back({"paper", paper_opt, paper_grid, s.camera, s.depth, s.background});
   for (const Setting& st : settings) {
-    InsertionOptions o;
-    o.aa_samples = 1;
-    o.foreground_rays = st.foreground_rays;
-    o.shadow_width = st.sw;
-    o.shadow_height = st.sh;
-    o.shadow_rays = st.rays;
+    const InsertionOptions& o = st.opt;
+    const PlacedObject sobj = place_object(s.object, {0.8, -10.0, 30.0, 1.0}, st.camera, st.depth);
     Tensor v = vsg_activate(Tensor::uniform({8, st.grid.dims[0], st.grid.dims[1], st.grid.dims[2]}, -4, 0, 12), 0)
                    .detach()
                    .contiguous()
@@ -194,24 +468,29 @@ int run_insert(const std::vector<std::string>& args) {
     Storage::reset_peak_bytes();
     const int64_t base = Storage::live_bytes();
     double t0 = now_ms();
-    const InsertionResult r = insert_objects({s.background, s.depth, s.camera, e, v, st.grid, {obj}}, o);
+    const InsertionResult r = insert_objects({st.background, st.depth, st.camera, e, v, st.grid, {sobj}}, o);
     const double fwd = now_ms() - t0;
     t0 = now_ms();
     backward(sum(r.composite));
     const double bwd = now_ms() - t0;
     const double peak_mb = double(Storage::peak_bytes() - base) / (1 << 20);
-    const long long fg_light_rays = (long long)(r.stats.query_rays - r.stats.shadow_pixels_computed * st.rays);
+    const long long fg_light_rays = (long long)(r.stats.query_rays - r.stats.shadow_pixels_computed * o.shadow_rays);
+    const Intrinsics& k = st.camera.intrinsics();
     if (json)
-      std::printf("{\"bench\": \"insert_cost\", \"setting\": \"%s\", \"foreground_rays\": %lld, \"query_rays\": %lld, "
+      std::printf("{\"bench\": \"insert_cost\", \"setting\": \"%s\", \"width\": %d, \"height\": %d, \"aa\": %d, "
+                  "\"light_samples\": %d, \"foreground_budget\": %lld, \"shadow_map\": \"%dx%d\", \"shadow_rays\": %d, "
+                  "\"volume_samples\": %d, \"foreground_rays\": %lld, \"query_rays\": %lld, "
                   "\"shadow_texels_computed\": %lld, \"shadow_texels\": %lld, \"forward_ms\": %.1f, \"backward_ms\": %.1f, "
-                  "\"peak_tensor_mb\": %.1f, \"max_rss_mb\": %ld}\n",
-                  st.name, fg_light_rays, (long long)r.stats.query_rays,
-                  (long long)r.stats.shadow_pixels_computed, (long long)r.stats.shadow_pixels_total, fwd, bwd, peak_mb,
-                  max_rss_mb());
+                  "\"ms\": %.1f, \"peak_tensor_mb\": %.1f, \"max_rss_mb\": %ld}\n",
+                  st.name, k.width, k.height, o.aa_samples, o.light_samples, (long long)o.foreground_rays, o.shadow_width,
+                  o.shadow_height, o.shadow_rays, o.query.samples, fg_light_rays, (long long)r.stats.query_rays,
+                  (long long)r.stats.shadow_pixels_computed, (long long)r.stats.shadow_pixels_total, fwd, bwd, fwd + bwd,
+                  peak_mb, max_rss_mb());
     else
-      std::printf("%-18s fg light rays %6lld  query rays %8lld  shadow texels %lld/%lld  forward %8.1f ms  backward %8.1f ms  "
-                  "peak tensors %7.1f MB  max RSS %ld MB\n",
-                  st.name, fg_light_rays, (long long)r.stats.query_rays,
+      std::printf("%-9s %dx%d aa %d light %d budget %lld shadow %dx%dx%d K %d: fg light rays %6lld  query rays %8lld  "
+                  "shadow texels %lld/%lld  forward %8.1f ms  backward %8.1f ms  peak tensors %7.1f MB  max RSS %ld MB\n",
+                  st.name, k.width, k.height, o.aa_samples, o.light_samples, (long long)o.foreground_rays, o.shadow_width,
+                  o.shadow_height, o.shadow_rays, o.query.samples, fg_light_rays, (long long)r.stats.query_rays,
                   (long long)r.stats.shadow_pixels_computed, (long long)r.stats.shadow_pixels_total, fwd, bwd, peak_mb,
                   max_rss_mb());
     std::fflush(stdout);

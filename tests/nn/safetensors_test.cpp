@@ -178,7 +178,7 @@ TEST(Safetensors, HostileHeadersAreRejectedWithoutLargeAllocations) {
   expect_rejected(p, "span 8 bytes but F32[3] needs 12");
   spit(p, make_file("{\"a\": {\"dtype\": \"F64\", \"shape\": [4611686018427387904, 4611686018427387904], "
                     "\"data_offsets\": [0, 8]}}", 8));
-  expect_rejected(p, "needs more than 2^62");
+  expect_rejected(p, "more than 2^62");
   spit(p, make_file("{\"a\": {\"dtype\": \"F32\", \"shape\": [2], \"data_offsets\": [8, 0]}}", 8));
   expect_rejected(p, "reversed");
   spit(p, make_file("{\"a\": {\"dtype\": \"F32\", \"shape\": [4], \"data_offsets\": [0, 16]}}", 8));

@@ -30,12 +30,7 @@ PanoramaItem PanoramaDataset::load(size_t index, uint64_t seed) const {
   item.sun = extract_sun(item.pano_hdr);
   item.crop = random_perspective_crop(item.pano_hdr, seed, 0xC0C0000ULL + index, crop_);
   const Tensor& c = item.crop.crop.image;
-  const int64_t n = c.size(1) * c.size(2);
-  const float* cp = c.data<float>();
-  std::vector<double> lum(static_cast<size_t>(n));
-  for (int64_t i = 0; i < n; ++i) lum[i] = luminance(cp[i], cp[n + i], cp[2 * n + i]);
-  std::nth_element(lum.begin(), lum.begin() + n / 2, lum.end());
-  item.exposure = lum[n / 2] > 1e-12 ? std::pow(ldr_median_, 2.2) / lum[n / 2] : 1.0;
+  item.exposure = exposure_for_ldr_median(c, ldr_median_);
   item.crop_ldr = to_ldr(c, item.exposure);
   return item;
 }

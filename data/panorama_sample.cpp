@@ -17,15 +17,6 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
 
-double median_luminance(const Tensor& image) {
-  const int64_t n = image.size(1) * image.size(2);
-  const float* p = image.data<float>();
-  std::vector<double> lum(static_cast<size_t>(n));
-  for (int64_t i = 0; i < n; ++i) lum[static_cast<size_t>(i)] = luminance(p[i], p[n + i], p[2 * n + i]);
-  std::nth_element(lum.begin(), lum.begin() + n / 2, lum.end());
-  return lum[static_cast<size_t>(n / 2)];
-}
-
 Tensor threshold_half(Tensor m) {
   float* p = m.data<float>();
   for (int64_t i = 0; i < m.numel(); ++i) p[i] = p[i] >= 0.5f ? 1.0f : 0.0f;
@@ -112,8 +103,7 @@ StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id
   const Tensor view_mask = threshold_half(crop_perspective(mask_full, mp).image.contiguous());
 
   const Tensor& hdr = crop.crop.image;
-  const double med = median_luminance(hdr);
-  const double exposure = (med > 1e-12 ? std::pow(o.ldr_median, 2.2) / med : 1.0) * exposure_jitter;
+  const double exposure = exposure_for_ldr_median(hdr, o.ldr_median) * exposure_jitter;
 
   StreetSample s;
   s.id = id;

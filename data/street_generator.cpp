@@ -173,15 +173,6 @@ std::vector<Camera> make_views(const StreetGeneratorConfig& c, int64_t index) {
   return views;
 }
 
-double median_luminance(const Tensor& hdr) {
-  const int64_t n = hdr.size(1) * hdr.size(2);
-  const float* p = hdr.data<float>();
-  std::vector<double> lum(static_cast<size_t>(n));
-  for (int64_t i = 0; i < n; ++i) lum[i] = luminance(p[i], p[n + i], p[2 * n + i]);
-  std::nth_element(lum.begin(), lum.begin() + n / 2, lum.end());
-  return lum[n / 2];
-}
-
 Tensor sky_mask_from_hits(const Tensor& mask) {
   Tensor out = Tensor::zeros({1, mask.size(1), mask.size(2)});
   const float* m = mask.data<float>();
@@ -416,8 +407,7 @@ GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t i
       view_spp.push_back(st.spp);
       note("view_" + std::to_string(v), st);
     }
-    const double median = median_luminance(renders[0].radiance);
-    const double exposure = median > 1e-12 ? std::pow(c.ldr_median, 2.2) / median : 1.0;
+    const double exposure = exposure_for_ldr_median(renders[0].radiance, c.ldr_median);
     result.exposure = exposure;
 
     write_image(file("pano_hdr.exr"), pano.radiance);

@@ -88,7 +88,8 @@ MaskedPsnr masked_psnr(const Tensor& pred, const Tensor& truth, const std::vecto
 }
 
 // The predicted LDR of a world camera's view (radiance query, Eq. 1) and its upper-hemisphere mask.
-std::pair<Tensor, std::vector<char>> render_view(const EstimatedLighting& l, const Camera& world_cam, int rows, int samples) {
+std::pair<Tensor, std::vector<char>> render_view(const EstimatedLighting& l, const Camera& world_cam, int rows,
+                                                 const RadianceQueryOptions& qo) {
   const double scale = static_cast<double>(rows) / world_cam.intrinsics().height;
   const Intrinsics k = world_cam.intrinsics().scaled(scale, scale);
   const Camera cam = l.frame.camera(Camera(k, world_cam.rotation(), world_cam.position()));
@@ -105,8 +106,6 @@ std::pair<Tensor, std::vector<char>> render_view(const EstimatedLighting& l, con
   const Tensor origins = Tensor::from_vector(o, {n, 3}).to(DType::F32), dirs = Tensor::from_vector(d, {n, 3}).to(DType::F32);
   Tensor rad;
   if (l.vsg.defined()) {
-    RadianceQueryOptions qo;
-    qo.samples = samples;
     rad = radiance_query(l.vsg, l.env, origins, dirs, l.grid, qo).radiance;
   } else {
     rad = env_lookup(l.env, dirs);
@@ -273,7 +272,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
       sun_err.push_back(angular_error_deg(dir, l.frame.direction(s.sun_direction)));
       for (size_t k = 1; k < s.views.size(); ++k) {
         NoGradGuard ng;
-        const auto [pred, upper] = render_view(l, s.views[k].camera, view_rows, est.volume_samples());
+        const auto [pred, upper] = render_view(l, s.views[k].camera, view_rows, est.volume_query());
         const Tensor truth = resize_bilinear(s.views[k].ldr, pred.size(1), pred.size(2));
         const MaskedPsnr all = masked_psnr(pred, truth, {}), up = masked_psnr(pred, truth, upper);
         ps.push_back(all.psnr), sps.push_back(all.si_psnr);
@@ -284,13 +283,13 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         if (it == meshes.end()) it = meshes.emplace(s.object_glb, to_object_frame_mesh(load_gltf(s.object_glb))).first;
         PhotoInsertionOptions o;
         o.aa_samples = 2, o.light_samples = 32, o.shadow_rays = 64, o.shadow_width = 80, o.shadow_height = 45;
-        o.volume_samples = est.volume_samples();
+        o.volume_query = est.volume_query();
         try {
           const InsertionScore sc = score_insertion(l, s, it->second, o);
           if (sc.valid) ins_psnr.push_back(sc.psnr), ins_ratio.push_back(sc.shadow_ratio_error);
           if (plot)
             for (Budget b : budgets()) {
-              b.o.volume_samples = est.volume_samples();
+              b.o.volume_query = est.volume_query();
               const InsertionScore bs = score_insertion(l, s, it->second, b.o);
               if (!bs.valid) continue;
               budget_err[b.name].push_back(bs.shadow_ratio_error);
@@ -324,7 +323,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
                          v.camera.position());
       PerspectiveCropParams cp;
       cp.width = v.camera.intrinsics().width, cp.height = v.camera.intrinsics().height;
-      const auto [pred, upper] = render_view(l, novel, view_rows, est.volume_samples());
+      const auto [pred, upper] = render_view(l, novel, view_rows, est.volume_query());
       const Tensor truth_full = render_truth(c.sample.pano_hdr, novel, c.sample.exposure);
       const Tensor truth = resize_bilinear(truth_full, pred.size(1), pred.size(2));
       const MaskedPsnr all = masked_psnr(pred, truth, {}), up = masked_psnr(pred, truth, upper);

@@ -15,6 +15,7 @@
 #include "train/lighting_stage.h"
 #include "train/losses.h"
 #include "train/phase_clock.h"
+#include "train/train_config.h"
 
 namespace sl::train {
 
@@ -53,7 +54,7 @@ Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
   o.shadow_rays = ic.at("shadow_rays").get<int>();
   o.ambient = ic.at("ambient").get<double>();
   o.seed = seed;
-  o.query.samples = config_.at("model").at("volume").at("samples").get<int>();
+  o.query = volume_query_options(config_);
   return insert_objects(in, o).composite;
 }
 

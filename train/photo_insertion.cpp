@@ -80,7 +80,7 @@ InsertionOptions insertion_options(const PhotoInsertionOptions& o) {
   io.ambient = o.ambient;
   io.importance_sampling = true;
   io.seed = o.seed;
-  io.query.samples = o.volume_samples;
+  io.query = o.volume_query;
   io.radiance_cache = o.radiance_cache;
   return io;
 }

@@ -57,6 +57,7 @@ json default_train_config() {
           {"unet_channels", 8},
           {"unet_depth", 3},
           {"samples", 64},
+          {"spacing", "grid"},
           {"trilinear", false}}},
         {"discriminator", {{"base_channels", 32}, {"layers", 3}, {"norm", "instance"}}}}},
       {"loss",
@@ -147,7 +148,7 @@ void check_train_config(const json& c) {
              "collision- and occlusion-checked against the depth), got \"", p, "\"");
   }
   (void)sky_options(c);
-  if (stage != kStageSky) (void)predictor_options(c);
+  if (stage != kStageSky) (void)predictor_options(c), (void)volume_query_options(c);
 }
 
 SkyAutoencoderOptions sky_options(const json& c) {
@@ -185,6 +186,22 @@ LightingPredictorOptions predictor_options(const json& c) {
   o.sky = sky_options(c);
   o.seed = c.at("seed").get<uint64_t>() + 1;
   validate(o);
+  return o;
+}
+
+RadianceQueryOptions volume_query_options(const json& c) {
+  const json& v = c.at("model").at("volume");
+  RadianceQueryOptions o;
+  o.samples = v.at("samples").get<int>();
+  SL_CHECK(o.samples >= 1, "model.volume.samples = ", o.samples, " must be >= 1");
+  o.trilinear = v.at("trilinear").get<bool>();
+  // Checkpoints written before the key existed sampled evenly in metres.
+  const std::string spacing = v.value("spacing", std::string("metric"));
+  try {
+    o.spacing = parse_sample_spacing(spacing);
+  } catch (const Error&) {
+    throw Error("model.volume.spacing = '" + spacing + "' is not one of: metric, grid");
+  }
   return o;
 }
 

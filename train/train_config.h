@@ -11,6 +11,7 @@
 #pragma once
 #include <nlohmann/json.hpp>
 
+#include "render/radiance_query.h"
 #include "render/vsg_volume.h"
 #include "train/lighting_predictor.h"
 #include "train/sky_autoencoder.h"
@@ -28,5 +29,7 @@ SkyAutoencoderOptions sky_options(const nlohmann::json& config);
 LightingPredictorOptions predictor_options(const nlohmann::json& config);
 // The VSG grid centred on a camera at height `camera_height_m` above the canonical origin.
 VsgGrid vsg_grid(const nlohmann::json& config, double camera_height_m);
+// Eq. 1's query options from model.volume: samples (K), spacing ("metric" | "grid"), trilinear.
+RadianceQueryOptions volume_query_options(const nlohmann::json& config);
 
 }  // namespace sl::train

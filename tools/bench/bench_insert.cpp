@@ -438,7 +438,7 @@ int run_insert(const std::vector<std::string>& args) {
   train_opt.shadow_height = ic.at("shadow_height").get<int>();
   train_opt.shadow_rays = ic.at("shadow_rays").get<int>();
   train_opt.ambient = ic.at("ambient").get<double>();
-  train_opt.query.samples = tc.at("model").at("volume").at("samples").get<int>();
+  train_opt.query = train::volume_query_options(tc);
   VsgGrid train_grid = grid;
   const auto dims = tc.at("model").at("volume").at("dims");
   train_grid.dims = {dims[0].get<int64_t>(), dims[1].get<int64_t>(), dims[2].get<int64_t>()};

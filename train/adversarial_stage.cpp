@@ -31,7 +31,6 @@ Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
   const StreetView& view = s.views[0];
   SL_CHECK(s.has_insertion && !s.object_glb.empty(), "stage adversarial: sample '", s.id,
            "' has no insertion ground truth (object_glb)");
-  const auto& ic = config_.at("insertion");
   InsertionInputs in;
   in.background = pow_scalar(view.ldr.contiguous(), 2.2);  // linearised LDR: exposure-normalised radiance
   in.depth = view.depth;
@@ -46,16 +45,7 @@ Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
   p.yaw_deg = s.object_yaw_deg - it.frame.yaw_rad * 180.0 / 3.14159265358979323846;
   p.scale = s.object_scale;
   in.objects.push_back(place_object(object_mesh(s.object_glb), p, it.camera, view.depth));
-  InsertionOptions o;
-  o.aa_samples = ic.at("aa_samples").get<int>();
-  o.light_samples = ic.at("light_samples").get<int>();
-  o.shadow_width = ic.at("shadow_width").get<int>();
-  o.shadow_height = ic.at("shadow_height").get<int>();
-  o.shadow_rays = ic.at("shadow_rays").get<int>();
-  o.ambient = ic.at("ambient").get<double>();
-  o.seed = seed;
-  o.query = volume_query_options(config_);
-  return insert_objects(in, o).composite;
+  return insert_objects(in, training_insertion_options(config_, seed)).composite;
 }
 
 Tensor LightingStage::real_composite_ldr(const StreetSample& s) const {

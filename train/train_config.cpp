@@ -95,7 +95,8 @@ json default_train_config() {
         {"shadow_width", 80},
         {"shadow_height", 45},
         {"shadow_rays", 128},
-        {"ambient", 0.1}}},
+        {"ambient", 0.1},
+        {"importance_sampling", true}}},
   };
 }
 
@@ -186,6 +187,22 @@ LightingPredictorOptions predictor_options(const json& c) {
   o.sky = sky_options(c);
   o.seed = c.at("seed").get<uint64_t>() + 1;
   validate(o);
+  return o;
+}
+
+InsertionOptions training_insertion_options(const json& c, uint64_t seed) {
+  const json& ic = c.at("insertion");
+  InsertionOptions o;
+  o.aa_samples = ic.at("aa_samples").get<int>();
+  o.light_samples = ic.at("light_samples").get<int>();
+  o.shadow_width = ic.at("shadow_width").get<int>();
+  o.shadow_height = ic.at("shadow_height").get<int>();
+  o.shadow_rays = ic.at("shadow_rays").get<int>();
+  o.ambient = ic.at("ambient").get<double>();
+  // Configs written before the key existed trained with cosine samples alone.
+  o.importance_sampling = ic.value("importance_sampling", false);
+  o.seed = seed;
+  o.query = volume_query_options(c);
   return o;
 }
 

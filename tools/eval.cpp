@@ -251,9 +251,10 @@ Tensor render_truth(const Tensor& pano_hdr, const Camera& cam, double exposure) 
 }
 
 json eval_lighting(const std::string& ckpt, const std::string& data, const std::string& split, int64_t limit,
-                   int view_rows, std::vector<cli::PlotPoint>* plot, const std::string& label, const RealSkyData* real) {
+                   int view_rows, std::vector<cli::PlotPoint>* plot, const std::string& label, const RealSkyData* real,
+                   bool oracle) {
   LightingEstimator est(ckpt);
-  std::vector<double> sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, ms;
+  std::vector<double> sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, ms, oracle_psnr, oracle_ratio;
   std::map<std::string, std::vector<double>> budget_err, budget_ms;
   const bool street = fs::exists(fs::path(data) / "index.json");
   size_t count = 0;
@@ -287,6 +288,16 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         try {
           const InsertionScore sc = score_insertion(l, s, it->second, o);
           if (sc.valid) ins_psnr.push_back(sc.psnr), ins_ratio.push_back(sc.shadow_ratio_error);
+          if (oracle) {
+            // Oracle lighting: the same renderer and options under the generator's own HDR
+            // panorama at the camera (distant light, exposure-normalised, in the canonical
+            // frame) — what is left is the renderer's error, not the lighting's.
+            EstimatedLighting truth = l;
+            truth.env = l.frame.panorama(mul_scalar(s.pano_hdr.contiguous(), s.exposure)).contiguous();
+            truth.vsg = Tensor();
+            const InsertionScore oc = score_insertion(truth, s, it->second, o);
+            if (oc.valid) oracle_psnr.push_back(oc.psnr), oracle_ratio.push_back(oc.shadow_ratio_error);
+          }
           if (plot)
             for (Budget b : budgets()) {
               b.o.volume_query = est.volume_query();
@@ -348,6 +359,9 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
             {"psnr", mean_of(ps)}, {"si_psnr", mean_of(sps)},
             {"psnr_upper", mean_of(ups)}, {"si_psnr_upper", mean_of(usps)},
             {"inference_ms", mean_of(ms)}};
+  if (!oracle_psnr.empty())
+    r["oracle"] = {{"insertion_psnr", mean_of(oracle_psnr)}, {"shadow_ratio_error", mean_of(oracle_ratio)},
+                   {"insertion_samples", oracle_psnr.size()}};
   if (!ins_psnr.empty()) {
     r["insertion_psnr"] = mean_of(ins_psnr);
     r["shadow_ratio_error"] = mean_of(ins_ratio);
@@ -428,6 +442,10 @@ std::string markdown(const std::vector<json>& rows, const std::vector<std::strin
          << fmt(r, "insertion_psnr") << " | " << fmt(r, "shadow_ratio_error", 3) << " | " << fmt(r, "inference_ms", 0)
          << " |\n";
     }
+    for (const auto& r : rows)
+      if (r.contains("oracle"))
+        md << "| oracle lighting (the generator's HDR panorama at the camera) | — | — | — | — | — | — | — | "
+           << fmt(r["oracle"], "insertion_psnr") << " | " << fmt(r["oracle"], "shadow_ratio_error", 3) << " | — |\n";
   }
   if (any_sky) {
     md << (any_light ? "\n" : "")
@@ -481,7 +499,8 @@ int run(int argc, char** argv) {
               "                 [--crops K] [--out DIR] [--json]\n\n"
               "Evaluates checkpoints with the metrics of Wang et al. ECCV 2022 (Tables 1-2): sun direction angular\n"
               "error, novel-view LDR PSNR / si-PSNR (also upper hemisphere only), sky log-L2 (sky autoencoder),\n"
-              "insertion error against the generator's path-traced ground truth, and inference time. Each DIR is a\n"
+              "insertion error against the generator's path-traced ground truth (also under oracle lighting: the\n"
+          "generator's own HDR panorama at the camera, which isolates the renderer's error), and inference time. Each DIR is a\n"
               "streetlight-datagen dataset or a folder of real HDR panoramas; results are reported per DIR.\n"
               "Real panoramas (the real-sky benchmark): K seeded perspective crops per panorama of the split's\n"
               "--split list (default: every file), sun errors over the crops whose sun is hard, also split by\n"
@@ -529,14 +548,18 @@ int run(int argc, char** argv) {
     std::unique_ptr<RealSkyData> real;
     if (!street) real = std::make_unique<RealSkyData>(load_real_sky(data, hdri_split, split, crops, limit));
     std::vector<json> results;
+    bool oracle_done = false;
     for (size_t i = 0; i < ckpts.size(); ++i) {
       const std::string stage = nn::read_checkpoint_info(ckpts[i]).stage;
       if (stage == kStageSky) {
         results.push_back(eval_sky(ckpts[i], data, split, limit, real.get()));
       } else {
         const bool want_plot = street && !plotted && a.has("--out") && !a.has("--no-budgets");
+        // The oracle row depends only on the data: computed with the first lighting checkpoint.
+        const bool want_oracle = street && !oracle_done;
         results.push_back(eval_lighting(ckpts[i], data, split, limit, rows, want_plot ? &plot : nullptr, names[i],
-                                        real.get()));
+                                        real.get(), want_oracle));
+        oracle_done = oracle_done || want_oracle;
         plotted = plotted || want_plot;
       }
       results.back()["name"] = names[i];

@@ -42,7 +42,7 @@ Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
   Placement p;
   p.x = pos.x;
   p.z = pos.z;
-  p.yaw_deg = s.object_yaw_deg - it.frame.yaw_rad * 180.0 / 3.14159265358979323846;
+  p.yaw_deg = it.frame.object_yaw_deg(s.object_yaw_deg);
   p.scale = s.object_scale;
   in.objects.push_back(place_object(object_mesh(s.object_glb), p, it.camera, view.depth));
   return insert_objects(in, training_insertion_options(config_, seed)).composite;

@@ -107,7 +107,7 @@ PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor
   sl::Placement p;
   p.x = at.x;
   p.z = at.z;
-  p.yaw_deg = pose.yaw_deg - lighting.frame.yaw_rad * 180.0 / 3.14159265358979323846;
+  p.yaw_deg = lighting.frame.object_yaw_deg(pose.yaw_deg);
   p.scale = pose.scale;
   in.objects.push_back(place_object(object_frame_mesh, p, in.camera, in.depth));
   PhotoInsertion out;

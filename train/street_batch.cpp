@@ -24,6 +24,10 @@ Camera CanonicalFrame::camera(const Camera& c) const {
   return Camera(c.intrinsics(), r, point(c.position()));
 }
 
+double CanonicalFrame::object_yaw_deg(double world_yaw_deg) const {
+  return world_yaw_deg + yaw_rad * 180.0 / 3.14159265358979323846;
+}
+
 Tensor CanonicalFrame::panorama(const Tensor& pano) const {
   return yaw_rad == 0.0 ? pano : rotate_azimuth(pano, -yaw_rad);
 }

@@ -19,6 +19,10 @@
 
 namespace sl::train {
 
+namespace {
+constexpr uint64_t kRealSeed = 0x7265616C5F696D67ULL;  // the real composites' own samples
+}  // namespace
+
 const Mesh& LightingStage::object_mesh(const std::string& path) {
   auto it = meshes_.find(path);
   if (it == meshes_.end()) it = meshes_.emplace(path, load_gltf(path)).first;
@@ -26,6 +30,11 @@ const Mesh& LightingStage::object_mesh(const std::string& path) {
 }
 
 Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
+  const Tensor vsg = f.pred.vsg.defined() ? select(f.pred.vsg, 0, static_cast<int64_t>(i)) : Tensor();
+  return composite_under(f, i, select(f.pred.env, 0, static_cast<int64_t>(i)), vsg, seed);
+}
+
+Tensor LightingStage::composite_under(const Forward& f, size_t i, const Tensor& env, const Tensor& vsg, uint64_t seed) {
   const StreetSample& s = f.samples[i];
   const StreetItem& it = f.items[i];
   const StreetView& view = s.views[0];
@@ -35,8 +44,8 @@ Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
   in.background = pow_scalar(view.ldr.contiguous(), 2.2);  // linearised LDR: exposure-normalised radiance
   in.depth = view.depth;
   in.camera = it.camera;
-  in.env = select(f.pred.env, 0, static_cast<int64_t>(i));
-  if (f.pred.vsg.defined()) in.vsg = select(f.pred.vsg, 0, static_cast<int64_t>(i));
+  in.env = env;
+  in.vsg = vsg;
   in.grid = it.grid;
   const glm::dvec3 pos = it.frame.point({s.object_x, 0.0, s.object_z});
   Placement p;
@@ -48,9 +57,23 @@ Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
   return insert_objects(in, training_insertion_options(config_, seed)).composite;
 }
 
-Tensor LightingStage::real_composite_ldr(const StreetSample& s) const {
-  SL_CHECK(s.insert_with_object_hdr.defined(), "stage adversarial: sample '", s.id, "' has no insert_with_object_hdr");
-  return to_ldr(s.insert_with_object_hdr.contiguous(), s.exposure);
+Tensor LightingStage::ground_truth_env(const Forward& f, size_t i) const {
+  const StreetSample& s = f.samples[i];
+  SL_CHECK(s.pano_hdr.defined(), "stage adversarial: sample '", s.id, "' has no HDR panorama (pano_hdr)");
+  const Tensor pano = f.items[i].frame.panorama(mul_scalar(s.pano_hdr.contiguous(), s.exposure).contiguous());
+  return resize_area(pano.contiguous(), static_cast<int>(batch_opt_.dome_height), static_cast<int>(batch_opt_.dome_width))
+      .to(f.pred.env.dtype());
+}
+
+Tensor LightingStage::real_composite_ldr(const Forward& f, size_t i, uint64_t seed) {
+  const StreetSample& s = f.samples[i];
+  const std::string kind = config_.at("insertion").value("real", std::string("renderer"));
+  if (kind == "path_traced") {
+    SL_CHECK(s.insert_with_object_hdr.defined(), "stage adversarial: sample '", s.id, "' has no insert_with_object_hdr");
+    return to_ldr(s.insert_with_object_hdr.contiguous(), s.exposure);
+  }
+  NoGradGuard no_grad;
+  return ldr_from_hdr(composite_under(f, i, ground_truth_env(f, i), Tensor(), seed)).contiguous();
 }
 
 Metrics LightingStage::adversarial_step(int64_t step) {
@@ -88,7 +111,7 @@ Metrics LightingStage::adversarial_step(int64_t step) {
   TensorList fakes, reals;
   for (size_t i : insertable) {
     fakes.push_back(ldr_from_hdr(composite(f, i, hash_counter(seed_, static_cast<uint64_t>(step), i))));
-    reals.push_back(real_composite_ldr(f.samples[i]));
+    reals.push_back(real_composite_ldr(f, i, hash_counter(seed_ ^ kRealSeed, static_cast<uint64_t>(step), i)));
   }
   const Tensor fake = stack(fakes, 0), real = stack(reals, 0);
   const double render_ms = clock.lap();

@@ -72,9 +72,19 @@ class LightingStage : public Stage {
   Forward forward_val(size_t val_index);
   // The supervised loss of Sec 3.4 over a forward (adds its terms to `m`).
   Tensor supervised_loss(const Forward& f, Metrics& m);
-  // Stage 3: the differentiable composite of sample i (insert_objects), linear [3, H, W].
+  // Stage 3: the differentiable composite of sample i (insert_objects) under the predicted
+  // lighting, linear [3, H, W]; composite_under() under any env (and optional vsg).
   Tensor composite(const Forward& f, size_t i, uint64_t seed);
-  Tensor real_composite_ldr(const StreetSample& s) const;
+  Tensor composite_under(const Forward& f, size_t i, const Tensor& env, const Tensor& vsg, uint64_t seed);
+  // The true light of sample i as the predictor's sky dome: the generator's HDR panorama at the
+  // camera, exposure-normalised, turned into the canonical frame and area-averaged to the dome
+  // size (so it is no sharper than a predicted dome can be). [3, dome_height, dome_width].
+  Tensor ground_truth_env(const Forward& f, size_t i) const;
+  // The discriminator's "real" image of sample i, LDR [3, H, W] (insertion.real):
+  //   "renderer": composite_under(ground_truth_env) with its own seed — the same renderer,
+  //     options and object as the fake, so real and fake differ only in their lighting;
+  //   "path_traced": the generator's path-traced insertion (differs in renderer as well).
+  Tensor real_composite_ldr(const Forward& f, size_t i, uint64_t seed);
 
  private:
   struct Batch {

@@ -96,7 +96,8 @@ json default_train_config() {
         {"shadow_height", 45},
         {"shadow_rays", 128},
         {"ambient", 0.1},
-        {"importance_sampling", true}}},
+        {"importance_sampling", true},
+        {"real", "renderer"}}},
   };
 }
 
@@ -147,6 +148,9 @@ void check_train_config(const json& c) {
     const std::string p = c.at("insertion").at("placement").get<std::string>();
     SL_CHECK(p == "dataset", "insertion.placement must be \"dataset\" (the generator's placement on drivable ground, "
              "collision- and occlusion-checked against the depth), got \"", p, "\"");
+    const std::string real = c.at("insertion").value("real", std::string("renderer"));
+    SL_CHECK(real == "renderer" || real == "path_traced",
+             "insertion.real must be \"renderer\" or \"path_traced\", got \"", real, "\"");
   }
   (void)sky_options(c);
   if (stage != kStageSky) (void)predictor_options(c), (void)volume_query_options(c);

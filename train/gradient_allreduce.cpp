@@ -24,11 +24,14 @@ void reduce_bucket(std::vector<float>& bucket, const std::vector<std::pair<Tenso
   w.allreduce_sum(bucket.data(), static_cast<int64_t>(bucket.size()));
   const float inv = 1.0f / static_cast<float>(w.size());
   for (const auto& [p, offset] : members) {
-    Tensor g = Tensor::empty(p.shape(), DType::F32);
+    // Into the gradient's own memory when it is a plain float32 buffer (no allocation per step).
+    const Tensor& own = p.grad();
+    const bool in_place = own.defined() && own.dtype() == DType::F32 && own.is_contiguous();
+    Tensor g = in_place ? own : Tensor::empty(p.shape(), DType::F32);
     float* d = g.data<float>();
     const float* s = bucket.data() + offset;
     for (int64_t i = 0; i < g.numel(); ++i) d[i] = s[i] * inv;
-    const_cast<Tensor&>(p).set_grad(p.dtype() == DType::F32 ? g : g.to(p.dtype()));
+    if (!in_place) const_cast<Tensor&>(p).set_grad(p.dtype() == DType::F32 ? g : g.to(p.dtype()));
   }
   bucket.clear();
 }

@@ -269,7 +269,10 @@ Metrics LightingStage::supervised_step(int64_t step) {
   for (const auto& [k, v] : m) check_finite_loss(k, v, step);
   backward(total);
   const double backward_ms = clock.lap();
-  if (is_distributed()) m["time_allreduce_ms"] = allreduce_gradients(optim_->params());
+  if (is_distributed()) {
+    m["time_allreduce_ms"] = allreduce_gradients(optim_->params());
+    clock.lap();  // not part of the optimiser's time
+  }
   check_finite_gradients(optim_->params(), step);
   m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
   optim_->step();

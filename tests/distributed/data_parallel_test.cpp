@@ -304,44 +304,59 @@ bool running(pid_t pid) {
   return close != std::string::npos && close + 2 < s.size() && s[close + 2] != 'Z' && s[close + 2] != 'X';
 }
 
-TEST(DataParallel, KillingOneRankStopsAllRanksAndKeepsTheLastCheckpoint) {
-  const fs::path dir = scratch();
-  const fs::path out = dir / "run", err = dir / "err.txt";
+// A long sky run under mpirun in the background (checkpoint every 5 steps); returns mpirun's pid
+// once the first checkpoint exists, or -1.
+pid_t start_long_run(const fs::path& out, const fs::path& err) {
   const std::string cmd = "exec " + mpirun(2) + kTrain.string() + " --config " +
                           (kConfigs / "quickstart_sky.json").string() + " " + sky_sets() +
                           " --set train.steps=100000 --set train.val_every=100000 --set train.checkpoint_every=5"
                           " --set train.batch_size=2 --out " + out.string() + " > /dev/null 2> " + err.string();
   const pid_t launcher = ::fork();
-  ASSERT_GE(launcher, 0);
+  if (launcher < 0) return -1;
   if (launcher == 0) {
     ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
     ::_exit(127);
   }
-  using clock = std::chrono::steady_clock;
-  const fs::path last = out / "last.safetensors";
-  auto deadline = clock::now() + std::chrono::seconds(60);
-  while (!fs::exists(last) && clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  ASSERT_TRUE(fs::exists(last)) << read_text(err);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!fs::exists(out / "last.safetensors") && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // a few more checkpoints, mid-run
+  return launcher;
+}
+
+// Waits up to 60 s for the launcher; kills it (and fails) when it does not stop.
+int wait_launcher(pid_t launcher) {
+  int status = 0;
+  pid_t done = 0;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while ((done = ::waitpid(launcher, &status, WNOHANG)) == 0 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  if (done == 0) {
+    ::kill(launcher, SIGKILL);
+    ::waitpid(launcher, &status, 0);
+    ADD_FAILURE() << "mpirun did not stop within 60 s";
+    return -1;
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST(DataParallel, KillingOneRankStopsAllRanksAndKeepsTheLastCheckpoint) {
+  const fs::path dir = scratch();
+  const fs::path out = dir / "run", err = dir / "err.txt", last = out / "last.safetensors";
+  const pid_t launcher = start_long_run(out, err);
+  ASSERT_GT(launcher, 0);
+  ASSERT_TRUE(fs::exists(last)) << read_text(err);
   const pid_t victim = rank_pid(launcher, 1), survivor = rank_pid(launcher, 0);
   ASSERT_GT(victim, 0);
   ASSERT_GT(survivor, 0);
   ASSERT_EQ(::kill(victim, SIGKILL), 0);
-  int status = 0;
-  pid_t done = 0;
-  deadline = clock::now() + std::chrono::seconds(60);
-  while ((done = ::waitpid(launcher, &status, WNOHANG)) == 0 && clock::now() < deadline)
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  if (done == 0) {  // still running: fail, and do not leave the job behind
-    ::kill(launcher, SIGKILL);
-    ::waitpid(launcher, &status, 0);
-    FAIL() << "mpirun did not stop within 60 s after rank 1 was killed";
-  }
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) != 0) << "status " << status;
+  const int code = wait_launcher(launcher);
+  EXPECT_GT(code, 0);
   // Rank 0 ignores mpirun's SIGTERM (the trainer's stop handler) while it waits in an all-reduce
   // for the dead rank; mpirun's SIGKILL follows within seconds.
-  deadline = clock::now() + std::chrono::seconds(20);
-  while (running(survivor) && clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (running(survivor) && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
   EXPECT_FALSE(running(survivor)) << "rank 0 is still running";
   const std::string text = read_text(err);
   EXPECT_NE(text.find("rank 1"), std::string::npos) << text;
@@ -352,6 +367,26 @@ TEST(DataParallel, KillingOneRankStopsAllRanksAndKeepsTheLastCheckpoint) {
   EXPECT_GE(info.step, 5);
   EXPECT_EQ(info.step % 5, 0);
   EXPECT_FALSE(sl::nn::read_safetensors(last.string()).tensors.empty());
+}
+
+// SIGTERM to ONE rank: every rank stops after the same step (the stop flag is all-reduced), rank 0
+// saves last.safetensors at that step, and the job exits 0.
+TEST(DataParallel, SigtermToOneRankStopsEveryRankAfterTheSameStep) {
+  const fs::path dir = scratch();
+  const fs::path out = dir / "run", err = dir / "err.txt";
+  const pid_t launcher = start_long_run(out, err);
+  ASSERT_GT(launcher, 0);
+  ASSERT_TRUE(fs::exists(out / "last.safetensors")) << read_text(err);
+  const pid_t rank1 = rank_pid(launcher, 1);
+  ASSERT_GT(rank1, 0);
+  ASSERT_EQ(::kill(rank1, SIGTERM), 0);
+  EXPECT_EQ(wait_launcher(launcher), 0) << read_text(err);
+  const std::string text = read_text(err);
+  EXPECT_NE(text.find("stopped by signal at step"), std::string::npos) << text;
+  const auto info = sl::nn::read_checkpoint_info((out / "last.safetensors").string());
+  const Curve curve = train_curve(out);
+  ASSERT_FALSE(curve.empty());
+  EXPECT_EQ(info.step, curve.back()["step"].get<int64_t>()) << "saved at the step every rank stopped after";
 }
 
 }  // namespace

@@ -105,8 +105,8 @@ Metrics LightingStage::adversarial_step(int64_t step) {
     m["time_optimizer_ms"] = clock.lap();
     return m;
   }
+  const double share = global_share(static_cast<double>(insertable.size()));  // collective: before branching
   if (insertable.empty()) return adversarial_step_without_samples(step, total, m, forward_ms);
-  const double share = global_share(static_cast<double>(insertable.size()));
   TensorList fakes, reals;
   for (size_t i : insertable) {
     fakes.push_back(ldr_from_hdr(composite(f, i, hash_counter(seed_, static_cast<uint64_t>(step), i))));

@@ -266,6 +266,34 @@ TEST(DataParallel, AdversarialStageKeepsEveryReplicaIdentical) {
   EXPECT_TRUE(has_discriminator);
 }
 
+// Mixed with real-panorama crops (which have no insertion), some steps give one rank an insertable
+// sample and the other none (4 of these 8 steps when checked with a print): that rank must still
+// take part in both updates. A mismatch of collectives aborts the job (it did, before the fix);
+// diverged replicas fail the checkpoint. Steps where no rank can insert skip the discriminator
+// and log no d_loss, as in one process.
+TEST(DataParallel, AdversarialStageWithARankWithoutInsertableSamples) {
+  const fs::path hdri = fs::path(STREETLIGHT_SHARED_DATA) / "hdri";
+  if (!fs::exists(hdri)) GTEST_SKIP() << "needs the shared HDRIs (" << hdri << ")";
+  const LightingFixture f = lighting_fixture();
+  ASSERT_TRUE(f.ok);
+  const std::string sets = f.sets + " --set train.steps=2 --set train.val_every=2 --set train.checkpoint_every=2";
+  train(f.dir, "lighting", (kConfigs / "quickstart_lighting.json").string(), sets, 1, 2);
+  const std::string adv_sets =
+      f.sets + " --set init.checkpoint=" + (f.dir / "lighting" / "last.safetensors").string() +
+      " --set data.real_fraction=0.5 --set data.hdri_dir=" + hdri.string() + " --set data.hdri_split=" +
+      (kConfigs / "hdri_split.json").string() +
+      " --set data.real_val_crops=0 --set train.steps=8 --set train.val_every=8 --set train.checkpoint_every=1";
+  const Curve two = train(f.dir, "adversarial", (kConfigs / "quickstart_adversarial.json").string(), adv_sets, 2, 1);
+  ASSERT_EQ(two.size(), 8u);
+  int with_discriminator = 0;
+  for (const auto& line : two) {
+    if (!line.contains("d_loss")) continue;
+    ++with_discriminator;
+    EXPECT_TRUE(line["d_loss"].is_number() && std::isfinite(line["d_loss"].get<double>())) << line.dump();
+  }
+  EXPECT_GE(with_discriminator, 4);
+}
+
 // The child processes of `parent` whose environment says OMPI_COMM_WORLD_RANK=rank.
 pid_t rank_pid(pid_t parent, int rank) {
   const std::string want = "OMPI_COMM_WORLD_RANK=" + std::to_string(rank);

@@ -16,11 +16,11 @@
 #include "data/panorama.h"
 #include "render/gltf_loader.h"
 #include "render/object_insertion.h"
+#include "train/distributed.h"
+#include "train/gradient_allreduce.h"
 #include "train/lighting_stage.h"
 #include "train/losses.h"
 #include "train/phase_clock.h"
-#include "train/distributed.h"
-#include "train/gradient_allreduce.h"
 
 namespace sl::train {
 

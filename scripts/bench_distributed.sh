@@ -2,11 +2,12 @@
 # Data-parallel scaling on one machine (docs/DISTRIBUTED.md): the default lighting stage with
 # 1 rank x 2 threads (batch 2) against 2 ranks x 1 thread (batch 1 each, the same global batch),
 # and 1 rank x 1 thread for reference, as steps per second of stage.step() and the all-reduce's
-# share of the step (mean, and the minimum over steps: the transfer alone, without waiting).
+# share of the step (mean, and the minimum over steps: the step where ranks waited least).
 # Usage: scripts/bench_distributed.sh BUILD_DIR DATASET SKY_CKPT [STEPS]   (needs an MPI build)
 set -euo pipefail
-if [ $# -lt 3 ] || [ "$1" = "--help" ] || [ "$1" = "-h" ]; then sed -n '2,5p' "$0"; exit $(( $# < 3 ? 2 : 0 )); fi
-build=$1 data=$2 sky=$3 steps=${4:-20}
+case "${1:-}" in -h|--help) sed -n '2,6p' "$0"; exit 0 ;; esac
+if [ $# -lt 3 ]; then sed -n '2,6p' "$0" >&2; exit 2; fi
+build=$(realpath -m "$1") data=$(realpath -m "$2") sky=$(realpath -m "$3") steps=${4:-20}
 train=$build/tools/streetlight-train
 [ -x "$train" ] || { echo "error: $train not found (build first)" >&2; exit 2; }
 command -v mpirun > /dev/null || { echo "error: mpirun not found (scripts/install_deps.sh --mpi)" >&2; exit 2; }

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs Streetlight's build and test dependencies from Debian 12 packages. Idempotent: it
-# only calls apt-get when a package is missing. Usage: scripts/install_deps.sh [--anchors]
+# only calls apt-get when a package is missing. Usage: scripts/install_deps.sh [--anchors] [--mpi]
 #   --anchors  also install the comparison anchors (python3-torch, libembree-dev, numpy)
+#   --mpi      also install Open MPI (data-parallel training, docs/DISTRIBUTED.md)
 set -euo pipefail
 
 packages=(cmake g++ make ccache pkg-config
@@ -10,6 +11,7 @@ packages=(cmake g++ make ccache pkg-config
 for arg in "$@"; do
   case "$arg" in
     --anchors) packages+=(python3-torch python3-numpy libembree-dev) ;;
+    --mpi) packages+=(libopenmpi-dev openmpi-bin) ;;
     -h|--help) sed -n '2,5p' "$0"; exit 0 ;;
     *) echo "error: unknown option '$arg' (try --help)" >&2; exit 2 ;;
   esac

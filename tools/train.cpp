@@ -8,6 +8,9 @@
 // lines otherwise); metrics as JSON lines in DIR/metrics.jsonl; checkpoints DIR/last.safetensors
 // and DIR/best.safetensors; PNG strips DIR/strip_<step>.png. SIGINT/SIGTERM saves and exits 0.
 // Exit codes: 0 done (or stopped by a signal), 2 bad input, 1 failure at run time (NaN/Inf).
+// Data parallel (docs/DISTRIBUTED.md): `mpirun -np N streetlight-train ...` in a build with MPI
+// trains on N ranks (train/distributed.h); rank 0 alone prints progress and writes outputs, and
+// an error on any rank aborts the whole job with that rank's exit code.
 #include <cstdio>
 #include <iostream>
 #include <sstream>
@@ -15,6 +18,8 @@
 #include "nn/checkpoint.h"
 #include "tools/common/cli.h"
 #include "tools/common/config.h"
+#include "train/distributed.h"
+#include "train/mpi_communicator.h"
 #include "train/train_config.h"
 #include "train/trainer.h"
 
@@ -43,6 +48,8 @@ int run(int argc, char** argv) {
                       {"--out", "DIR", "output folder (default runs/<stage>)"},
                       {"--json", "", "print the run summary as one JSON object on stdout"}});
   if (!args.parse(argc, argv)) return 0;
+  sl::train::set_world(sl::train::mpi_communicator_if_launched(&argc, &argv));
+  const bool root = sl::train::is_root();
   sl::cli::Config config(sl::train::default_train_config());
   const std::string resume = args.get("--resume");
   if (args.has("--config")) {
@@ -54,7 +61,8 @@ int run(int argc, char** argv) {
     sl::fail("--config FILE.json is required (or --resume CKPT to continue with the checkpoint's config)");
   }
   for (const auto& s : args.all("--set")) config.set(s);
-  const nlohmann::json& cfg = config.tree();
+  nlohmann::json cfg = config.tree();
+  sl::train::resolve_global_batch(cfg, sl::train::world().size());
   auto stage = sl::train::make_stage(cfg);
 
   sl::train::RunOptions run;
@@ -63,7 +71,13 @@ int run(int argc, char** argv) {
   run.log = [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
   const int64_t total = cfg.at("train").at("steps").get<int64_t>();
   sl::cli::Progress progress("train " + stage->name(), total);
-  run.on_step = [&](int64_t done, int64_t, const sl::train::Metrics& m) { progress.update(done, short_metrics(m)); };
+  run.on_step = [&](int64_t done, int64_t, const sl::train::Metrics& m) {
+    if (root) progress.update(done, short_metrics(m));
+  };
+  if (root && sl::train::is_distributed())
+    std::fprintf(stderr, "data parallel: %d ranks x batch %lld = global batch %lld\n", sl::train::world().size(),
+                 static_cast<long long>(cfg.at("train").at("batch_size").get<int64_t>()),
+                 static_cast<long long>(sl::train::world().size() * cfg.at("train").at("batch_size").get<int64_t>()));
   sl::train::RunResult result;
   try {
     result = sl::train::run_training(*stage, cfg, run);
@@ -71,6 +85,7 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "\nerror: %s\n", e.what());
     return 1;
   }
+  if (!root) return 0;
   progress.finish(short_metrics(result.last_losses));
   nlohmann::json summary = {{"stage", stage->name()},
                             {"steps", result.steps_done},
@@ -79,6 +94,7 @@ int run(int argc, char** argv) {
                             {"total_seconds", result.total_seconds},
                             {"peak_rss_mb", static_cast<double>(result.peak_rss_kb) / 1024.0},
                             {"out", run.out_dir}};
+  if (sl::train::is_distributed()) summary["ranks"] = sl::train::world().size();
   for (const auto& [k, v] : result.last_losses) summary["train"][k] = v;
   for (const auto& [k, v] : result.last_validation) summary["val"][k] = v;
   if (args.has("--json")) {
@@ -95,5 +111,9 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  return sl::cli::run_main([&] { return run(argc, argv); });
+  const int code = sl::cli::run_main([&] { return run(argc, argv); });
+  // Data parallel: the other ranks would wait for this one forever; stop them all.
+  if (code != 0 && sl::train::is_distributed()) sl::train::world().abort(code);
+  sl::train::set_world(nullptr);  // finalises MPI
+  return code;
 }

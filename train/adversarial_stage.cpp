@@ -5,6 +5,10 @@
 // One step: (1) predictor forward, supervised loss, composite, generator loss with D frozen,
 // backward, update the predictor; (2) hinge loss of D on real vs detached fake, update D at
 // optim.discriminator_lr (one AdamW over both; a step only touches parameters with gradients).
+// Data parallel (distributed.h): both updates average their gradients over ranks; the
+// adversarial and hinge losses are means over the GLOBAL batch's insertable samples (each rank
+// scales its shard's mean by global_share), and whether the discriminator steps at all is decided
+// by the global count, so every rank runs the same collectives.
 #include <cmath>
 
 #include "autodiff/ops.h"
@@ -12,6 +16,8 @@
 #include "data/panorama.h"
 #include "render/gltf_loader.h"
 #include "render/object_insertion.h"
+#include "train/distributed.h"
+#include "train/gradient_allreduce.h"
 #include "train/lighting_stage.h"
 #include "train/losses.h"
 #include "train/phase_clock.h"
@@ -98,16 +104,23 @@ Metrics LightingStage::adversarial_step(int64_t step) {
     if (s.has_insertion && f.items[i].camera.project(f.items[i].frame.point({s.object_x, 0.0, s.object_z})).in_image)
       insertable.push_back(i);
   }
-  if (!discriminator_ || insertable.empty()) {  // the no-adversarial ablation: the same steps without D
+  const double global_insertable = sum_over_ranks(static_cast<double>(insertable.size()));
+  if (!discriminator_ || global_insertable == 0) {  // the no-adversarial ablation: the same steps without D
     for (const auto& [k, v] : m) check_finite_loss(k, v, step);
     backward(total);
     record_times(0.0, clock.lap());
+    if (is_distributed()) {
+      m["time_allreduce_ms"] = allreduce_gradients(optim_->params());
+      clock.lap();
+    }
     check_finite_gradients(optim_->params(), step);
     m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
     optim_->step();
     m["time_optimizer_ms"] = clock.lap();
     return m;
   }
+  const double share = global_share(static_cast<double>(insertable.size()));  // collective: before branching
+  if (insertable.empty()) return adversarial_step_without_samples(step, total, m, forward_ms);
   TensorList fakes, reals;
   for (size_t i : insertable) {
     fakes.push_back(ldr_from_hdr(composite(f, i, hash_counter(seed_, static_cast<uint64_t>(step), i))));
@@ -117,7 +130,8 @@ Metrics LightingStage::adversarial_step(int64_t step) {
   const double render_ms = clock.lap();
   // (1) Predictor: supervised + w_adv · (−D(fake)), D frozen so only the predictor gets gradients.
   discriminator_->freeze(true);
-  const Tensor adv = generator_adversarial(discriminator_->forward(fake));
+  Tensor adv = generator_adversarial(discriminator_->forward(fake));
+  if (share != 1.0) adv = mul_scalar(adv, share);
   m["adversarial"] = adv.item();
   total = add(total, mul_scalar(adv, config_.at("loss").at("adversarial").get<double>()));
   m["loss"] = total.item();
@@ -125,23 +139,67 @@ Metrics LightingStage::adversarial_step(int64_t step) {
   backward(total);
   record_times(render_ms, clock.lap());
   discriminator_->freeze(false);
+  if (is_distributed()) {
+    m["time_allreduce_ms"] = allreduce_gradients(optim_->params());
+    clock.lap();
+  }
   check_finite_gradients(optim_->params(), step);
   m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
   optim_->set_lr(lr_);
   optim_->step();
   // (2) Discriminator: hinge on real vs the detached composite.
   optim_->zero_grad();
-  const Tensor d_loss = discriminator_hinge(discriminator_->forward(real), discriminator_->forward(fake.detach()));
+  Tensor d_loss = discriminator_hinge(discriminator_->forward(real), discriminator_->forward(fake.detach()));
+  if (share != 1.0) d_loss = mul_scalar(d_loss, share);
   m["d_loss"] = d_loss.item();
   check_finite_loss("d_loss", m["d_loss"], step);
   backward(d_loss);
+  double optimizer_ms = 0.0;
+  if (is_distributed()) {
+    optimizer_ms = clock.lap();
+    m["time_allreduce_ms"] += allreduce_gradients(optim_->params());
+    clock.lap();
+  }
   check_finite_gradients(optim_->params(), step);
   nn::clip_grad_norm(optim_->params(), clip_);
   const double base = config_.at("optim").at("lr").get<double>();
   optim_->set_lr(lr_ * config_.at("optim").at("discriminator_lr").get<double>() / base);
   optim_->step();
   optim_->set_lr(lr_);
-  m["time_optimizer_ms"] = clock.lap();  // both optimiser steps and the discriminator's own pass
+  m["time_optimizer_ms"] = optimizer_ms + clock.lap();  // both optimiser steps and the discriminator's own pass
+  return m;
+}
+
+// Data parallel, a rank whose shard has no insertable sample while others have: it takes part in
+// both updates with its supervised gradients and no discriminator gradient (zeros in the mean).
+Metrics LightingStage::adversarial_step_without_samples(int64_t step, const Tensor& total, Metrics& m,
+                                                        double forward_ms) {
+  m["adversarial"] = 0.0;
+  m["d_loss"] = 0.0;
+  for (const auto& [k, v] : m) check_finite_loss(k, v, step);
+  PhaseClock clock;
+  backward(total);
+  m["time_data_ms"] = last_data_ms_;
+  m["time_forward_ms"] = forward_ms;
+  m["time_render_ms"] = 0.0;
+  m["time_backward_ms"] = clock.lap();
+  m["time_allreduce_ms"] = allreduce_gradients(optim_->params());
+  clock.lap();
+  check_finite_gradients(optim_->params(), step);
+  m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
+  optim_->set_lr(lr_);
+  optim_->step();
+  optim_->zero_grad();
+  const double optimizer_ms = clock.lap();
+  m["time_allreduce_ms"] += allreduce_gradients(optim_->params());
+  clock.lap();
+  check_finite_gradients(optim_->params(), step);
+  nn::clip_grad_norm(optim_->params(), clip_);
+  const double base = config_.at("optim").at("lr").get<double>();
+  optim_->set_lr(lr_ * config_.at("optim").at("discriminator_lr").get<double>() / base);
+  optim_->step();
+  optim_->set_lr(lr_);
+  m["time_optimizer_ms"] = optimizer_ms + clock.lap();
   return m;
 }
 

@@ -20,6 +20,8 @@
 #include "train/phase_clock.h"
 #include "train/metrics.h"
 #include "train/train_config.h"
+#include "train/distributed.h"
+#include "train/gradient_allreduce.h"
 
 namespace sl::train {
 
@@ -139,8 +141,9 @@ LightingStage::Batch LightingStage::train_batch(int64_t step) const {
   const uint64_t n = train_.size;
   std::vector<size_t> order;
   uint64_t order_epoch = std::numeric_limits<uint64_t>::max();
+  const uint64_t first = shard_first_index(step, batch_size_);  // this rank's shard (distributed.h)
   for (int64_t i = 0; i < batch_size_; ++i) {
-    const uint64_t global = static_cast<uint64_t>(step * batch_size_ + i);
+    const uint64_t global = first + static_cast<uint64_t>(i);
     if (global / n != order_epoch) {
       order_epoch = global / n;
       order = epoch_order(n, seed_, order_epoch);
@@ -150,7 +153,7 @@ LightingStage::Batch LightingStage::train_batch(int64_t step) const {
     // Stage 3 inserts into view 0 (the view with the path-traced ground truth).
     views.push_back(adversarial_ ? 0 : static_cast<size_t>(rng.randint(static_cast<int64_t>(samples.back().views.size()))));
   }
-  return make_batch(std::move(samples), views, seed_, static_cast<uint64_t>(step * batch_size_));
+  return make_batch(std::move(samples), views, seed_, first);
 }
 
 LightingStage::Forward LightingStage::forward_train(int64_t step) {
@@ -165,7 +168,13 @@ LightingStage::Forward LightingStage::forward_train(int64_t step) {
   last_data_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   prefetch_step_ = step + 1;
   prefetch_ = std::async(std::launch::async, [this, next = step + 1] { return train_batch(next); });
-  return run_predictor(std::move(batch));
+  Forward f = run_predictor(std::move(batch));
+  if (is_distributed()) {  // sky_ldr is a masked mean: normalise by the global batch's mask count
+    double count = 0;
+    for (const auto& it : f.items) count += 3.0 * sum(it.pano_mask_dome).item();
+    f.sky_ldr_share = global_share(count);
+  }
+  return f;
 }
 
 LightingStage::Forward LightingStage::forward_val(size_t index) {
@@ -224,7 +233,8 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
     } else {
       add_term("sky_hdr", log_encoded_l2_from_log(f.pred.log_env, teacher.sky.hdr));
     }
-    add_term("sky_ldr", masked_l1(ldr_from_hdr(f.pred.env), pano_b, mask_b));
+    const Tensor sky_ldr = masked_l1(ldr_from_hdr(f.pred.env), pano_b, mask_b);
+    add_term("sky_ldr", f.sky_ldr_share == 1.0 ? sky_ldr : mul_scalar(sky_ldr, f.sky_ldr_share));
   }
   // Volume branch: per sample, radiance-queried rays (Eq. 1).
   Tensor rad_sum = Tensor::scalar(0.0), depth_sum = Tensor::scalar(0.0), sep_sum = Tensor::scalar(0.0);
@@ -257,6 +267,10 @@ Metrics LightingStage::supervised_step(int64_t step) {
   for (const auto& [k, v] : m) check_finite_loss(k, v, step);
   backward(total);
   const double backward_ms = clock.lap();
+  if (is_distributed()) {
+    m["time_allreduce_ms"] = allreduce_gradients(optim_->params());
+    clock.lap();  // not part of the optimiser's time
+  }
   check_finite_gradients(optim_->params(), step);
   m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
   optim_->step();

@@ -65,6 +65,8 @@ class LightingStage : public Stage {
     std::vector<StreetSample> samples;
     std::vector<StreetItem> items;
     LightingPrediction pred;
+    // Data parallel: this shard's factor on the sky_ldr masked mean (distributed.h, global_share).
+    double sky_ldr_share = 1.0;
   };
   // Builds the batch of `step` (or the validation batch of sample `val_index`) and runs the
   // predictor on it.
@@ -101,6 +103,7 @@ class LightingStage : public Stage {
   };
   Query query(const Forward& f, size_t i, const Tensor& origins, const Tensor& directions);
   Metrics adversarial_step(int64_t step);
+  Metrics adversarial_step_without_samples(int64_t step, const Tensor& total, Metrics& m, double forward_ms);
   Metrics supervised_step(int64_t step);
   const Mesh& object_mesh(const std::string& path);
 

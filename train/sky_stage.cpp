@@ -10,6 +10,8 @@
 #include "train/losses.h"
 #include "train/metrics.h"
 #include "train/train_config.h"
+#include "train/distributed.h"
+#include "train/gradient_allreduce.h"
 
 namespace sl::train {
 
@@ -80,7 +82,7 @@ Metrics SkyStage::losses(const Batch& b, const SkyAutoencoder::Output& out, Tens
 Metrics SkyStage::step(int64_t step) {
   model_->train();
   PhaseClock clock;
-  const Batch b = make_batch(seed_, static_cast<uint64_t>(step * batch_size_), batch_size_);
+  const Batch b = make_batch(seed_, shard_first_index(step, batch_size_), batch_size_);
   const double data_ms = clock.lap();
   optim_->zero_grad();
   const SkyAutoencoder::Output out = model_->run(b.ldr);
@@ -90,6 +92,10 @@ Metrics SkyStage::step(int64_t step) {
   for (const auto& [k, v] : m) check_finite_loss(k, v, step);
   backward(total);
   const double backward_ms = clock.lap();
+  if (is_distributed()) {
+    m["time_allreduce_ms"] = allreduce_gradients(optim_->params());
+    clock.lap();  // not part of the optimiser's time
+  }
   check_finite_gradients(optim_->params(), step);
   m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
   optim_->step();

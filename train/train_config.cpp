@@ -87,7 +87,8 @@ json default_train_config() {
         {"val_every", 200},
         {"checkpoint_every", 200},
         {"image_every", 200},
-        {"best_metric", "val_loss"}}},
+        {"best_metric", "val_loss"},
+        {"global_batch", 0}}},
       {"insertion",
        {{"placement", "dataset"},
         {"aa_samples", 1},
@@ -116,6 +117,8 @@ void check_train_config(const json& c) {
            "stage must be \"sky_autoencoder\", \"lighting\" or \"adversarial\", got \"", stage, "\"");
   for (const char* k : {"steps", "batch_size", "log_every", "val_every", "checkpoint_every", "image_every"})
     positive(c, "train", k);
+  SL_CHECK(c.at("train").at("global_batch").get<int64_t>() >= 0, "train.global_batch must be >= 0 (0: ranks × "
+           "train.batch_size), got ", c.at("train").at("global_batch").get<int64_t>());
   positive(c, "optim", "lr");
   SL_CHECK(c.at("optim").at("min_lr").get<double>() >= 0, "optim.min_lr must be >= 0");
   SL_CHECK(c.at("seed").get<int64_t>() >= 0, "seed must be >= 0, got ", c.at("seed").get<int64_t>());

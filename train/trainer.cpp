@@ -11,6 +11,8 @@
 #include "autodiff/tape.h"
 #include "nn/checkpoint.h"
 #include "nn/lr_schedule.h"
+#include "train/distributed.h"
+#include "train/gradient_allreduce.h"
 
 namespace sl::train {
 
@@ -84,13 +86,14 @@ RunResult run_training(Stage& stage, const nlohmann::json& config, const RunOpti
       warmup > 0 ? std::make_shared<nn::WarmupLr>(warmup, cosine) : cosine;
 
   std::error_code ec;
-  fs::create_directories(options.out_dir, ec);
+  const bool root = is_root();  // data parallel: rank 0 alone writes (distributed.h)
+  if (root) fs::create_directories(options.out_dir, ec);
   SL_CHECK(!ec, "train: cannot create the output folder ", options.out_dir, ": ", ec.message());
   const std::string last_path = (fs::path(options.out_dir) / "last.safetensors").string();
   const std::string best_path = (fs::path(options.out_dir) / "best.safetensors").string();
   const std::string metrics_path = (fs::path(options.out_dir) / "metrics.jsonl").string();
   auto log = [&](const std::string& s) {
-    if (options.log) options.log(s);
+    if (options.log && root) options.log(s);
   };
 
   int64_t step = 0;
@@ -105,6 +108,8 @@ RunResult run_training(Stage& stage, const nlohmann::json& config, const RunOpti
   } else {
     stage.initialise();
   }
+  broadcast_parameters(stage.model());  // data parallel: every replica starts from rank 0's
+  broadcast_buffers(stage.model());
 
   auto save = [&](const std::string& path) {
     nn::CheckpointInfo info;
@@ -115,6 +120,10 @@ RunResult run_training(Stage& stage, const nlohmann::json& config, const RunOpti
       char buf[64];
       std::snprintf(buf, sizeof buf, "%.17g", best);
       info.extra["best_metric"] = buf;
+    }
+    if (is_distributed()) {
+      info.extra["world_size"] = std::to_string(world().size());
+      info.extra["global_batch"] = std::to_string(world().size() * t.at("batch_size").get<int64_t>());
     }
     nn::save_checkpoint(path, stage.model(), &stage.optimizer(), info);
   };
@@ -128,17 +137,19 @@ RunResult run_training(Stage& stage, const nlohmann::json& config, const RunOpti
     stage.set_lr(schedule->lr(step));
     const auto s0 = std::chrono::steady_clock::now();
     result.last_losses = stage.step(step);
+    average_metrics(result.last_losses, step);  // data parallel: the global batch's losses
+    broadcast_buffers(stage.model());           // per-rank batch-norm statistics: rank 0's win
     step_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count();
     ++step;
     if (options.on_step) options.on_step(step, total, result.last_losses);
-    if (step % log_every == 0 || step == total) {
+    if (root && (step % log_every == 0 || step == total)) {
       nlohmann::json line = metrics_json(result.last_losses);
       line["step"] = step;
       line["split"] = "train";
       line["lr"] = stage.optimizer().lr();
       append_line(metrics_path, line);
     }
-    if (step % val_every == 0 || step == total) {
+    if (root && (step % val_every == 0 || step == total)) {
       result.last_validation = stage.validate();
       nlohmann::json line = metrics_json(result.last_validation);
       line["step"] = step;
@@ -151,11 +162,14 @@ RunResult run_training(Stage& stage, const nlohmann::json& config, const RunOpti
         log(cat("step ", step, ": new best ", stage.best_metric(), " = ", best, " -> ", best_path));
       }
     }
-    if (step % image_every == 0 || step == total)
+    if (root && (step % image_every == 0 || step == total))
       stage.write_strip((fs::path(options.out_dir) / cat("strip_", step, ".png")).string());
-    if (step % ckpt_every == 0 || step == total) save(last_path);
-    if (stop_requested()) {
-      save(last_path);
+    const bool stop = any_rank(stop_requested());
+    if (step % ckpt_every == 0 || step == total || stop) {
+      check_replicas(stage.model(), step);  // the checkpoint stands for every rank
+      if (root) save(last_path);
+    }
+    if (stop) {
       result.interrupted = true;
       log(cat("stopped by signal at step ", step, "; saved ", last_path, " (resume with --resume ", last_path, ")"));
       break;

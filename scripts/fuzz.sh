@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer harnesses of tests/fuzz (clang 14, ASan + UBSan, build-fuzz/) and runs
-# them ONE AT A TIME under nice, then prints executions, time, corpus size and crashes per target.
+# them ONE AT A TIME under nice, then prints executions, time, exec/s, corpus (units/bytes) and crash
+# files per target.
 # Not part of CI: CI replays the committed corpora (fuzz_tests, tests/fuzz/corpus_replay_test.cpp).
 #
 #   scripts/fuzz.sh [TARGET ...] [--seconds N] [--runs N] [--markdown] [--build-only]
@@ -26,7 +27,7 @@ while [[ $# -gt 0 ]]; do
     --runs) runs="$2"; shift 2 ;;
     --build-only) build_only=1; shift ;;
     --markdown) markdown=1; shift ;;
-    -h|--help) sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     -*) echo "error: unknown option '$1' (see --help)" >&2; exit 2 ;;
     *)
       if [[ ! " ${all[*]} " == *" $1 "* ]]; then
@@ -65,6 +66,8 @@ for t in "${targets[@]}"; do
   # Final stats after a clean stop; after a crash, the last progress line ("#N ...").
   execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' ||
           grep -o '^#[0-9]*' "$log" | tail -1 | tr -d '#' || true)
-  row "$t" "${execs:-0}" "$elapsed" "$(( ${execs:-0} / (elapsed > 0 ? elapsed : 1) ))" "$(ls "$work" | wc -l)" \
+  # libFuzzer's own corpus at the end ("corp: units/bytes"); the folder also keeps superseded units.
+  corpus=$(grep -a -o 'corp: [0-9]*/[0-9]*[a-zA-Z]*' "$log" | tail -1 | cut -d' ' -f2 || true)
+  row "$t" "${execs:-0}" "$elapsed" "$(( ${execs:-0} / (elapsed > 0 ? elapsed : 1) ))" "${corpus:-?}" \
     "$(ls "$crashes" | wc -l)"
 done

@@ -40,35 +40,43 @@ bool read_name(std::istream& in, std::string& out) {
 
 }  // namespace
 
-int64_t exr_declared_pixels(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
+ExrHeaderSummary summarize_exr_header(const std::string& path) {
+  ExrHeaderSummary r;
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  const std::streamoff file_bytes = in.tellg();
   unsigned char head[8];
-  if (!in.read(reinterpret_cast<char*>(head), sizeof head) || std::memcmp(head, kMagic, 4) != 0) return 0;
+  if (!in.seekg(0) || !in.read(reinterpret_cast<char*>(head), sizeof head) || std::memcmp(head, kMagic, 4) != 0)
+    return r;
   const bool multi_part = (little_endian_u32(head + 4) & kMultiPartFlag) != 0;
-  int64_t largest = 0;
   std::string name, type;
   while (true) {
     bool empty_header = true;
     while (true) {
-      if (!read_name(in, name)) return largest;
+      if (!read_name(in, name)) return r;
       if (name.empty()) break;
       empty_header = false;
       unsigned char size_bytes[4];
-      if (!read_name(in, type) || !in.read(reinterpret_cast<char*>(size_bytes), 4)) return largest;
+      if (!read_name(in, type) || !in.read(reinterpret_cast<char*>(size_bytes), 4)) return r;
       const int32_t size = little_endian_i32(size_bytes);
-      if (size < 0) return largest;
+      if (size < 0) return r;
+      if (size > file_bytes - in.tellg()) {
+        r.attribute_past_end = name;
+        r.attribute_bytes = size;
+        return r;
+      }
       if (name == "dataWindow" && type == "box2i" && size == 16) {
         unsigned char box[16];
-        if (!in.read(reinterpret_cast<char*>(box), sizeof box)) return largest;
+        if (!in.read(reinterpret_cast<char*>(box), sizeof box)) return r;
         const int64_t width = int64_t{little_endian_i32(box + 8)} - little_endian_i32(box) + 1;
         const int64_t height = int64_t{little_endian_i32(box + 12)} - little_endian_i32(box + 4) + 1;
         if (width > 0 && height > 0)  // each at most 2^32: saturate, since 2^32 · 2^32 is past int64
-          largest = std::max(largest, width > INT64_MAX / height ? INT64_MAX : width * height);
+          r.largest_window_pixels =
+              std::max(r.largest_window_pixels, width > INT64_MAX / height ? INT64_MAX : width * height);
       } else if (!in.seekg(size, std::ios::cur)) {
-        return largest;
+        return r;
       }
     }
-    if (!multi_part || empty_header) return largest;
+    if (!multi_part || empty_header) return r;
   }
 }
 

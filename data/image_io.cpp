@@ -59,10 +59,13 @@ OpenedInput open_input(const std::string& path, const char* op) {
   std::error_code ec;
   SL_CHECK(fs::exists(path, ec), op, ": '", path, "': no such file");
   SL_CHECK(!fs::is_directory(path, ec), op, ": '", path, "' is a directory, not an image");
-  // OpenEXR allocates by the declared window while opening, so the limit is applied first.
-  const int64_t exr_pixels = exr_declared_pixels(path);
-  SL_CHECK(exr_pixels <= kMaxImageValues, op, ": '", path, "' declares a data window of ", exr_pixels,
-           " pixels, above the limit of ", kMaxImageValues, " values (corrupt or hostile header?)");
+  // OpenEXR allocates what its header declares while opening, so the header is checked first.
+  const ExrHeaderSummary exr = summarize_exr_header(path);
+  SL_CHECK(exr.attribute_past_end.empty(), op, ": '", path, "': header attribute '", exr.attribute_past_end,
+           "' declares ", exr.attribute_bytes, " bytes, past the end of the file (truncated or corrupt)");
+  SL_CHECK(exr.largest_window_pixels <= kMaxImageValues, op, ": '", path, "' declares a data window of ",
+           exr.largest_window_pixels, " pixels, above the limit of ", kMaxImageValues,
+           " values (corrupt or hostile header?)");
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
   OpenedInput r;

@@ -81,7 +81,7 @@ TEST(GltfHostileAccessor, AccessorOffsetNearTwoToTheSixtyFourIsRefused) {
 TEST(ExrHostileHeader, DataWindowPastTheValueLimitIsRefusedByEveryReader) {
   // 10^12 pixels declared in 300 bytes; also the fuzzer's find, a window of 3.6e9 pixels.
   const std::string path = write_temp("huge_window.exr", exr_declaring(99999, 9999999));
-  EXPECT_EQ(sl::exr_declared_pixels(path), int64_t{100000} * 10000000);
+  EXPECT_EQ(sl::summarize_exr_header(path).largest_window_pixels, int64_t{100000} * 10000000);
   for (const std::string& msg : {clean_error([&] { sl::read_image_info(path); }),
                                  clean_error([&] { sl::read_image(path); }),
                                  clean_error([&] { sl::read_depth(path); })})
@@ -98,16 +98,34 @@ TEST(ExrHostileHeader, WindowAtTheInt32ExtremesSaturatesTheCount) {
   std::memcpy(&bytes[at], &lo, 4);
   std::memcpy(&bytes[at + 4], &lo, 4);
   const std::string path = write_temp("extreme_window.exr", bytes);
-  EXPECT_EQ(sl::exr_declared_pixels(path), INT64_MAX) << "2^32 x 2^32 saturates";
+  EXPECT_EQ(sl::summarize_exr_header(path).largest_window_pixels, INT64_MAX) << "2^32 x 2^32 saturates";
   EXPECT_FALSE(clean_error([&] { sl::read_image_info(path); }).empty());
+}
+
+TEST(ExrHostileHeader, AttributeLargerThanTheFileIsRefusedByEveryReader) {
+  std::string bytes = exr_declaring(7, 3);
+  const int32_t claimed = 1744830464;  // the fuzzer's find: a 1.7 GB string in a 412-byte file
+  std::memcpy(&bytes[bytes.find(std::string("chlist\0", 7)) + 7], &claimed, 4);
+  const std::string path = write_temp("huge_attribute.exr", bytes);
+  const sl::ExrHeaderSummary summary = sl::summarize_exr_header(path);
+  EXPECT_EQ(summary.attribute_past_end, "channels");
+  EXPECT_EQ(summary.attribute_bytes, claimed);
+  for (const std::string& msg : {clean_error([&] { sl::read_image_info(path); }),
+                                 clean_error([&] { sl::read_image(path); }),
+                                 clean_error([&] { sl::read_depth(path); })})
+    EXPECT_NE(msg.find("attribute 'channels' declares 1744830464 bytes, past the end"), std::string::npos) << msg;
+  const std::string fuzz_find =
+      std::string(STREETLIGHT_SOURCE_DIR) + "/tests/fuzz/corpus/image/crash_exr_huge_attribute";
+  EXPECT_NE(clean_error([&] { sl::read_image(fuzz_find); }).find("attribute 'capDate' declares"), std::string::npos);
 }
 
 TEST(ExrHostileHeader, OrdinaryFilesAndOtherFormatsDeclareWhatTheyHold) {
   const std::string exr = write_temp("small_window.exr", exr_declaring(7, 3));
-  EXPECT_EQ(sl::exr_declared_pixels(exr), 32);
+  EXPECT_EQ(sl::summarize_exr_header(exr).largest_window_pixels, 32);
+  EXPECT_EQ(sl::summarize_exr_header(exr).attribute_past_end, "");
   const std::string not_exr = write_temp("not.exr", "P6 1 1 255 xyz");
-  EXPECT_EQ(sl::exr_declared_pixels(not_exr), 0);
-  EXPECT_EQ(sl::exr_declared_pixels(write_temp("empty.exr", "")), 0);
+  EXPECT_EQ(sl::summarize_exr_header(not_exr).largest_window_pixels, 0);
+  EXPECT_EQ(sl::summarize_exr_header(write_temp("empty.exr", "")).largest_window_pixels, 0);
 }
 
 TEST(GltfHostileAccessor, ValidTriangleStillLoads) {

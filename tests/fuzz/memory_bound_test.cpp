@@ -152,6 +152,17 @@ TEST_F(MemoryBound, ExrDeclaringFourBillionPixelsIsRefusedBeforeOpenExrOpensIt) 
   EXPECT_LE(peak_of([&] { sl::read_image_info(path); }), 64 * std::filesystem::file_size(path) + kMiB);
 }
 
+TEST_F(MemoryBound, ExrAttributeDeclaringGigabytesIsRefusedBeforeOpenExrOpensIt) {
+  const std::string small = write_temp("small.exr", exr_declaring(1, 1));
+  try {
+    sl::read_image_info(small);
+  } catch (const sl::Error&) {
+  }
+  // The fuzzer's find: 412 bytes whose 'capDate' string attribute declares 1.7 GB.
+  const std::string path = std::string(STREETLIGHT_SOURCE_DIR) + "/tests/fuzz/corpus/image/crash_exr_huge_attribute";
+  EXPECT_LE(peak_of([&] { sl::read_image_info(path); }), 64 * std::filesystem::file_size(path) + kMiB);
+}
+
 TEST_F(MemoryBound, VelodyneAndRayFilesCostAFewTimesTheirSize) {
   const std::string points(16 * 4096, '\0');  // 4096 points at the origin
   const std::string vpath = write_temp("points.bin", points);

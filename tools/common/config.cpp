@@ -120,7 +120,7 @@ void Config::merge_file(const std::string& path) {
   json j;
   try {
     j = json::parse(in, nullptr, true, /*ignore_comments=*/true);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number past double
     fail("config file '", path, "' is not valid JSON: ", e.what());
   }
   merge(j, "config file '" + path + "'");
@@ -133,7 +133,7 @@ void Config::set(const std::string& assignment) {
   json value;
   try {
     value = json::parse(text);
-  } catch (const json::parse_error&) {
+  } catch (const json::exception&) {  // not JSON, or a number past double ("1e999")
     value = text;  // a bare string
   }
   json nested = value;

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "autodiff/parallel.h"
+#include "data/exr_header.h"
 
 namespace sl {
 
@@ -58,6 +59,13 @@ OpenedInput open_input(const std::string& path, const char* op) {
   std::error_code ec;
   SL_CHECK(fs::exists(path, ec), op, ": '", path, "': no such file");
   SL_CHECK(!fs::is_directory(path, ec), op, ": '", path, "' is a directory, not an image");
+  // OpenEXR allocates what its header declares while opening, so the header is checked first.
+  const ExrHeaderSummary exr = summarize_exr_header(path);
+  SL_CHECK(exr.attribute_past_end.empty(), op, ": '", path, "': header attribute '", exr.attribute_past_end,
+           "' declares ", exr.attribute_bytes, " bytes, past the end of the file (truncated or corrupt)");
+  SL_CHECK(exr.largest_window_pixels <= kMaxImageValues, op, ": '", path, "' declares a data window of ",
+           exr.largest_window_pixels, " pixels, above the limit of ", kMaxImageValues,
+           " values (corrupt or hostile header?)");
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
   OpenedInput r;
@@ -308,11 +316,14 @@ Tensor read_depth(const std::string& path, MissingDepth missing, int width, int 
            " channels, expected 1 (a depth map)");
   const int w = f.spec.width, h = f.spec.height;
   const float hole = missing == MissingDepth::Zero ? 0.0f : std::nanf("");
-  Tensor depth = Tensor::empty({1, h, w}, DType::F32);
-  float* dst = depth.data<float>();
   const size_t n = static_cast<size_t>(w) * h;
+  // The tensor is allocated only after read_pixels has checked the declared size against
+  // kMaxImageValues (a 398-byte EXR header declared 3.6e9 pixels: 14 GB before the check).
+  Tensor depth;
   if (is_float_type(f.spec.format)) {
     const std::vector<float> buf = read_pixels<float>(f, OIIO::TypeDesc::FLOAT, path, op);
+    depth = Tensor::empty({1, h, w}, DType::F32);
+    float* dst = depth.data<float>();
     for (size_t i = 0; i < n; ++i)
       dst[i] = std::isfinite(buf[i]) && buf[i] > 0.0f ? buf[i] : hole;
   } else {
@@ -320,6 +331,8 @@ Tensor read_depth(const std::string& path, MissingDepth missing, int width, int 
              "': an integer depth map must be 16-bit (KITTI: metres = value / 256), got ",
              f.spec.format.size() * 8, "-bit");
     const std::vector<uint16_t> buf = read_pixels<uint16_t>(f, OIIO::TypeDesc::UINT16, path, op);
+    depth = Tensor::empty({1, h, w}, DType::F32);
+    float* dst = depth.data<float>();
     for (size_t i = 0; i < n; ++i) dst[i] = buf[i] == 0 ? hole : static_cast<float>(buf[i]) / 256.0f;
   }
   return depth;

@@ -24,6 +24,8 @@
 // size; tensors that are not F32/F64 [C, H, W]; and files whose header declares more than
 // kMaxImageValues values (width · height · channels), refused before any pixel memory is
 // allocated, so a tiny hostile header cannot claim gigabytes (reading costs 8 bytes per value).
+// An OpenEXR file whose data window alone is past the limit is refused before OpenEXR opens it
+// (data/exr_header.h), by read_image_info too.
 #pragma once
 #include <cstdint>
 #include <string>

@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer harnesses of tests/fuzz (clang 14, ASan + UBSan, build-fuzz/) and runs
-# them ONE AT A TIME under nice, then prints executions, time, corpus size and crashes per target.
+# them ONE AT A TIME under nice, then prints executions, time, exec/s, corpus (units/bytes) and crash
+# files per target.
 # Not part of CI: CI replays the committed corpora (fuzz_tests, tests/fuzz/corpus_replay_test.cpp).
 #
-#   scripts/fuzz.sh [TARGET ...] [--seconds N] [--runs N] [--build-only]
+#   scripts/fuzz.sh [TARGET ...] [--seconds N] [--runs N] [--markdown] [--build-only]
 #
 # TARGET: safetensors gltf image kitti calibration_json dataset config rays batch_list (default:
-# all). Each run stops after N seconds (default 60) or N executions, whichever comes first. The
+# all). Each run stops after N seconds (default 60) or N executions, whichever comes first.
+# --markdown prints the table as Markdown rows (tests/fuzz/README.md keeps the measured one). The
 # working corpus grows in build-fuzz/fuzz-corpus/<target>/ (seeded from tests/fuzz/corpus/);
 # crashing, leaking, timing-out and out-of-memory inputs land in build-fuzz/fuzz-crashes/<target>/
 # — add each to tests/fuzz/corpus/<target>/ once fixed. Logs: build-fuzz/fuzz-logs/<target>.log.
@@ -17,13 +19,15 @@ all=(safetensors gltf image kitti calibration_json dataset config rays batch_lis
 seconds=60
 runs=-1
 build_only=0
+markdown=0
 targets=()
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --seconds) seconds="$2"; shift 2 ;;
     --runs) runs="$2"; shift 2 ;;
     --build-only) build_only=1; shift ;;
-    -h|--help) sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --markdown) markdown=1; shift ;;
+    -h|--help) sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     -*) echo "error: unknown option '$1' (see --help)" >&2; exit 2 ;;
     *)
       if [[ ! " ${all[*]} " == *" $1 "* ]]; then
@@ -40,7 +44,14 @@ CC=clang CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Debug -DCMA
 nice -n 5 cmake --build "$build" -j2 --target "${targets[@]/#/fuzz_}" >/dev/null
 [[ $build_only -eq 1 ]] && exit 0
 
-printf '%-17s %12s %9s %8s %8s\n' target executions seconds corpus crashes
+if [[ $markdown -eq 1 ]]; then
+  row() { printf '| %s | %s | %s | %s | %s | %s |\n' "$@"; }
+  row target executions seconds exec/s corpus crashes
+  echo '|---|---:|---:|---:|---:|---:|'
+else
+  row() { printf '%-17s %12s %9s %8s %8s %8s\n' "$@"; }
+  row target executions seconds exec/s corpus crashes
+fi
 for t in "${targets[@]}"; do
   work="$build/fuzz-corpus/$t" crashes="$build/fuzz-crashes/$t" log="$build/fuzz-logs/$t.log"
   mkdir -p "$work" "$crashes" "$(dirname "$log")"
@@ -55,5 +66,8 @@ for t in "${targets[@]}"; do
   # Final stats after a clean stop; after a crash, the last progress line ("#N ...").
   execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' ||
           grep -o '^#[0-9]*' "$log" | tail -1 | tr -d '#' || true)
-  printf '%-17s %12s %9s %8s %8s\n' "$t" "${execs:-0}" "$elapsed" "$(ls "$work" | wc -l)" "$(ls "$crashes" | wc -l)"
+  # libFuzzer's own corpus at the end ("corp: units/bytes"); the folder also keeps superseded units.
+  corpus=$(grep -a -o 'corp: [0-9]*/[0-9]*[a-zA-Z]*' "$log" | tail -1 | cut -d' ' -f2 || true)
+  row "$t" "${execs:-0}" "$elapsed" "$(( ${execs:-0} / (elapsed > 0 ? elapsed : 1) ))" "${corpus:-?}" \
+    "$(ls "$crashes" | wc -l)"
 done

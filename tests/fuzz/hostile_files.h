@@ -42,6 +42,24 @@ inline std::string triangle_glb(const std::string& count, const std::string& byt
   return glb_bytes(json, std::string(reinterpret_cast<const char*>(p), sizeof(p)));
 }
 
+// A single-part, uncompressed OpenEXR header with one FLOAT channel "Y" whose dataWindow is
+// (0, 0) - (x_max, y_max), followed by no pixel data at all (not even the line-offset table).
+inline std::string exr_declaring(int32_t x_max, int32_t y_max) {
+  auto i32 = [](int32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
+  auto f32 = [](float v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
+  auto attribute = [&](const std::string& name, const std::string& type, const std::string& value) {
+    return name + '\0' + type + '\0' + i32(static_cast<int32_t>(value.size())) + value;
+  };
+  const std::string channel = std::string("Y\0", 2) + i32(2) + std::string(4, '\0') + i32(1) + i32(1);
+  const std::string window = i32(0) + i32(0) + i32(x_max) + i32(y_max);
+  return std::string("\x76\x2f\x31\x01", 4) + i32(2) + attribute("channels", "chlist", channel + '\0') +
+         attribute("compression", "compression", std::string(1, '\0')) + attribute("dataWindow", "box2i", window) +
+         attribute("displayWindow", "box2i", window) + attribute("lineOrder", "lineOrder", std::string(1, '\0')) +
+         attribute("pixelAspectRatio", "float", f32(1.0f)) +
+         attribute("screenWindowCenter", "v2f", f32(0.0f) + f32(0.0f)) +
+         attribute("screenWindowWidth", "float", f32(1.0f)) + '\0';
+}
+
 inline std::string write_temp(const std::string& name, const std::string& bytes) {
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / ("streetlight-hostile-" + std::to_string(::getpid()));

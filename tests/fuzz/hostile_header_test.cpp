@@ -5,12 +5,15 @@
 #include <gtest/gtest.h>
 
 #include "autodiff/error.h"
+#include "data/exr_header.h"
+#include "data/image_io.h"
 #include "nn/safetensors.h"
 #include "render/gltf_loader.h"
 #include "tests/fuzz/hostile_files.h"
 
 namespace {
 
+using sl::fuzz::test::exr_declaring;
 using sl::fuzz::test::glb_bytes;
 using sl::fuzz::test::safetensors_bytes;
 using sl::fuzz::test::triangle_glb;
@@ -73,6 +76,56 @@ TEST(GltfHostileAccessor, AccessorOffsetNearTwoToTheSixtyFourIsRefused) {
   const std::string path = write_temp("offset.glb", triangle_glb("3", "12", "18446744073709551608"));
   const std::string msg = clean_error([&] { sl::load_gltf(path); });
   EXPECT_NE(msg.find("reads past the end of bufferView 0"), std::string::npos) << msg;
+}
+
+TEST(ExrHostileHeader, DataWindowPastTheValueLimitIsRefusedByEveryReader) {
+  // 10^12 pixels declared in 300 bytes; also the fuzzer's find, a window of 3.6e9 pixels.
+  const std::string path = write_temp("huge_window.exr", exr_declaring(99999, 9999999));
+  EXPECT_EQ(sl::summarize_exr_header(path).largest_window_pixels, int64_t{100000} * 10000000);
+  for (const std::string& msg : {clean_error([&] { sl::read_image_info(path); }),
+                                 clean_error([&] { sl::read_image(path); }),
+                                 clean_error([&] { sl::read_depth(path); })})
+    EXPECT_NE(msg.find("declares a data window of 1000000000000 pixels"), std::string::npos) << msg;
+  const std::string fuzz_find = std::string(STREETLIGHT_SOURCE_DIR) + "/tests/fuzz/corpus/image/crash_exr_huge_window";
+  EXPECT_NE(clean_error([&] { sl::read_depth(fuzz_find); }).find("declares a data window"), std::string::npos);
+}
+
+TEST(ExrHostileHeader, WindowAtTheInt32ExtremesSaturatesTheCount) {
+  const int32_t lo = INT32_MIN, hi = INT32_MAX;
+  std::string bytes = exr_declaring(hi, hi);
+  // Move the window's minimum corner to (INT32_MIN, INT32_MIN): 2^32 x 2^32 pixels.
+  const size_t at = bytes.find(std::string("dataWindow\0box2i\0", 17)) + 17 + 4;
+  std::memcpy(&bytes[at], &lo, 4);
+  std::memcpy(&bytes[at + 4], &lo, 4);
+  const std::string path = write_temp("extreme_window.exr", bytes);
+  EXPECT_EQ(sl::summarize_exr_header(path).largest_window_pixels, INT64_MAX) << "2^32 x 2^32 saturates";
+  EXPECT_FALSE(clean_error([&] { sl::read_image_info(path); }).empty());
+}
+
+TEST(ExrHostileHeader, AttributeLargerThanTheFileIsRefusedByEveryReader) {
+  std::string bytes = exr_declaring(7, 3);
+  const int32_t claimed = 1744830464;  // the fuzzer's find: a 1.7 GB string in a 412-byte file
+  std::memcpy(&bytes[bytes.find(std::string("chlist\0", 7)) + 7], &claimed, 4);
+  const std::string path = write_temp("huge_attribute.exr", bytes);
+  const sl::ExrHeaderSummary summary = sl::summarize_exr_header(path);
+  EXPECT_EQ(summary.attribute_past_end, "channels");
+  EXPECT_EQ(summary.attribute_bytes, claimed);
+  for (const std::string& msg : {clean_error([&] { sl::read_image_info(path); }),
+                                 clean_error([&] { sl::read_image(path); }),
+                                 clean_error([&] { sl::read_depth(path); })})
+    EXPECT_NE(msg.find("attribute 'channels' declares 1744830464 bytes, past the end"), std::string::npos) << msg;
+  const std::string fuzz_find =
+      std::string(STREETLIGHT_SOURCE_DIR) + "/tests/fuzz/corpus/image/crash_exr_huge_attribute";
+  EXPECT_NE(clean_error([&] { sl::read_image(fuzz_find); }).find("attribute 'capDate' declares"), std::string::npos);
+}
+
+TEST(ExrHostileHeader, OrdinaryFilesAndOtherFormatsDeclareWhatTheyHold) {
+  const std::string exr = write_temp("small_window.exr", exr_declaring(7, 3));
+  EXPECT_EQ(sl::summarize_exr_header(exr).largest_window_pixels, 32);
+  EXPECT_EQ(sl::summarize_exr_header(exr).attribute_past_end, "");
+  const std::string not_exr = write_temp("not.exr", "P6 1 1 255 xyz");
+  EXPECT_EQ(sl::summarize_exr_header(not_exr).largest_window_pixels, 0);
+  EXPECT_EQ(sl::summarize_exr_header(write_temp("empty.exr", "")).largest_window_pixels, 0);
 }
 
 TEST(GltfHostileAccessor, ValidTriangleStillLoads) {

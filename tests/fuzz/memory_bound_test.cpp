@@ -17,6 +17,8 @@
 // while what the file claims is gigabytes to terabytes.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include "data/image_io.h"
 #include "data/kitti.h"
 #include "nn/safetensors.h"
@@ -68,9 +70,10 @@ std::string png_chunk(const std::string& type, const std::string& data) {
   return be32(static_cast<uint32_t>(data.size())) + td + be32(crc);
 }
 
-// A PNG whose IHDR declares width × height RGBA pixels and whose IDAT holds almost nothing.
-std::string png_declaring(uint32_t width, uint32_t height) {
-  const std::string ihdr = be32(width) + be32(height) + std::string("\x08\x06\x00\x00\x00", 5);
+// A PNG whose IHDR declares width × height pixels (8-bit RGBA unless told: bit depth, colour
+// type) and whose IDAT holds almost nothing.
+std::string png_declaring(uint32_t width, uint32_t height, const std::string& depth_colour = "\x08\x06") {
+  const std::string ihdr = be32(width) + be32(height) + depth_colour + std::string("\x00\x00\x00", 3);
   const std::string idat("\x78\x9c\x03\x00\x00\x00\x00\x01", 8);  // zlib stream of nothing
   return std::string("\x89PNG\r\n\x1a\n", 8) + png_chunk("IHDR", ihdr) + png_chunk("IDAT", idat) +
          png_chunk("IEND", "");
@@ -123,6 +126,41 @@ TEST_F(MemoryBound, PngDeclaringFourBillionPixelsAllocatesNothingOfItsSize) {
   const std::string path = write_temp("huge.png", bytes);
   const size_t peak = peak_of([&] { sl::read_image(path); });
   EXPECT_LE(peak, 64 * bytes.size() + kMiB);
+}
+
+TEST_F(MemoryBound, DepthPngDeclaringFourHundredMillionPixelsAllocatesNothingOfItsSize) {
+  const std::string small = write_temp("small_depth.png", png_declaring(2, 2, std::string("\x10\x00", 2)));
+  try {
+    sl::read_depth(small);
+  } catch (const sl::Error&) {
+  }
+  // 16-bit grey, 4e8 values: read_depth once allocated its 1.6 GB tensor before the size check.
+  const std::string bytes = png_declaring(20000, 20000, std::string("\x10\x00", 2));
+  const std::string path = write_temp("huge_depth.png", bytes);
+  EXPECT_LE(peak_of([&] { sl::read_depth(path); }), 64 * bytes.size() + kMiB);
+}
+
+TEST_F(MemoryBound, ExrDeclaringFourBillionPixelsIsRefusedBeforeOpenExrOpensIt) {
+  const std::string small = write_temp("small.exr", exr_declaring(1, 1));
+  try {
+    sl::read_image_info(small);
+  } catch (const sl::Error&) {
+  }
+  // The fuzzer's find: 398 bytes, a ZIP file whose window is 13893636 x 257 pixels. OpenEXR
+  // sizes its decompression buffers by the window while opening (16 lines of 13.9 M floats).
+  const std::string path = std::string(STREETLIGHT_SOURCE_DIR) + "/tests/fuzz/corpus/image/crash_exr_huge_window";
+  EXPECT_LE(peak_of([&] { sl::read_image_info(path); }), 64 * std::filesystem::file_size(path) + kMiB);
+}
+
+TEST_F(MemoryBound, ExrAttributeDeclaringGigabytesIsRefusedBeforeOpenExrOpensIt) {
+  const std::string small = write_temp("small.exr", exr_declaring(1, 1));
+  try {
+    sl::read_image_info(small);
+  } catch (const sl::Error&) {
+  }
+  // The fuzzer's find: 412 bytes whose 'capDate' string attribute declares 1.7 GB.
+  const std::string path = std::string(STREETLIGHT_SOURCE_DIR) + "/tests/fuzz/corpus/image/crash_exr_huge_attribute";
+  EXPECT_LE(peak_of([&] { sl::read_image_info(path); }), 64 * std::filesystem::file_size(path) + kMiB);
 }
 
 TEST_F(MemoryBound, VelodyneAndRayFilesCostAFewTimesTheirSize) {

@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <fstream>
+#include <vector>
 
 #include "autodiff/error.h"
 
@@ -71,6 +74,61 @@ TEST(Config, BadFilesAreErrorsNamingTheFile) {
   const std::string e = error_of([&] { c.merge_file(path); });
   EXPECT_NE(e.find(path), std::string::npos) << e;
   EXPECT_NE(e.find("not valid JSON"), std::string::npos) << e;
+}
+
+TEST(Config, NumberPastDoubleIsACleanError) {
+  // Found by the config fuzzer: nlohmann throws out_of_range (not parse_error) for 1e999.
+  Config c(defaults());
+  const std::string path = ::testing::TempDir() + "/overflow_config.json";
+  std::ofstream(path) << "{\"train\": {\"lr\": 2222e2222222222}}";
+  const std::string e = error_of([&] { c.merge_file(path); });
+  EXPECT_NE(e.find(path), std::string::npos) << e;
+  EXPECT_NE(e.find("not valid JSON"), std::string::npos) << e;
+  const std::string s = error_of([&] { c.set("train.lr=1e999"); });  // kept as text, then refused as a string
+  EXPECT_NE(s.find("train.lr"), std::string::npos) << s;
+  EXPECT_NE(s.find("expects number, got string"), std::string::npos) << s;
+}
+
+// The suggestion rule of nearest(), computed in full for every candidate.
+std::string nearest_in_full(const std::string& key, const std::vector<std::string>& candidates) {
+  auto distance = [](const std::string& a, const std::string& b) {
+    std::vector<size_t> prev(b.size() + 1), cur(b.size() + 1);
+    for (size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+    for (size_t i = 1; i <= a.size(); ++i) {
+      cur[0] = i;
+      for (size_t j = 1; j <= b.size(); ++j)
+        cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      std::swap(prev, cur);
+    }
+    return prev[b.size()];
+  };
+  auto leaf = [](const std::string& k) { return k.substr(k.rfind('.') == std::string::npos ? 0 : k.rfind('.') + 1); };
+  std::string best;
+  size_t best_d = SIZE_MAX;
+  for (const auto& c : candidates) {
+    const size_t d = std::min(distance(key, c), distance(leaf(key), leaf(c)) + 1);
+    if (d < best_d) best_d = d, best = c;
+  }
+  return best_d <= std::max<size_t>(3, key.size() / 3) ? best : "";
+}
+
+TEST(Config, NearestSkipsOnlyDistancesThatCannotWin) {
+  const std::vector<std::string> keys = key_paths(defaults());
+  std::vector<std::string> probes = {"", "x", "lr", "train.l", "model.base_channel", "trian.lr", "model.norm.extra",
+                                     std::string(5000, 'a'), std::string(5000, 'a') + ".lr", "a.b.c.d.e.f.g.steps"};
+  uint32_t state = 12345;  // deterministic edits of the real keys: drop, double or change one character
+  for (const std::string& k : keys)
+    for (int n = 0; n < 8; ++n) {
+      state = state * 1664525u + 1013904223u;
+      std::string p = k;
+      const size_t at = (state >> 8) % p.size();
+      if (n % 3 == 0) p.erase(at, 1);
+      else if (n % 3 == 1) p.insert(at, 1, p[at]);
+      else p[at] = static_cast<char>('a' + (state >> 20) % 26);
+      probes.push_back(p);
+    }
+  for (const std::string& p : probes) EXPECT_EQ(nearest(p, keys), nearest_in_full(p, keys)) << p.substr(0, 40);
+  EXPECT_EQ(nearest(std::string(100000, 'q'), keys), "");  // no key is within a third of its length
 }
 
 }  // namespace

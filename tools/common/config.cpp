@@ -86,15 +86,24 @@ std::string nearest(const std::string& key, const std::vector<std::string>& cand
   std::string best;
   size_t best_d = SIZE_MAX;
   const std::string leaf = key.substr(key.rfind('.') == std::string::npos ? 0 : key.rfind('.') + 1);
+  const size_t limit = std::max<size_t>(3, key.size() / 3);
+  // An edit distance is at least the difference of the lengths: a distance that cannot beat the
+  // best so far, nor pass the limit, is not computed (same answer; a long unknown key no longer
+  // costs its length times every key's length, for every key).
+  const auto length_gap = [](const std::string& a, const std::string& b) {
+    return a.size() > b.size() ? a.size() - b.size() : b.size() - a.size();
+  };
   for (const auto& c : candidates) {
     const std::string cleaf = c.substr(c.rfind('.') == std::string::npos ? 0 : c.rfind('.') + 1);
-    const size_t d = std::min(edit_distance(key, c), edit_distance(leaf, cleaf) + 1);
+    const size_t bound = std::min(best_d, limit + 1);
+    size_t d = length_gap(leaf, cleaf) + 1 < bound ? edit_distance(leaf, cleaf) + 1 : SIZE_MAX;
+    if (length_gap(key, c) < std::min(d, bound)) d = std::min(d, edit_distance(key, c));
     if (d < best_d) {
       best_d = d;
       best = c;
     }
   }
-  return best_d <= std::max<size_t>(3, key.size() / 3) ? best : "";
+  return best_d <= limit ? best : "";
 }
 
 Config::Config(json defaults) : defaults_(std::move(defaults)), value_(defaults_) {
@@ -111,7 +120,7 @@ void Config::merge_file(const std::string& path) {
   json j;
   try {
     j = json::parse(in, nullptr, true, /*ignore_comments=*/true);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number past double
     fail("config file '", path, "' is not valid JSON: ", e.what());
   }
   merge(j, "config file '" + path + "'");
@@ -124,7 +133,7 @@ void Config::set(const std::string& assignment) {
   json value;
   try {
     value = json::parse(text);
-  } catch (const json::parse_error&) {
+  } catch (const json::exception&) {  // not JSON, or a number past double ("1e999")
     value = text;  // a bare string
   }
   json nested = value;

@@ -263,7 +263,7 @@ Insertion find_insertion(const StreetGeneratorConfig& c, int64_t index, const St
       ok = ok && !cam_fp.overlaps(fp, 1.0);
     }
     if (!ok) continue;
-    const Mesh placed = place_object(ins.object, pl);
+    const Mesh placed = placed_mesh(ins.object, pl);
     const PathTracer object_tracer(placed, env);
     Tensor coverage;
     if (coverage_mask(scene_tracer, object_tracer, cam, placed, c.coverage_samples, coverage) <
@@ -432,7 +432,7 @@ GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t i
       const Insertion ins = find_insertion(c, index, scene, tracer, env, views);
       if (ins.found) {
         Mesh with = scene.mesh;
-        with.append(place_object(ins.object, ins.placement));
+        with.append(placed_mesh(ins.object, ins.placement));
         const PathTracer with_tracer(with, env);
         // The same per-pixel streams and samples as view 0 (see header).
         ProgressiveOptions same = prog;

@@ -143,7 +143,7 @@ struct InsertionScore {
 InsertionScore score_insertion(const EstimatedLighting& l, const StreetSample& s, const Mesh& mesh,
                                const PhotoInsertionOptions& o) {
   const StreetView& v = s.views[0];
-  ObjectPose pose{s.object_x, s.object_z, s.object_yaw_deg, s.object_scale};
+  Placement pose{s.object_x, s.object_z, s.object_yaw_deg, s.object_scale};
   const PhotoInsertion ins = insert_into_photo(l, v.ldr, v.depth, v.camera, mesh, pose, o);
   const Tensor with = to_ldr(s.insert_with_object_hdr.contiguous(), s.exposure);
   const Tensor without = to_ldr(s.insert_without_object_hdr.defined() ? s.insert_without_object_hdr.contiguous()
@@ -281,7 +281,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
       }
       if (s.has_insertion && !s.object_glb.empty()) {
         auto it = meshes.find(s.object_glb);
-        if (it == meshes.end()) it = meshes.emplace(s.object_glb, to_object_frame_mesh(load_gltf(s.object_glb))).first;
+        if (it == meshes.end()) it = meshes.emplace(s.object_glb, to_object_frame(load_gltf(s.object_glb))).first;
         PhotoInsertionOptions o;
         o.aa_samples = 2, o.light_samples = 32, o.shadow_rays = 64, o.shadow_width = 80, o.shadow_height = 45;
         o.volume_samples = est.volume_samples();

@@ -70,9 +70,9 @@ std::vector<double> parse_list(const std::string& flag, const std::string& v, si
 }
 
 Mesh load_object(const std::string& spec) {
-  if (spec == "procedural:car") return to_object_frame_mesh(make_procedural_car());
+  if (spec == "procedural:car") return to_object_frame(make_procedural_car());
   SL_CHECK(fs::exists(spec), "object file '", spec, "' does not exist");
-  return to_object_frame_mesh(load_gltf(spec));
+  return to_object_frame(load_gltf(spec));
 }
 
 // A temporary sibling of `out`, renamed over it by commit(); removed on destruction otherwise.
@@ -162,7 +162,7 @@ int single(const cli::Args& a) {
   SL_CHECK(a.has("--object"), "--object MODEL.glb is required (or procedural:car)");
   SL_CHECK(a.has("--out"), "--out DIR is required");
   std::vector<Photo> photos;
-  StreetPlacement sample_place;
+  Placement sample_place;
   bool has_sample_place = false;
   if (a.has("--sample")) {
     photos.push_back(load_street_view(a.get("--sample"), 0, &sample_place, &has_sample_place));
@@ -172,7 +172,8 @@ int single(const cli::Args& a) {
   const Photo& photo = photos[0];
   const Mesh object = load_object(a.get("--object"));
   SL_CHECK(a.has("--at") || has_sample_place, "--at X,Z is required (metres right of and ahead of the first camera)");
-  ObjectPose pose;
+  Placement pose;
+  pose.yaw_deg = 90.0;
   double ax = 0, az = 0;
   if (a.has("--at")) {
     std::tie(ax, az) = parse_pair("--at", a.get("--at"));
@@ -395,12 +396,12 @@ BatchResult augment_one(const cli::Args& a, LightingEstimator& est, const std::v
   res.depth_source = photo.depth_source;
   for (int attempt = 0; attempt < 40 * per_image && res.placed < per_image; ++attempt) {
     // A random spot on the road ahead: 6-25 m forward, within ±4 m of the centre line.
-    ObjectPose pose;
+    Placement pose;
     pose.x_m = rng.uniform(-4.0, 4.0);
     pose.z_m = -rng.uniform(6.0, 25.0);
     pose.yaw_deg = rng.uniform(0.0, 360.0);
     const Mesh& obj = objects[static_cast<size_t>(rng.randint(static_cast<int64_t>(objects.size())))];
-    if (overlaps_any(object_box3d(obj, pose, photo.camera), labels, added)) continue;  // never park in a real car
+    if (overlaps_any(kitti_box3d(obj, pose, photo.camera), labels, added)) continue;  // never park in a real car
     PhotoInsertion ins;
     try {
       PhotoInsertionOptions o = insertion_options(a, est.volume_samples());

@@ -40,8 +40,8 @@ Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
   in.grid = it.grid;
   const glm::dvec3 pos = it.frame.point({s.object_x, 0.0, s.object_z});
   Placement p;
-  p.x = pos.x;
-  p.z = pos.z;
+  p.x_m = pos.x;
+  p.z_m = pos.z;
   p.yaw_deg = s.object_yaw_deg - it.frame.yaw_rad * 180.0 / 3.14159265358979323846;
   p.scale = s.object_scale;
   in.objects.push_back(place_object(object_mesh(s.object_glb), p, it.camera, view.depth));

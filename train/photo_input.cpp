@@ -93,7 +93,7 @@ Photo load_photo(const PhotoSources& s) {
   return p;
 }
 
-Photo load_street_view(const std::string& dir, int view, StreetPlacement* placement, bool* has_placement) {
+Photo load_street_view(const std::string& dir, int view, Placement* placement, bool* has_placement) {
   const std::string meta_path = dir + "/meta.json";
   std::ifstream f(meta_path);
   SL_CHECK(f.good(), "street sample '", dir, "' has no meta.json");

@@ -160,7 +160,7 @@ TEST(StreetGenerator, InsertionPairIsBitwiseEqualOutsideObjectAndShadow) {
   pl.z_m = -9.0;
   pl.x_m = 0.5;
   pl.yaw_deg = 80.0;
-  const Mesh placed = place_object(car, pl);
+  const Mesh placed = placed_mesh(car, pl);
   Mesh with = scene.mesh;
   with.append(placed);
   const PathTracer without_t(scene.mesh, env), with_t(with, env), object_t(placed, env);

@@ -62,7 +62,7 @@ TEST(Adversarial, GeneratorLossReachesTheFirstConvThroughCompositeRendererAndFro
   in.env = select(pred.env, 0, 0);
   in.vsg = select(pred.vsg, 0, 0);
   in.grid = grid;
-  in.objects.push_back(place_object(make_box({-0.8f, 0.0f, -0.8f}, {0.8f, 1.4f, 0.8f}), Placement{.x = 0.0, .z = -6.0},
+  in.objects.push_back(place_object(make_box({-0.8f, 0.0f, -0.8f}, {0.8f, 1.4f, 0.8f}), Placement{.x_m = 0.0, .z_m = -6.0},
                                     view.camera, view.depth));
   InsertionOptions io;
   io.aa_samples = 1;

@@ -162,14 +162,14 @@ RegionError region_error(const InsertionResult& a, const InsertionResult& ref) {
 struct ProductionScene {
   std::string name, depth_source;
   train::Photo photo;
-  Mesh object;  // object frame (train/object_labels.h)
-  train::ObjectPose pose;
+  Mesh object;  // object frame (data/object_placement.h)
+  Placement pose;
 };
 
 ProductionScene production_scene(const std::string& size, const std::string& data) {
   ProductionScene s;
   const std::string kitti = data + "/street/kitti_000008", truck = data + "/models/CesiumMilkTruck.glb";
-  s.object = train::to_object_frame_mesh(std::filesystem::exists(truck) ? load_gltf(truck) : make_procedural_car());
+  s.object = to_object_frame(std::filesystem::exists(truck) ? load_gltf(truck) : make_procedural_car());
   s.pose.yaw_deg = 60.0;
   if (size == "kitti" && std::filesystem::exists(kitti + "/000008.png")) {
     train::PhotoSources src;
@@ -250,8 +250,8 @@ int run_production(const std::string& size, bool json, const std::string& data, 
   in.grid.center = s.photo.camera.position();
   in.vsg = vsg_activate(Tensor::uniform({8, in.grid.dims[0], in.grid.dims[1], in.grid.dims[2]}, -4, 0, 11), 0).detach().contiguous();
   Placement pl;
-  pl.x = s.pose.x_m;
-  pl.z = s.pose.z_m;
+  pl.x_m = s.pose.x_m;
+  pl.z_m = s.pose.z_m;
   pl.yaw_deg = s.pose.yaw_deg;
   in.objects.push_back(place_object(s.object, pl, in.camera, in.depth));
 

@@ -2,12 +2,11 @@
 
 #include <cmath>
 
-#include "autodiff/error.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
-
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 void check_object(const Mesh& m, const char* fn) {
   SL_CHECK(m.triangle_count() > 0 && !m.bounds().empty(), fn, ": the object mesh is empty");

@@ -18,6 +18,8 @@
 #include <glm/glm.hpp>
 
 #include "autodiff/tensor.h"
+#include "render/exposure.h"  // median_luminance, exposure_for_ldr_median
+#include "util/math.h"  // luminance
 #include "render/camera.h"
 
 namespace sl {
@@ -65,15 +67,5 @@ struct SkyMaskParams {
   double blue_min_ratio = 0.25;
 };
 Tensor estimate_sky_mask(const Tensor& pano, const SkyMaskParams& params = {});
-
-// Rec. 709 luminance of linear RGB.
-inline double luminance(double r, double g, double b) { return 0.2126 * r + 0.7152 * g + 0.0722 * b; }
-
-// Median Rec. 709 luminance of an RGB image [3, H, W] (any F32 layout).
-double median_luminance(const Tensor& image);
-// The exposure that maps the image's median luminance to the LDR value `ldr_median` under the
-// paper's LDR, i.e. ldr_median^2.2 / median; 1 when the median is (nearly) zero. The street
-// generator's views, the evaluation crops and the real-panorama training crops all use it.
-double exposure_for_ldr_median(const Tensor& image, double ldr_median);
 
 }  // namespace sl

@@ -5,17 +5,15 @@
 #include <cmath>
 #include <vector>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
 #include "data/panorama.h"
 #include "render/equirect.h"
+#include "util/error.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace sl {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
 
 Tensor threshold_half(Tensor m) {
   float* p = m.data<float>();
@@ -42,7 +40,7 @@ SunHardness sun_hardness(const Tensor& pano, double radius_deg, double min_share
   h.sun = extract_sun(pano);
   const int64_t H = pano.size(1), W = pano.size(2), plane = H * W;
   const float* p = pano.data<float>();
-  const double cos_r = std::cos(radius_deg * kDeg);
+  const double cos_r = std::cos(radius_deg * kDegToRad);
   const glm::dvec3 s = h.sun.direction;
   double total = 0.0, near = 0.0;
   for (int64_t r = 0; r < H; ++r) {
@@ -94,10 +92,10 @@ StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id
   const glm::dvec3 centre(0.0, o.camera_height_m, 0.0);
   const RandomCrop crop = random_perspective_crop(pano, seed, crop_stream, o.crop, centre);
   PerspectiveCropParams mp;
-  mp.horizontal_fov_rad = crop.fov_deg * kDeg;
-  mp.yaw_rad = crop.yaw_deg * kDeg;
-  mp.pitch_rad = crop.pitch_deg * kDeg;
-  mp.roll_rad = crop.roll_deg * kDeg;
+  mp.horizontal_fov_rad = crop.fov_deg * kDegToRad;
+  mp.yaw_rad = crop.yaw_deg * kDegToRad;
+  mp.pitch_rad = crop.pitch_deg * kDegToRad;
+  mp.roll_rad = crop.roll_deg * kDegToRad;
   mp.width = o.crop.width;
   mp.height = o.crop.height;
   const Tensor view_mask = threshold_half(crop_perspective(mask_full, mp).image.contiguous());

@@ -4,15 +4,15 @@
 #include <cmath>
 #include <vector>
 
-#include "autodiff/parallel.h"
-#include "autodiff/random.h"
 #include "render/equirect.h"
+#include "util/math.h"
+#include "util/parallel.h"
+#include "util/random.h"
 
 namespace sl {
 
 namespace {
 
-constexpr double kPi = equirect::kPi;
 constexpr double kSunAngularRadiusRad = 0.265 * kPi / 180.0;
 // Solar disk luminance before atmospheric attenuation, in kcd/m². The extraterrestrial value
 // (~128 klx over the disk's solid angle) is 1.9e6, which puts a clear-sky sun at up to 1.4e5

@@ -3,11 +3,11 @@
 #include <algorithm>
 #include <cmath>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
 #include "data/object_placement.h"
 #include "data/procedural_car.h"
 #include "render/primitives.h"
+#include "util/error.h"
+#include "util/random.h"
 
 namespace sl {
 namespace {

@@ -5,12 +5,12 @@
 #include <vector>
 
 #include "autodiff/matmul.h"
-#include "autodiff/parallel.h"
 #include "autodiff/tape.h"
 #include "nn/conv_direct.h"
 #include "nn/conv_gemm.h"
 #include "nn/im2col.h"
 #include "nn/work_grain.h"
+#include "util/parallel.h"
 
 namespace sl::nn {
 namespace {

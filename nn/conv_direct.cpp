@@ -10,10 +10,10 @@
 #include <immintrin.h>
 #endif
 
-#include "autodiff/error.h"
-#include "autodiff/parallel.h"
 #include "nn/conv_gemm.h"
 #include "nn/work_grain.h"
+#include "util/error.h"
+#include "util/parallel.h"
 
 namespace sl::nn::detail {
 namespace {

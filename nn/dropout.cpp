@@ -1,8 +1,8 @@
 #include "nn/dropout.h"
 
-#include "autodiff/parallel.h"
-#include "autodiff/random.h"
 #include "autodiff/tape.h"
+#include "util/parallel.h"
+#include "util/random.h"
 
 namespace sl::nn {
 

@@ -2,8 +2,8 @@
 
 #include <cmath>
 
-#include "autodiff/random.h"
 #include "autodiff/tape.h"
+#include "util/random.h"
 
 namespace sl::nn {
 

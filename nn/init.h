@@ -2,7 +2,7 @@
 //
 // Contract:
 // - Every function fills `w` in place (under NoGradGuard) and is deterministic: element i of
-//   the tensor is a pure function of (seed, name, i) through autodiff/random.h, with the name
+//   the tensor is a pure function of (seed, name, i) through util/random.h, with the name
 //   hashed to the random stream. Two parameters with different full names get independent
 //   values from one seed; thread count never matters.
 // - Fans follow PyTorch: for a weight [out, in, k...], fan_in = in·Πk and fan_out = out·Πk;

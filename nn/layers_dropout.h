@@ -3,8 +3,8 @@
 // Contract: Dropout(p, seed) drops each element with probability p in training (scaling the
 // rest by 1/(1-p)) and is the identity in eval. The mask of the k-th training forward call is
 // a pure function of (seed, k, element index): runs with the same seed replay the same masks,
-// whatever the thread count. step() is k; set_step() restores it when resuming a run (it is
-// not a buffer, so state dicts stay PyTorch-compatible). 0 <= p < 1, else sl::Error.
+// whatever the thread count. step() is k (not a buffer, so state dicts stay PyTorch-compatible).
+// 0 <= p < 1, else sl::Error.
 #pragma once
 #include "nn/module.h"
 
@@ -15,7 +15,6 @@ class Dropout : public Module {
   explicit Dropout(double p = 0.5, uint64_t seed = 0);
   Tensor forward(const Tensor& x) override;
   uint64_t step() const { return step_; }
-  void set_step(uint64_t step) { step_ = step; }
 
  private:
   double p_;

@@ -25,7 +25,6 @@ namespace sl::nn {
 class BatchNormNd : public Module {
  public:
   Tensor forward(const Tensor& x) override;
-  int64_t num_features() const { return features_; }
 
  protected:
   BatchNormNd(const char* type_name, int spatial_dims, int64_t features, double eps, double momentum, bool affine,

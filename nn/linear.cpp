@@ -1,8 +1,8 @@
 #include "nn/linear.h"
 
 #include "autodiff/matmul.h"
-#include "autodiff/parallel.h"
 #include "autodiff/tape.h"
+#include "util/parallel.h"
 
 namespace sl::nn {
 

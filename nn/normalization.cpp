@@ -3,9 +3,9 @@
 #include <cmath>
 #include <vector>
 
-#include "autodiff/parallel.h"
 #include "autodiff/tape.h"
 #include "nn/work_grain.h"
+#include "util/parallel.h"
 
 namespace sl::nn {
 namespace {

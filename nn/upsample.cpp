@@ -4,9 +4,9 @@
 #include <array>
 #include <vector>
 
-#include "autodiff/parallel.h"
 #include "autodiff/tape.h"
 #include "nn/work_grain.h"
+#include "util/parallel.h"
 
 namespace sl::nn {
 namespace {

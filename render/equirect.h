@@ -11,9 +11,9 @@
 #pragma once
 #include <cmath>
 
-namespace sl::equirect {
+#include "util/math.h"
 
-constexpr double kPi = 3.14159265358979323846;
+namespace sl::equirect {
 
 struct UV {
   double u, v;

@@ -8,14 +8,15 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
-#include "autodiff/parallel.h"
-#include "autodiff/random.h"
 #include "autodiff/tape.h"
 #include "render/disney_brdf.h"
 #include "render/environment_map.h"
 #include "render/equirect.h"
 #include "render/insertion_ops.h"
 #include "render/sampling.h"
+#include "util/math.h"
+#include "util/parallel.h"
+#include "util/random.h"
 
 namespace sl {
 namespace {
@@ -317,7 +318,7 @@ struct ShadowSampler {
       d = sp.technique == 0 ? frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y)) : env_map.sample(sp.u.x, sp.u.y).direction;
       c_cos = double(n_cos) / N;
     }
-    const double cos_t = d.y, pdf = c_cos * std::max(0.0, cos_t) / equirect::kPi + (1.0 - c_cos) * env_map.pdf(d);
+    const double cos_t = d.y, pdf = c_cos * std::max(0.0, cos_t) / kPi + (1.0 - c_cos) * env_map.pdf(d);
     return {d, (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0};
   }
 };

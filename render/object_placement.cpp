@@ -5,7 +5,8 @@
 #include <cmath>
 #include <vector>
 
-#include "autodiff/error.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl {
 
@@ -25,7 +26,7 @@ void check_placement(const Mesh& mesh, const Placement& p, const char* fn) {
 
 Mesh placed_mesh(const Mesh& mesh, const Placement& p, const glm::dvec3& origin, double ground_y_m) {
   check_placement(mesh, p, "placed_mesh");
-  const double yaw = p.yaw_deg * 3.14159265358979323846 / 180.0;
+  const double yaw = p.yaw_deg * kPi / 180.0;
   const glm::dvec3 at(p.x_m, ground_y_m, p.z_m);
   Mesh out = mesh;
   for (glm::vec3& v : out.positions) v = glm::vec3(rotate_yaw((glm::dvec3(v) - origin) * p.scale, yaw) + at);
@@ -77,7 +78,7 @@ PlacedObject place_object(const Mesh& mesh, const Placement& placement, const Ca
 
   PlacedObject obj;
   obj.position = {placement.x_m, ground, placement.z_m};
-  obj.yaw_rad = placement.yaw_deg * 3.14159265358979323846 / 180.0;
+  obj.yaw_rad = placement.yaw_deg * kPi / 180.0;
   obj.scale = placement.scale;
   obj.mesh = placed_mesh(mesh, placement, base_centre, ground);
   obj.bvh = std::make_shared<Bvh>(obj.mesh);

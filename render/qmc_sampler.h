@@ -18,7 +18,7 @@
 
 #include <glm/glm.hpp>
 
-#include "autodiff/random.h"
+#include "util/random.h"
 
 namespace sl::qmc {
 

@@ -8,13 +8,14 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
-#include "autodiff/random.h"
 #include "data/panorama.h"
 #include "render/gltf_loader.h"
 #include "render/object_insertion.h"
 #include "train/lighting_stage.h"
 #include "train/losses.h"
 #include "train/phase_clock.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace sl::train {
 
@@ -32,7 +33,7 @@ Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
            "' has no insertion ground truth (object_glb)");
   const auto& ic = config_.at("insertion");
   InsertionInputs in;
-  in.background = pow_scalar(view.ldr.contiguous(), 2.2);  // linearised LDR: exposure-normalised radiance
+  in.background = pow_scalar(view.ldr.contiguous(), kLdrGamma);  // linearised LDR: exposure-normalised radiance
   in.depth = view.depth;
   in.camera = it.camera;
   in.env = select(f.pred.env, 0, static_cast<int64_t>(i));
@@ -42,7 +43,7 @@ Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
   Placement p;
   p.x_m = pos.x;
   p.z_m = pos.z;
-  p.yaw_deg = s.object_yaw_deg - it.frame.yaw_rad * 180.0 / 3.14159265358979323846;
+  p.yaw_deg = s.object_yaw_deg - it.frame.yaw_rad * 180.0 / kPi;
   p.scale = s.object_scale;
   in.objects.push_back(place_object(object_mesh(s.object_glb), p, it.camera, view.depth));
   InsertionOptions o;

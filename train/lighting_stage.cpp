@@ -7,7 +7,6 @@
 #include <limits>
 
 #include "autodiff/ops.h"
-#include "autodiff/random.h"
 #include "data/hdri_folder.h"
 #include "data/hdri_split.h"
 #include "data/panorama.h"
@@ -17,9 +16,10 @@
 #include "render/radiance_query.h"
 #include "train/image_strip.h"
 #include "train/losses.h"
-#include "train/phase_clock.h"
 #include "train/metrics.h"
+#include "train/phase_clock.h"
 #include "train/train_config.h"
+#include "util/random.h"
 
 namespace sl::train {
 

@@ -4,7 +4,8 @@
 #include <cmath>
 #include <cstdio>
 
-#include "autodiff/error.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl::train {
 
@@ -26,7 +27,6 @@ bool mask_box2d(const Tensor& mask, double threshold, std::array<double, 4>& box
 
 std::string kitti_label_line(const std::string& type, double truncated, int occluded,
                              const std::array<double, 4>& b, const std::array<double, 7>& d) {
-  constexpr double kPi = 3.14159265358979323846;
   double alpha = d[6] - std::atan2(d[3], d[5]);
   while (alpha > kPi) alpha -= 2 * kPi;
   while (alpha <= -kPi) alpha += 2 * kPi;

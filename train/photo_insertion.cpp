@@ -9,6 +9,7 @@
 #include "autodiff/tape.h"
 #include "render/object_insertion.h"
 #include "train/losses.h"
+#include "util/math.h"
 
 namespace sl::train {
 
@@ -97,7 +98,7 @@ PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor
   check_on_ground(depth, world_camera, pose, o.max_ground_offset_m);
   const auto t0 = std::chrono::steady_clock::now();
   InsertionInputs in;
-  in.background = pow_scalar(ldr.to(DType::F32).contiguous(), 2.2);
+  in.background = pow_scalar(ldr.to(DType::F32).contiguous(), kLdrGamma);
   in.depth = depth.to(DType::F32).contiguous();
   in.camera = lighting.frame.camera(world_camera);
   in.env = lighting.env;
@@ -107,7 +108,7 @@ PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor
   Placement p;
   p.x_m = at.x;
   p.z_m = at.z;
-  p.yaw_deg = pose.yaw_deg - lighting.frame.yaw_rad * 180.0 / 3.14159265358979323846;
+  p.yaw_deg = pose.yaw_deg - lighting.frame.yaw_rad * 180.0 / kPi;
   p.scale = pose.scale;
   in.objects.push_back(place_object(object_frame_mesh, p, in.camera, in.depth));
   PhotoInsertion out;

@@ -5,10 +5,10 @@
 #include <cmath>
 #include <limits>
 
-#include "autodiff/random.h"
 #include "data/panorama.h"
 #include "render/equirect.h"
 #include "train/unprojection.h"
+#include "util/random.h"
 
 namespace sl::train {
 

@@ -15,11 +15,11 @@
 #include "render/object_insertion.h"
 #include "render/path_tracer.h"
 #include "render/primitives.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
 
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 const std::string kData = STREETLIGHT_SHARED_DATA;
 
 // The HDRI at 64×128 with its lower hemisphere replaced by the ground plane's own radiance
@@ -33,10 +33,10 @@ Tensor ground_consistent_sky(const std::string& file, double albedo) {
     double E = 0;
     for (int i = 0; i < H / 2; ++i) {
       const double omega = equirect::pixel_solid_angle(i, W, H);
-      const double cos_t = std::sin((0.5 - (i + 0.5) / H) * equirect::kPi);
+      const double cos_t = std::sin((0.5 - (i + 0.5) / H) * kPi);
       for (int j = 0; j < W; ++j) E += p[(c * H + i) * W + j] * cos_t * omega;
     }
-    const float ground = float(albedo * E / equirect::kPi);
+    const float ground = float(albedo * E / kPi);
     for (int i = H / 2; i < H; ++i)
       for (int j = 0; j < W; ++j) p[(c * H + i) * W + j] = ground;
   }
@@ -50,7 +50,7 @@ TEST(InsertionConsistency, CompositeMatchesPathTracedFullSceneOnObjectAndShadow)
   const double albedo = 0.4;
   const int W = 96, H = 64;
   const Tensor env = ground_consistent_sky(hdri, albedo);
-  const Camera cam(intrinsics_from_fov(60 * kDeg, W, H), rotation_from_yaw_pitch_roll(0, -12 * kDeg, 0), {0, 1.6, 0});
+  const Camera cam(intrinsics_from_fov(60 * kDegToRad, W, H), rotation_from_yaw_pitch_roll(0, -12 * kDegToRad, 0), {0, 1.6, 0});
   std::vector<double> d(size_t(W) * H);
   for (int i = 0; i < H; ++i)
     for (int j = 0; j < W; ++j) {

@@ -3,15 +3,14 @@
 
 #include <cmath>
 
-#include "autodiff/error.h"
 #include "data/object_placement.h"
 #include "data/procedural_car.h"
 #include "render/primitives.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 TEST(ObjectPlacement, CarDrivingAwayHasKittiRotationMinusHalfPi) {
   const Mesh car = make_procedural_car();

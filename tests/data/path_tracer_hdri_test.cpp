@@ -14,11 +14,11 @@
 #include "render/equirect.h"
 #include "render/path_tracer.h"
 #include "render/primitives.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 const std::string kData = STREETLIGHT_SHARED_DATA;
 
 // E = ∫ L(ω) max(0, ω·y) dω over the map's own bilinear lookup, by 2×2-supersampled quadrature

@@ -4,10 +4,10 @@
 // size, or throws std::bad_alloc / std::length_error instead of sl::Error).
 #include <gtest/gtest.h>
 
-#include "autodiff/error.h"
 #include "nn/safetensors.h"
 #include "render/gltf_loader.h"
 #include "tests/fuzz/hostile_files.h"
+#include "util/error.h"
 
 namespace {
 

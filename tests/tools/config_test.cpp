@@ -4,7 +4,7 @@
 
 #include <fstream>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 
 namespace sl::cli {
 namespace {

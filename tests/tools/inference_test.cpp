@@ -5,13 +5,12 @@
 #include "tool_fixture.h"
 #include "train/inference.h"
 #include "train/photo_insertion.h"
+#include "util/math.h"
 
 namespace {
 
 using namespace sl;
 using namespace sl::train;
-
-constexpr double kPi = 3.14159265358979323846;
 
 InferenceView view_at(double yaw_deg) {
   const Intrinsics k = intrinsics_from_fov(1.2, 64, 32);

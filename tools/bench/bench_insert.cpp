@@ -30,9 +30,9 @@
 #include "autodiff/ops.h"
 #include "data/image_io.h"
 #include "data/procedural_car.h"
-#include "nn/checkpoint.h"
 #include "data/sky_model.h"
 #include "data/street_generator.h"
+#include "nn/checkpoint.h"
 #include "render/gltf_loader.h"
 #include "render/object_insertion.h"
 #include "render/path_tracer.h"
@@ -46,11 +46,10 @@
 #include "train/photo_input.h"
 #include "train/photo_insertion.h"
 #include "train/train_config.h"
+#include "util/math.h"
 
 namespace sl::bench {
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 struct Scene {
   Camera camera;
@@ -62,7 +61,7 @@ struct Scene {
 Scene make_scene(const std::string& data) {
   Scene s;
   const int W = 256, H = 144;
-  s.camera = Camera(intrinsics_from_fov(60 * kDeg, W, H), rotation_from_yaw_pitch_roll(0, -10 * kDeg, 0), {0, 1.6, 0});
+  s.camera = Camera(intrinsics_from_fov(60 * kDegToRad, W, H), rotation_from_yaw_pitch_roll(0, -10 * kDegToRad, 0), {0, 1.6, 0});
   std::vector<double> d(size_t(W) * H);
   for (int i = 0; i < H; ++i)
     for (int j = 0; j < W; ++j) {
@@ -242,7 +241,7 @@ int run_production(const std::string& size, bool json, const std::string& data, 
   // volume of random parameters, so the radiance query does the work a trained model gives it.
   const std::string hdri = data + "/hdri/chinese_garden_1k.hdr";
   InsertionInputs in;
-  in.background = pow_scalar(s.photo.ldr.to(DType::F32).contiguous(), 2.2);
+  in.background = pow_scalar(s.photo.ldr.to(DType::F32).contiguous(), kLdrGamma);
   in.depth = s.photo.depth.to(DType::F32).contiguous();
   in.camera = s.photo.camera;
   in.env = std::filesystem::exists(hdri) ? resize_panorama(read_image(hdri), 128, 32)
@@ -443,8 +442,8 @@ int run_insert(const std::vector<std::string>& args) {
   const auto dims = tc.at("model").at("volume").at("dims");
   train_grid.dims = {dims[0].get<int64_t>(), dims[1].get<int64_t>(), dims[2].get<int64_t>()};
   const StreetGeneratorConfig gen;
-  const Camera train_cam(intrinsics_from_fov(60 * kDeg, gen.view_width, gen.view_height),
-                         rotation_from_yaw_pitch_roll(0, -10 * kDeg, 0), {0, 1.6, 0});
+  const Camera train_cam(intrinsics_from_fov(60 * kDegToRad, gen.view_width, gen.view_height),
+                         rotation_from_yaw_pitch_roll(0, -10 * kDegToRad, 0), {0, 1.6, 0});
   const Tensor train_depth = train::ground_plane_depth(train_cam);
   const Tensor train_bg = Tensor::full({3, gen.view_height, gen.view_width}, 0.3);
   InsertionOptions paper_opt;

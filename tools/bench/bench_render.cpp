@@ -22,10 +22,10 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <sstream>
 #include <string>
 #include <vector>
 
-#include "autodiff/error.h"
 #include "data/image_io.h"
 #include "render/camera.h"
 #include "render/environment_map.h"
@@ -35,11 +35,12 @@
 #include "tools/bench/bench.h"
 #include "tools/bench/timing.h"
 #include "tools/common/plot.h"
+#include "util/error.h"
+#include "util/math.h"
+#include "util/file.h"
 
 namespace sl::bench {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Shared data folder: $STREETLIGHT_DATA, else ../shared/data (the checkout's sibling, as in tests).
 std::string data_root() {
@@ -238,17 +239,15 @@ int run_render(const std::vector<std::string>& argv) {
       }
   }
 
-  const std::string csv = args.out + "/render_bench.csv", tmp = csv + ".tmp";
+  const std::string csv = args.out + "/render_bench.csv";
   {
-    std::ofstream f(tmp, std::ios::trunc);
-    SL_CHECK(f.good(), "render: cannot write '", tmp, "'");
+    std::ostringstream f;
     f << "hdri,method,spp,time_ms,rmse,noise,relative_noise,mean\n";
     for (const Point& p : pts)
       f << p.hdri << ',' << p.method << ',' << p.spp << ',' << p.time_ms << ',' << p.rmse << ',' << p.noise << ','
         << p.relative_noise << ',' << p.mean << '\n';
-    SL_CHECK(f.good(), "render: failed writing '", tmp, "'");
+    write_file_atomic(csv, f.str());
   }
-  SL_CHECK(std::rename(tmp.c_str(), csv.c_str()) == 0, "render: cannot rename '", tmp, "' to '", csv, "'");
   ImageWriteOptions wo;
   wo.transfer = Transfer::Linear;  // the plot's colours are display values already
   std::vector<cli::PlotPoint> plot_points;

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdint>
 
+#include "util/math.h"
+
 namespace sl {
 
 inline uint64_t mix64(uint64_t z) {
@@ -34,7 +36,7 @@ inline float uniform01f(uint64_t seed, uint64_t stream, uint64_t counter = 0) {
 inline double normal01(uint64_t seed, uint64_t stream, uint64_t counter = 0) {
   const double u1 = 1.0 - uniform01(seed, stream, 2 * counter);  // (0, 1]
   const double u2 = uniform01(seed, stream, 2 * counter + 1);
-  return std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2);
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(kTwoPi * u2);
 }
 
 // A small sequential generator for code that draws a few numbers in a fixed order

@@ -1,31 +1,27 @@
-// Stage 3 (Sec 3.4, "Training Lighting via Object Insertion"): the predictor's lighting renders
-// a virtual object into the photo through the differentiable insertion of Sec 3.3; a
-// discriminator judges the composite against path-traced insertions of the dataset, and the
-// predictor minimises supervised + w_adv·L_adv with L_adv = −D(I_edit).
-// One step: (1) predictor forward, supervised loss, composite, generator loss with D frozen,
-// backward, update the predictor; (2) hinge loss of D on real vs detached fake, update D at
-// optim.discriminator_lr (one AdamW over both; a step only touches parameters with gradients).
+// Stage 3 (Sec 3.4): see adversarial_stage.h. D and the predictor share one AdamW; a step only
+// touches parameters with gradients.
 #include <cmath>
 
 #include "autodiff/ops.h"
 #include "data/panorama.h"
 #include "render/gltf_loader.h"
 #include "render/object_insertion.h"
-#include "train/lighting_stage.h"
+#include "train/adversarial_stage.h"
 #include "train/losses.h"
+#include "train/train_config.h"
 #include "train/phase_clock.h"
 #include "util/math.h"
 #include "util/random.h"
 
 namespace sl::train {
 
-const Mesh& LightingStage::object_mesh(const std::string& path) {
+const Mesh& AdversarialStage::object_mesh(const std::string& path) {
   auto it = meshes_.find(path);
   if (it == meshes_.end()) it = meshes_.emplace(path, load_gltf(path)).first;
   return it->second;
 }
 
-Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
+Tensor AdversarialStage::composite(const Forward& f, size_t i, uint64_t seed) {
   const StreetSample& s = f.samples[i];
   const StreetItem& it = f.items[i];
   const StreetView& view = s.views[0];
@@ -58,12 +54,25 @@ Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
   return insert_objects(in, o).composite;
 }
 
-Tensor LightingStage::real_composite_ldr(const StreetSample& s) const {
+Tensor AdversarialStage::real_composite_ldr(const StreetSample& s) const {
   SL_CHECK(s.insert_with_object_hdr.defined(), "stage adversarial: sample '", s.id, "' has no insert_with_object_hdr");
   return to_ldr(s.insert_with_object_hdr.contiguous(), s.exposure);
 }
 
-Metrics LightingStage::adversarial_step(int64_t step) {
+AdversarialStage::AdversarialStage(const nlohmann::json& config, SampleSource train, SampleSource val)
+    : LightingStage(config, std::move(train), std::move(val)) {
+  SL_CHECK(config.at("stage").get<std::string>() == kStageAdversarial, "AdversarialStage: the config's stage is '",
+           config.at("stage").get<std::string>(), "', expected '", kStageAdversarial, "'");
+}
+
+Tensor AdversarialStage::strip_composite(const Forward& f) {
+  const StreetSample& s = f.samples[0];
+  const bool centre_in_view =
+      f.items[0].camera.project(f.items[0].frame.point({s.object_x, 0.0, s.object_z})).in_image;
+  return s.has_insertion && centre_in_view ? ldr_from_hdr(composite(f, 0, seed_)).detach() : Tensor();
+}
+
+Metrics AdversarialStage::step(int64_t step) {
   predictor_->set_training(true);
   optim_->zero_grad();
   PhaseClock clock;

@@ -1,6 +1,6 @@
 // Stages 2 and 3 (Sec 3.4): the hybrid lighting predictor with supervised losses ("lighting"),
 // then end to end through differentiable object insertion with a discriminator
-// ("adversarial", adversarial_stage.cpp).
+// ("adversarial": AdversarialStage, train/adversarial_stage.h, a LightingStage with stage 3's step).
 //
 // Model (one checkpoint): predictor.* (LightingPredictor, with its frozen sky decoder),
 // teacher.* (the frozen stage-1 SkyAutoencoder, for the HDR pseudo-labels of Sec 3.4; absent
@@ -72,11 +72,10 @@ class LightingStage : public Stage {
   Forward forward_val(size_t val_index);
   // The supervised loss of Sec 3.4 over a forward (adds its terms to `m`).
   Tensor supervised_loss(const Forward& f, Metrics& m);
-  // Stage 3: the differentiable composite of sample i (insert_objects), linear [3, H, W].
-  Tensor composite(const Forward& f, size_t i, uint64_t seed);
-  Tensor real_composite_ldr(const StreetSample& s) const;
 
- private:
+ protected:
+  // The composite shown in the training strip (undefined: none); stage 3 overrides it.
+  virtual Tensor strip_composite(const Forward& f) { return Tensor(); }
   struct Batch {
     std::vector<StreetSample> samples;
     std::vector<StreetItem> items;
@@ -90,9 +89,7 @@ class LightingStage : public Stage {
     Tensor radiance, transmittance, depth;
   };
   Query query(const Forward& f, size_t i, const Tensor& origins, const Tensor& directions);
-  Metrics adversarial_step(int64_t step);
   Metrics supervised_step(int64_t step);
-  const Mesh& object_mesh(const std::string& path);
 
   nlohmann::json config_;
   bool adversarial_ = false;
@@ -107,7 +104,6 @@ class LightingStage : public Stage {
   std::shared_ptr<SkyAutoencoder> teacher_;
   std::shared_ptr<nn::PatchDiscriminator> discriminator_;
   std::unique_ptr<nn::Optimizer> optim_;
-  std::map<std::string, Mesh> meshes_;
   std::string best_metric_ = "val_loss";
   double last_data_ms_ = 0.0;
   // The next step's batch, built in the background; declared last so that it is waited for

@@ -13,6 +13,7 @@
 #include "render/gltf_writer.h"
 #include "render/object_insertion.h"
 #include "render/primitives.h"
+#include "train/adversarial_stage.h"
 #include "street_fixture.h"
 #include "train/lighting_stage.h"
 #include "train/losses.h"
@@ -116,7 +117,7 @@ TEST(AdversarialStage, StepsRunAndTheDiscriminatorLearns) {
     s.insert_with_object_hdr = pow_scalar(s.views[0].ldr, 2.2);
     return s;
   };
-  LightingStage stage(c, SampleSource{1, make}, SampleSource{1, make});
+  AdversarialStage stage(c, SampleSource{1, make}, SampleSource{1, make});
   double first = 0, last = 0;
   for (int k = 0; k < 20; ++k) {
     stage.set_lr(1e-3);

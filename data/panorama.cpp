@@ -237,4 +237,12 @@ Tensor estimate_sky_mask(const Tensor& pano, const SkyMaskParams& params) {
   return mask;
 }
 
+Tensor binarize_mask(Tensor m) {
+  SL_CHECK(m.defined() && m.dtype() == DType::F32 && m.is_contiguous(), "binarize_mask: expected a contiguous F32 mask, got ",
+           m.defined() ? m.describe() : "undefined");
+  float* p = m.data<float>();
+  for (int64_t i = 0; i < m.numel(); ++i) p[i] = p[i] >= 0.5f ? 1.0f : 0.0f;
+  return m;
+}
+
 }  // namespace sl

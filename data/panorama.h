@@ -1,4 +1,4 @@
-// Operations on full-sphere equirectangular panoramas (DESIGN: "Panoramas").
+// Operations on full-sphere equirectangular panoramas (docs/DESIGN.md, "Panoramas").
 //
 // A panorama is an F32 tensor [C, H, W] covering the whole sphere: rows span elevation +90°
 // (row 0) to −90°, columns span azimuth −180° to +180°. Direction ↔ pixel goes only through
@@ -18,9 +18,9 @@
 #include <glm/glm.hpp>
 
 #include "autodiff/tensor.h"
+#include "render/camera.h"
 #include "render/exposure.h"  // median_luminance, exposure_for_ldr_median
 #include "util/math.h"  // luminance
-#include "render/camera.h"
 
 namespace sl {
 
@@ -67,5 +67,9 @@ struct SkyMaskParams {
   double blue_min_ratio = 0.25;
 };
 Tensor estimate_sky_mask(const Tensor& pano, const SkyMaskParams& params = {});
+
+// A resampled mask back to {0, 1}: 1 where the value is ≥ 0.5, else 0. Works in place on a
+// contiguous F32 tensor (a fresh resample) and returns it.
+Tensor binarize_mask(Tensor mask);
 
 }  // namespace sl

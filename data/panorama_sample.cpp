@@ -13,16 +13,6 @@
 
 namespace sl {
 
-namespace {
-
-Tensor threshold_half(Tensor m) {
-  float* p = m.data<float>();
-  for (int64_t i = 0; i < m.numel(); ++i) p[i] = p[i] >= 0.5f ? 1.0f : 0.0f;
-  return m;
-}
-
-}  // namespace
-
 Tensor sanitized_panorama(const Tensor& pano, const std::string& name) {
   SL_CHECK(pano.defined() && pano.dim() == 3 && pano.size(0) == 3, "panorama '", name,
            "': expected an RGB image, got ", pano.defined() ? pano.describe() : std::string("nothing"));
@@ -98,7 +88,7 @@ StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id
   mp.roll_rad = crop.roll_deg * kDegToRad;
   mp.width = o.crop.width;
   mp.height = o.crop.height;
-  const Tensor view_mask = threshold_half(crop_perspective(mask_full, mp).image.contiguous());
+  const Tensor view_mask = binarize_mask(crop_perspective(mask_full, mp).image.contiguous());
 
   const Tensor& hdr = crop.crop.image;
   const double exposure = exposure_for_ldr_median(hdr, o.ldr_median) * exposure_jitter;
@@ -108,7 +98,7 @@ StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id
   s.exposure = exposure;
   s.pano_hdr = resize_area(pano, o.pano_height, o.pano_width).contiguous();
   s.pano_ldr = to_ldr(s.pano_hdr, exposure);
-  s.pano_sky_mask = threshold_half(resize_area(mask_full, o.pano_height, o.pano_width).contiguous());
+  s.pano_sky_mask = binarize_mask(resize_area(mask_full, o.pano_height, o.pano_width).contiguous());
   s.sky_hdr = s.pano_hdr;
   s.pano_position = centre;
   s.sun_direction = sun.sun.direction;

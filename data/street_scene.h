@@ -1,4 +1,4 @@
-// Procedural street scenes for the synthetic dataset (issue 6): a straight street along the
+// Procedural street scenes for the synthetic dataset : a straight street along the
 // view with asphalt, curbs, sidewalks, buildings on both sides, and optional poles, trees and
 // parked cars.
 //

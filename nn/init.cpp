@@ -90,4 +90,9 @@ void default_layer_init(Tensor& weight, Tensor& bias, uint64_t seed, const std::
   }
 }
 
+void norm_affine_init(Tensor& weight, Tensor& bias) {
+  weight.fill_(1.0);
+  bias.fill_(0.0);
+}
+
 }  // namespace sl::nn

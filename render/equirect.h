@@ -1,4 +1,4 @@
-// The one equirectangular panorama convention (DESIGN: "Panoramas"). Every part calls these.
+// The one equirectangular panorama convention (docs/DESIGN.md, "Panoramas"). Every part calls these.
 //
 // World frame: right-handed, +Y up. A unit direction d has
 //   elevation θ = asin(d.y)          (+π/2 at the zenith)

@@ -1,4 +1,4 @@
-// Progressive rendering to a sample, time or noise budget (issue 19): the loop shared by
+// Progressive rendering to a sample, time or noise budget: the loop shared by
 // `streetlight-render` and the street generator.
 //
 // A RenderPass(seed, sample_offset, spp) returns the [3, H, W] mean of samples

@@ -13,7 +13,7 @@
 
 #include "autodiff/ops.h"
 #include "nn/lr_schedule.h"
-#include "nn/mlp.h"
+#include "nn/modules/mlp.h"
 #include "nn/optim.h"
 #include "util/random.h"
 

@@ -1,5 +1,5 @@
 // streetlight-render: path-traces glTF models under an HDRI from a camera of the user's choice
-// (issue 19), with the reference path tracer (render/path_tracer.h) driven progressively to a
+//, with the reference path tracer (render/path_tracer.h) driven progressively to a
 // sample, time or noise budget (render/progressive_render.h).
 //
 // Scene: every --scene file in its own glTF frame (world = glTF frame, +Y up, metres), plus
@@ -24,13 +24,13 @@
 #include "data/image_io.h"
 #include "render/camera.h"
 #include "render/environment_map.h"
+#include "render/exposure.h"
 #include "render/gltf_loader.h"
 #include "render/path_tracer.h"
 #include "render/primitives.h"
 #include "render/progressive_render.h"
 #include "tools/common/cli.h"
 #include "util/error.h"
-#include "render/exposure.h"
 #include "util/math.h"
 
 namespace fs = std::filesystem;
@@ -127,7 +127,7 @@ int run(int argc, char** argv) {
        {"--max-depth", "D", "surface interactions per path (default 8)"},
        {"--exposure", "E", "PNG and noise exposure (default: the median pixel maps to 0.4 after 1/2.2)"},
        {"--fresnel", "exact|schlick", "dielectric Fresnel (default exact, as Cycles)"},
-       {"--estimator", "stratified|independent", "sample pattern (independent = the estimator before issue 19)"},
+       {"--estimator", "stratified|independent", "sample pattern (independent = the original independent estimator)"},
        {"--json", "", "print the result as one JSON line on stdout"},
        {"--out", "FILE", "output image: .exr (linear HDR) or .png (LDR)"}});
   if (!args.parse(argc, argv)) return 0;

@@ -36,7 +36,7 @@
 #include <nlohmann/json.hpp>
 
 #include "data/street_dataset.h"
-#include "nn/discriminator.h"
+#include "nn/modules/patch_discriminator.h"
 #include "render/mesh.h"
 #include "train/lighting_predictor.h"
 #include "train/sample_source.h"

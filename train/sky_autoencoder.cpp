@@ -4,9 +4,9 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
+#include "nn/functional/upsample.h"
 #include "nn/layers.h"
-#include "nn/mlp.h"
-#include "nn/upsample.h"
+#include "nn/modules/mlp.h"
 #include "render/equirect.h"
 #include "util/math.h"
 

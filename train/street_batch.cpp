@@ -95,12 +95,8 @@ StreetItem make_street_item(const StreetSample& sample, size_t input_view, const
   const Tensor pano_ldr = it.frame.panorama(sample.pano_ldr.contiguous());
   const Tensor pano_mask = it.frame.panorama(sample.pano_sky_mask.contiguous());
   it.pano_ldr_dome = resize_area(pano_ldr, static_cast<int>(opt.dome_height), static_cast<int>(opt.dome_width));
-  {
-    Tensor m = resize_area(pano_mask, static_cast<int>(opt.dome_height), static_cast<int>(opt.dome_width));
-    float* p = m.data<float>();
-    for (int64_t i = 0; i < m.numel(); ++i) p[i] = p[i] >= 0.5f ? 1.0f : 0.0f;
-    it.pano_mask_dome = m;
-  }
+  it.pano_mask_dome =
+      binarize_mask(resize_area(pano_mask, static_cast<int>(opt.dome_height), static_cast<int>(opt.dome_width)));
   it.sun_direction = it.frame.direction(sample.sun_direction);
 
   // Rays (Sec 3.4): panorama rays from the panorama's centre, then rays of every view.

@@ -2,7 +2,7 @@
 //
 // Contract: bad input throws sl::Error (a std::runtime_error) whose message names the op, file,
 // key or argument and the offending value or shape. Nothing in the library aborts on bad input.
-// Executables catch sl::Error, print one line `error: <message>` and exit 2 (see DESIGN).
+// Executables catch sl::Error, print one line `error: <message>` and exit 2 (docs/DESIGN.md, "Shared conventions").
 #pragma once
 #include <cstdint>
 #include <sstream>

@@ -1,4 +1,4 @@
-// Counter-based random numbers (DESIGN: "Randomness").
+// Counter-based random numbers (docs/DESIGN.md, "Randomness").
 //
 // Contract: every random number is a pure function of (seed, stream, counter) — for example
 // (seed, pixel or ray index, sample index). Never of thread or call order, so results are the

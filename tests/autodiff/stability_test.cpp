@@ -5,13 +5,13 @@
 #include <limits>
 
 #include "autodiff/ops.h"
-#include "tests/autodiff/test_util.h"
+#include "support/test_util.h"
 #include "util/math.h"
 
 namespace sl {
 namespace {
 
-using testing::all_finite;
+using test::all_finite;
 
 // y = op(x) for every dtype; returns y and dy/dx (for a ones upstream gradient).
 std::pair<Tensor, Tensor> value_and_grad(const std::function<Tensor(const Tensor&)>& op, std::vector<double> xs,

@@ -5,7 +5,7 @@
 #include "data/augment.h"
 #include "data/panorama_dataset.h"
 #include "render/equirect.h"
-#include "test_files.h"
+#include "support/test_files.h"
 #include "util/math.h"
 
 namespace sl {

@@ -8,7 +8,7 @@
 #include "data/image_io.h"
 #include "data/panorama.h"
 #include "data/sun_extraction.h"
-#include "test_files.h"
+#include "support/test_files.h"
 #include "util/math.h"
 
 namespace {

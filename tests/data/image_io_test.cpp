@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <string>
 
-#include "test_files.h"
+#include "support/test_files.h"
 #include "util/random.h"
 
 namespace {

@@ -18,7 +18,7 @@
 #include "render/equirect.h"
 #include "render/path_tracer.h"
 #include "render/primitives.h"
-#include "street_fixture.h"
+#include "support/street_fixture.h"
 #include "util/math.h"
 
 namespace sl {

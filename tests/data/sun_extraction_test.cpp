@@ -9,7 +9,7 @@
 
 #include "data/image_io.h"
 #include "render/equirect.h"
-#include "test_files.h"
+#include "support/test_files.h"
 #include "util/math.h"
 #include "util/random.h"
 

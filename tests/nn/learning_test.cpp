@@ -8,9 +8,9 @@
 
 #include "autodiff/ops.h"
 #include "nn/layers.h"
+#include "nn/modules/resnet.h"
+#include "nn/modules/unet.h"
 #include "nn/optim.h"
-#include "nn/resnet.h"
-#include "nn/unet.h"
 #include "util/math.h"
 #include "util/random.h"
 

@@ -324,7 +324,7 @@ TEST(DisneyBrdf, ScalarTermsAreFiniteAtTheirLimits) {
 
 namespace {
 
-// Exact dielectric Fresnel (issue 19), against closed forms: at normal incidence
+// Exact dielectric Fresnel, against closed forms: at normal incidence
 // ((η − 1)/(η + 1))², at grazing incidence 1, and at 60° for η = 1.5 the mean of
 // Fresnel's s- and p-reflectances written out from Snell's law.
 TEST(DisneyBrdf, ExactFresnelMatchesFresnelsEquations) {

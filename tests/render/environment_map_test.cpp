@@ -90,7 +90,7 @@ TEST(EnvironmentMap, ImportanceSampledEstimateMatchesQuadratureWithAHugeSun) {
   EXPECT_NEAR(est / n / exact, 1.0, 0.03);
 }
 
-// Bilinear sampling (issue 19): pdf_bilinear is the density sample_bilinear draws from — a
+// Bilinear sampling: pdf_bilinear is the density sample_bilinear draws from — a
 // histogram on a fine grid (4×4 per texel, so the within-texel shape is checked, not just the
 // texel's mass) against the pdf integrated over each fine cell — and it is proportional to
 // the lookup's luminance inside every cell.

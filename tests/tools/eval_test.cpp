@@ -1,4 +1,4 @@
-// streetlight-eval on a tiny generated street dataset: every metric of issue 8 is reported, one
+// streetlight-eval on a tiny generated street dataset: every metric of Sec 4.2 is reported, one
 // table row per checkpoint, the error-against-time plot is written, and bad input is one line.
 #include <gtest/gtest.h>
 
@@ -10,10 +10,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "../data/street_fixture.h"
 #include "data/image_io.h"
 #include "data/sky_model.h"
-#include "tool_fixture.h"
+#include "support/street_fixture.h"
+#include "support/tool_fixture.h"
 #include "train/real_sky_benchmark.h"
 #include "util/math.h"
 

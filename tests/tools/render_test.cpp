@@ -1,4 +1,4 @@
-// streetlight-render (issue 19): the panorama orientation seen in a mirror sphere, budgets,
+// streetlight-render: the panorama orientation seen in a mirror sphere, budgets,
 // and bad input (one line "error: ...", exit 2, no output file).
 #include <gtest/gtest.h>
 
@@ -11,7 +11,7 @@
 #include "render/equirect.h"
 #include "render/gltf_writer.h"
 #include "render/primitives.h"
-#include "tests/tools/tool_fixture.h"
+#include "support/tool_fixture.h"
 #include "util/math.h"
 
 namespace sl {

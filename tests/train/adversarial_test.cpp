@@ -6,15 +6,15 @@
 #include <cmath>
 #include <filesystem>
 
-#include "tests/train/tiny_model.h"
 #include "autodiff/ops.h"
 #include "nn/checkpoint.h"
-#include "nn/discriminator.h"
+#include "nn/modules/patch_discriminator.h"
 #include "render/gltf_writer.h"
 #include "render/object_insertion.h"
 #include "render/primitives.h"
+#include "support/street_fixture.h"
+#include "support/tiny_model.h"
 #include "train/adversarial_stage.h"
-#include "street_fixture.h"
 #include "train/lighting_stage.h"
 #include "train/losses.h"
 #include "train/train_config.h"

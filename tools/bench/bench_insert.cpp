@@ -12,7 +12,7 @@
 //   samples per primary sample, an 80×45 shadow map with 128 rays, I_a 0.1, K = 64 volume
 //   samples, VSG 64×64×16, cosine sampling) and the paper's (5000 foreground rays; 160×90, 450;
 //   VSG 256×256×64).
-// --size kitti|nuscenes: the production table of issue 14 — lighting (default-size model,
+// --size kitti|nuscenes: the production table — lighting (default-size model,
 //   random initial weights) plus insertion at 1242×375 (KITTI 000008 with lidar depth) or
 //   1600×900 (nuScenes CAM_FRONT intrinsics, ground plane), error against a 4096-samples-per-
 //   pixel reference of the same renderer over the object and its shadow region.
@@ -119,7 +119,7 @@ long max_rss_mb() {
   return u.ru_maxrss / 1024;
 }
 
-// ---- production sizes (issue 14): lighting + insertion at KITTI 1242×375 and nuScenes 1600×900
+// ---- production sizes : lighting + insertion at KITTI 1242×375 and nuScenes 1600×900
 
 // Relative RMSE of the composite over the object and its shadow region: pixels the reference's
 // object covers, or whose reference shadow ratio differs from 1 by more than 1e-3. Both

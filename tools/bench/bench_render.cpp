@@ -1,9 +1,9 @@
 // streetlight-bench render: error against time of the reference path tracer (render/path_tracer.h)
-// as samples per pixel grow, for its estimators (issue 19):
+// as samples per pixel grow, for its estimators:
 //   stratified   environment importance sampling + BRDF sampling + MIS, Owen-scrambled Sobol
 //                samples, uncapped roulette (the default estimator)
 //   independent  the same NEE + MIS with independent random numbers and roulette capped at 0.95
-//                (the estimator before issue 19)
+//                (the original independent estimator)
 //   brdf_only    BRDF sampling only, independent numbers (the older baseline)
 // Scene: a glTF model (default CesiumMilkTruck) standing on a grey ground plane under each
 // HDRI (default: chinese_garden = hard sun, potsdamer_platz = soft sky), seen from a fixed
@@ -36,8 +36,8 @@
 #include "tools/bench/timing.h"
 #include "tools/common/plot.h"
 #include "util/error.h"
-#include "util/math.h"
 #include "util/file.h"
+#include "util/math.h"
 
 namespace sl::bench {
 namespace {
@@ -177,7 +177,7 @@ int run_render(const std::vector<std::string>& argv) {
           "  Path-traces the model on a ground plane under each HDRI at 1, 2, 4, ... --max-spp samples per\n"
           "  pixel with each estimator of LIST (comma-separated; default stratified,independent,brdf_only:\n"
           "  stratified = NEE + MIS with Owen-scrambled Sobol samples, the default; independent = NEE + MIS\n"
-          "  with independent numbers, the estimator before issue 19; brdf_only = BRDF sampling alone) and\n"
+          "  with independent numbers, the original independent estimator; brdf_only = BRDF sampling alone) and\n"
           "  reports time, RMSE against a --ref-spp stratified reference, and the pixel noise from two seeds.\n"
           "  Writes DIR/render_bench.csv, DIR/render_bench.png (log-log RMSE vs time in ms) and\n"
           "  DIR/render_reference_<hdri>.exr. Defaults: CesiumMilkTruck.glb, chinese_garden_1k.hdr (hard sun)\n"

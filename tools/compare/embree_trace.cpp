@@ -1,4 +1,4 @@
-// streetlight-embree-trace: the Embree 3 anchor for `streetlight-bench trace` (DESIGN: "Anchors").
+// streetlight-embree-trace: the Embree 3 anchor for `streetlight-bench trace` (docs/DESIGN.md, "Anchors").
 // Optional and never linked into the library. Same inputs and outputs as bench trace:
 // RAYS.bin (float32 ox oy oz dx dy dz per ray, t in [0, inf)), HITS.bin (float32 closest t or
 // +inf). rtcIntersect1 / rtcOccluded1 in an OpenMP loop on OMP_NUM_THREADS threads, best of 5.

@@ -193,7 +193,7 @@ glm::dvec3 PreethamSky::radiance(const glm::dvec3& direction) const {
   const double c = cloud_cover_at(direction);
   if (c <= 0.0) return clear;
   // Clouds are grey, about as bright as the clear sky around them, brighter near the sun.
-  const double y = 0.2126 * clear.x + 0.7152 * clear.y + 0.0722 * clear.z;
+  const double y = luminance(clear.x, clear.y, clear.z);
   const double forward = std::pow(std::max(0.0, glm::dot(glm::normalize(direction), sun_dir_)), 8.0);
   const glm::dvec3 cloud(y * (1.1 + 2.0 * forward));
   return (1.0 - c) * clear + c * cloud;

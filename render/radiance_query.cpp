@@ -23,10 +23,11 @@ struct Geometry {
 template <class T>
 struct LogProjection {
   int world_axis[3];
-  T centre[3], inv_r0, half_dims[3], k_pos[3], k_neg[3];
+  T centre[3], inv_r0, r0, half_dims[3], k_pos[3], k_neg[3];
   explicit LogProjection(const VsgGrid& g) {
     const int map[3] = {0, 2, 1};  // X <- x, Y <- z, Z <- y
     inv_r0 = T(1.0 / g.log_scale_m);
+    r0 = T(g.log_scale_m);
     for (int a = 0; a < 3; ++a) {
       const int w = map[a];
       world_axis[a] = w;
@@ -35,6 +36,17 @@ struct LogProjection {
       k_pos[a] = T(0.5 * double(g.dims[a]) / std::log1p(g.extent_pos[w] / g.log_scale_m));
       k_neg[a] = T(0.5 * double(g.dims[a]) / std::log1p(g.extent_neg[w] / g.log_scale_m));
     }
+  }
+  // |dv/dt| along unit direction l at world position p: the voxel-space speed of the ray.
+  T voxel_speed(const T p[3], const T l[3]) const {
+    T s2 = 0;
+    for (int a = 0; a < 3; ++a) {
+      const T d = p[world_axis[a]] - centre[a];
+      const T k = d >= 0 ? k_pos[a] : k_neg[a];
+      const T s = k * l[world_axis[a]] / (r0 + std::abs(d));
+      s2 += s * s;
+    }
+    return std::sqrt(s2);
   }
   void to_voxel(const T p[3], T v[3]) const {
     for (int a = 0; a < 3; ++a) {
@@ -60,6 +72,7 @@ struct RayMarch {
   EnvTaps env_taps;
   std::vector<T> alpha, t, g;           // per sample; g has 3 per sample
   std::vector<Tap<T>> taps;             // taps_per_sample per sample
+  std::vector<double> tk, cumulative;   // sample distances and their arc-length table (scratch)
   int taps_per_sample = 1;
   int64_t considered = 0;               // samples inside the grid before pruning
   size_t count() const { return alpha.size(); }
@@ -74,6 +87,42 @@ sg::Lobe<T> lobe_at(const T* vsg, int64_t vox, int64_t v) {
   }
   L.sharpness = vsg[6 * vox + v];
   return L;
+}
+
+// The K sample distances along a ray clipped to [t0, t1] (see the header's "Samples").
+template <class T>
+void sample_distances(const LogProjection<T>& proj, const RadianceQueryOptions& opt, const glm::dvec3& origin,
+                      const glm::dvec3& dir, double t0, double t1, std::vector<double>& tk,
+                      std::vector<double>& cumulative) {
+  const int K = opt.samples;
+  tk.resize(K);
+  for (int k = 0; k < K; ++k) tk[k] = t0 + (k + 0.5) * (t1 - t0) / K;
+  if (opt.spacing != SampleSpacing::kGrid || !(t1 > t0)) return;
+  const int M = 4 * K;
+  const double h = (t1 - t0) / M;
+  const T l[3] = {T(dir.x), T(dir.y), T(dir.z)};
+  auto speed = [&](double t) {
+    const T p[3] = {T(origin.x + t * dir.x), T(origin.y + t * dir.y), T(origin.z + t * dir.z)};
+    return double(proj.voxel_speed(p, l));
+  };
+  cumulative.resize(M + 1);
+  cumulative[0] = 0.0;
+  double prev = speed(t0);
+  for (int j = 1; j <= M; ++j) {
+    const double cur = speed(t0 + j * h);
+    cumulative[j] = cumulative[j - 1] + 0.5 * h * (prev + cur);
+    prev = cur;
+  }
+  const double total = cumulative[M];
+  if (!(total > 0.0) || !std::isfinite(total)) return;  // keep the metric spacing
+  int j = 0;
+  for (int k = 0; k < K; ++k) {
+    const double target = (k + 0.5) / K * total;
+    while (j < M - 1 && cumulative[j + 1] < target) ++j;
+    const double seg = cumulative[j + 1] - cumulative[j];
+    const double f = seg > 0.0 ? std::clamp((target - cumulative[j]) / seg, 0.0, 1.0) : 0.5;
+    tk[k] = t0 + (j + f) * h;
+  }
 }
 
 template <class T>
@@ -106,8 +155,11 @@ void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& pro
   const T stop = T(opt.min_transmittance) / std::max(T(1), env_max);
   T tau = 1;
   Tap<T> taps[8];
+  const bool grid_spacing = opt.spacing == SampleSpacing::kGrid;
+  int64_t last_voxel = -1;
+  sample_distances(proj, opt, origin, dir, t0, t1, m.tk, m.cumulative);
   for (int k = 0; k < opt.samples; ++k) {
-    const double tk = t0 + (k + 0.5) * (t1 - t0) / opt.samples;
+    const double tk = m.tk[k];
     const T pw[3] = {T(o[0] + tk * m.dir[0]), T(o[1] + tk * m.dir[1]), T(o[2] + tk * m.dir[2])};
     T p[3];
     proj.to_voxel(pw, p);
@@ -118,6 +170,10 @@ void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& pro
       for (int a = 0; a < 3; ++a) idx[a] = std::clamp<int64_t>(int64_t(std::floor(p[a])), 0, dims[a] - 1);  // nearest voxel
       taps[0] = {(idx[0] * geo.Y + idx[1]) * geo.Z + idx[2], T(1)};
       n_taps = 1;
+      // Grid spacing composites a voxel once per crossing: a second sample in the voxel the
+      // previous one read would apply its α twice.
+      if (grid_spacing && taps[0].voxel == last_voxel) continue;
+      last_voxel = taps[0].voxel;
     } else {
       int64_t i0[3], i1[3];
       T fr[3];
@@ -318,6 +374,16 @@ class RadianceQueryOp : public Function {
 };
 
 }  // namespace
+
+SampleSpacing parse_sample_spacing(const std::string& name) {
+  if (name == "metric") return SampleSpacing::kMetric;
+  if (name == "grid") return SampleSpacing::kGrid;
+  throw Error("sample spacing '" + name + "' is not one of: metric, grid");
+}
+
+const char* sample_spacing_name(SampleSpacing spacing) {
+  return spacing == SampleSpacing::kGrid ? "grid" : "metric";
+}
 
 RadianceQueryResult radiance_query(const Tensor& vsg, const Tensor& env, const Tensor& origins,
                                    const Tensor& directions, const VsgGrid& grid, const RadianceQueryOptions& options,

@@ -6,9 +6,18 @@
 // (panorama convention of equirect.h), origins and directions [N, R, 3] (world). The unbatched
 // forms [8, X, Y, Z], [3, H, W], [R, 3] are accepted too. Directions are normalised here; a zero
 // or non-finite ray gives radiance 0, τ_K = 1, depth 0 and no gradient.
-// Samples: K equi-spaced points t_k = t0 + (k − ½)(t1 − t0)/K over the part [t0, t1] of the ray
-// inside the grid's box (none when it misses the box). Lookup: nearest voxel (the paper) or
-// trilinear (α and G interpolated separately, borders clamped).
+// Samples over the part [t0, t1] of the ray inside the grid's box (none when it misses the box):
+//   - spacing kMetric: K equi-spaced points t_k = t0 + (k − ½)(t1 − t0)/K (even in metres);
+//   - spacing kGrid: K points equi-spaced in voxel coordinates — the k-th sits where the ray's
+//     arc length through the log-projected grid (vsg_volume.h) reaches (k − ½)/K of its total, so
+//     the small voxels near the camera are not skipped and the large outer ones not oversampled.
+//     The arc length ∫ |dv/dt| dt, with dv_a/dt = k±_a l_a / (r0 + |d_a|) per voxel axis a, is
+//     integrated by the trapezoid rule on 4K sub-intervals and inverted linearly (a deterministic
+//     function of the ray, recomputed identically by backward).
+//     With nearest lookup, a sample in the same voxel as the previous sample is skipped, so each
+//     voxel crossed is composited once however large K is (K → ∞ converges to the exact
+//     one-composite-per-voxel march; evenly spaced samples composite a voxel once per sample).
+// Lookup: nearest voxel (the paper) or trilinear (α and G interpolated separately, borders clamped).
 // Outputs: radiance [N, R, 3]; transmittance τ_K [N, R] (for the sky-separation loss); depth
 // [N, R] = Σ τ_{k−1} α_k t_k, the expected distance of the volume's contribution (unnormalised:
 // divide by 1 − τ_K for the depth of the visible surface).
@@ -26,14 +35,21 @@
 // tests/render/radiance_query_test.cpp checks pruned against unpruned within these bounds.
 #pragma once
 #include <cstdint>
+#include <string>
 
 #include "autodiff/tape.h"
 #include "render/vsg_volume.h"
 
 namespace sl {
 
+// Where Eq. 1's K samples sit along a ray (see "Samples" above).
+enum class SampleSpacing { kMetric, kGrid };
+SampleSpacing parse_sample_spacing(const std::string& name);  // "metric" | "grid"; throws naming it
+const char* sample_spacing_name(SampleSpacing spacing);
+
 struct RadianceQueryOptions {
   int samples = 64;                 // K
+  SampleSpacing spacing = SampleSpacing::kMetric;
   bool trilinear = false;           // nearest voxel (paper) or trilinear
   bool prune = true;
   double empty_alpha = 1e-6;

@@ -26,17 +26,17 @@
 
 #include "autodiff/ops.h"
 #include "autodiff/tape.h"
-#include "data/image_io.h"
-#include "data/panorama.h"
 #include "data/hdri_folder.h"
 #include "data/hdri_split.h"
+#include "data/image_io.h"
+#include "data/panorama.h"
 #include "data/panorama_dataset.h"
 #include "data/street_dataset.h"
 #include "data/sun_extraction.h"
 #include "nn/checkpoint.h"
 #include "render/environment_map.h"
-#include "render/gltf_loader.h"
 #include "render/equirect.h"
+#include "render/gltf_loader.h"
 #include "render/radiance_query.h"
 #include "tools/common/cli.h"
 #include "tools/common/plot.h"
@@ -57,7 +57,8 @@ using namespace sl::train;
 namespace {
 
 // The predicted LDR of a world camera's view (radiance query, Eq. 1) and its upper-hemisphere mask.
-std::pair<Tensor, std::vector<char>> render_view(const EstimatedLighting& l, const Camera& world_cam, int rows, int samples) {
+std::pair<Tensor, std::vector<char>> render_view(const EstimatedLighting& l, const Camera& world_cam, int rows,
+                                                 const RadianceQueryOptions& qo) {
   const double scale = static_cast<double>(rows) / world_cam.intrinsics().height;
   const Intrinsics k = world_cam.intrinsics().scaled(scale, scale);
   const Camera cam = l.frame.camera(Camera(k, world_cam.rotation(), world_cam.position()));
@@ -74,8 +75,6 @@ std::pair<Tensor, std::vector<char>> render_view(const EstimatedLighting& l, con
   const Tensor origins = Tensor::from_vector(o, {n, 3}).to(DType::F32), dirs = Tensor::from_vector(d, {n, 3}).to(DType::F32);
   Tensor rad;
   if (l.vsg.defined()) {
-    RadianceQueryOptions qo;
-    qo.samples = samples;
     rad = radiance_query(l.vsg, l.env, origins, dirs, l.grid, qo).radiance;
   } else {
     rad = env_lookup(l.env, dirs);
@@ -221,9 +220,10 @@ Tensor render_truth(const Tensor& pano_hdr, const Camera& cam, double exposure) 
 }
 
 json eval_lighting(const std::string& ckpt, const std::string& data, const std::string& split, int64_t limit,
-                   int view_rows, std::vector<cli::PlotPoint>* plot, const std::string& label, const RealSkyData* real) {
+                   int view_rows, std::vector<cli::PlotPoint>* plot, const std::string& label, const RealSkyData* real,
+                   bool oracle) {
   LightingEstimator est(ckpt);
-  std::vector<double> sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, ms;
+  std::vector<double> sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, ms, oracle_psnr, oracle_ratio;
   std::map<std::string, std::vector<double>> budget_err, budget_ms;
   const bool street = fs::exists(fs::path(data) / "index.json");
   size_t count = 0;
@@ -242,7 +242,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
       sun_err.push_back(angular_error_deg(dir, l.frame.direction(s.sun_direction)));
       for (size_t k = 1; k < s.views.size(); ++k) {
         NoGradGuard ng;
-        const auto [pred, upper] = render_view(l, s.views[k].camera, view_rows, est.volume_samples());
+        const auto [pred, upper] = render_view(l, s.views[k].camera, view_rows, est.volume_query());
         const Tensor truth = resize_bilinear(s.views[k].ldr, pred.size(1), pred.size(2));
         const PsnrScores all = masked_psnr(pred, truth, {}), up = masked_psnr(pred, truth, upper);
         ps.push_back(all.psnr), sps.push_back(all.si_psnr);
@@ -253,13 +253,23 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         if (it == meshes.end()) it = meshes.emplace(s.object_glb, to_object_frame(load_gltf(s.object_glb))).first;
         PhotoInsertionOptions o;
         o.aa_samples = 2, o.light_samples = 32, o.shadow_rays = 64, o.shadow_width = 80, o.shadow_height = 45;
-        o.volume_samples = est.volume_samples();
+        o.volume_query = est.volume_query();
         try {
           const InsertionScore sc = score_insertion(l, s, it->second, o);
           if (sc.valid) ins_psnr.push_back(sc.psnr), ins_ratio.push_back(sc.shadow_ratio_error);
+          if (oracle) {
+            // Oracle lighting: the same renderer and options under the generator's own HDR
+            // panorama at the camera (distant light, exposure-normalised, in the canonical
+            // frame) — what is left is the renderer's error, not the lighting's.
+            EstimatedLighting truth = l;
+            truth.env = l.frame.panorama(mul_scalar(s.pano_hdr.contiguous(), s.exposure)).contiguous();
+            truth.vsg = Tensor();
+            const InsertionScore oc = score_insertion(truth, s, it->second, o);
+            if (oc.valid) oracle_psnr.push_back(oc.psnr), oracle_ratio.push_back(oc.shadow_ratio_error);
+          }
           if (plot)
             for (Budget b : budgets()) {
-              b.o.volume_samples = est.volume_samples();
+              b.o.volume_query = est.volume_query();
               const InsertionScore bs = score_insertion(l, s, it->second, b.o);
               if (!bs.valid) continue;
               budget_err[b.name].push_back(bs.shadow_ratio_error);
@@ -293,7 +303,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
                          v.camera.position());
       PerspectiveCropParams cp;
       cp.width = v.camera.intrinsics().width, cp.height = v.camera.intrinsics().height;
-      const auto [pred, upper] = render_view(l, novel, view_rows, est.volume_samples());
+      const auto [pred, upper] = render_view(l, novel, view_rows, est.volume_query());
       const Tensor truth_full = render_truth(c.sample.pano_hdr, novel, c.sample.exposure);
       const Tensor truth = resize_bilinear(truth_full, pred.size(1), pred.size(2));
       const PsnrScores all = masked_psnr(pred, truth, {}), up = masked_psnr(pred, truth, upper);
@@ -318,6 +328,9 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
             {"psnr", mean_of(ps)}, {"si_psnr", mean_of(sps)},
             {"psnr_upper", mean_of(ups)}, {"si_psnr_upper", mean_of(usps)},
             {"inference_ms", mean_of(ms)}};
+  if (!oracle_psnr.empty())
+    r["oracle"] = {{"insertion_psnr", mean_of(oracle_psnr)}, {"shadow_ratio_error", mean_of(oracle_ratio)},
+                   {"insertion_samples", oracle_psnr.size()}};
   if (!ins_psnr.empty()) {
     r["insertion_psnr"] = mean_of(ins_psnr);
     r["shadow_ratio_error"] = mean_of(ins_ratio);
@@ -398,6 +411,10 @@ std::string markdown(const std::vector<json>& rows, const std::vector<std::strin
          << fmt(r, "insertion_psnr") << " | " << fmt(r, "shadow_ratio_error", 3) << " | " << fmt(r, "inference_ms", 0)
          << " |\n";
     }
+    for (const auto& r : rows)
+      if (r.contains("oracle"))
+        md << "| oracle lighting (the generator's HDR panorama at the camera) | — | — | — | — | — | — | — | "
+           << fmt(r["oracle"], "insertion_psnr") << " | " << fmt(r["oracle"], "shadow_ratio_error", 3) << " | — |\n";
   }
   if (any_sky) {
     md << (any_light ? "\n" : "")
@@ -441,7 +458,9 @@ int run(int argc, char** argv) {
               "                 [--crops K] [--out DIR] [--json]\n\n"
               "Evaluates checkpoints with the metrics of Wang et al. ECCV 2022 (Tables 1-2): sun direction angular\n"
               "error, novel-view LDR PSNR / si-PSNR (also upper hemisphere only), sky log-L2 (sky autoencoder),\n"
-              "insertion error against the generator's path-traced ground truth, and inference time. Each DIR is a\n"
+              "insertion error against the generator's path-traced ground truth (also under oracle lighting: the\n"
+              "generator's own HDR panorama at the camera, which isolates the renderer's error), and inference\n"
+              "time. Each DIR is a\n"
               "streetlight-datagen dataset or a folder of real HDR panoramas; results are reported per DIR.\n"
               "Real panoramas (the real-sky benchmark): K seeded perspective crops per panorama of the split's\n"
               "--split list (default: every file), sun errors over the crops whose sun is hard, also split by\n"
@@ -489,14 +508,18 @@ int run(int argc, char** argv) {
     std::unique_ptr<RealSkyData> real;
     if (!street) real = std::make_unique<RealSkyData>(load_real_sky(data, hdri_split, split, crops, limit));
     std::vector<json> results;
+    bool oracle_done = false;
     for (size_t i = 0; i < ckpts.size(); ++i) {
       const std::string stage = nn::read_checkpoint_info(ckpts[i]).stage;
       if (stage == kStageSky) {
         results.push_back(eval_sky(ckpts[i], data, split, limit, real.get()));
       } else {
         const bool want_plot = street && !plotted && a.has("--out") && !a.has("--no-budgets");
+        // The oracle row depends only on the data: computed with the first lighting checkpoint.
+        const bool want_oracle = street && !oracle_done;
         results.push_back(eval_lighting(ckpts[i], data, split, limit, rows, want_plot ? &plot : nullptr, names[i],
-                                        real.get()));
+                                        real.get(), want_oracle));
+        oracle_done = oracle_done || want_oracle;
         plotted = plotted || want_plot;
       }
       results.back()["name"] = names[i];

@@ -33,9 +33,9 @@
 #include "train/losses.h"
 #include "train/photo_input.h"
 #include "train/photo_insertion.h"
+#include "util/file.h"
 #include "util/math.h"
 #include "util/random.h"
-#include "util/file.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -91,7 +91,7 @@ void write_text(const std::string& path, const std::string& text) {
   SL_CHECK(f.good(), "cannot write '", path, "'");
 }
 
-PhotoInsertionOptions insertion_options(const cli::Args& a, int volume_samples) {
+PhotoInsertionOptions insertion_options(const cli::Args& a, const RadianceQueryOptions& volume_query) {
   PhotoInsertionOptions o;
   o.aa_samples = static_cast<int>(a.integer("--aa", o.aa_samples));
   o.light_samples = static_cast<int>(a.integer("--light-samples", o.light_samples));
@@ -100,7 +100,7 @@ PhotoInsertionOptions insertion_options(const cli::Args& a, int volume_samples) 
   o.shadow_height = static_cast<int>(a.integer("--shadow-height", o.shadow_height));
   o.radiance_cache = !a.has("--exact");
   o.seed = static_cast<uint64_t>(a.integer("--seed", 0));
-  o.volume_samples = volume_samples;
+  o.volume_query = volume_query;
   SL_CHECK(o.aa_samples > 0 && o.light_samples > 0 && o.shadow_rays > 0 && o.shadow_width > 0 && o.shadow_height > 0,
            "--aa, --light-samples, --shadow-rays, --shadow-width and --shadow-height must be positive");
   return o;
@@ -184,7 +184,7 @@ int single(const cli::Args& a) {
   PhotoInsertion ins;
   try {
     ins = insert_into_photo(light, photo.ldr, photo.depth, photo.camera, object, pose,
-                            insertion_options(a, est.volume_samples()));
+                            insertion_options(a, est.volume_query()));
   } catch (const Error& e) {
     fail("--at ", ax, ",", az, " (depth: ", photo.depth_source, "): ", e.what());
   }
@@ -376,7 +376,7 @@ BatchResult augment_one(const cli::Args& a, LightingEstimator& est, const std::v
     if (overlaps_any(kitti_box3d(obj, pose, photo.camera), labels, added)) continue;  // never park in a real car
     PhotoInsertion ins;
     try {
-      PhotoInsertionOptions o = insertion_options(a, est.volume_samples());
+      PhotoInsertionOptions o = insertion_options(a, est.volume_query());
       o.seed = hash_counter(seed, item_index, static_cast<uint64_t>(attempt));
       ins = insert_into_photo(light, photo.ldr, photo.depth, photo.camera, obj, pose, o);
     } catch (const Error&) {

@@ -8,12 +8,16 @@
 #include "render/object_insertion.h"
 #include "train/adversarial_stage.h"
 #include "train/losses.h"
-#include "train/train_config.h"
 #include "train/phase_clock.h"
+#include "train/train_config.h"
 #include "util/math.h"
 #include "util/random.h"
 
 namespace sl::train {
+
+namespace {
+constexpr uint64_t kRealSeed = 0x7265616C5F696D67ULL;  // the real composites' own samples
+}  // namespace
 
 const Mesh& AdversarialStage::object_mesh(const std::string& path) {
   auto it = meshes_.find(path);
@@ -22,41 +26,51 @@ const Mesh& AdversarialStage::object_mesh(const std::string& path) {
 }
 
 Tensor AdversarialStage::composite(const Forward& f, size_t i, uint64_t seed) {
+  const Tensor vsg = f.pred.vsg.defined() ? select(f.pred.vsg, 0, static_cast<int64_t>(i)) : Tensor();
+  return composite_under(f, i, select(f.pred.env, 0, static_cast<int64_t>(i)), vsg, seed);
+}
+
+Tensor AdversarialStage::composite_under(const Forward& f, size_t i, const Tensor& env, const Tensor& vsg,
+                                         uint64_t seed) {
   const StreetSample& s = f.samples[i];
   const StreetItem& it = f.items[i];
   const StreetView& view = s.views[0];
   SL_CHECK(s.has_insertion && !s.object_glb.empty(), "stage adversarial: sample '", s.id,
            "' has no insertion ground truth (object_glb)");
-  const auto& ic = config_.at("insertion");
   InsertionInputs in;
   in.background = pow_scalar(view.ldr.contiguous(), kLdrGamma);  // linearised LDR: exposure-normalised radiance
   in.depth = view.depth;
   in.camera = it.camera;
-  in.env = select(f.pred.env, 0, static_cast<int64_t>(i));
-  if (f.pred.vsg.defined()) in.vsg = select(f.pred.vsg, 0, static_cast<int64_t>(i));
+  in.env = env;
+  in.vsg = vsg;
   in.grid = it.grid;
   const glm::dvec3 pos = it.frame.point({s.object_x, 0.0, s.object_z});
   Placement p;
   p.x_m = pos.x;
   p.z_m = pos.z;
-  p.yaw_deg = s.object_yaw_deg - it.frame.yaw_rad * 180.0 / kPi;
+  p.yaw_deg = it.frame.object_yaw_deg(s.object_yaw_deg);
   p.scale = s.object_scale;
   in.objects.push_back(place_object(object_mesh(s.object_glb), p, it.camera, view.depth));
-  InsertionOptions o;
-  o.aa_samples = ic.at("aa_samples").get<int>();
-  o.light_samples = ic.at("light_samples").get<int>();
-  o.shadow_width = ic.at("shadow_width").get<int>();
-  o.shadow_height = ic.at("shadow_height").get<int>();
-  o.shadow_rays = ic.at("shadow_rays").get<int>();
-  o.ambient = ic.at("ambient").get<double>();
-  o.seed = seed;
-  o.query.samples = config_.at("model").at("volume").at("samples").get<int>();
-  return insert_objects(in, o).composite;
+  return insert_objects(in, training_insertion_options(config_, seed)).composite;
 }
 
-Tensor AdversarialStage::real_composite_ldr(const StreetSample& s) const {
-  SL_CHECK(s.insert_with_object_hdr.defined(), "stage adversarial: sample '", s.id, "' has no insert_with_object_hdr");
-  return to_ldr(s.insert_with_object_hdr.contiguous(), s.exposure);
+Tensor AdversarialStage::ground_truth_env(const Forward& f, size_t i) const {
+  const StreetSample& s = f.samples[i];
+  SL_CHECK(s.pano_hdr.defined(), "stage adversarial: sample '", s.id, "' has no HDR panorama (pano_hdr)");
+  const Tensor pano = f.items[i].frame.panorama(mul_scalar(s.pano_hdr.contiguous(), s.exposure).contiguous());
+  return resize_area(pano.contiguous(), static_cast<int>(batch_opt_.dome_height), static_cast<int>(batch_opt_.dome_width))
+      .to(f.pred.env.dtype());
+}
+
+Tensor AdversarialStage::real_composite_ldr(const Forward& f, size_t i, uint64_t seed) {
+  const StreetSample& s = f.samples[i];
+  const std::string kind = config_.at("insertion").value("real", std::string("renderer"));
+  if (kind == "path_traced") {
+    SL_CHECK(s.insert_with_object_hdr.defined(), "stage adversarial: sample '", s.id, "' has no insert_with_object_hdr");
+    return to_ldr(s.insert_with_object_hdr.contiguous(), s.exposure);
+  }
+  NoGradGuard no_grad;
+  return ldr_from_hdr(composite_under(f, i, ground_truth_env(f, i), Tensor(), seed)).contiguous();
 }
 
 AdversarialStage::AdversarialStage(const nlohmann::json& config, SampleSource train, SampleSource val)
@@ -107,7 +121,7 @@ Metrics AdversarialStage::step(int64_t step) {
   TensorList fakes, reals;
   for (size_t i : insertable) {
     fakes.push_back(ldr_from_hdr(composite(f, i, hash_counter(seed_, static_cast<uint64_t>(step), i))));
-    reals.push_back(real_composite_ldr(f.samples[i]));
+    reals.push_back(real_composite_ldr(f, i, hash_counter(seed_ ^ kRealSeed, static_cast<uint64_t>(step), i)));
   }
   const Tensor fake = stack(fakes, 0), real = stack(reals, 0);
   const double render_ms = clock.lap();

@@ -74,9 +74,7 @@ LightingEstimator::LightingEstimator(const std::string& path) : path_(path) {
   grid_template_ = vsg_grid(config_, 1.6);
 }
 
-int LightingEstimator::volume_samples() const {
-  return config_.at("model").at("volume").at("samples").get<int>();
-}
+RadianceQueryOptions LightingEstimator::volume_query() const { return volume_query_options(config_); }
 
 LightingEstimator::Single LightingEstimator::predict_one(const InferenceView& v) {
   const LightingPredictorOptions& po = predictor_->options();

@@ -37,6 +37,7 @@
 
 #include "autodiff/tensor.h"
 #include "render/camera.h"
+#include "render/radiance_query.h"
 #include "render/vsg_volume.h"
 #include "train/lighting_predictor.h"
 #include "train/street_batch.h"
@@ -81,7 +82,7 @@ class LightingEstimator {
   const std::string& path() const { return path_; }
   const std::string& stage() const { return stage_; }
   int64_t step() const { return step_; }
-  int volume_samples() const;  // model.volume.samples (K of Eq. 1)
+  RadianceQueryOptions volume_query() const;  // model.volume: K of Eq. 1, its spacing and lookup
   LightingPredictor& predictor() { return *predictor_; }
 
  private:

@@ -177,9 +177,7 @@ LightingStage::Query LightingStage::query(const Forward& f, size_t i, const Tens
   const Tensor env = select(f.pred.env, 0, static_cast<int64_t>(i));
   Query q;
   if (f.pred.vsg.defined()) {
-    RadianceQueryOptions qo;
-    qo.samples = config_.at("model").at("volume").at("samples").get<int>();
-    qo.trilinear = config_.at("model").at("volume").at("trilinear").get<bool>();
+    const RadianceQueryOptions qo = volume_query_options(config_);
     const RadianceQueryResult r = radiance_query(select(f.pred.vsg, 0, static_cast<int64_t>(i)), env, origins,
                                                  directions, f.items[i].grid, qo);
     q.radiance = r.radiance;

@@ -81,7 +81,7 @@ InsertionOptions insertion_options(const PhotoInsertionOptions& o) {
   io.ambient = o.ambient;
   io.importance_sampling = true;
   io.seed = o.seed;
-  io.query.samples = o.volume_samples;
+  io.query = o.volume_query;
   io.radiance_cache = o.radiance_cache;
   return io;
 }
@@ -108,7 +108,7 @@ PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor
   Placement p;
   p.x_m = at.x;
   p.z_m = at.z;
-  p.yaw_deg = pose.yaw_deg - lighting.frame.yaw_rad * 180.0 / kPi;
+  p.yaw_deg = lighting.frame.object_yaw_deg(pose.yaw_deg);
   p.scale = pose.scale;
   in.objects.push_back(place_object(object_frame_mesh, p, in.camera, in.depth));
   PhotoInsertion out;

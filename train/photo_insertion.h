@@ -36,7 +36,7 @@ struct PhotoInsertionOptions {
   int aa_samples = 4, light_samples = 16;  // 64 light samples per fully covered pixel
   int shadow_width = 160, shadow_height = 90, shadow_rays = 64;
   double ambient = 0.1;
-  int volume_samples = 32;  // K of Eq. 1
+  RadianceQueryOptions volume_query{.samples = 32};  // Eq. 1: K, spacing, lookup (the model's)
   double max_ground_offset_m = 1.0;
   uint64_t seed = 0;
   bool radiance_cache = true;  // render/object_insertion.h: probes instead of per-ray volume marches

@@ -8,6 +8,7 @@
 #include "data/panorama.h"
 #include "render/equirect.h"
 #include "train/unprojection.h"
+#include "util/math.h"
 #include "util/random.h"
 
 namespace sl::train {
@@ -22,6 +23,10 @@ Camera CanonicalFrame::camera(const Camera& c) const {
   glm::dmat3 r;
   for (int k = 0; k < 3; ++k) r[k] = direction(c.rotation()[k]);  // columns: the camera axes
   return Camera(c.intrinsics(), r, point(c.position()));
+}
+
+double CanonicalFrame::object_yaw_deg(double world_yaw_deg) const {
+  return world_yaw_deg + degrees(yaw_rad);
 }
 
 Tensor CanonicalFrame::panorama(const Tensor& pano) const {

@@ -38,6 +38,10 @@ struct CanonicalFrame {
   glm::dvec3 direction(const glm::dvec3& world) const;  // world → canonical direction
   Camera camera(const Camera& world_camera) const;      // a camera re-expressed in the frame
   Tensor panorama(const Tensor& world_pano) const;      // rolled so world azimuth yaw → 0
+  // An object's yaw about +Y (render/object_insertion.h, data/object_placement.h: +X turns toward
+  // −Z as yaw grows) re-expressed in the frame. The frame turns the world by +yaw_rad about +Y
+  // (azimuth, measured the other way round, drops by yaw_rad), so an object's yaw GROWS by it.
+  double object_yaw_deg(double world_yaw_deg) const;
 };
 
 CanonicalFrame canonical_frame(const Camera& input_camera);

@@ -57,6 +57,7 @@ json default_train_config() {
           {"unet_channels", 8},
           {"unet_depth", 3},
           {"samples", 64},
+          {"spacing", "grid"},
           {"trilinear", false}}},
         {"discriminator", {{"base_channels", 32}, {"layers", 3}, {"norm", "instance"}}}}},
       {"loss",
@@ -94,7 +95,9 @@ json default_train_config() {
         {"shadow_width", 80},
         {"shadow_height", 45},
         {"shadow_rays", 128},
-        {"ambient", 0.1}}},
+        {"ambient", 0.1},
+        {"importance_sampling", true},
+        {"real", "renderer"}}},
   };
 }
 
@@ -145,9 +148,12 @@ void check_train_config(const json& c) {
     const std::string p = c.at("insertion").at("placement").get<std::string>();
     SL_CHECK(p == "dataset", "insertion.placement must be \"dataset\" (the generator's placement on drivable ground, "
              "collision- and occlusion-checked against the depth), got \"", p, "\"");
+    const std::string real = c.at("insertion").value("real", std::string("renderer"));
+    SL_CHECK(real == "renderer" || real == "path_traced",
+             "insertion.real must be \"renderer\" or \"path_traced\", got \"", real, "\"");
   }
   (void)sky_options(c);
-  if (stage != kStageSky) (void)predictor_options(c);
+  if (stage != kStageSky) (void)predictor_options(c), (void)volume_query_options(c);
 }
 
 SkyAutoencoderOptions sky_options(const json& c) {
@@ -185,6 +191,38 @@ LightingPredictorOptions predictor_options(const json& c) {
   o.sky = sky_options(c);
   o.seed = c.at("seed").get<uint64_t>() + 1;
   validate(o);
+  return o;
+}
+
+InsertionOptions training_insertion_options(const json& c, uint64_t seed) {
+  const json& ic = c.at("insertion");
+  InsertionOptions o;
+  o.aa_samples = ic.at("aa_samples").get<int>();
+  o.light_samples = ic.at("light_samples").get<int>();
+  o.shadow_width = ic.at("shadow_width").get<int>();
+  o.shadow_height = ic.at("shadow_height").get<int>();
+  o.shadow_rays = ic.at("shadow_rays").get<int>();
+  o.ambient = ic.at("ambient").get<double>();
+  // Configs written before the key existed trained with cosine samples alone.
+  o.importance_sampling = ic.value("importance_sampling", false);
+  o.seed = seed;
+  o.query = volume_query_options(c);
+  return o;
+}
+
+RadianceQueryOptions volume_query_options(const json& c) {
+  const json& v = c.at("model").at("volume");
+  RadianceQueryOptions o;
+  o.samples = v.at("samples").get<int>();
+  SL_CHECK(o.samples >= 1, "model.volume.samples = ", o.samples, " must be >= 1");
+  o.trilinear = v.at("trilinear").get<bool>();
+  // Checkpoints written before the key existed sampled evenly in metres.
+  const std::string spacing = v.value("spacing", std::string("metric"));
+  try {
+    o.spacing = parse_sample_spacing(spacing);
+  } catch (const Error&) {
+    throw Error("model.volume.spacing = '" + spacing + "' is not one of: metric, grid");
+  }
   return o;
 }
 

@@ -11,6 +11,8 @@
 #pragma once
 #include <nlohmann/json.hpp>
 
+#include "render/object_insertion.h"
+#include "render/radiance_query.h"
 #include "render/vsg_volume.h"
 #include "train/lighting_predictor.h"
 #include "train/sky_autoencoder.h"
@@ -28,5 +30,11 @@ SkyAutoencoderOptions sky_options(const nlohmann::json& config);
 LightingPredictorOptions predictor_options(const nlohmann::json& config);
 // The VSG grid centred on a camera at height `camera_height_m` above the canonical origin.
 VsgGrid vsg_grid(const nlohmann::json& config, double camera_height_m);
+// Eq. 1's query options from model.volume: samples (K), spacing ("metric" | "grid"), trilinear.
+RadianceQueryOptions volume_query_options(const nlohmann::json& config);
+// The insertion renderer's options in stage 3 (the `insertion` section): sample counts, I_a,
+// and importance_sampling (cosine + sky MIS for light and shadow rays, as at inference; false:
+// the paper's cosine samples), with Eq. 1 from model.volume. seed draws every sample.
+InsertionOptions training_insertion_options(const nlohmann::json& config, uint64_t seed);
 
 }  // namespace sl::train

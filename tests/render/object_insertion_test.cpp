@@ -427,3 +427,78 @@ TEST(ObjectInsertion, RadianceCacheIsCloseToExactQueriesAndRefusesGradients) {
 
 }  // namespace
 }  // namespace sl
+
+namespace sl {
+namespace {
+
+// A sky of 0.5 with a sun 2·10^4 brighter whose lobe is about one texel wide (the sky decoder's
+// analytic sun, train/sky_autoencoder.h): exp(λ(d·f̂ − 1)) with λ = 600 has a 6° full width at
+// half maximum, one texel of this 64×32 panorama. f is a free 3-vector, normalised on the tape.
+Tensor one_texel_sun_sky(const Tensor& f, int W, int H) {
+  std::vector<double> dirs;
+  for (int i = 0; i < H; ++i)
+    for (int j = 0; j < W; ++j) {
+      const auto d = equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
+      dirs.insert(dirs.end(), {d.x, d.y, d.z});
+    }
+  const Tensor D = Tensor::from_vector(dirs, {H * W, 3}, DType::F64);
+  const Tensor fhat = div(f, sqrt(sum(square(f))));
+  const Tensor dot = matmul(D, reshape(fhat, {3, 1}));
+  const Tensor sky = add_scalar(mul_scalar(exp(mul_scalar(add_scalar(dot, -1.0), 600.0)), 1e4), 0.5);
+  return expand(reshape(sky, {1, H, W}), {3, H, W});
+}
+
+glm::dvec3 sun_dir(double el_deg, double az_deg) {
+  const double el = el_deg * kDegToRad, az = az_deg * kDegToRad;
+  return {std::cos(el) * std::sin(az), std::sin(el), -std::cos(el) * std::cos(az)};
+}
+
+// The gradient of a shadow-region loss with respect to the sun direction f_dir, at a training
+// budget (8 shadow rays per texel, 8 light samples) and a sun 11° from the truth: sky-aware
+// sampling (importance_sampling: cosine + environment MIS, the sun included) turns f_dir toward
+// the true sun for every sample seed; cosine samples alone rarely meet a one-texel sun, and
+// their gradient points anywhere from toward to away from it depending on the seed.
+TEST(ObjectInsertion, ShadowLossGradientTurnsTheSunTowardTheTruthWithSkySampling) {
+  const GroundScene s = ground_scene(48, 32, DType::F64, -20.0);
+  const PlacedObject obj = place_object(box_mesh(), {0.0, -5.0, 30.0, 1.0}, s.camera, s.depth);
+  const int EW = 64, EH = 32;
+  const glm::dvec3 truth = sun_dir(40, 30), start = sun_dir(40, 45);
+  // The part of ∂loss/∂f that turns f̂ (|f| = 1), for one sampling and seed.
+  auto turning_gradient = [&](bool sky_sampling, uint64_t seed) {
+    InsertionOptions opt = small_options();
+    opt.light_samples = 8;
+    opt.shadow_width = 24;
+    opt.shadow_height = 16;
+    opt.shadow_rays = 8;
+    opt.importance_sampling = sky_sampling;
+    opt.lighting_seed = seed;
+    const Tensor ft = Tensor::from_vector({truth.x, truth.y, truth.z}, {3}, DType::F64);
+    const Tensor target =
+        insert_objects({s.background, s.depth, s.camera, one_texel_sun_sky(ft, EW, EH), Tensor(), VsgGrid(), {obj}}, opt)
+            .composite.detach();
+    Tensor f = Tensor::from_vector({start.x, start.y, start.z}, {3}, DType::F64).set_requires_grad(true);
+    const InsertionResult r =
+        insert_objects({s.background, s.depth, s.camera, one_texel_sun_sky(f, EW, EH), Tensor(), VsgGrid(), {obj}}, opt);
+    const Tensor background_only = rsub_scalar(1.0, r.object_silhouette.detach());  // the shadow region
+    backward(mean(mul(square(sub(r.composite, target)), background_only)));
+    const auto g = f.grad().to_vector();
+    const glm::dvec3 gv(g[0], g[1], g[2]);
+    return gv - glm::dot(gv, start) * start;
+  };
+  const glm::dvec3 toward = glm::normalize((truth - start) - glm::dot(truth - start, start) * start);
+  double worst_mis = 1.0, worst_cosine = 1.0;
+  for (uint64_t seed = 1; seed <= 6; ++seed) {
+    const glm::dvec3 g_mis = turning_gradient(true, seed), g_cos = turning_gradient(false, seed);
+    ASSERT_GT(glm::length(g_mis), 0.0) << "seed " << seed;
+    const double c_mis = glm::dot(-g_mis, toward) / glm::length(g_mis);
+    const double c_cos = glm::length(g_cos) > 0 ? glm::dot(-g_cos, toward) / glm::length(g_cos) : 0.0;
+    EXPECT_GT(c_mis, 0.85) << "seed " << seed << ": the descent direction must turn f_dir toward the true sun";
+    worst_mis = std::min(worst_mis, c_mis);
+    worst_cosine = std::min(worst_cosine, c_cos);
+  }
+  // Measured: MIS ≥ 0.91 for every seed; cosine samples 0.03 at worst over these seeds.
+  EXPECT_LT(worst_cosine, 0.5) << "cosine-only sampling was expected to be unreliable here (worst MIS " << worst_mis << ")";
+}
+
+}  // namespace
+}  // namespace sl

@@ -113,10 +113,12 @@ TEST(RadianceQuery, OpaqueVolumeHidesTheSkyAndShowsTheFirstLobe) {
 
 TEST(RadianceQuery, GradcheckNearestAndTrilinear) {
   const VsgGrid g = small_grid();
-  for (bool tri : {false, true}) {
+  for (int variant = 0; variant < 3; ++variant) {
+    const bool tri = variant == 1;
     RadianceQueryOptions opt;
     opt.samples = 6;
     opt.trilinear = tri;
+    if (variant == 2) opt.spacing = SampleSpacing::kGrid;
     opt.prune = false;  // pruning thresholds are discontinuous; checked separately below
     const Rays r = random_rays(5, 10, DType::F64);
     auto f = [&](const TensorList& in) {
@@ -125,7 +127,83 @@ TEST(RadianceQuery, GradcheckNearestAndTrilinear) {
       return concat({reshape(q.radiance, {-1}), q.transmittance, mul_scalar(q.depth, 0.1)}, 0);
     };
     const GradcheckResult res = gradcheck(f, {random_vsg(g, 11, DType::F64), Tensor::uniform({3, 4, 8}, 0.1, 2, 12, DType::F64)});
-    EXPECT_TRUE(res.ok) << (tri ? "trilinear: " : "nearest: ") << res.message;
+    EXPECT_TRUE(res.ok) << (tri ? "trilinear: " : "nearest: ") << sample_spacing_name(opt.spacing) << ": "
+                        << res.message;
+  }
+}
+
+// Eq. 1 with spacing kGrid: samples equi-spaced in the log-projected grid. Along a ray from the
+// grid centre down the +x axis, K = 32 samples then visit each of the 32 voxels between the
+// centre and the edge exactly once; spaced evenly in metres (4.7 m apart) they skip the sub-metre
+// voxels near the camera. A single opaque voxel shows which voxels a ray's samples reach.
+TEST(RadianceQuery, GridSpacingVisitsEveryVoxelAlongTheRayOnce) {
+  VsgGrid g;  // 64 x 64 x 16 over 300 x 300 x 80 m, r0 = 5 m
+  g.center = {0, 0, 0};
+  const int64_t X = g.dims[0], Y = g.dims[1], Z = g.dims[2];
+  const Tensor env = Tensor::zeros({3, 8, 16}, DType::F64);
+  const Tensor o = Tensor::from_vector({0.0, 0.0, 0.0}, {1, 3}, DType::F64);
+  const Tensor d = Tensor::from_vector({1.0, 0.0, 0.0}, {1, 3}, DType::F64);
+  const glm::dvec3 c = g.to_voxel(g.center);
+  const int64_t iy = int64_t(c.y), iz = int64_t(c.z);
+  auto seen = [&](SampleSpacing spacing, int64_t ix) {
+    Tensor vsg = Tensor::zeros({8, X, Y, Z}, DType::F64);
+    const int64_t vox = X * Y * Z, v = (ix * Y + iy) * Z + iz;
+    double* p = vsg.data<double>();
+    for (int ch = 0; ch < 3; ++ch) p[ch * vox + v] = 1.0;  // c = 1
+    p[4 * vox + v] = 1.0;                                  // μ = +y
+    p[6 * vox + v] = 1e-3;                                 // nearly isotropic
+    p[7 * vox + v] = 1.0;                                  // opaque
+    RadianceQueryOptions opt;
+    opt.samples = 32;
+    opt.spacing = spacing;
+    return radiance_query(vsg, env, o, d, g, opt).transmittance.item() < 0.5;
+  };
+  int grid_seen = 0, metric_seen = 0;
+  for (int64_t ix = X / 2; ix < X; ++ix) {
+    grid_seen += seen(SampleSpacing::kGrid, ix);
+    metric_seen += seen(SampleSpacing::kMetric, ix);
+  }
+  EXPECT_EQ(grid_seen, 32);
+  EXPECT_LE(metric_seen, 24);  // even spacing in metres skips the small near voxels (20 of 32)
+  // Near the camera in particular: the first three voxels (under 2 m) are all reached.
+  for (int64_t ix = X / 2; ix < X / 2 + 3; ++ix) {
+    EXPECT_TRUE(seen(SampleSpacing::kGrid, ix)) << ix;
+    EXPECT_FALSE(seen(SampleSpacing::kMetric, ix)) << ix;
+  }
+}
+
+// With nearest lookup, grid spacing composites each voxel crossed once: once K reaches the voxel
+// count along the ray, more samples change nothing (even spacing applies a voxel's α once per
+// sample that lands in it, so its transmittance keeps falling with K).
+TEST(RadianceQuery, GridSpacingCompositesEachVoxelOnceHoweverLargeK) {
+  VsgGrid g;
+  g.center = {0, 0, 0};
+  const Tensor vsg = random_vsg(g, 31, DType::F64, 0.02, 0.1);
+  const Tensor env = Tensor::uniform({3, 8, 16}, 0.5, 2, 32, DType::F64);
+  const Tensor o = Tensor::from_vector({0.0, 0.0, 0.0}, {1, 3}, DType::F64);
+  const Tensor d = Tensor::from_vector({1.0, 0.0, 0.0}, {1, 3}, DType::F64);
+  auto query = [&](SampleSpacing spacing, int K) {
+    RadianceQueryOptions opt;
+    opt.samples = K;
+    opt.spacing = spacing;
+    opt.prune = false;
+    return radiance_query(vsg, env, o, d, g, opt);
+  };
+  const auto g32 = query(SampleSpacing::kGrid, 32), g512 = query(SampleSpacing::kGrid, 512);
+  EXPECT_NEAR(g512.transmittance.item(), g32.transmittance.item(), 1e-12);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(g512.radiance.at({0, c}), g32.radiance.at({0, c}), 1e-12);
+  const auto m32 = query(SampleSpacing::kMetric, 32), m512 = query(SampleSpacing::kMetric, 512);
+  EXPECT_LT(m512.transmittance.item(), 0.5 * m32.transmittance.item());
+}
+
+TEST(RadianceQuery, SampleSpacingNamesRoundTripAndUnknownNamesAreErrors) {
+  for (SampleSpacing s : {SampleSpacing::kMetric, SampleSpacing::kGrid})
+    EXPECT_EQ(parse_sample_spacing(sample_spacing_name(s)), s);
+  try {
+    parse_sample_spacing("log");
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("'log'"), std::string::npos) << e.what();
   }
 }
 

@@ -426,18 +426,10 @@ int run_insert(const std::vector<std::string>& args) {
     Camera camera;
     Tensor depth, background;
   };
-  // The training row builds its options exactly as train/adversarial_stage.cpp does from the
-  // default config, on a view of the street dataset's size (data/street_generator.h).
+  // The training row uses the options train/adversarial_stage.cpp uses (the same function, on
+  // the default config), on a view of the street dataset's size (data/street_generator.h).
   const nlohmann::json tc = train::default_train_config();
-  const auto& ic = tc.at("insertion");
-  InsertionOptions train_opt;
-  train_opt.aa_samples = ic.at("aa_samples").get<int>();
-  train_opt.light_samples = ic.at("light_samples").get<int>();
-  train_opt.shadow_width = ic.at("shadow_width").get<int>();
-  train_opt.shadow_height = ic.at("shadow_height").get<int>();
-  train_opt.shadow_rays = ic.at("shadow_rays").get<int>();
-  train_opt.ambient = ic.at("ambient").get<double>();
-  train_opt.query.samples = tc.at("model").at("volume").at("samples").get<int>();
+  InsertionOptions train_opt = train::training_insertion_options(tc, 0);
   VsgGrid train_grid = grid;
   const auto dims = tc.at("model").at("volume").at("dims");
   train_grid.dims = {dims[0].get<int64_t>(), dims[1].get<int64_t>(), dims[2].get<int64_t>()};

@@ -16,6 +16,7 @@
 #include "render/bvh.h"
 #include "render/camera.h"
 #include "render/object_insertion.h"
+#include "util/check.h"
 #include "util/random.h"
 
 namespace sl::insertion {
@@ -75,6 +76,7 @@ struct QueryRays {
     dir.assign(size_t(3 * n), 0.0f);
   }
   void set(int64_t i, const glm::vec3& o, const glm::vec3& d) {
+    SL_DASSERT(i >= 0 && i < size(), "QueryRays::set: slot ", i, " outside [0, ", size(), ")");
     for (int c = 0; c < 3; ++c) {
       origin[size_t(3 * i + c)] = o[c];
       dir[size_t(3 * i + c)] = d[c];

@@ -176,9 +176,7 @@ Tensor rsub_scalar(double s, const Tensor& a) {
     return map_n(#NAME, [](auto x, auto z) { return (EXPR) ? decltype(x)(1) : decltype(x)(0); }, a, b); \
   }
 SL_COMPARISON(gt, x > z)
-SL_COMPARISON(lt, x < z)
 SL_COMPARISON(ge, x >= z)
-SL_COMPARISON(le, x <= z)
 SL_COMPARISON(eq, x == z)
 #undef SL_COMPARISON
 

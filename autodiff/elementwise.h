@@ -32,9 +32,7 @@ Tensor mul_scalar(const Tensor& a, double s);
 Tensor rsub_scalar(double s, const Tensor& a);  // s - a
 
 Tensor gt(const Tensor& a, const Tensor& b);
-Tensor lt(const Tensor& a, const Tensor& b);
 Tensor ge(const Tensor& a, const Tensor& b);
-Tensor le(const Tensor& a, const Tensor& b);
 Tensor eq(const Tensor& a, const Tensor& b);
 
 inline Tensor operator+(const Tensor& a, const Tensor& b) { return add(a, b); }

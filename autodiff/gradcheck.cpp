@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
-#include "autodiff/random.h"
+#include "util/random.h"
 
 namespace sl {
 namespace {

@@ -3,8 +3,8 @@
 #include <array>
 #include <cmath>
 
-#include "autodiff/parallel.h"
 #include "autodiff/tape.h"
+#include "util/parallel.h"
 
 namespace sl {
 namespace {

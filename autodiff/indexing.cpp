@@ -1,8 +1,8 @@
 #include "autodiff/indexing.h"
 
-#include "autodiff/parallel.h"
 #include "autodiff/shape_ops.h"
 #include "autodiff/tape.h"
+#include "util/parallel.h"
 
 namespace sl {
 namespace {

@@ -6,10 +6,10 @@
 #include <Eigen/Core>
 
 #include "autodiff/elementwise.h"
-#include "autodiff/parallel.h"
 #include "autodiff/reduce.h"
 #include "autodiff/shape_ops.h"
 #include "autodiff/tape.h"
+#include "util/parallel.h"
 
 namespace sl {
 namespace detail {

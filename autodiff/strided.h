@@ -11,8 +11,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "autodiff/parallel.h"
 #include "autodiff/tensor.h"
+#include "util/parallel.h"
 
 namespace sl::detail {
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "autodiff/ops.h"
+#include "util/check.h"
 
 namespace sl {
 namespace {
@@ -46,8 +47,8 @@ void add_into(Tensor& slot, Tensor g, bool must_own) {
 // Leaves collect into .grad(); op outputs into their producer's pending slot, which outlives
 // the output tensor itself (a node's inputs may be freed before their producer runs).
 void accumulate(TensorImpl& impl, Tensor g, const std::string& op) {
-  SL_CHECK(g.shape() == impl.shape, "backward of ", op, ": gradient ", g.describe(),
-           " does not match its input's shape ", shape_str(impl.shape));
+  SL_ASSERT(g.shape() == impl.shape, "backward of ", op, ": gradient ", g.describe(),
+            " does not match its input's shape ", shape_str(impl.shape));
   if (g.dtype() != impl.dtype) g = g.to(impl.dtype);
   if (!impl.has_producer) {
     add_into(impl.grad, g, true);
@@ -137,8 +138,8 @@ void backward(const Tensor& loss, const Tensor& grad_output, bool retain_graph) 
       node->pending[k] = Tensor();
     }
     TensorList in_grads = node->backward(grads);
-    SL_CHECK(in_grads.size() == node->inputs.size(), "backward of ", node->op, ": returned ",
-             in_grads.size(), " gradients for ", node->inputs.size(), " inputs");
+    SL_ASSERT_EQ(in_grads.size(), node->inputs.size(), "backward of ", node->op,
+                 " must return one gradient per input");
     for (size_t k = 0; k < node->inputs.size(); ++k) {
       TensorImpl* in = node->inputs[k].get();
       if (in && in->requires_grad && in_grads[k].defined()) accumulate(*in, in_grads[k], node->op);

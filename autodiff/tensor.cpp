@@ -5,17 +5,11 @@
 #include <cstring>
 
 #include "autodiff/buffer_cache.h"
-#include "autodiff/random.h"
 #include "autodiff/strided.h"
 #include "autodiff/tape.h"
+#include "util/random.h"
 
 namespace sl {
-
-std::string shape_str(const std::vector<int64_t>& shape) {
-  std::string s = "[";
-  for (size_t i = 0; i < shape.size(); ++i) s += (i ? ", " : "") + std::to_string(shape[i]);
-  return s + "]";
-}
 
 size_t dtype_size(DType dtype) {
   switch (dtype) {

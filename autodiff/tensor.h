@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 
 namespace sl {
 

@@ -3,9 +3,9 @@
 #include <cmath>
 
 #include "autodiff/map.h"
-#include "autodiff/parallel.h"
 #include "autodiff/tape.h"
 #include "autodiff/vector_math.h"
+#include "util/parallel.h"
 
 namespace sl {
 namespace {

@@ -3,13 +3,12 @@
 #include <algorithm>
 #include <cmath>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
+#include "util/error.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace sl {
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 void check_image(const Tensor& t, const char* fn) {
   SL_CHECK(t.defined() && (t.dim() == 3 || t.dim() == 2) && t.dtype() == DType::F32, fn,
@@ -33,10 +32,10 @@ RandomCrop random_perspective_crop(const Tensor& pano, uint64_t seed, uint64_t s
   out.pitch_deg = rng.uniform(-r.pitch_range_deg, r.pitch_range_deg);
   out.roll_deg = rng.uniform(-r.roll_range_deg, r.roll_range_deg);
   PerspectiveCropParams p;
-  p.horizontal_fov_rad = out.fov_deg * kDeg;
-  p.yaw_rad = out.yaw_deg * kDeg;
-  p.pitch_rad = out.pitch_deg * kDeg;
-  p.roll_rad = out.roll_deg * kDeg;
+  p.horizontal_fov_rad = out.fov_deg * kDegToRad;
+  p.yaw_rad = out.yaw_deg * kDegToRad;
+  p.pitch_rad = out.pitch_deg * kDegToRad;
+  p.roll_rad = out.roll_deg * kDegToRad;
   p.width = r.width;
   p.height = r.height;
   out.crop = crop_perspective(pano, p);
@@ -94,7 +93,7 @@ Tensor scale_hdr(const Tensor& hdr, double factor) {
 Tensor scale_ldr(const Tensor& ldr, double factor) {
   check_image(ldr, "scale_ldr");
   SL_CHECK(std::isfinite(factor) && factor >= 0.0, "scale_ldr: factor must be finite and >= 0, got ", factor);
-  const float g = static_cast<float>(std::pow(factor, 1.0 / 2.2));
+  const float g = static_cast<float>(std::pow(factor, 1.0 / kLdrGamma));
   Tensor out = ldr.contiguous().clone();
   float* p = out.data<float>();
   for (int64_t i = 0; i < out.numel(); ++i) p[i] = std::clamp(p[i] * g, 0.0f, 1.0f);

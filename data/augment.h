@@ -13,7 +13,7 @@
 // - Exposure jitter scales linear HDR by k = 2^s, s uniform in [−stops, stops]; for LDR that
 //   was made as clip((e·L)^(1/2.2)) the same change is clip(k^(1/2.2)·LDR) (exact where the
 //   LDR was not clipped).
-// Randomness is a pure function of (seed, stream) (autodiff/random.h).
+// Randomness is a pure function of (seed, stream) (util/random.h).
 // Throws: sl::Error naming the function and the offending shape or range.
 #pragma once
 #include <cstdint>

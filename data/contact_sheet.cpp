@@ -4,8 +4,8 @@
 #include <cmath>
 #include <filesystem>
 
-#include "autodiff/error.h"
 #include "data/image_io.h"
+#include "util/error.h"
 
 namespace sl {
 

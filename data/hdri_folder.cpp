@@ -5,9 +5,10 @@
 #include <cmath>
 #include <filesystem>
 
-#include "autodiff/random.h"
 #include "data/image_io.h"
 #include "data/panorama.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace sl {
 
@@ -60,14 +61,13 @@ AugmentedPanorama augment_panorama(const Tensor& pano, uint64_t seed, uint64_t s
            augmentation.exposure_stops);
   Rng rng(seed, stream);
   const int64_t width = pano.size(2);
-  const double two_pi = 6.283185307179586;
   // Draw both numbers unconditionally so each choice is independent of the other's flag.
   const double column = static_cast<double>(rng.randint(width));
-  const double angle = rng.uniform(-0.5 * two_pi, 0.5 * two_pi);
+  const double angle = rng.uniform(-0.5 * kTwoPi, 0.5 * kTwoPi);
   const double stops = rng.uniform(-1.0, 1.0) * augmentation.exposure_stops;
   AugmentedPanorama out;
   out.azimuth_rad = !augmentation.rotate ? 0.0
-                    : augmentation.whole_pixel_rotation ? column * two_pi / static_cast<double>(width)
+                    : augmentation.whole_pixel_rotation ? column * kTwoPi / static_cast<double>(width)
                                                         : angle;
   out.exposure = std::exp2(stops);
   out.image = out.azimuth_rad != 0.0 ? rotate_azimuth(pano, out.azimuth_rad) : pano.clone();

@@ -8,7 +8,7 @@
 // Requires: an existing folder with at least one .hdr/.exr file (extension case-insensitive).
 // Guarantees: files are listed in byte-wise sorted order of their names, so index i names the
 //   same file on every machine; augmentation of (index, seed) is a pure function of both
-//   (autodiff/random.h), and rotations are whole-pixel by default so they are exact.
+//   (util/random.h), and rotations are whole-pixel by default so they are exact.
 // Throws: sl::Error naming the folder (missing, empty) or the file (unreadable, not RGB), or the
 //   index when out of range.
 #pragma once

@@ -7,7 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 
 namespace sl {
 

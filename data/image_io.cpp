@@ -12,8 +12,9 @@
 #include <filesystem>
 #include <vector>
 
-#include "autodiff/parallel.h"
 #include "data/exr_header.h"
+#include "util/parallel.h"
+#include "util/file.h"
 
 namespace sl {
 
@@ -155,16 +156,6 @@ void check_size(const OIIO::ImageSpec& spec, int width, int height, const std::s
            height > 0 ? std::to_string(height) : std::string("any"));
 }
 
-// A destination-folder temporary name with the destination's extension (OIIO picks the
-// writer from the final name; the extension keeps the temporary recognisable too).
-std::string temporary_name(const std::string& path) {
-  static std::atomic<uint64_t> counter{0};
-  const fs::path p(path);
-  const std::string name = "." + p.stem().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
-                           std::to_string(counter.fetch_add(1)) + p.extension().string();
-  return (p.parent_path() / name).string();
-}
-
 // Writes interleaved pixels of `type` through a temporary file and renames it into place.
 void write_pixels(const std::string& path, const OIIO::ImageSpec& spec_in, const void* pixels,
                   const char* op) {
@@ -178,7 +169,7 @@ void write_pixels(const std::string& path, const OIIO::ImageSpec& spec_in, const
            "': folder does not exist");
   auto out = OIIO::ImageOutput::create(path);
   if (!out) fail(op, ": '", path, "': no writer for this extension: ", OIIO::geterror());
-  const std::string tmp = temporary_name(path);
+  const std::string tmp = temp_sibling(path, /*keep_extension=*/true);  // OIIO picks the writer by extension
   bool ok = out->open(tmp, spec);
   ok = ok && out->write_image(spec.format, pixels);
   ok = out->close() && ok;

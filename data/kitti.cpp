@@ -8,9 +8,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
 #include "data/image_io.h"
+#include "util/error.h"
+#include "util/random.h"
 
 namespace sl {
 

@@ -16,7 +16,7 @@
 // points below the camera and refined by least squares; still-missing pixels whose rays hit it
 // in front of the camera (below the horizon) within max_ground_distance_m take its depth. Sky
 // and far structure above the horizon stay 0.
-// Camera: the image's intrinsics with a level pose in the world frame of DESIGN (+Y up):
+// Camera: the image's intrinsics with a level pose in the world frame of docs/DESIGN.md (+Y up):
 // yaw = pitch = roll = 0 at (0, camera_height_m, 0); KITTI's camera is mounted ~1.65 m high.
 // Throws: sl::Error naming the file and the key or byte count (bad JSON, missing key, a
 // velodyne file whose size is not a multiple of 16 bytes, an unreadable image).

@@ -2,27 +2,14 @@
 
 #include <cmath>
 
-#include "autodiff/error.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
 
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
-
 void check_object(const Mesh& m, const char* fn) {
   SL_CHECK(m.triangle_count() > 0 && !m.bounds().empty(), fn, ": the object mesh is empty");
-}
-
-void check_placement(const Placement& p, const char* fn) {
-  SL_CHECK(std::isfinite(p.scale) && p.scale > 0.0, fn, ": placement scale must be finite and > 0, got ", p.scale);
-  SL_CHECK(std::isfinite(p.x_m) && std::isfinite(p.z_m) && std::isfinite(p.yaw_deg), fn,
-           ": placement x, z and yaw must be finite");
-}
-
-// Object → world rotation about +Y (see the header): +X maps to (cos yaw, 0, −sin yaw).
-glm::dvec3 rotate_y(const glm::dvec3& p, double yaw_rad) {
-  const double c = std::cos(yaw_rad), s = std::sin(yaw_rad);
-  return {c * p.x + s * p.z, p.y, -s * p.x + c * p.z};
 }
 
 }  // namespace
@@ -51,26 +38,14 @@ double scale_to_length(const Mesh& m, double length_m) {
   return length_m / longest;
 }
 
-Mesh place_object(const Mesh& object, const Placement& p) {
-  check_object(object, "place_object");
-  check_placement(p, "place_object");
-  const double yaw = p.yaw_deg * kDegToRad;
-  Mesh out = object;
-  for (glm::vec3& v : out.positions)
-    v = glm::vec3(rotate_y(p.scale * glm::dvec3(v), yaw) + glm::dvec3(p.x_m, 0.0, p.z_m));
-  for (glm::vec3& n : out.normals) n = glm::vec3(rotate_y(glm::dvec3(n), yaw));  // uniform scale keeps normals
-  return out;
-}
-
 FootprintXZ placed_footprint(const Mesh& object, const Placement& p) {
-  check_object(object, "placed_footprint");
-  check_placement(p, "placed_footprint");
+  check_placement(object, p, "placed_footprint");
   const Bounds3 b = object.bounds();
   const double yaw = p.yaw_deg * kDegToRad;
   FootprintXZ f{1e30, 1e30, -1e30, -1e30, "object"};
   for (float x : {b.lo.x, b.hi.x})
     for (float z : {b.lo.z, b.hi.z}) {
-      const glm::dvec3 w = rotate_y(p.scale * glm::dvec3(x, 0.0, z), yaw);
+      const glm::dvec3 w = rotate_yaw(p.scale * glm::dvec3(x, 0.0, z), yaw);
       f.x0 = std::min(f.x0, w.x + p.x_m);
       f.x1 = std::max(f.x1, w.x + p.x_m);
       f.z0 = std::min(f.z0, w.z + p.z_m);
@@ -80,16 +55,15 @@ FootprintXZ placed_footprint(const Mesh& object, const Placement& p) {
 }
 
 std::array<double, 7> kitti_box3d(const Mesh& object, const Placement& p, const Camera& camera) {
-  check_object(object, "kitti_box3d");
-  check_placement(p, "kitti_box3d");
+  check_placement(object, p, "kitti_box3d");
   const Bounds3 b = object.bounds();
   const glm::dvec3 e = p.scale * glm::dvec3(b.extent());
   const double yaw = p.yaw_deg * kDegToRad;
   // Bottom-face centre of the (scaled, rotated) object-frame box.
   const glm::dvec3 centre_obj(0.5 * (b.lo.x + b.hi.x), b.lo.y, 0.5 * (b.lo.z + b.hi.z));
-  const glm::dvec3 bottom = rotate_y(p.scale * centre_obj, yaw) + glm::dvec3(p.x_m, 0.0, p.z_m);
+  const glm::dvec3 bottom = rotate_yaw(p.scale * centre_obj, yaw) + glm::dvec3(p.x_m, 0.0, p.z_m);
   const glm::dvec3 loc = camera.world_to_camera(bottom);
-  const glm::dvec3 heading_cam = glm::transpose(camera.rotation()) * rotate_y({1.0, 0.0, 0.0}, yaw);
+  const glm::dvec3 heading_cam = glm::transpose(camera.rotation()) * rotate_yaw({1.0, 0.0, 0.0}, yaw);
   const double ry = std::atan2(-heading_cam.z, heading_cam.x);
   return {e.y, e.z, e.x, loc.x, loc.y, loc.z, ry};
 }

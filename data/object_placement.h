@@ -2,9 +2,9 @@
 // centred on the origin, length along +X) on the ground of a street scene, and the KITTI-style
 // boxes that describe the placement.
 //
-// A Placement maps object coordinates p to world coordinates
-//   p_world = (x, 0, z) + R_y(yaw) · (scale · p),   R_y(yaw): +X → (cos yaw, 0, −sin yaw),
-// so yaw = +90° points the object's length down the street (world −Z, away from the camera).
+// A Placement (render/object_placement.h, the one type and yaw convention) maps object
+// coordinates p to world coordinates (x, 0, z) + R_y(yaw) · (scale · p); render::placed_mesh()
+// applies it, so yaw = +90° points the object's length down the street (world −Z).
 // 3D box (KITTI object benchmark convention, in a camera's OpenCV frame): dimensions h, w, l
 // (height, width along object Z, length along object X, scaled), location = the bottom-face
 // centre in camera coordinates, rotation_y = the heading's angle about the camera's y axis,
@@ -21,12 +21,9 @@
 #include "data/street_scene.h"
 #include "render/camera.h"
 #include "render/mesh.h"
+#include "render/object_placement.h"
 
 namespace sl {
-
-struct Placement {
-  double x_m = 0.0, z_m = 0.0, yaw_deg = 0.0, scale = 1.0;
-};
 
 // Moves a mesh into the object frame: footprint centred on the origin, bottom on y = 0, and the
 // longer horizontal extent along X (a model longer along Z is turned a quarter turn about +Y;
@@ -35,7 +32,6 @@ Mesh to_object_frame(const Mesh& mesh);
 // Uniform scale that makes the longer horizontal extent `length_m`.
 double scale_to_length(const Mesh& object_frame_mesh, double length_m);
 
-Mesh place_object(const Mesh& object_frame_mesh, const Placement& placement);
 // The placed object's axis-aligned world footprint.
 FootprintXZ placed_footprint(const Mesh& object_frame_mesh, const Placement& placement);
 

@@ -4,14 +4,13 @@
 #include <cmath>
 #include <vector>
 
-#include "autodiff/parallel.h"
 #include "render/equirect.h"
+#include "util/math.h"
+#include "util/parallel.h"
 
 namespace sl {
 
 namespace {
-
-constexpr double kTwoPi = 2.0 * equirect::kPi;
 
 struct Dims {
   int c, h, w;
@@ -105,7 +104,7 @@ Tensor resize_area(const Tensor& pano, int out_h, int out_w) {
   const Dims d = dims_of(pano);
   // Row weights in solid angle: a band [v0, v1] of input rows has measure sin θ(v0) − sin θ(v1).
   const auto rows = overlaps(d.h, out_h, [&](double a, double b) {
-    return std::sin((0.5 - a / d.h) * equirect::kPi) - std::sin((0.5 - b / d.h) * equirect::kPi);
+    return std::sin((0.5 - a / d.h) * kPi) - std::sin((0.5 - b / d.h) * kPi);
   });
   const auto cols = overlaps(d.w, out_w, [](double a, double b) { return b - a; });
   Tensor out = Tensor::empty({d.c, out_h, out_w}, DType::F32);
@@ -202,7 +201,7 @@ Tensor to_ldr(const Tensor& hdr, double exposure) {
   parallel_for(hdr.numel(), 16384, [&](int64_t i0, int64_t i1) {
     for (int64_t i = i0; i < i1; ++i) {
       const float x = e * src[i];
-      dst[i] = x > 0.0f ? std::min(1.0f, std::pow(x, 1.0f / 2.2f)) : 0.0f;  // NaN fails x > 0
+      dst[i] = x > 0.0f ? std::min(1.0f, std::pow(x, 1.0f / static_cast<float>(kLdrGamma))) : 0.0f;  // NaN fails x > 0
     }
   });
   return out;
@@ -238,22 +237,12 @@ Tensor estimate_sky_mask(const Tensor& pano, const SkyMaskParams& params) {
   return mask;
 }
 
-double median_luminance(const Tensor& image) {
-  SL_CHECK(image.defined() && image.dim() == 3 && image.size(0) == 3 && image.dtype() == DType::F32,
-           "median_luminance: expected an F32 RGB image [3, H, W], got ", image.defined() ? image.describe() : "undefined");
-  const Tensor c = image.contiguous();
-  const int64_t n = c.size(1) * c.size(2);
-  SL_CHECK(n > 0, "median_luminance: empty image ", c.describe());
-  const float* p = c.data<float>();
-  std::vector<double> lum(static_cast<size_t>(n));
-  for (int64_t i = 0; i < n; ++i) lum[static_cast<size_t>(i)] = luminance(p[i], p[n + i], p[2 * n + i]);
-  std::nth_element(lum.begin(), lum.begin() + n / 2, lum.end());
-  return lum[static_cast<size_t>(n / 2)];
-}
-
-double exposure_for_ldr_median(const Tensor& image, double ldr_median) {
-  const double median = median_luminance(image);
-  return median > 1e-12 ? std::pow(ldr_median, 2.2) / median : 1.0;
+Tensor binarize_mask(Tensor m) {
+  SL_CHECK(m.defined() && m.dtype() == DType::F32 && m.is_contiguous(), "binarize_mask: expected a contiguous F32 mask, got ",
+           m.defined() ? m.describe() : "undefined");
+  float* p = m.data<float>();
+  for (int64_t i = 0; i < m.numel(); ++i) p[i] = p[i] >= 0.5f ? 1.0f : 0.0f;
+  return m;
 }
 
 }  // namespace sl

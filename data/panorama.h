@@ -1,4 +1,4 @@
-// Operations on full-sphere equirectangular panoramas (DESIGN: "Panoramas").
+// Operations on full-sphere equirectangular panoramas (docs/DESIGN.md, "Panoramas").
 //
 // A panorama is an F32 tensor [C, H, W] covering the whole sphere: rows span elevation +90°
 // (row 0) to −90°, columns span azimuth −180° to +180°. Direction ↔ pixel goes only through
@@ -19,6 +19,8 @@
 
 #include "autodiff/tensor.h"
 #include "render/camera.h"
+#include "render/exposure.h"  // median_luminance, exposure_for_ldr_median
+#include "util/math.h"  // luminance
 
 namespace sl {
 
@@ -66,14 +68,8 @@ struct SkyMaskParams {
 };
 Tensor estimate_sky_mask(const Tensor& pano, const SkyMaskParams& params = {});
 
-// Rec. 709 luminance of linear RGB.
-inline double luminance(double r, double g, double b) { return 0.2126 * r + 0.7152 * g + 0.0722 * b; }
-
-// Median Rec. 709 luminance of an RGB image [3, H, W] (any F32 layout).
-double median_luminance(const Tensor& image);
-// The exposure that maps the image's median luminance to the LDR value `ldr_median` under the
-// paper's LDR, i.e. ldr_median^2.2 / median; 1 when the median is (nearly) zero. The street
-// generator's views, the evaluation crops and the real-panorama training crops all use it.
-double exposure_for_ldr_median(const Tensor& image, double ldr_median);
+// A resampled mask back to {0, 1}: 1 where the value is ≥ 0.5, else 0. Works in place on a
+// contiguous F32 tensor (a fresh resample) and returns it.
+Tensor binarize_mask(Tensor mask);
 
 }  // namespace sl

@@ -4,9 +4,10 @@
 #include <cmath>
 #include <vector>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
 #include "data/panorama.h"
+#include "util/error.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace sl {
 
@@ -25,7 +26,7 @@ PanoramaItem PanoramaDataset::load(size_t index, uint64_t seed) const {
   const int64_t W = pano.size(2);
   Rng rng(seed, 0xA0A0000ULL + index);
   const int64_t shift = rng.randint(W);
-  item.azimuth_rad = 2.0 * 3.14159265358979323846 * static_cast<double>(shift) / static_cast<double>(W);
+  item.azimuth_rad = 2.0 * kPi * static_cast<double>(shift) / static_cast<double>(W);
   item.pano_hdr = rotate_azimuth(pano, item.azimuth_rad).contiguous();
   item.sun = extract_sun(item.pano_hdr);
   item.crop = random_perspective_crop(item.pano_hdr, seed, 0xC0C0000ULL + index, crop_);

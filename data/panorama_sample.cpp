@@ -5,25 +5,13 @@
 #include <cmath>
 #include <vector>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
 #include "data/panorama.h"
 #include "render/equirect.h"
+#include "util/error.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace sl {
-
-namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
-
-Tensor threshold_half(Tensor m) {
-  float* p = m.data<float>();
-  for (int64_t i = 0; i < m.numel(); ++i) p[i] = p[i] >= 0.5f ? 1.0f : 0.0f;
-  return m;
-}
-
-}  // namespace
 
 Tensor sanitized_panorama(const Tensor& pano, const std::string& name) {
   SL_CHECK(pano.defined() && pano.dim() == 3 && pano.size(0) == 3, "panorama '", name,
@@ -42,7 +30,7 @@ SunHardness sun_hardness(const Tensor& pano, double radius_deg, double min_share
   h.sun = extract_sun(pano);
   const int64_t H = pano.size(1), W = pano.size(2), plane = H * W;
   const float* p = pano.data<float>();
-  const double cos_r = std::cos(radius_deg * kDeg);
+  const double cos_r = std::cos(radius_deg * kDegToRad);
   const glm::dvec3 s = h.sun.direction;
   double total = 0.0, near = 0.0;
   for (int64_t r = 0; r < H; ++r) {
@@ -94,13 +82,13 @@ StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id
   const glm::dvec3 centre(0.0, o.camera_height_m, 0.0);
   const RandomCrop crop = random_perspective_crop(pano, seed, crop_stream, o.crop, centre);
   PerspectiveCropParams mp;
-  mp.horizontal_fov_rad = crop.fov_deg * kDeg;
-  mp.yaw_rad = crop.yaw_deg * kDeg;
-  mp.pitch_rad = crop.pitch_deg * kDeg;
-  mp.roll_rad = crop.roll_deg * kDeg;
+  mp.horizontal_fov_rad = crop.fov_deg * kDegToRad;
+  mp.yaw_rad = crop.yaw_deg * kDegToRad;
+  mp.pitch_rad = crop.pitch_deg * kDegToRad;
+  mp.roll_rad = crop.roll_deg * kDegToRad;
   mp.width = o.crop.width;
   mp.height = o.crop.height;
-  const Tensor view_mask = threshold_half(crop_perspective(mask_full, mp).image.contiguous());
+  const Tensor view_mask = binarize_mask(crop_perspective(mask_full, mp).image.contiguous());
 
   const Tensor& hdr = crop.crop.image;
   const double exposure = exposure_for_ldr_median(hdr, o.ldr_median) * exposure_jitter;
@@ -110,7 +98,7 @@ StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id
   s.exposure = exposure;
   s.pano_hdr = resize_area(pano, o.pano_height, o.pano_width).contiguous();
   s.pano_ldr = to_ldr(s.pano_hdr, exposure);
-  s.pano_sky_mask = threshold_half(resize_area(mask_full, o.pano_height, o.pano_width).contiguous());
+  s.pano_sky_mask = binarize_mask(resize_area(mask_full, o.pano_height, o.pano_width).contiguous());
   s.sky_hdr = s.pano_hdr;
   s.pano_position = centre;
   s.sun_direction = sun.sun.direction;

@@ -2,7 +2,7 @@
 // branch): one seeded, augmented perspective crop of a panorama, packaged as a StreetSample
 // (data/street_dataset.h) so the lighting stage treats it like a generated street.
 //
-// Augmentation, all a pure function of (seed, stream) (autodiff/random.h):
+// Augmentation, all a pure function of (seed, stream) (util/random.h):
 //   - azimuth rotation by a whole number of columns (exact), always: in many public HDRI sets
 //     the sun sits at one column (../shared/data/MANIFEST.md);
 //   - a horizontal flip with probability 1/2 (options.flip): pixels mirrored, directions

@@ -2,8 +2,9 @@
 
 #include <cmath>
 
-#include "autodiff/error.h"
 #include "render/primitives.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
@@ -36,10 +37,9 @@ Mesh make_cylinder_z(const glm::vec3& c, float radius, float length, int segment
   SL_CHECK(std::isfinite(radius) && radius > 0.0f && std::isfinite(length) && length > 0.0f,
            "make_cylinder_z: radius and length must be finite and > 0, got ", radius, " and ", length);
   Mesh m;
-  const float two_pi = 6.28318530718f;
   // Side: two rings with radial normals.
   for (int s = 0; s <= segments; ++s) {
-    const float a = two_pi * static_cast<float>(s % segments) / segments;
+    const float a = (2.0f * kPiF) * static_cast<float>(s % segments) / segments;
     const glm::vec3 n(std::cos(a), std::sin(a), 0.0f);
     for (int end = 0; end < 2; ++end) {
       m.positions.push_back(c + radius * n + glm::vec3(0.0f, 0.0f, end * length));
@@ -60,7 +60,7 @@ Mesh make_cylinder_z(const glm::vec3& c, float radius, float length, int segment
     m.normals.push_back(n);
     m.uvs.push_back({0.5f, 0.5f});
     for (int s = 0; s < segments; ++s) {
-      const float a = two_pi * static_cast<float>(s) / segments;
+      const float a = (2.0f * kPiF) * static_cast<float>(s) / segments;
       m.positions.push_back(c + glm::vec3(radius * std::cos(a), radius * std::sin(a), end * length));
       m.normals.push_back(n);
       m.uvs.push_back({0.5f + 0.5f * std::cos(a), 0.5f + 0.5f * std::sin(a)});

@@ -4,15 +4,15 @@
 #include <cmath>
 #include <vector>
 
-#include "autodiff/parallel.h"
-#include "autodiff/random.h"
 #include "render/equirect.h"
+#include "util/math.h"
+#include "util/parallel.h"
+#include "util/random.h"
 
 namespace sl {
 
 namespace {
 
-constexpr double kPi = equirect::kPi;
 constexpr double kSunAngularRadiusRad = 0.265 * kPi / 180.0;
 // Solar disk luminance before atmospheric attenuation, in kcd/m². The extraterrestrial value
 // (~128 klx over the disk's solid angle) is 1.9e6, which puts a clear-sky sun at up to 1.4e5
@@ -193,7 +193,7 @@ glm::dvec3 PreethamSky::radiance(const glm::dvec3& direction) const {
   const double c = cloud_cover_at(direction);
   if (c <= 0.0) return clear;
   // Clouds are grey, about as bright as the clear sky around them, brighter near the sun.
-  const double y = 0.2126 * clear.x + 0.7152 * clear.y + 0.0722 * clear.z;
+  const double y = luminance(clear.x, clear.y, clear.z);
   const double forward = std::pow(std::max(0.0, glm::dot(glm::normalize(direction), sun_dir_)), 8.0);
   const glm::dvec3 cloud(y * (1.1 + 2.0 * forward));
   return (1.0 - c) * clear + c * cloud;

@@ -58,7 +58,6 @@ class PreethamSky {
   glm::dvec3 sun_radiance() const { return sun_rgb_; }  // disk radiance, after clouds
   double sun_solid_angle() const;
   double zenith_luminance() const { return zenith_Y_; }
-  glm::dvec3 ground_radiance() const { return ground_rgb_; }
   // Cloud cover in [0, 1] seen in `direction` (0 without clouds or below the horizon).
   double cloud_cover_at(const glm::dvec3& direction) const;
 
@@ -76,7 +75,7 @@ class PreethamSky {
   glm::dvec3 ground_rgb_{0.0};
 };
 
-// Seeded random sky parameters (autodiff/random.h): elevation uniform in [0°, 85°], azimuth in
+// Seeded random sky parameters (util/random.h): elevation uniform in [0°, 85°], azimuth in
 // [−π, π), turbidity in [2, 8], albedo in [0.05, 0.4], clouds in half of the samples with cover
 // in [0.1, 0.7]. Sample `index` of `seed` is the same on every machine and thread count.
 SkyParams sample_sky_params(uint64_t seed, uint64_t index);

@@ -5,10 +5,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
 #include "autodiff/shape_ops.h"
 #include "data/image_io.h"
+#include "util/error.h"
+#include "util/random.h"
 
 namespace sl {
 
@@ -127,7 +127,6 @@ std::string file_name(const json& files, const std::string& k, const fs::path& m
            "' must be a file name in the sample folder, got '", v.get<std::string>(), "'");
   return v.get<std::string>();
 }
-
 
 }  // namespace
 

@@ -9,14 +9,12 @@
 #include <fstream>
 #include <unistd.h>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
 #include "data/hdri_folder.h"
 #include "data/hdri_split.h"
-#include "data/panorama_sample.h"
 #include "data/image_io.h"
 #include "data/object_placement.h"
 #include "data/panorama.h"
+#include "data/panorama_sample.h"
 #include "data/procedural_car.h"
 #include "data/sky_model.h"
 #include "data/sun_extraction.h"
@@ -26,6 +24,10 @@
 #include "render/gltf_writer.h"
 #include "render/path_tracer.h"
 #include "render/progressive_render.h"
+#include "util/error.h"
+#include "util/math.h"
+#include "util/random.h"
+#include "util/file.h"
 
 namespace sl {
 
@@ -33,9 +35,6 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
 
 // Independent random streams per (sample, purpose): adding a view or a config knob never
 // shifts the random choices of another part of the sample.
@@ -85,13 +84,13 @@ Lighting make_lighting(const StreetGeneratorConfig& c, int64_t index) {
     out.sky_hdr = resize_area(pano, c.sky_height, c.sky_width).contiguous();
     out.meta = {{"source", "hdri"},
                 {"hdri_file", fs::path(folder.path(file)).filename().string()},
-                {"hdri_rotation_deg", rotation / kDeg},
+                {"hdri_rotation_deg", rotation / kDegToRad},
                 {"sun_found", sun.found},
                 {"sun_hard", hardness.hard},  // data/panorama_sample.h: only a hard sun is a direction label
                 {"sun_share", hardness.share}};
   } else {
     SkyParams p;
-    p.sun_elevation_rad = rng.uniform(c.elevation_min_deg, c.elevation_max_deg) * kDeg;
+    p.sun_elevation_rad = rng.uniform(c.elevation_min_deg, c.elevation_max_deg) * kDegToRad;
     p.sun_azimuth_rad = rng.uniform(-kPi, kPi);
     p.turbidity = rng.uniform(c.turbidity_min, c.turbidity_max);
     p.ground_albedo = c.ground_albedo;
@@ -104,8 +103,8 @@ Lighting make_lighting(const StreetGeneratorConfig& c, int64_t index) {
     // Energy-preserving downsampling of the higher-resolution render (never point-samples the sun).
     out.sky_hdr = resize_area(out.env, c.sky_height, c.sky_width).contiguous();
     out.meta = {{"source", "preetham"},
-                {"sun_elevation_deg", p.sun_elevation_rad / kDeg},
-                {"sun_azimuth_deg", p.sun_azimuth_rad / kDeg},
+                {"sun_elevation_deg", p.sun_elevation_rad / kDegToRad},
+                {"sun_azimuth_deg", p.sun_azimuth_rad / kDegToRad},
                 {"turbidity", p.turbidity},
                 {"ground_albedo", p.ground_albedo},
                 {"cloud_cover", p.cloud_cover},
@@ -155,14 +154,14 @@ PanoramaRender render_panorama(const PathTracer& tracer, const glm::dvec3& origi
 
 std::vector<Camera> make_views(const StreetGeneratorConfig& c, int64_t index) {
   Rng rng = purpose_rng(c, index, kViews);
-  const Intrinsics k = intrinsics_from_fov(c.view_fov_deg * kDeg, c.view_width, c.view_height);
+  const Intrinsics k = intrinsics_from_fov(c.view_fov_deg * kDegToRad, c.view_width, c.view_height);
   std::vector<Camera> views;
   for (int v = 0; v < c.view_count; ++v) {
     // View 0 looks down the street (it receives the inserted object); the others move forward
     // and sideways and turn, like the other cameras or frames of a driving rig.
     const double yaw_range = v == 0 ? 0.25 * c.view_yaw_range_deg : c.view_yaw_range_deg;
-    const double yaw = rng.uniform(-yaw_range, yaw_range) * kDeg;
-    const double pitch = rng.uniform(-c.view_pitch_range_deg, c.view_pitch_range_deg) * kDeg;
+    const double yaw = rng.uniform(-yaw_range, yaw_range) * kDegToRad;
+    const double pitch = rng.uniform(-c.view_pitch_range_deg, c.view_pitch_range_deg) * kDegToRad;
     glm::dvec3 pos(0.0, c.camera_height_m, 0.0);
     if (v > 0) {
       pos.x = rng.uniform(-c.view_lateral_range_m, c.view_lateral_range_m);
@@ -263,7 +262,7 @@ Insertion find_insertion(const StreetGeneratorConfig& c, int64_t index, const St
       ok = ok && !cam_fp.overlaps(fp, 1.0);
     }
     if (!ok) continue;
-    const Mesh placed = place_object(ins.object, pl);
+    const Mesh placed = placed_mesh(ins.object, pl);
     const PathTracer object_tracer(placed, env);
     Tensor coverage;
     if (coverage_mask(scene_tracer, object_tracer, cam, placed, c.coverage_samples, coverage) <
@@ -312,24 +311,6 @@ std::string sample_id(int64_t index) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%06lld", static_cast<long long>(index));
   return buf;
-}
-
-void write_text_atomic(const std::string& path, const std::string& text) {
-  const fs::path p(path);
-  const fs::path tmp = p.parent_path() / ("." + p.filename().string() + ".tmp-" + std::to_string(::getpid()));
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    SL_CHECK(f.good(), "write_text_atomic: cannot open '", tmp.string(), "' for writing");
-    f << text;
-    f.flush();
-    SL_CHECK(f.good(), "write_text_atomic: failed writing '", tmp.string(), "'");
-  }
-  std::error_code ec;
-  fs::rename(tmp, p, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    fail("write_text_atomic: cannot rename into '", path, "'");
-  }
 }
 
 GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t index, const std::string& samples_dir) {
@@ -432,7 +413,7 @@ GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t i
       const Insertion ins = find_insertion(c, index, scene, tracer, env, views);
       if (ins.found) {
         Mesh with = scene.mesh;
-        with.append(place_object(ins.object, ins.placement));
+        with.append(placed_mesh(ins.object, ins.placement));
         const PathTracer with_tracer(with, env);
         // The same per-pixel streams and samples as view 0 (see header).
         ProgressiveOptions same = prog;
@@ -489,7 +470,7 @@ GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t i
                  {"sky", {{"file", "sky_hdr.exr"}, {"width", c.sky_width}, {"height", c.sky_height}}},
                  {"views", view_meta},
                  {"object", object_meta}};
-    write_text_atomic(file("meta.json"), meta.dump(2) + "\n");
+    write_file_atomic(file("meta.json"), meta.dump(2) + "\n");
 
     fs::remove_all(final_dir, ec);
     fs::rename(tmp_dir, final_dir, ec);
@@ -525,7 +506,7 @@ void write_dataset_index(const std::string& out_dir, const StreetGeneratorConfig
                       {"seed", c.seed},
                       {"config", c.tree},
                       {"splits", {{"train", s.train}, {"val", s.val}, {"test", s.test}}}};
-  write_text_atomic((fs::path(out_dir) / "index.json").string(), index.dump(2) + "\n");
+  write_file_atomic((fs::path(out_dir) / "index.json").string(), index.dump(2) + "\n");
 }
 
 }  // namespace sl

@@ -1,4 +1,4 @@
-// The synthetic street-scene dataset generator (issue 6; format in docs/DATASET.md).
+// The synthetic street-scene dataset generator (format in docs/DATASET.md).
 //
 // One sample = one procedural street (data/street_scene.h) lit by the Preetham sky
 // (data/sky_model.h) or by a real HDRI rotated by a random azimuth, rendered with the reference

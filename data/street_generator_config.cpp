@@ -2,11 +2,11 @@
 #include <cmath>
 #include <filesystem>
 
-#include "autodiff/error.h"
+#include "data/hdri_split.h"
 #include "data/object_placement.h"
 #include "data/street_generator.h"
-#include "data/hdri_split.h"
 #include "render/gltf_loader.h"
+#include "util/error.h"
 
 namespace sl {
 

@@ -3,11 +3,11 @@
 #include <algorithm>
 #include <cmath>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
 #include "data/object_placement.h"
 #include "data/procedural_car.h"
 #include "render/primitives.h"
+#include "util/error.h"
+#include "util/random.h"
 
 namespace sl {
 namespace {
@@ -155,7 +155,7 @@ void add_parked_cars(StreetScene& s, const StreetSceneConfig& c, Rng& rng) {
     bool free = !(fp.x0 < 1.5 && fp.x1 > -1.5 && fp.z0 < 4.0 && fp.z1 > -8.0);
     for (const FootprintXZ& o : s.obstacles) free = free && !o.overlaps(fp, 0.5);
     if (!free) continue;
-    s.mesh.append(place_object(model, pl));
+    s.mesh.append(placed_mesh(model, pl));
     FootprintXZ car = fp;
     car.kind = "car";
     s.obstacles.push_back(car);

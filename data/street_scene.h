@@ -1,4 +1,4 @@
-// Procedural street scenes for the synthetic dataset (issue 6): a straight street along the
+// Procedural street scenes for the synthetic dataset : a straight street along the
 // view with asphalt, curbs, sidewalks, buildings on both sides, and optional poles, trees and
 // parked cars.
 //
@@ -6,7 +6,7 @@
 // along Z; the street camera stands at the origin (on the road's centre line) looking down −Z.
 // The scene spans z ∈ [−street_length_front_m, street_length_back_m]; beyond it the road plane
 // continues to the horizon, so every downward ray hits the ground.
-// Randomness: a pure function of (config, seed) (autodiff/random.h), so one seed gives the
+// Randomness: a pure function of (config, seed) (util/random.h), so one seed gives the
 // same scene on every machine and thread count.
 // Guarantees: the Mesh passes validate(); triangle counts stay in the hundreds to a few
 // thousand, so the path tracer stays fast; every solid object on the ground (buildings,

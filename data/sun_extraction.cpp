@@ -4,9 +4,10 @@
 #include <cmath>
 #include <vector>
 
-#include "autodiff/parallel.h"
 #include "data/panorama.h"
 #include "render/equirect.h"
+#include "util/math.h"
+#include "util/parallel.h"
 
 namespace sl {
 
@@ -24,7 +25,7 @@ SunEstimate extract_sun(const Tensor& pano, const SunExtractionParams& params) {
   SL_CHECK(pano.size(0) == 3, "extract_sun: expected an RGB panorama [3, H, W], got ", pano.describe());
   SL_CHECK(params.threshold_fraction > 0.0 && params.threshold_fraction < 1.0,
            "extract_sun: threshold_fraction must be in (0, 1), got ", params.threshold_fraction);
-  SL_CHECK(params.region_radius_rad >= 0.0 && params.region_radius_rad < equirect::kPi,
+  SL_CHECK(params.region_radius_rad >= 0.0 && params.region_radius_rad < kPi,
            "extract_sun: region_radius_rad must be in [0, pi), got ", params.region_radius_rad);
   const int h = static_cast<int>(pano.size(1)), w = static_cast<int>(pano.size(2));
   const int64_t plane = static_cast<int64_t>(h) * w;
@@ -65,10 +66,10 @@ SunEstimate extract_sun(const Tensor& pano, const SunExtractionParams& params) {
 
   const double radius = params.region_radius_rad > 0.0
                             ? params.region_radius_rad
-                            : std::max(3.0 * equirect::kPi / 180.0, 4.0 * equirect::kPi / h);
+                            : std::max(3.0 * kPi / 180.0, 4.0 * kPi / h);
   const double cos_radius = std::cos(radius);
   // Rows that can hold texels within `radius` of the seed (plus one row of slack).
-  const int row_span = static_cast<int>(std::ceil(radius / (equirect::kPi / h))) + 1;
+  const int row_span = static_cast<int>(std::ceil(radius / (kPi / h))) + 1;
   const int row0 = std::max(0, seed_row - row_span), row1 = std::min(h - 1, seed_row + row_span);
   struct Texel {
     int64_t index;

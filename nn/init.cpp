@@ -2,8 +2,8 @@
 
 #include <cmath>
 
-#include "autodiff/random.h"
 #include "autodiff/tape.h"
+#include "util/random.h"
 
 namespace sl::nn {
 
@@ -88,6 +88,11 @@ void default_layer_init(Tensor& weight, Tensor& bias, uint64_t seed, const std::
     const double bound = 1.0 / std::sqrt(double(pick_fan(weight, prefix + "weight", FanMode::FanIn)));
     uniform_init(bias, -bound, bound, seed, prefix + "bias");
   }
+}
+
+void norm_affine_init(Tensor& weight, Tensor& bias) {
+  weight.fill_(1.0);
+  bias.fill_(0.0);
 }
 
 }  // namespace sl::nn

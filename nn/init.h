@@ -2,7 +2,7 @@
 //
 // Contract:
 // - Every function fills `w` in place (under NoGradGuard) and is deterministic: element i of
-//   the tensor is a pure function of (seed, name, i) through autodiff/random.h, with the name
+//   the tensor is a pure function of (seed, name, i) through util/random.h, with the name
 //   hashed to the random stream. Two parameters with different full names get independent
 //   values from one seed; thread count never matters.
 // - Fans follow PyTorch: for a weight [out, in, k...], fan_in = in·Πk and fan_out = out·Πk;
@@ -40,6 +40,9 @@ void xavier_uniform_init(Tensor& w, uint64_t seed, const std::string& name, doub
 
 // PyTorch's default for Linear and Conv: weight ~ U(±1/sqrt(fan_in)) (kaiming_uniform with
 // a = sqrt(5)), bias ~ U(±1/sqrt(fan_in)). `bias` may be undefined.
+// weight = 1 and bias = 0: the affine parameters of a normalisation layer (as PyTorch).
+void norm_affine_init(Tensor& weight, Tensor& bias);
+
 void default_layer_init(Tensor& weight, Tensor& bias, uint64_t seed, const std::string& prefix);
 
 }  // namespace sl::nn

@@ -3,7 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "autodiff/error.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl::nn {
 
@@ -33,7 +34,7 @@ CosineLr::CosineLr(double lr, int64_t total_steps, double min_lr) : lr_(lr), tot
 
 double CosineLr::lr(int64_t step) const {
   const double s = double(std::clamp<int64_t>(step, 0, total_));
-  return min_lr_ + (lr_ - min_lr_) * 0.5 * (1.0 + std::cos(M_PI * s / double(total_)));
+  return min_lr_ + (lr_ - min_lr_) * 0.5 * (1.0 + std::cos(kPi * s / double(total_)));
 }
 
 WarmupLr::WarmupLr(int64_t warmup_steps, std::shared_ptr<const LrSchedule> after)

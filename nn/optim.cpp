@@ -2,8 +2,8 @@
 
 #include <cmath>
 
-#include "autodiff/parallel.h"
 #include "autodiff/tape.h"
+#include "util/parallel.h"
 
 namespace sl::nn {
 

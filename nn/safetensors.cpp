@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "autodiff/tape.h"
+#include "util/file.h"
 
 namespace sl::nn {
 
@@ -24,56 +25,6 @@ namespace {
 
 using json = nlohmann::json;
 
-// ---------------------------------------------------------------- atomic output
-// Streams into "<dir>/.<name>.tmp.<pid>" and renames it over the target on commit(); the
-// destructor removes the temporary if commit() was never reached (an exception in between).
-class AtomicFile {
- public:
-  explicit AtomicFile(std::string path) : path_(std::move(path)) {
-    const size_t slash = path_.find_last_of('/');
-    dir_ = slash == std::string::npos ? "." : (slash == 0 ? "/" : path_.substr(0, slash));
-    const std::string base = slash == std::string::npos ? path_ : path_.substr(slash + 1);
-    SL_CHECK(!base.empty(), "write ", path_, ": the path names a folder, not a file");
-    tmp_ = (slash == std::string::npos ? "" : path_.substr(0, slash + 1)) + "." + base + ".tmp." +
-           std::to_string(::getpid());
-    fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    SL_CHECK(fd_ >= 0, "write ", path_, ": cannot create temporary file ", tmp_, ": ", std::strerror(errno));
-  }
-  ~AtomicFile() {
-    if (fd_ >= 0) ::close(fd_);
-    if (!committed_) ::unlink(tmp_.c_str());
-  }
-  void write(const void* data, size_t n) {
-    const char* p = static_cast<const char*>(data);
-    while (n > 0) {
-      const ssize_t w = ::write(fd_, p, n);
-      if (w < 0 && errno == EINTR) continue;
-      SL_CHECK(w > 0, "write ", path_, ": writing ", tmp_, " failed: ", std::strerror(errno));
-      p += w;
-      n -= static_cast<size_t>(w);
-    }
-  }
-  void commit() {
-    SL_CHECK(::fsync(fd_) == 0, "write ", path_, ": fsync failed: ", std::strerror(errno));
-    const int fd = fd_;
-    fd_ = -1;
-    SL_CHECK(::close(fd) == 0, "write ", path_, ": close failed: ", std::strerror(errno));
-    SL_CHECK(::rename(tmp_.c_str(), path_.c_str()) == 0, "write ", path_, ": rename from ", tmp_,
-             " failed: ", std::strerror(errno));
-    committed_ = true;
-    // Persist the rename itself; failure here loses durability, not consistency, so ignore it.
-    const int dfd = ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (dfd >= 0) {
-      ::fsync(dfd);
-      ::close(dfd);
-    }
-  }
-
- private:
-  std::string path_, dir_, tmp_;
-  int fd_ = -1;
-  bool committed_ = false;
-};
 
 // ---------------------------------------------------------------- dtypes
 struct FileDType {

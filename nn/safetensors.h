@@ -1,4 +1,4 @@
-// The safetensors file format (DESIGN "Checkpoints"): reading and atomic writing.
+// The safetensors file format (docs/DESIGN.md, "Checkpoints"): reading and atomic writing.
 //
 // Layout: 8-byte little-endian header length N; N bytes of JSON
 //   {"<name>": {"dtype": "F32", "shape": [2, 3], "data_offsets": [begin, end]}, ...,

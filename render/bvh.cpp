@@ -6,8 +6,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "autodiff/error.h"
 #include "render/bvh.h"
+#include "util/error.h"
 
 #if defined(__AVX2__)
 #include <immintrin.h>

@@ -9,8 +9,8 @@
 #include <memory>
 #include <new>
 
-#include "autodiff/error.h"
 #include "render/bvh.h"
+#include "util/error.h"
 
 #if defined(__SSE4_1__)
 #include <immintrin.h>

@@ -7,7 +7,8 @@
 #include <sstream>
 #include <vector>
 
-#include "autodiff/error.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl {
 
@@ -45,7 +46,7 @@ void validate(const Intrinsics& k, const char* where) {
 }
 
 Intrinsics intrinsics_from_fov(double horizontal_fov_rad, int width, int height) {
-  SL_CHECK(horizontal_fov_rad > 0.0 && horizontal_fov_rad < 3.14159265358979,
+  SL_CHECK(horizontal_fov_rad > 0.0 && horizontal_fov_rad < kPi,
            "intrinsics_from_fov: horizontal_fov_rad must be in (0, pi), got ", horizontal_fov_rad);
   Intrinsics k;
   k.width = width;

@@ -1,4 +1,4 @@
-// Pinhole camera: the ONE place camera conventions live (DESIGN: "Camera frame").
+// Pinhole camera: the ONE place camera conventions live (docs/DESIGN.md, "Camera frame").
 //
 // Conventions:
 // - Camera frame is OpenCV: x right, y down, z forward. World frame is right-handed, metres, +Y up.

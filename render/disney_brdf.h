@@ -68,12 +68,6 @@ inline float schlick_weight(float cos_theta) {
   const float m2 = m * m;
   return m2 * m2 * m;
 }
-inline float schlick_fresnel(float f0, float cos_theta) {
-  return f0 + (1.0f - f0) * schlick_weight(cos_theta);
-}
-inline glm::vec3 schlick_fresnel(const glm::vec3& f0, float cos_theta) {
-  return f0 + (glm::vec3(1.0f) - f0) * schlick_weight(cos_theta);
-}
 
 // Exact Fresnel reflectance of unpolarised light at a dielectric boundary of relative IOR
 // eta > 0 (light arriving from the outside), cos_theta the cosine of incidence; 1 under total

@@ -3,20 +3,18 @@
 #include <algorithm>
 #include <cmath>
 
-#include "autodiff/parallel.h"
 #include "autodiff/tape.h"
 #include "render/equirect.h"
+#include "util/math.h"
+#include "util/parallel.h"
 
 namespace sl {
 namespace {
 
-constexpr double kTwoPi = 2.0 * equirect::kPi;
-
-double luminance(double r, double g, double b) { return 0.2126 * r + 0.7152 * g + 0.0722 * b; }
 bool all_finite3(const glm::vec3& d) { return std::isfinite(d.x) && std::isfinite(d.y) && std::isfinite(d.z); }
 
 // sin(elevation) at the top edge of row i (row 0 starts at the zenith, sin = 1).
-double row_top_sin(int i, int height) { return std::sin((0.5 - static_cast<double>(i) / height) * equirect::kPi); }
+double row_top_sin(int i, int height) { return std::sin((0.5 - static_cast<double>(i) / height) * kPi); }
 
 }  // namespace
 
@@ -84,7 +82,7 @@ CellRow cell_row(int k, int H) {
 
 // Solid angle per unit (u, v) area at v: cos(elevation) · (2π / W) · (π / H).
 double jacobian(double v, int W, int H) {
-  return std::cos((0.5 - v / H) * equirect::kPi) * (kTwoPi / W) * (equirect::kPi / H);
+  return std::cos((0.5 - v / H) * kPi) * (kTwoPi / W) * (kPi / H);
 }
 
 // Inverse CDF of the density ∝ lerp(x, a, b) on [0, 1] (a, b ≥ 0, not both 0).

@@ -13,7 +13,7 @@
 //   solid angle (piecewise constant), then a direction uniformly in solid angle inside it. pdf() is in
 //   solid angle (1/sr) and equals the density sample() draws from, Jacobian of the sphere
 //   (the cos θ of the elevation) included. A black map falls back to uniform sphere sampling.
-// - Bilinear importance sampling (sample_bilinear / pdf_bilinear, issue 19): the density is
+// - Bilinear importance sampling (sample_bilinear / pdf_bilinear): the density is
 //   proportional to the luminance of the bilinear lookup itself, at full resolution. A cell of
 //   the lookup (between four texel centres; half cells at the poles, where rows clamp) is
 //   chosen with probability ∝ its integral of luminance × solid angle (at the cell centre),

@@ -1,4 +1,4 @@
-// The one equirectangular panorama convention (DESIGN: "Panoramas"). Every part calls these.
+// The one equirectangular panorama convention (docs/DESIGN.md, "Panoramas"). Every part calls these.
 //
 // World frame: right-handed, +Y up. A unit direction d has
 //   elevation θ = asin(d.y)          (+π/2 at the zenith)
@@ -11,9 +11,9 @@
 #pragma once
 #include <cmath>
 
-namespace sl::equirect {
+#include "util/math.h"
 
-constexpr double kPi = 3.14159265358979323846;
+namespace sl::equirect {
 
 struct UV {
   double u, v;

@@ -14,7 +14,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 
 namespace sl {
 namespace {

@@ -6,7 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "autodiff/error.h"
+#include "util/error.h"
+#include "util/file.h"
 
 namespace sl {
 namespace {
@@ -135,21 +136,7 @@ void write_glb(const Mesh& mesh, const std::string& path) {
     out.insert(out.end(), bin.begin(), bin.end());
   }
 
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    SL_CHECK(f.good(), "write_glb: cannot open '", tmp, "' for writing");
-    f.write(reinterpret_cast<const char*>(out.data()), static_cast<std::streamsize>(out.size()));
-    f.close();
-    if (!f.good()) {
-      std::remove(tmp.c_str());
-      fail("write_glb: failed writing '", tmp, "'");
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    fail("write_glb: cannot rename '", tmp, "' to '", path, "'");
-  }
+  write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(out.data()), out.size()));
 }
 
 }  // namespace sl

@@ -1,7 +1,7 @@
 #include "render/insertion_ops.h"
 
-#include "autodiff/parallel.h"
 #include "autodiff/tape.h"
+#include "util/parallel.h"
 
 namespace sl {
 namespace {

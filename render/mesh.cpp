@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 
 namespace sl {
 

@@ -50,30 +50,10 @@
 #include "render/bvh.h"
 #include "render/camera.h"
 #include "render/mesh.h"
+#include "render/object_placement.h"
 #include "render/radiance_query.h"
 
 namespace sl {
-
-// A mesh in world coordinates with its BVH.
-struct PlacedObject {
-  Mesh mesh;
-  std::shared_ptr<Bvh> bvh;
-  glm::dvec3 position{0.0};  // footprint centre on the ground
-  double yaw_rad = 0.0, scale = 1.0;
-  Bounds3 world_bounds() const;
-};
-
-struct Placement {
-  double x = 0.0, z = 0.0;  // world ground position (metres); the camera sits at its pose
-  double yaw_deg = 0.0;
-  double scale = 1.0;
-};
-
-// Transforms `mesh` (its own frame: +Y up, base at its lowest point) by yaw and scale, centres
-// its footprint at (x, z) and sets its base on the ground height the depth map shows there
-// (median height of the depth points over the footprint; y = 0 when none). Throws when the
-// placement is behind the camera or outside the depth map's view, naming the position.
-PlacedObject place_object(const Mesh& mesh, const Placement& placement, const Camera& camera, const Tensor& depth);
 
 struct InsertionOptions {
   int aa_samples = 4;           // primary rays per pixel

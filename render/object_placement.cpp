@@ -1,12 +1,38 @@
-// place_object(): puts a mesh on the ground the depth map shows (see object_insertion.h).
+// Placements and place_object() (see object_placement.h).
+#include "render/object_placement.h"
+
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
-#include "render/object_insertion.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl {
 
 Bounds3 PlacedObject::world_bounds() const { return mesh.bounds(); }
+
+glm::dvec3 rotate_yaw(const glm::dvec3& v, double yaw_rad) {
+  const double c = std::cos(yaw_rad), s = std::sin(yaw_rad);
+  return {c * v.x + s * v.z, v.y, -s * v.x + c * v.z};
+}
+
+void check_placement(const Mesh& mesh, const Placement& p, const char* fn) {
+  SL_CHECK(mesh.triangle_count() > 0 && !mesh.bounds().empty(), fn, ": the object mesh is empty");
+  SL_CHECK(std::isfinite(p.x_m) && std::isfinite(p.z_m) && std::isfinite(p.yaw_deg), fn, ": placement (x ", p.x_m,
+           ", z ", p.z_m, ", yaw ", p.yaw_deg, ") must be finite");
+  SL_CHECK(std::isfinite(p.scale) && p.scale > 0.0, fn, ": placement scale must be finite and > 0, got ", p.scale);
+}
+
+Mesh placed_mesh(const Mesh& mesh, const Placement& p, const glm::dvec3& origin, double ground_y_m) {
+  check_placement(mesh, p, "placed_mesh");
+  const double yaw = p.yaw_deg * kPi / 180.0;
+  const glm::dvec3 at(p.x_m, ground_y_m, p.z_m);
+  Mesh out = mesh;
+  for (glm::vec3& v : out.positions) v = glm::vec3(rotate_yaw((glm::dvec3(v) - origin) * p.scale, yaw) + at);
+  for (glm::vec3& n : out.normals) n = glm::vec3(rotate_yaw(glm::dvec3(n), yaw));  // uniform scale keeps normals
+  return out;
+}
 
 namespace {
 
@@ -33,12 +59,7 @@ double ground_height(const Camera& camera, const Tensor& depth, double x, double
 }  // namespace
 
 PlacedObject place_object(const Mesh& mesh, const Placement& placement, const Camera& camera, const Tensor& depth) {
-  SL_CHECK(mesh.triangle_count() > 0, "place_object: the mesh has no triangles");
-  SL_CHECK(std::isfinite(placement.x) && std::isfinite(placement.z) && std::isfinite(placement.yaw_deg),
-           "place_object: placement (", placement.x, ", ", placement.z, ", yaw ", placement.yaw_deg,
-           ") must be finite");
-  SL_CHECK(placement.scale > 0 && std::isfinite(placement.scale), "place_object: scale ", placement.scale,
-           " must be positive");
+  check_placement(mesh, placement, "place_object");
   SL_CHECK(depth.dim() == 2 && depth.size(0) == camera.intrinsics().height && depth.size(1) == camera.intrinsics().width,
            "place_object: depth ", depth.describe(), " does not match the camera's ", camera.intrinsics().width, "x",
            camera.intrinsics().height, " image");
@@ -46,26 +67,20 @@ PlacedObject place_object(const Mesh& mesh, const Placement& placement, const Ca
   const glm::dvec3 base_centre((b.lo.x + b.hi.x) * 0.5, b.lo.y, (b.lo.z + b.hi.z) * 0.5);
   const double half_footprint = 0.5 * placement.scale * std::max(b.hi.x - b.lo.x, b.hi.z - b.lo.z);
 
-  const Projection at = camera.project({placement.x, 0.0, placement.z});
-  SL_CHECK(at.in_front, "place_object: position (x ", placement.x, ", z ", placement.z,
+  const Projection at = camera.project({placement.x_m, 0.0, placement.z_m});
+  SL_CHECK(at.in_front, "place_object: position (x ", placement.x_m, ", z ", placement.z_m,
            ") is behind the camera");
-  SL_CHECK(at.in_image, "place_object: position (x ", placement.x, ", z ", placement.z,
+  SL_CHECK(at.in_image, "place_object: position (x ", placement.x_m, ", z ", placement.z_m,
            ") is outside the image (it projects to pixel ", at.pixel.x, ", ", at.pixel.y, ")");
 
-  double ground = ground_height(camera, depth, placement.x, placement.z, std::max(0.25, half_footprint));
-  if (!std::isfinite(ground)) ground = 0.0;  // the world's ground plane (DESIGN)
+  double ground = ground_height(camera, depth, placement.x_m, placement.z_m, std::max(0.25, half_footprint));
+  if (!std::isfinite(ground)) ground = 0.0;  // the world's ground plane (docs/DESIGN.md, "World frame")
 
   PlacedObject obj;
-  obj.position = {placement.x, ground, placement.z};
-  obj.yaw_rad = placement.yaw_deg * 3.14159265358979323846 / 180.0;
+  obj.position = {placement.x_m, ground, placement.z_m};
+  obj.yaw_rad = placement.yaw_deg * kPi / 180.0;
   obj.scale = placement.scale;
-  obj.mesh = mesh;
-  const double c = std::cos(obj.yaw_rad), s = std::sin(obj.yaw_rad);
-  // Yaw about +Y (counter-clockwise seen from above), then scale, then translate.
-  auto rotate = [c, s](const glm::dvec3& v) { return glm::dvec3(c * v.x + s * v.z, v.y, -s * v.x + c * v.z); };
-  for (glm::vec3& p : obj.mesh.positions)
-    p = glm::vec3(rotate((glm::dvec3(p) - base_centre) * placement.scale) + obj.position);
-  for (glm::vec3& n : obj.mesh.normals) n = glm::vec3(rotate(glm::dvec3(n)));
+  obj.mesh = placed_mesh(mesh, placement, base_centre, ground);
   obj.bvh = std::make_shared<Bvh>(obj.mesh);
   return obj;
 }

@@ -5,12 +5,12 @@
 
 #include <cmath>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
 #include "render/bvh.h"
 #include "render/disney_brdf.h"
 #include "render/qmc_sampler.h"
 #include "render/sampling.h"
+#include "util/error.h"
+#include "util/random.h"
 
 namespace sl {
 

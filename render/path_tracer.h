@@ -1,5 +1,5 @@
 // Reference path tracer (not differentiable): the ground truth the insertion renderer and the
-// analytic cases are checked against (DESIGN: "What done means — Correct").
+// analytic cases are checked against (docs/DESIGN.md, "What done means — Correct").
 //
 // Scene: one triangle Mesh (materials per triangle, glTF metallic-roughness mapped onto the
 // Disney BRDF; base-colour textures sampled at the interpolated UV) lit only by an
@@ -10,7 +10,7 @@
 // an environment hit after a BRDF bounce carries the complementary weight. Russian roulette
 // from `roulette_depth` bounces on keeps long paths unbiased. With environment_sampling off,
 // only BRDF sampling is used (the baseline of `streetlight-bench render`).
-// Sample patterns (issue 19; `estimator`):
+// Sample patterns (`estimator`):
 //   Stratified (default): every 2D decision of a path — the sub-pixel position, and at each
 //     bounce the environment sample, the BRDF direction, the (lobe choice, roulette) pair — is
 //     its own Owen-scrambled Sobol pattern (render/qmc_sampler.h), so the first 2^m samples of
@@ -18,7 +18,7 @@
 //     lookup (EnvironmentMap::sample_bilinear), so a sun costs almost no variance. Russian
 //     roulette survives with probability min(1, max throughput): a path that still carries
 //     full weight is never killed.
-//   Independent: the estimator before issue 19, kept for reproducible comparisons: independent
+//   Independent: the original independent estimator, kept for reproducible comparisons: independent
 //     uniform01f(seed, pixel, counter) numbers, the texel environment sampler
 //     (EnvironmentMap::sample), survival probability capped at 0.95.
 // Both are unbiased and estimate the same image; they differ in noise.
@@ -68,7 +68,7 @@ struct PathTracerOptions {
   uint64_t seed = 0;
   bool environment_sampling = true;  // NEE + MIS; false = BRDF sampling only
   // Validation scenes: shade every surface as Lambertian with its base colour (the analytic
-  // cases of DESIGN), instead of the Disney BRDF.
+  // cases of docs/DESIGN.md), instead of the Disney BRDF.
   bool lambertian = false;
 };
 

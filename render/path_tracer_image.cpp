@@ -6,10 +6,10 @@
 #include <cmath>
 #include <vector>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
 #include "render/camera.h"
 #include "render/path_tracer.h"
+#include "util/error.h"
+#include "util/random.h"
 
 namespace sl {
 

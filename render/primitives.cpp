@@ -6,7 +6,8 @@
 #include <map>
 #include <utility>
 
-#include "autodiff/error.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
@@ -66,7 +67,7 @@ Mesh make_icosphere(const glm::vec3& centre, float radius, int subdivisions, con
     m.positions.push_back(centre + radius * u);
     m.normals.push_back(u);
     // Equirectangular UVs (glTF v down); the seam is left unsplit, which only matters for textures.
-    m.uvs.push_back({0.5f + std::atan2(u.x, -u.z) / (2.0f * 3.14159265f), 0.5f - std::asin(u.y) / 3.14159265f});
+    m.uvs.push_back({0.5f + std::atan2(u.x, -u.z) / (2.0f * kPiF), 0.5f - std::asin(u.y) / kPiF});
   }
   m.triangles = std::move(tris);
   return with_material(std::move(m), material);

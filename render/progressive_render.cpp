@@ -5,13 +5,13 @@
 #include <cmath>
 #include <vector>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
+#include "render/exposure.h"
+#include "util/error.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace sl {
 namespace {
-
-double ldr(double x, double exposure) { return std::clamp(std::pow(std::max(exposure * x, 0.0), 1.0 / 2.2), 0.0, 1.0); }
 
 // acc = (acc·n_acc + pass·n_pass) / (n_acc + n_pass), in place.
 void accumulate(Tensor& acc, int64_t n_acc, const Tensor& pass, int64_t n_pass) {
@@ -30,24 +30,13 @@ void accumulate(Tensor& acc, int64_t n_acc, const Tensor& pass, int64_t n_pass) 
 
 }  // namespace
 
-double auto_exposure(const Tensor& radiance, double median_ldr) {
-  const int64_t n = radiance.size(1) * radiance.size(2);
-  const Tensor r = radiance.contiguous();
-  const float* p = r.data<float>();
-  std::vector<double> lum(static_cast<size_t>(n));
-  for (int64_t i = 0; i < n; ++i) lum[i] = 0.2126 * p[i] + 0.7152 * p[n + i] + 0.0722 * p[2 * n + i];
-  std::nth_element(lum.begin(), lum.begin() + n / 2, lum.end());
-  const double m = lum[n / 2];
-  return m > 1e-12 ? std::pow(median_ldr, 2.2) / m : 1.0;
-}
-
 double ldr_noise(const Tensor& a, const Tensor& b, double exposure) {
   SL_CHECK(a.shape() == b.shape(), "ldr_noise: shapes differ: ", a.describe(), " and ", b.describe());
   const Tensor ca = a.contiguous(), cb = b.contiguous();
   const float *pa = ca.data<float>(), *pb = cb.data<float>();
   double s = 0.0;
   for (int64_t i = 0; i < ca.numel(); ++i) {
-    const double d = 0.5 * (ldr(pa[i], exposure) - ldr(pb[i], exposure));
+    const double d = 0.5 * (ldr_encode(pa[i], exposure) - ldr_encode(pb[i], exposure));
     s += d * d;
   }
   return ca.numel() > 0 ? std::sqrt(s / double(ca.numel())) : 0.0;
@@ -86,7 +75,7 @@ ProgressiveResult render_progressive(const RenderPass& pass, const ProgressiveOp
     if (o.two_seeds) {
       Tensor mean = half[0].clone();
       accumulate(mean, 1, half[1], 1);
-      const double e = o.exposure > 0.0 ? o.exposure : auto_exposure(mean, o.auto_median_ldr);
+      const double e = o.exposure > 0.0 ? o.exposure : exposure_for_ldr_median(mean, o.auto_median_ldr);
       st.noise = ldr_noise(half[0], half[1], e);
     }
     if (on_pass) on_pass(st);

@@ -1,4 +1,4 @@
-// Progressive rendering to a sample, time or noise budget (issue 19): the loop shared by
+// Progressive rendering to a sample, time or noise budget: the loop shared by
 // `streetlight-render` and the street generator.
 //
 // A RenderPass(seed, sample_offset, spp) returns the [3, H, W] mean of samples
@@ -62,7 +62,5 @@ ProgressiveResult render_progressive(const RenderPass& pass, const ProgressiveOp
 
 // The LDR noise of the mean of two independent estimates a and b ([3, H, W] F32).
 double ldr_noise(const Tensor& a, const Tensor& b, double exposure);
-// The exposure that maps the median luminance of `radiance` to `median_ldr` after 1/2.2.
-double auto_exposure(const Tensor& radiance, double median_ldr);
 
 }  // namespace sl

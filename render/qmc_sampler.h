@@ -12,13 +12,13 @@
 //   pair of one pixel, and every pixel, is an independent randomisation of the same net: the
 //   first 2^m samples of a pair keep the stratification above, the pairs are decorrelated
 //   from each other, and the estimator stays unbiased (each point is uniform on [0, 1)²).
-// - Pure functions of their arguments (DESIGN: "Randomness"); outputs lie in [0, 1).
+// - Pure functions of their arguments (docs/DESIGN.md, "Randomness"); outputs lie in [0, 1).
 #pragma once
 #include <cstdint>
 
 #include <glm/glm.hpp>
 
-#include "autodiff/random.h"
+#include "util/random.h"
 
 namespace sl::qmc {
 

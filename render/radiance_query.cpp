@@ -5,9 +5,9 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
-#include "autodiff/parallel.h"
 #include "render/environment_map.h"
 #include "render/spherical_gaussian.h"
+#include "util/parallel.h"
 
 namespace sl {
 namespace {

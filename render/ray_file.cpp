@@ -3,7 +3,7 @@
 #include <cmath>
 #include <fstream>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 
 namespace sl {
 

@@ -9,9 +9,9 @@
 
 #include <glm/glm.hpp>
 
-namespace sl {
+#include "util/math.h"
 
-inline constexpr float kPiF = 3.14159265358979323846f;
+namespace sl {
 
 // Orthonormal basis around a unit vector n (Duff et al. 2017, "Building an orthonormal basis,
 // revisited"): branchless and continuous except on the n.z = -1 seam, which it handles.
@@ -68,7 +68,5 @@ inline glm::vec3 safe_normalize(const glm::vec3& v) {
 }
 
 inline bool all_finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
-
-inline float luminance(const glm::vec3& c) { return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b; }
 
 }  // namespace sl

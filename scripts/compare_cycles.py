@@ -1,4 +1,4 @@
-"""Optional comparison with Blender Cycles (issue 19): renders the same scene as
+"""Optional comparison with Blender Cycles: renders the same scene as
 `streetlight-render` with Cycles, and measures pixel noise from two seeds. Never used by the
 library or CI; needs Debian's `blender` (3.4).
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Pixel noise at equal samples per pixel: streetlight-render (stratified, and the old independent
 # estimator) against Blender Cycles, CesiumMilkTruck on a ground plane, 160x90, under a hard-sun
-# and a soft-sky HDRI (issue 19). Optional; never used by the library or CI.
+# and a soft-sky HDRI. Optional; never used by the library or CI.
 # Usage: scripts/compare_cycles.sh [BUILD_DIR] [SPP] [OUT_DIR] [SKIES]
 #   (defaults: build, 256, a temp dir, "chinese_garden kloppenheim_05 potsdamer_platz dresden_square")
 # Needs Debian's blender (3.4) and ../shared/data. Noise = sqrt(mean((seed1 - seed2)^2) / 2)

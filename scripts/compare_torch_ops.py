@@ -18,7 +18,7 @@ tanh(exp(x/2)·σ(x)+x) on 16M floats forward and forward+backward), the network
 BasicBlock, batch 4×3×128×256, and a UNet3D, base 16, 3 levels, 1×16×64×64×16, forward+backward;
 ours from `streetlight-bench networks --json` or --ours-networks-cmd) and the default lighting
 predictor's AdamW training step (scripts/compare_torch_train.py's two sides). Every part runs in
-each round, torch and ours back to back, and the last lines print every PyTorch row of issue 16's
+each round, torch and ours back to back, and the last lines print every PyTorch row of the README's
 table with its ratio.
 """
 import argparse
@@ -97,7 +97,7 @@ def ours_conv(bench, threads):
 
 # ---------------------------------------------------------------- networks (PyTorch side)
 def conv_block3d(cin, cout):
-    """nn/unet.h ConvBlock: (conv 3x3x3 without bias, BatchNorm, ReLU) twice."""
+    """nn/modules/unet.h ConvBlock: (conv 3x3x3 without bias, BatchNorm, ReLU) twice."""
     return nn.Sequential(nn.Conv3d(cin, cout, 3, 1, 1, bias=False), nn.BatchNorm3d(cout), nn.ReLU(),
                          nn.Conv3d(cout, cout, 3, 1, 1, bias=False), nn.BatchNorm3d(cout), nn.ReLU())
 

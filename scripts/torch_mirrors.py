@@ -1,6 +1,6 @@
 """PyTorch mirrors of Streetlight's networks, shared by the comparison scripts (never the library).
 
-ResNet18 mirrors nn/resnet.h (torchvision BasicBlock layout, width 64); head=None returns the
+ResNet18 mirrors nn/modules/resnet.h (torchvision BasicBlock layout, width 64); head=None returns the
 pooled 512-vector (the lighting predictor's backbone), head=K adds a 512 -> K linear layer.
 """
 import torch.nn as nn

@@ -11,11 +11,11 @@
 
 #include <nlohmann/json.hpp>
 
-#include "autodiff/error.h"
 #include "data/contact_sheet.h"
 #include "data/street_generator.h"
 #include "tools/common/cli.h"
 #include "tools/common/config.h"
+#include "util/error.h"
 
 namespace {
 

@@ -26,17 +26,17 @@
 
 #include "autodiff/ops.h"
 #include "autodiff/tape.h"
-#include "data/image_io.h"
-#include "data/panorama.h"
 #include "data/hdri_folder.h"
 #include "data/hdri_split.h"
+#include "data/image_io.h"
+#include "data/panorama.h"
 #include "data/panorama_dataset.h"
 #include "data/street_dataset.h"
 #include "data/sun_extraction.h"
 #include "nn/checkpoint.h"
 #include "render/environment_map.h"
-#include "render/gltf_loader.h"
 #include "render/equirect.h"
+#include "render/gltf_loader.h"
 #include "render/radiance_query.h"
 #include "tools/common/cli.h"
 #include "tools/common/plot.h"
@@ -47,6 +47,7 @@
 #include "train/real_sky_benchmark.h"
 #include "train/sky_autoencoder.h"
 #include "train/train_config.h"
+#include "util/file.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -54,38 +55,6 @@ using namespace sl;
 using namespace sl::train;
 
 namespace {
-
-// PSNR / si-PSNR over the pixels where mask > 0.5 (mask [H, W] or empty for all).
-struct MaskedPsnr {
-  double psnr = 0, si_psnr = 0;
-  bool valid = false;
-};
-MaskedPsnr masked_psnr(const Tensor& pred, const Tensor& truth, const std::vector<char>& mask) {
-  const Tensor p = pred.detach().to(DType::F64).contiguous(), t = truth.detach().to(DType::F64).contiguous();
-  const int64_t c = p.size(0), n = p.size(1) * p.size(2);
-  const double *pp = p.data<double>(), *tp = t.data<double>();
-  double pt = 0, pp2 = 0, err = 0, cnt = 0;
-  for (int64_t ch = 0; ch < c; ++ch)
-    for (int64_t i = 0; i < n; ++i) {
-      if (!mask.empty() && !mask[i]) continue;
-      const double a = pp[ch * n + i], b = tp[ch * n + i];
-      pt += a * b, pp2 += a * a, err += (a - b) * (a - b), cnt += 1;
-    }
-  MaskedPsnr r;
-  if (cnt == 0) return r;
-  const double s = pp2 > 0 ? pt / pp2 : 1.0;
-  double serr = 0;
-  for (int64_t ch = 0; ch < c; ++ch)
-    for (int64_t i = 0; i < n; ++i) {
-      if (!mask.empty() && !mask[i]) continue;
-      const double d = s * pp[ch * n + i] - tp[ch * n + i];
-      serr += d * d;
-    }
-  r.psnr = 10 * std::log10(1.0 / std::max(err / cnt, 1e-10));
-  r.si_psnr = 10 * std::log10(1.0 / std::max(serr / cnt, 1e-10));
-  r.valid = true;
-  return r;
-}
 
 // The predicted LDR of a world camera's view (radiance query, Eq. 1) and its upper-hemisphere mask.
 std::pair<Tensor, std::vector<char>> render_view(const EstimatedLighting& l, const Camera& world_cam, int rows,
@@ -142,7 +111,7 @@ struct InsertionScore {
 InsertionScore score_insertion(const EstimatedLighting& l, const StreetSample& s, const Mesh& mesh,
                                const PhotoInsertionOptions& o) {
   const StreetView& v = s.views[0];
-  ObjectPose pose{s.object_x, s.object_z, s.object_yaw_deg, s.object_scale};
+  Placement pose{s.object_x, s.object_z, s.object_yaw_deg, s.object_scale};
   const PhotoInsertion ins = insert_into_photo(l, v.ldr, v.depth, v.camera, mesh, pose, o);
   const Tensor with = to_ldr(s.insert_with_object_hdr.contiguous(), s.exposure);
   const Tensor without = to_ldr(s.insert_without_object_hdr.defined() ? s.insert_without_object_hdr.contiguous()
@@ -155,7 +124,7 @@ InsertionScore score_insertion(const EstimatedLighting& l, const StreetSample& s
   int64_t ratio_n = 0;
   for (int64_t i = 0; i < n; ++i) {
     double lw = 0, ln = 0;
-    for (int c = 0; c < 3; ++c) lw += std::pow(wp[c * n + i], 2.2), ln += std::pow(np[c * n + i], 2.2);
+    for (int c = 0; c < 3; ++c) lw += ldr_decode(wp[c * n + i]), ln += ldr_decode(np[c * n + i]);
     const double true_ratio = ln > 1e-6 ? std::min(lw / ln, 1.5) : 1.0;
     const bool object = mp[i] > 0.5 / 255.0;
     const bool shadow = !object && std::abs(true_ratio - 1.0) > 0.02;
@@ -163,7 +132,7 @@ InsertionScore score_insertion(const EstimatedLighting& l, const StreetSample& s
     if (region[i] && !object) ratio_err += std::abs(static_cast<double>(sp[i]) - true_ratio), ++ratio_n;
   }
   InsertionScore r;
-  const MaskedPsnr p = masked_psnr(ins.composite_ldr, with, region);
+  const PsnrScores p = masked_psnr(ins.composite_ldr, with, region);
   r.valid = p.valid;
   r.psnr = p.psnr;
   r.shadow_ratio_error = ratio_n ? ratio_err / ratio_n : 0.0;
@@ -275,13 +244,13 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         NoGradGuard ng;
         const auto [pred, upper] = render_view(l, s.views[k].camera, view_rows, est.volume_query());
         const Tensor truth = resize_bilinear(s.views[k].ldr, pred.size(1), pred.size(2));
-        const MaskedPsnr all = masked_psnr(pred, truth, {}), up = masked_psnr(pred, truth, upper);
+        const PsnrScores all = masked_psnr(pred, truth, {}), up = masked_psnr(pred, truth, upper);
         ps.push_back(all.psnr), sps.push_back(all.si_psnr);
         if (up.valid) ups.push_back(up.psnr), usps.push_back(up.si_psnr);
       }
       if (s.has_insertion && !s.object_glb.empty()) {
         auto it = meshes.find(s.object_glb);
-        if (it == meshes.end()) it = meshes.emplace(s.object_glb, to_object_frame_mesh(load_gltf(s.object_glb))).first;
+        if (it == meshes.end()) it = meshes.emplace(s.object_glb, to_object_frame(load_gltf(s.object_glb))).first;
         PhotoInsertionOptions o;
         o.aa_samples = 2, o.light_samples = 32, o.shadow_rays = 64, o.shadow_width = 80, o.shadow_height = 45;
         o.volume_query = est.volume_query();
@@ -337,7 +306,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
       const auto [pred, upper] = render_view(l, novel, view_rows, est.volume_query());
       const Tensor truth_full = render_truth(c.sample.pano_hdr, novel, c.sample.exposure);
       const Tensor truth = resize_bilinear(truth_full, pred.size(1), pred.size(2));
-      const MaskedPsnr all = masked_psnr(pred, truth, {}), up = masked_psnr(pred, truth, upper);
+      const PsnrScores all = masked_psnr(pred, truth, {}), up = masked_psnr(pred, truth, upper);
       ps.push_back(all.psnr), sps.push_back(all.si_psnr);
       if (up.valid) ups.push_back(up.psnr), usps.push_back(up.si_psnr);
       progress.update(static_cast<int64_t>(i + 1));
@@ -461,16 +430,6 @@ std::string markdown(const std::vector<json>& rows, const std::vector<std::strin
   return md.str();
 }
 
-void write_text_atomic(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    f << text;
-    SL_CHECK(f.good(), "cannot write '", path, "'");
-  }
-  fs::rename(tmp, path);
-}
-
 // Table 1 on real skies: one row per lighting checkpoint and the constant baseline.
 std::string real_sky_markdown(const std::vector<json>& rows, const json& baseline) {
   std::ostringstream md;
@@ -588,8 +547,8 @@ int run(int argc, char** argv) {
   if (a.has("--out")) {
     const std::string out = a.get("--out");
     fs::create_directories(out);
-    write_text_atomic((fs::path(out) / "results.json").string(), all.dump(2) + "\n");
-    write_text_atomic((fs::path(out) / "results.md").string(), md);
+    write_file_atomic((fs::path(out) / "results.json").string(), all.dump(2) + "\n");
+    write_file_atomic((fs::path(out) / "results.md").string(), md);
     if (!plot.empty()) {
       ImageWriteOptions lin;
       lin.transfer = Transfer::Linear;

@@ -12,10 +12,10 @@
 #include <string>
 
 #include "autodiff/ops.h"
-#include "autodiff/random.h"
 #include "nn/lr_schedule.h"
-#include "nn/mlp.h"
+#include "nn/modules/mlp.h"
 #include "nn/optim.h"
+#include "util/random.h"
 
 namespace {
 

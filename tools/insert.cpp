@@ -23,7 +23,6 @@
 #include <nlohmann/json.hpp>
 
 #include "autodiff/ops.h"
-#include "autodiff/random.h"
 #include "data/image_io.h"
 #include "data/kitti_labels.h"
 #include "data/procedural_car.h"
@@ -34,6 +33,9 @@
 #include "train/losses.h"
 #include "train/photo_input.h"
 #include "train/photo_insertion.h"
+#include "util/file.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -70,42 +72,18 @@ std::vector<double> parse_list(const std::string& flag, const std::string& v, si
 }
 
 Mesh load_object(const std::string& spec) {
-  if (spec == "procedural:car") return to_object_frame_mesh(make_procedural_car());
+  if (spec == "procedural:car") return to_object_frame(make_procedural_car());
   SL_CHECK(fs::exists(spec), "object file '", spec, "' does not exist");
-  return to_object_frame_mesh(load_gltf(spec));
+  return to_object_frame(load_gltf(spec));
 }
 
-// A temporary sibling of `out`, renamed over it by commit(); removed on destruction otherwise.
-class StagingDir {
- public:
-  explicit StagingDir(const std::string& out) : out_(out) {
-    const fs::path parent = fs::absolute(out).parent_path();
-    fs::create_directories(parent);
-    tmp_ = parent / ("." + fs::path(out).filename().string() + ".tmp-" + std::to_string(::getpid()));
-    fs::remove_all(tmp_);
-    fs::create_directories(tmp_);
-  }
-  ~StagingDir() {
-    std::error_code ec;
-    if (!committed_) fs::remove_all(tmp_, ec);
-  }
-  std::string path(const std::string& name) const { return (tmp_ / name).string(); }
-  void commit() {
-    if (fs::exists(out_)) {
-      SL_CHECK(fs::is_directory(out_) && (fs::is_empty(out_) || fs::exists(fs::path(out_) / "result.json") ||
-                                          fs::exists(fs::path(out_) / "image_2")),
-               "--out '", out_, "' exists and is not a previous streetlight-insert output; choose another folder");
-      fs::remove_all(out_);
-    }
-    fs::rename(tmp_, out_);
-    committed_ = true;
-  }
-
- private:
-  std::string out_;
-  fs::path tmp_;
-  bool committed_ = false;
-};
+// Refuses to replace an --out folder that is not a previous streetlight-insert output.
+void check_replaceable(const std::string& out) {
+  if (!fs::exists(out)) return;
+  SL_CHECK(fs::is_directory(out) && (fs::is_empty(out) || fs::exists(fs::path(out) / "result.json") ||
+                                     fs::exists(fs::path(out) / "image_2")),
+           "--out '", out, "' exists and is not a previous streetlight-insert output; choose another folder");
+}
 
 void write_text(const std::string& path, const std::string& text) {
   std::ofstream f(path);
@@ -162,7 +140,7 @@ int single(const cli::Args& a) {
   SL_CHECK(a.has("--object"), "--object MODEL.glb is required (or procedural:car)");
   SL_CHECK(a.has("--out"), "--out DIR is required");
   std::vector<Photo> photos;
-  StreetPlacement sample_place;
+  Placement sample_place;
   bool has_sample_place = false;
   if (a.has("--sample")) {
     photos.push_back(load_street_view(a.get("--sample"), 0, &sample_place, &has_sample_place));
@@ -172,7 +150,8 @@ int single(const cli::Args& a) {
   const Photo& photo = photos[0];
   const Mesh object = load_object(a.get("--object"));
   SL_CHECK(a.has("--at") || has_sample_place, "--at X,Z is required (metres right of and ahead of the first camera)");
-  ObjectPose pose;
+  Placement pose;
+  pose.yaw_deg = 90.0;
   double ax = 0, az = 0;
   if (a.has("--at")) {
     std::tie(ax, az) = parse_pair("--at", a.get("--at"));
@@ -197,7 +176,7 @@ int single(const cli::Args& a) {
   if (a.has("--sun-elevation")) edit.elevation_deg = a.number("--sun-elevation", 0);
   edit.intensity_scale = a.number("--sun-intensity", 1.0);
 
-  StagingDir out(a.get("--out"));
+  AtomicDirectory out(a.get("--out"));
   LightingEstimator est(a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path());
   std::vector<InferenceView> views;
   for (const Photo& p : photos) views.push_back({p.ldr, p.depth, p.camera});
@@ -213,16 +192,16 @@ int single(const cli::Args& a) {
 
   ImageWriteOptions lin;
   lin.transfer = Transfer::Linear;
-  write_image(out.path("composite.png"), ins.composite_ldr, lin);
-  if (a.has("--exr")) write_image(out.path("composite.exr"), ins.composite_linear);
-  write_image(out.path("object_mask.png"), ins.object_mask, lin);
-  write_image(out.path("shadow_map.png"), clamp(ins.shadow_map, 0.0, 1.0), lin);
+  write_image(out.file("composite.png"), ins.composite_ldr, lin);
+  if (a.has("--exr")) write_image(out.file("composite.exr"), ins.composite_linear);
+  write_image(out.file("object_mask.png"), ins.object_mask, lin);
+  write_image(out.file("shadow_map.png"), clamp(ins.shadow_map, 0.0, 1.0), lin);
   const Tensor sky = light.env_world().contiguous();
-  write_image(out.path("sky.exr"), sky);
-  write_image(out.path("sky.png"), ldr_from_hdr(sky), lin);
-  write_depth(out.path("depth.exr"), unsqueeze(photo.depth, 0));
+  write_image(out.file("sky.exr"), sky);
+  write_image(out.file("sky.png"), ldr_from_hdr(sky), lin);
+  write_depth(out.file("depth.exr"), unsqueeze(photo.depth, 0));
   const std::string label = kitti_label_line("Car", 0.0, 0, ins.box2d, ins.box3d);
-  write_text(out.path("label.txt"), label + "\n");
+  write_text(out.file("label.txt"), label + "\n");
   const glm::dvec3 sun = light.sun_direction_world();
   json j = {{"checkpoint", est.path()},
             {"checkpoint_stage", est.stage()},
@@ -247,7 +226,8 @@ int single(const cli::Args& a) {
                        {"y", ins.box3d[4]}, {"z", ins.box3d[5]}, {"rotation_y", ins.box3d[6]}}},
             {"kitti_label", label},
             {"timing_ms", {{"lighting", light.inference_ms}, {"insertion", ins.render_ms}}}};
-  write_text(out.path("result.json"), j.dump(2) + "\n");
+  write_text(out.file("result.json"), j.dump(2) + "\n");
+  check_replaceable(a.get("--out"));
   out.commit();
   if (a.has("--json")) std::cout << j.dump() << "\n";
   std::fprintf(stderr, "depth: %s\n", photo.depth_source.c_str());
@@ -311,13 +291,6 @@ std::vector<BatchItem> batch_items(const std::string& spec, const cli::Args& a) 
   std::set<std::string> ids;
   for (const auto& it : out) SL_CHECK(ids.insert(it.id).second, "--batch '", spec, "': id '", it.id, "' appears twice");
   return out;
-}
-
-// Writes `text` to path atomically (temporary sibling, then rename).
-void write_text_atomic(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
-  write_text(tmp, text);
-  fs::rename(tmp, path);
 }
 
 // The fraction of `box` (x1 y1 x2 y2) covered by mask [H, W] values above 0.5.
@@ -395,12 +368,12 @@ BatchResult augment_one(const cli::Args& a, LightingEstimator& est, const std::v
   res.depth_source = photo.depth_source;
   for (int attempt = 0; attempt < 40 * per_image && res.placed < per_image; ++attempt) {
     // A random spot on the road ahead: 6-25 m forward, within ±4 m of the centre line.
-    ObjectPose pose;
+    Placement pose;
     pose.x_m = rng.uniform(-4.0, 4.0);
     pose.z_m = -rng.uniform(6.0, 25.0);
     pose.yaw_deg = rng.uniform(0.0, 360.0);
     const Mesh& obj = objects[static_cast<size_t>(rng.randint(static_cast<int64_t>(objects.size())))];
-    if (overlaps_any(object_box3d(obj, pose, photo.camera), labels, added)) continue;  // never park in a real car
+    if (overlaps_any(kitti_box3d(obj, pose, photo.camera), labels, added)) continue;  // never park in a real car
     PhotoInsertion ins;
     try {
       PhotoInsertionOptions o = insertion_options(a, est.volume_query());
@@ -425,7 +398,7 @@ BatchResult augment_one(const cli::Args& a, LightingEstimator& est, const std::v
     l.box3d = ins.box3d;
     l.truncated = ins.truncated;
     l.occluded = occlusion_level(ins.hidden_fraction);
-    l.alpha = std::remainder(ins.box3d[6] - std::atan2(ins.box3d[3], ins.box3d[5]), 2 * M_PI);
+    l.alpha = std::remainder(ins.box3d[6] - std::atan2(ins.box3d[3], ins.box3d[5]), 2 * kPi);
     const std::vector<float> this_mask(m, m + inserted.size());
     for (KittiLabel& prev : added) cover_label(prev, covered_fraction(this_mask, k.width, k.height, prev.box2d));
     added.push_back(l);
@@ -478,11 +451,11 @@ int batch(const cli::Args& a) {
   }
   LightingEstimator est(a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path());
   for (const char* d : {"image_2", "label_2", "calib"}) fs::create_directories(out / d);
-  write_text_atomic((out / "batch.json").string(), marker.dump(2) + "\n");
+  write_file_atomic((out / "batch.json").string(), marker.dump(2) + "\n");
   for (const char* d : {"image_2", "label_2", "calib"})
     for (const auto& e : fs::directory_iterator(out / d)) {
       const std::string name = e.path().filename().string();
-      if (name.find(".partial") != std::string::npos || name.find(".tmp-") != std::string::npos) fs::remove(e.path());
+      if (name.find(".partial") != std::string::npos || name.find(".tmp.") != std::string::npos) fs::remove(e.path());
     }
   std::vector<size_t> todo;
   for (size_t i = 0; i < items.size(); ++i)
@@ -502,7 +475,7 @@ int batch(const cli::Args& a) {
   std::vector<std::string> ids;
   for (const auto& it : items) ids.push_back(it.id);
   const json summary = {{"images", items.size()}, {"objects_this_run", placed}, {"ids", ids}, {"this_run", this_run}};
-  write_text_atomic((out / "result.json").string(), summary.dump(2) + "\n");
+  write_file_atomic((out / "result.json").string(), summary.dump(2) + "\n");
   if (a.has("--json")) std::cout << summary.dump() << "\n";
   std::fprintf(stderr, "wrote %zu images to %s (%d this run)\n", items.size(), out.string().c_str(), done);
   return 0;

@@ -1,5 +1,5 @@
 // streetlight-render: path-traces glTF models under an HDRI from a camera of the user's choice
-// (issue 19), with the reference path tracer (render/path_tracer.h) driven progressively to a
+//, with the reference path tracer (render/path_tracer.h) driven progressively to a
 // sample, time or noise budget (render/progressive_render.h).
 //
 // Scene: every --scene file in its own glTF frame (world = glTF frame, +Y up, metres), plus
@@ -21,22 +21,22 @@
 
 #include <nlohmann/json.hpp>
 
-#include "autodiff/error.h"
 #include "data/image_io.h"
 #include "render/camera.h"
 #include "render/environment_map.h"
+#include "render/exposure.h"
 #include "render/gltf_loader.h"
 #include "render/path_tracer.h"
 #include "render/primitives.h"
 #include "render/progressive_render.h"
 #include "tools/common/cli.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace fs = std::filesystem;
 using namespace sl;
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 glm::dvec3 parse_vec3(const std::string& flag, const std::string& v) {
   std::vector<double> out;
@@ -97,7 +97,7 @@ Tensor to_ldr(const Tensor& radiance, double exposure) {
   Tensor out = radiance.contiguous().clone();
   float* p = out.data<float>();
   for (int64_t i = 0; i < out.numel(); ++i)
-    p[i] = float(std::clamp(std::pow(std::max(exposure * double(p[i]), 0.0), 1.0 / 2.2), 0.0, 1.0));
+    p[i] = float(ldr_encode(p[i], exposure));
   return out;
 }
 
@@ -127,7 +127,7 @@ int run(int argc, char** argv) {
        {"--max-depth", "D", "surface interactions per path (default 8)"},
        {"--exposure", "E", "PNG and noise exposure (default: the median pixel maps to 0.4 after 1/2.2)"},
        {"--fresnel", "exact|schlick", "dielectric Fresnel (default exact, as Cycles)"},
-       {"--estimator", "stratified|independent", "sample pattern (independent = the estimator before issue 19)"},
+       {"--estimator", "stratified|independent", "sample pattern (independent = the original independent estimator)"},
        {"--json", "", "print the result as one JSON line on stdout"},
        {"--out", "FILE", "output image: .exr (linear HDR) or .png (LDR)"}});
   if (!args.parse(argc, argv)) return 0;
@@ -222,7 +222,7 @@ int run(int argc, char** argv) {
   std::snprintf(summary, sizeof summary, "(%d spp%s)", r.status.spp, r.status.noise >= 0 ? ", noise estimated" : "");
   bar.finish(summary);
 
-  const double used_exposure = exposure > 0.0 ? exposure : auto_exposure(r.radiance, 0.4);
+  const double used_exposure = exposure > 0.0 ? exposure : exposure_for_ldr_median(r.radiance, 0.4);
   if (ext == ".exr") {
     write_image(out, r.radiance);
   } else {

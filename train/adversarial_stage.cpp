@@ -1,10 +1,5 @@
-// Stage 3 (Sec 3.4, "Training Lighting via Object Insertion"): the predictor's lighting renders
-// a virtual object into the photo through the differentiable insertion of Sec 3.3; a
-// discriminator judges the composite against path-traced insertions of the dataset, and the
-// predictor minimises supervised + w_adv·L_adv with L_adv = −D(I_edit).
-// One step: (1) predictor forward, supervised loss, composite, generator loss with D frozen,
-// backward, update the predictor; (2) hinge loss of D on real vs detached fake, update D at
-// optim.discriminator_lr (one AdamW over both; a step only touches parameters with gradients).
+// Stage 3 (Sec 3.4): see adversarial_stage.h. D and the predictor share one AdamW; a step only
+// touches parameters with gradients.
 // Data parallel (distributed.h): both updates average their gradients over ranks; the
 // adversarial and hinge losses are means over the GLOBAL batch's insertable samples (each rank
 // scales its shard's mean by global_share), and whether the discriminator steps at all is decided
@@ -12,16 +7,17 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
-#include "autodiff/random.h"
 #include "data/panorama.h"
 #include "render/gltf_loader.h"
 #include "render/object_insertion.h"
+#include "train/adversarial_stage.h"
 #include "train/distributed.h"
 #include "train/gradient_allreduce.h"
-#include "train/lighting_stage.h"
 #include "train/losses.h"
 #include "train/phase_clock.h"
 #include "train/train_config.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace sl::train {
 
@@ -29,25 +25,26 @@ namespace {
 constexpr uint64_t kRealSeed = 0x7265616C5F696D67ULL;  // the real composites' own samples
 }  // namespace
 
-const Mesh& LightingStage::object_mesh(const std::string& path) {
+const Mesh& AdversarialStage::object_mesh(const std::string& path) {
   auto it = meshes_.find(path);
   if (it == meshes_.end()) it = meshes_.emplace(path, load_gltf(path)).first;
   return it->second;
 }
 
-Tensor LightingStage::composite(const Forward& f, size_t i, uint64_t seed) {
+Tensor AdversarialStage::composite(const Forward& f, size_t i, uint64_t seed) {
   const Tensor vsg = f.pred.vsg.defined() ? select(f.pred.vsg, 0, static_cast<int64_t>(i)) : Tensor();
   return composite_under(f, i, select(f.pred.env, 0, static_cast<int64_t>(i)), vsg, seed);
 }
 
-Tensor LightingStage::composite_under(const Forward& f, size_t i, const Tensor& env, const Tensor& vsg, uint64_t seed) {
+Tensor AdversarialStage::composite_under(const Forward& f, size_t i, const Tensor& env, const Tensor& vsg,
+                                         uint64_t seed) {
   const StreetSample& s = f.samples[i];
   const StreetItem& it = f.items[i];
   const StreetView& view = s.views[0];
   SL_CHECK(s.has_insertion && !s.object_glb.empty(), "stage adversarial: sample '", s.id,
            "' has no insertion ground truth (object_glb)");
   InsertionInputs in;
-  in.background = pow_scalar(view.ldr.contiguous(), 2.2);  // linearised LDR: exposure-normalised radiance
+  in.background = pow_scalar(view.ldr.contiguous(), kLdrGamma);  // linearised LDR: exposure-normalised radiance
   in.depth = view.depth;
   in.camera = it.camera;
   in.env = env;
@@ -55,15 +52,15 @@ Tensor LightingStage::composite_under(const Forward& f, size_t i, const Tensor& 
   in.grid = it.grid;
   const glm::dvec3 pos = it.frame.point({s.object_x, 0.0, s.object_z});
   Placement p;
-  p.x = pos.x;
-  p.z = pos.z;
+  p.x_m = pos.x;
+  p.z_m = pos.z;
   p.yaw_deg = it.frame.object_yaw_deg(s.object_yaw_deg);
   p.scale = s.object_scale;
   in.objects.push_back(place_object(object_mesh(s.object_glb), p, it.camera, view.depth));
   return insert_objects(in, training_insertion_options(config_, seed)).composite;
 }
 
-Tensor LightingStage::ground_truth_env(const Forward& f, size_t i) const {
+Tensor AdversarialStage::ground_truth_env(const Forward& f, size_t i) const {
   const StreetSample& s = f.samples[i];
   SL_CHECK(s.pano_hdr.defined(), "stage adversarial: sample '", s.id, "' has no HDR panorama (pano_hdr)");
   const Tensor pano = f.items[i].frame.panorama(mul_scalar(s.pano_hdr.contiguous(), s.exposure).contiguous());
@@ -71,7 +68,7 @@ Tensor LightingStage::ground_truth_env(const Forward& f, size_t i) const {
       .to(f.pred.env.dtype());
 }
 
-Tensor LightingStage::real_composite_ldr(const Forward& f, size_t i, uint64_t seed) {
+Tensor AdversarialStage::real_composite_ldr(const Forward& f, size_t i, uint64_t seed) {
   const StreetSample& s = f.samples[i];
   const std::string kind = config_.at("insertion").value("real", std::string("renderer"));
   if (kind == "path_traced") {
@@ -82,7 +79,20 @@ Tensor LightingStage::real_composite_ldr(const Forward& f, size_t i, uint64_t se
   return ldr_from_hdr(composite_under(f, i, ground_truth_env(f, i), Tensor(), seed)).contiguous();
 }
 
-Metrics LightingStage::adversarial_step(int64_t step) {
+AdversarialStage::AdversarialStage(const nlohmann::json& config, SampleSource train, SampleSource val)
+    : LightingStage(config, std::move(train), std::move(val)) {
+  SL_CHECK(config.at("stage").get<std::string>() == kStageAdversarial, "AdversarialStage: the config's stage is '",
+           config.at("stage").get<std::string>(), "', expected '", kStageAdversarial, "'");
+}
+
+Tensor AdversarialStage::strip_composite(const Forward& f) {
+  const StreetSample& s = f.samples[0];
+  const bool centre_in_view =
+      f.items[0].camera.project(f.items[0].frame.point({s.object_x, 0.0, s.object_z})).in_image;
+  return s.has_insertion && centre_in_view ? ldr_from_hdr(composite(f, 0, seed_)).detach() : Tensor();
+}
+
+Metrics AdversarialStage::step(int64_t step) {
   predictor_->set_training(true);
   optim_->zero_grad();
   PhaseClock clock;
@@ -120,7 +130,7 @@ Metrics LightingStage::adversarial_step(int64_t step) {
     return m;
   }
   const double share = global_share(static_cast<double>(insertable.size()));  // collective: before branching
-  if (insertable.empty()) return adversarial_step_without_samples(step, total, m, forward_ms);
+  if (insertable.empty()) return step_without_samples(step, total, m, forward_ms);
   TensorList fakes, reals;
   for (size_t i : insertable) {
     fakes.push_back(ldr_from_hdr(composite(f, i, hash_counter(seed_, static_cast<uint64_t>(step), i))));
@@ -172,8 +182,7 @@ Metrics LightingStage::adversarial_step(int64_t step) {
 
 // Data parallel, a rank whose shard has no insertable sample while others have: it takes part in
 // both updates with its supervised gradients and no discriminator gradient (zeros in the mean).
-Metrics LightingStage::adversarial_step_without_samples(int64_t step, const Tensor& total, Metrics& m,
-                                                        double forward_ms) {
+Metrics AdversarialStage::step_without_samples(int64_t step, const Tensor& total, Metrics& m, double forward_ms) {
   m["adversarial"] = 0.0;
   m["d_loss"] = 0.0;
   for (const auto& [k, v] : m) check_finite_loss(k, v, step);

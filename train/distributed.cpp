@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 
 namespace sl::train {
 

@@ -11,12 +11,11 @@
 #include "nn/checkpoint.h"
 #include "train/train_config.h"
 #include "train/unprojection.h"
+#include "util/math.h"
 
 namespace sl::train {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 std::vector<double> to_doubles(const Tensor& t) {
   const Tensor c = t.detach().to(DType::F64).contiguous();

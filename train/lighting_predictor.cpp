@@ -2,10 +2,10 @@
 #include "train/lighting_predictor.h"
 
 #include "autodiff/ops.h"
+#include "nn/functional/upsample.h"
 #include "nn/layers.h"
-#include "nn/mlp.h"
-#include "nn/unet.h"
-#include "nn/upsample.h"
+#include "nn/modules/mlp.h"
+#include "nn/modules/unet.h"
 #include "render/vsg_volume.h"
 
 namespace sl::train {

@@ -27,7 +27,7 @@
 #include <string>
 
 #include "nn/module.h"
-#include "nn/resnet.h"
+#include "nn/modules/resnet.h"
 #include "train/sky_autoencoder.h"
 
 namespace sl::train {

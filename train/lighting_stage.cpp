@@ -7,7 +7,6 @@
 #include <limits>
 
 #include "autodiff/ops.h"
-#include "autodiff/random.h"
 #include "data/hdri_folder.h"
 #include "data/hdri_split.h"
 #include "data/panorama.h"
@@ -15,13 +14,15 @@
 #include "nn/checkpoint.h"
 #include "render/environment_map.h"
 #include "render/radiance_query.h"
+#include "train/adversarial_stage.h"
 #include "train/image_strip.h"
 #include "train/losses.h"
-#include "train/phase_clock.h"
 #include "train/metrics.h"
+#include "train/phase_clock.h"
 #include "train/train_config.h"
 #include "train/distributed.h"
 #include "train/gradient_allreduce.h"
+#include "util/random.h"
 
 namespace sl::train {
 
@@ -282,7 +283,7 @@ Metrics LightingStage::supervised_step(int64_t step) {
   return m;
 }
 
-Metrics LightingStage::step(int64_t step) { return adversarial_ ? adversarial_step(step) : supervised_step(step); }
+Metrics LightingStage::step(int64_t step) { return supervised_step(step); }
 
 Metrics LightingStage::validate() {
   NoGradGuard no_grad;
@@ -349,10 +350,7 @@ void LightingStage::write_strip(const std::string& path) {
   const StreetSample& s = f.samples[0];
   const Tensor true_sky = s.sky_hdr.defined() ? to_ldr(f.items[0].frame.panorama(s.sky_hdr.contiguous()), s.exposure)
                                               : f.items[0].pano_ldr_dome;
-  Tensor comp;
-  const bool centre_in_view =
-      f.items[0].camera.project(f.items[0].frame.point({s.object_x, 0.0, s.object_z})).in_image;
-  if (adversarial_ && s.has_insertion && centre_in_view) comp = ldr_from_hdr(composite(f, 0, seed_)).detach();
+  const Tensor comp = strip_composite(f);
   train::write_strip(path, {f.items[0].image, true_sky, ldr_from_hdr(select(f.pred.env, 0, 0)), comp});
   predictor_->set_training(true);
 }
@@ -395,6 +393,8 @@ std::unique_ptr<Stage> make_lighting_stage(const nlohmann::json& config) {
       val = concat_sources(std::move(val), panorama_source(val_paths, vo, seed ^ kValSeed, val_paths.size() * crops, false));
     }
   }
+  if (config.at("stage").get<std::string>() == kStageAdversarial)
+    return std::make_unique<AdversarialStage>(config, std::move(train), std::move(val));
   return std::make_unique<LightingStage>(config, std::move(train), std::move(val));
 }
 

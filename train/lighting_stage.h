@@ -1,6 +1,6 @@
 // Stages 2 and 3 (Sec 3.4): the hybrid lighting predictor with supervised losses ("lighting"),
 // then end to end through differentiable object insertion with a discriminator
-// ("adversarial", adversarial_stage.cpp).
+// ("adversarial": AdversarialStage, train/adversarial_stage.h, a LightingStage with stage 3's step).
 //
 // Model (one checkpoint): predictor.* (LightingPredictor, with its frozen sky decoder),
 // teacher.* (the frozen stage-1 SkyAutoencoder, for the HDR pseudo-labels of Sec 3.4; absent
@@ -36,7 +36,7 @@
 #include <nlohmann/json.hpp>
 
 #include "data/street_dataset.h"
-#include "nn/discriminator.h"
+#include "nn/modules/patch_discriminator.h"
 #include "render/mesh.h"
 #include "train/lighting_predictor.h"
 #include "train/sample_source.h"
@@ -74,21 +74,10 @@ class LightingStage : public Stage {
   Forward forward_val(size_t val_index);
   // The supervised loss of Sec 3.4 over a forward (adds its terms to `m`).
   Tensor supervised_loss(const Forward& f, Metrics& m);
-  // Stage 3: the differentiable composite of sample i (insert_objects) under the predicted
-  // lighting, linear [3, H, W]; composite_under() under any env (and optional vsg).
-  Tensor composite(const Forward& f, size_t i, uint64_t seed);
-  Tensor composite_under(const Forward& f, size_t i, const Tensor& env, const Tensor& vsg, uint64_t seed);
-  // The true light of sample i as the predictor's sky dome: the generator's HDR panorama at the
-  // camera, exposure-normalised, turned into the canonical frame and area-averaged to the dome
-  // size (so it is no sharper than a predicted dome can be). [3, dome_height, dome_width].
-  Tensor ground_truth_env(const Forward& f, size_t i) const;
-  // The discriminator's "real" image of sample i, LDR [3, H, W] (insertion.real):
-  //   "renderer": composite_under(ground_truth_env) with its own seed — the same renderer,
-  //     options and object as the fake, so real and fake differ only in their lighting;
-  //   "path_traced": the generator's path-traced insertion (differs in renderer as well).
-  Tensor real_composite_ldr(const Forward& f, size_t i, uint64_t seed);
 
- private:
+ protected:
+  // The composite shown in the training strip (undefined: none); stage 3 overrides it.
+  virtual Tensor strip_composite(const Forward& f) { return Tensor(); }
   struct Batch {
     std::vector<StreetSample> samples;
     std::vector<StreetItem> items;
@@ -102,10 +91,7 @@ class LightingStage : public Stage {
     Tensor radiance, transmittance, depth;
   };
   Query query(const Forward& f, size_t i, const Tensor& origins, const Tensor& directions);
-  Metrics adversarial_step(int64_t step);
-  Metrics adversarial_step_without_samples(int64_t step, const Tensor& total, Metrics& m, double forward_ms);
   Metrics supervised_step(int64_t step);
-  const Mesh& object_mesh(const std::string& path);
 
   nlohmann::json config_;
   bool adversarial_ = false;
@@ -120,7 +106,6 @@ class LightingStage : public Stage {
   std::shared_ptr<SkyAutoencoder> teacher_;
   std::shared_ptr<nn::PatchDiscriminator> discriminator_;
   std::unique_ptr<nn::Optimizer> optim_;
-  std::map<std::string, Mesh> meshes_;
   std::string best_metric_ = "val_loss";
   double last_data_ms_ = 0.0;
   // The next step's batch, built in the background; declared last so that it is waited for

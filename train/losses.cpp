@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
+#include "util/math.h"
 
 namespace sl::train {
 
@@ -38,7 +39,7 @@ Tensor masked_l1(const Tensor& pred, const Tensor& target, const Tensor& mask) {
 }
 
 Tensor ldr_from_hdr(const Tensor& hdr) {
-  return pow_scalar(clamp(hdr, 1e-6, 1.0), 1.0 / 2.2);
+  return pow_scalar(clamp(hdr, 1e-6, 1.0), 1.0 / kLdrGamma);
 }
 
 Tensor radiance_l2(const Tensor& radiance, const Tensor& target_ldr) {

@@ -5,13 +5,16 @@
 #include <cmath>
 #include <numeric>
 
+#include "util/error.h"
+#include "util/math.h"
+
 namespace sl::train {
 
 double angular_error_deg(const glm::dvec3& a, const glm::dvec3& b) {
   const double la = glm::length(a), lb = glm::length(b);
   if (!(la > 0) || !(lb > 0)) return 180.0;
   const double c = std::clamp(glm::dot(a, b) / (la * lb), -1.0, 1.0);
-  return std::acos(c) * 180.0 / 3.14159265358979323846;
+  return std::acos(c) * 180.0 / kPi;
 }
 
 double median(std::vector<double> v) {
@@ -25,31 +28,39 @@ double mean_of(const std::vector<double>& v) {
   return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
 }
 
-namespace {
-
-double psnr_scaled(const std::vector<double>& p, const std::vector<double>& t, double s) {
-  double se = 0;
-  for (size_t i = 0; i < p.size(); ++i) se += (s * p[i] - t[i]) * (s * p[i] - t[i]);
-  const double mse = std::max(se / static_cast<double>(std::max<size_t>(p.size(), 1)), 1e-10);
-  return 10.0 * std::log10(1.0 / mse);
-}
-
-}  // namespace
-
-double psnr(const Tensor& pred, const Tensor& target) {
+PsnrScores masked_psnr(const Tensor& pred, const Tensor& target, const std::vector<char>& mask) {
   SL_CHECK(pred.shape() == target.shape(), "psnr: pred ", pred.describe(), " vs target ", target.describe());
-  return psnr_scaled(pred.to_vector(), target.to_vector(), 1.0);
+  const Tensor p = pred.detach().to(DType::F64).contiguous(), t = target.detach().to(DType::F64).contiguous();
+  const int64_t n = mask.empty() ? p.numel() : static_cast<int64_t>(mask.size());
+  SL_CHECK(mask.empty() || (p.dim() == 3 && p.size(1) * p.size(2) == n), "psnr: a mask of ", mask.size(),
+           " pixels does not fit the image ", p.describe());
+  const int64_t c = n > 0 ? p.numel() / n : 0;
+  const double *pp = p.data<double>(), *tp = t.data<double>();
+  double pt = 0, pp2 = 0, err = 0, cnt = 0;
+  for (int64_t ch = 0; ch < c; ++ch)
+    for (int64_t i = 0; i < n; ++i) {
+      if (!mask.empty() && !mask[i]) continue;
+      const double a = pp[ch * n + i], b = tp[ch * n + i];
+      pt += a * b, pp2 += a * a, err += (a - b) * (a - b), cnt += 1;
+    }
+  PsnrScores r;
+  r.valid = cnt > 0;
+  const double s = pp2 > 0 ? pt / pp2 : 1.0;  // the least-squares scale of si-PSNR
+  double serr = 0;
+  for (int64_t ch = 0; ch < c; ++ch)
+    for (int64_t i = 0; i < n; ++i) {
+      if (!mask.empty() && !mask[i]) continue;
+      const double d = s * pp[ch * n + i] - tp[ch * n + i];
+      serr += d * d;
+    }
+  cnt = std::max(cnt, 1.0);
+  r.psnr = 10 * std::log10(1.0 / std::max(err / cnt, 1e-10));
+  r.si_psnr = 10 * std::log10(1.0 / std::max(serr / cnt, 1e-10));
+  return r;
 }
 
-double si_psnr(const Tensor& pred, const Tensor& target) {
-  SL_CHECK(pred.shape() == target.shape(), "si_psnr: pred ", pred.describe(), " vs target ", target.describe());
-  const auto p = pred.to_vector(), t = target.to_vector();
-  double pt = 0, pp = 0;
-  for (size_t i = 0; i < p.size(); ++i) {
-    pt += p[i] * t[i];
-    pp += p[i] * p[i];
-  }
-  return psnr_scaled(p, t, pp > 0 ? pt / pp : 1.0);
-}
+double psnr(const Tensor& pred, const Tensor& target) { return masked_psnr(pred, target, {}).psnr; }
+
+double si_psnr(const Tensor& pred, const Tensor& target) { return masked_psnr(pred, target, {}).si_psnr; }
 
 }  // namespace sl::train

@@ -5,7 +5,7 @@
 #include <climits>
 #include <cstdlib>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 
 #ifdef STREETLIGHT_WITH_MPI
 #include <mpi.h>

@@ -1,26 +1,13 @@
-// Object frame, KITTI boxes and label lines. See object_labels.h.
+// 2D boxes and KITTI label lines. See object_labels.h.
 #include "train/object_labels.h"
 
 #include <cmath>
 #include <cstdio>
 
-#include "data/object_placement.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl::train {
-
-namespace {
-sl::Placement to_placement(const ObjectPose& p) { return sl::Placement{p.x_m, p.z_m, p.yaw_deg, p.scale}; }
-}  // namespace
-
-Mesh to_object_frame_mesh(const Mesh& mesh) { return to_object_frame(mesh); }
-
-double scale_for_length(const Mesh& object_frame_mesh, double length_m) {
-  return scale_to_length(object_frame_mesh, length_m);
-}
-
-std::array<double, 7> object_box3d(const Mesh& object_frame_mesh, const ObjectPose& pose, const Camera& camera) {
-  return kitti_box3d(object_frame_mesh, to_placement(pose), camera);
-}
 
 bool mask_box2d(const Tensor& mask, double threshold, std::array<double, 4>& box) {
   SL_CHECK(mask.dim() == 3 && mask.size(0) == 1, "mask_box2d: expected [1, H, W], got ", mask.describe());
@@ -40,7 +27,6 @@ bool mask_box2d(const Tensor& mask, double threshold, std::array<double, 4>& box
 
 std::string kitti_label_line(const std::string& type, double truncated, int occluded,
                              const std::array<double, 4>& b, const std::array<double, 7>& d) {
-  constexpr double kPi = 3.14159265358979323846;
   double alpha = d[6] - std::atan2(d[3], d[5]);
   while (alpha > kPi) alpha -= 2 * kPi;
   while (alpha <= -kPi) alpha += 2 * kPi;

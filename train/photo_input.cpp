@@ -10,6 +10,7 @@
 #include "data/image_io.h"
 #include "data/kitti.h"
 #include "train/photo_insertion.h"
+#include "util/math.h"
 
 namespace sl::train {
 
@@ -17,7 +18,6 @@ namespace {
 bool ends_with(const std::string& s, const std::string& e) {
   return s.size() >= e.size() && s.compare(s.size() - e.size(), e.size(), e) == 0;
 }
-constexpr double kPi = 3.14159265358979323846;
 }  // namespace
 
 Intrinsics read_intrinsics(const std::string& path, int width, int height) {
@@ -93,7 +93,7 @@ Photo load_photo(const PhotoSources& s) {
   return p;
 }
 
-Photo load_street_view(const std::string& dir, int view, StreetPlacement* placement, bool* has_placement) {
+Photo load_street_view(const std::string& dir, int view, Placement* placement, bool* has_placement) {
   const std::string meta_path = dir + "/meta.json";
   std::ifstream f(meta_path);
   SL_CHECK(f.good(), "street sample '", dir, "' has no meta.json");

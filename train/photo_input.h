@@ -19,6 +19,7 @@
 
 #include "autodiff/tensor.h"
 #include "render/camera.h"
+#include "render/object_placement.h"
 
 namespace sl::train {
 
@@ -44,9 +45,6 @@ Photo load_photo(const PhotoSources& sources);
 // View `view` of a generated street sample folder (docs/DATASET.md: DIR/samples/<id>): its LDR,
 // depth and full camera pose from meta.json (depth_source "dataset"). When the sample has an
 // inserted object, *placement receives its world placement (x, z, yaw, scale) and true is returned.
-struct StreetPlacement {
-  double x_m = 0, z_m = 0, yaw_deg = 0, scale = 1;
-};
-Photo load_street_view(const std::string& sample_dir, int view, StreetPlacement* placement, bool* has_placement);
+Photo load_street_view(const std::string& sample_dir, int view, Placement* placement, bool* has_placement);
 
 }  // namespace sl::train

@@ -9,6 +9,7 @@
 #include "autodiff/tape.h"
 #include "render/object_insertion.h"
 #include "train/losses.h"
+#include "util/math.h"
 
 namespace sl::train {
 
@@ -32,7 +33,7 @@ Tensor ground_plane_depth(const Camera& camera) {
 
 namespace {
 
-void check_on_ground(const Tensor& depth, const Camera& cam, const ObjectPose& pose, double max_offset) {
+void check_on_ground(const Tensor& depth, const Camera& cam, const Placement& pose, double max_offset) {
   const Projection at = cam.project({pose.x_m, 0.0, pose.z_m});
   SL_CHECK(at.in_front, "object position (x ", pose.x_m, ", z ", pose.z_m, ") is behind the camera");
   SL_CHECK(at.in_image, "object position (x ", pose.x_m, ", z ", pose.z_m, ") is outside the image (pixel ",
@@ -86,7 +87,7 @@ InsertionOptions insertion_options(const PhotoInsertionOptions& o) {
 }
 
 PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor& ldr, const Tensor& depth,
-                                 const Camera& world_camera, const Mesh& object_frame_mesh, const ObjectPose& pose,
+                                 const Camera& world_camera, const Mesh& object_frame_mesh, const Placement& pose,
                                  const PhotoInsertionOptions& o) {
   NoGradGuard no_grad;
   const Intrinsics& k = world_camera.intrinsics();
@@ -97,16 +98,16 @@ PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor
   check_on_ground(depth, world_camera, pose, o.max_ground_offset_m);
   const auto t0 = std::chrono::steady_clock::now();
   InsertionInputs in;
-  in.background = pow_scalar(ldr.to(DType::F32).contiguous(), 2.2);
+  in.background = pow_scalar(ldr.to(DType::F32).contiguous(), kLdrGamma);
   in.depth = depth.to(DType::F32).contiguous();
   in.camera = lighting.frame.camera(world_camera);
   in.env = lighting.env;
   in.vsg = lighting.vsg;
   in.grid = lighting.grid;
   const glm::dvec3 at = lighting.frame.point({pose.x_m, 0.0, pose.z_m});
-  sl::Placement p;
-  p.x = at.x;
-  p.z = at.z;
+  Placement p;
+  p.x_m = at.x;
+  p.z_m = at.z;
   p.yaw_deg = lighting.frame.object_yaw_deg(pose.yaw_deg);
   p.scale = pose.scale;
   in.objects.push_back(place_object(object_frame_mesh, p, in.camera, in.depth));
@@ -121,8 +122,7 @@ PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor
   out.object_mask = r.object_mask.detach().contiguous();
   out.shadow_map = mean(r.shadow_map.detach(), {0}, true).contiguous();
   out.visible = mask_box2d(out.object_mask, 0.5 / 255.0, out.box2d);
-  ObjectPose world_pose = pose;
-  out.box3d = object_box3d(object_frame_mesh, world_pose, world_camera);
+  out.box3d = kitti_box3d(object_frame_mesh, pose, world_camera);
   out.box3d[4] -= out.ground_y_m;  // the base sits at ground_y (camera y points down)
   out.object_depth = r.object_depth.detach().to(DType::F32).contiguous();
   const double seen = sum(r.object_mask.detach().to(DType::F64)).item();

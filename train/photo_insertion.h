@@ -21,6 +21,7 @@
 #include <string>
 
 #include "autodiff/tensor.h"
+#include "data/object_placement.h"
 #include "render/camera.h"
 #include "render/mesh.h"
 #include "render/object_insertion.h"
@@ -60,7 +61,7 @@ struct PhotoInsertion {
 };
 
 PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor& ldr, const Tensor& depth,
-                                 const Camera& world_camera, const Mesh& object_frame_mesh, const ObjectPose& pose,
+                                 const Camera& world_camera, const Mesh& object_frame_mesh, const Placement& pose,
                                  const PhotoInsertionOptions& options);
 
 }  // namespace sl::train

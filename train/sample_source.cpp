@@ -5,9 +5,9 @@
 #include <filesystem>
 #include <memory>
 
-#include "autodiff/error.h"
 #include "data/hdri_folder.h"
 #include "data/hdri_split.h"
+#include "util/error.h"
 
 namespace sl::train {
 

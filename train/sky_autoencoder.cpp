@@ -4,10 +4,11 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
+#include "nn/functional/upsample.h"
 #include "nn/layers.h"
-#include "nn/mlp.h"
-#include "nn/upsample.h"
+#include "nn/modules/mlp.h"
 #include "render/equirect.h"
+#include "util/math.h"
 
 namespace sl::train {
 
@@ -75,7 +76,7 @@ Tensor panorama_directions(int64_t height, int64_t width, DType dtype) {
 
 double sun_lobe_sharpness(int64_t height, double texels) {
   // exp(λ(cos θ − 1)) ≈ exp(−λθ²/2) is ½ at θ = fwhm/2  ⇒  λ = 8 ln 2 / fwhm².
-  const double fwhm = texels * equirect::kPi / static_cast<double>(height);
+  const double fwhm = texels * kPi / static_cast<double>(height);
   return 8.0 * std::log(2.0) / (fwhm * fwhm);
 }
 

@@ -4,11 +4,11 @@
 #include <algorithm>
 #include <cmath>
 
-#include "autodiff/random.h"
 #include "data/hdri_folder.h"
 #include "data/panorama.h"
 #include "data/sky_model.h"
 #include "data/sun_extraction.h"
+#include "util/random.h"
 
 namespace sl::train {
 

@@ -44,7 +44,6 @@ class SkyDataSource {
  public:
   explicit SkyDataSource(const SkyDataOptions& options);
   SkySample sample(uint64_t seed, uint64_t index) const;
-  size_t hdri_count() const { return hdris_.size(); }
   const SkyDataOptions& options() const { return opt_; }
 
  private:

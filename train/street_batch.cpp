@@ -5,10 +5,11 @@
 #include <cmath>
 #include <limits>
 
-#include "autodiff/random.h"
 #include "data/panorama.h"
 #include "render/equirect.h"
 #include "train/unprojection.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace sl::train {
 
@@ -25,7 +26,7 @@ Camera CanonicalFrame::camera(const Camera& c) const {
 }
 
 double CanonicalFrame::object_yaw_deg(double world_yaw_deg) const {
-  return world_yaw_deg + yaw_rad * 180.0 / 3.14159265358979323846;
+  return world_yaw_deg + degrees(yaw_rad);
 }
 
 Tensor CanonicalFrame::panorama(const Tensor& pano) const {
@@ -99,12 +100,8 @@ StreetItem make_street_item(const StreetSample& sample, size_t input_view, const
   const Tensor pano_ldr = it.frame.panorama(sample.pano_ldr.contiguous());
   const Tensor pano_mask = it.frame.panorama(sample.pano_sky_mask.contiguous());
   it.pano_ldr_dome = resize_area(pano_ldr, static_cast<int>(opt.dome_height), static_cast<int>(opt.dome_width));
-  {
-    Tensor m = resize_area(pano_mask, static_cast<int>(opt.dome_height), static_cast<int>(opt.dome_width));
-    float* p = m.data<float>();
-    for (int64_t i = 0; i < m.numel(); ++i) p[i] = p[i] >= 0.5f ? 1.0f : 0.0f;
-    it.pano_mask_dome = m;
-  }
+  it.pano_mask_dome =
+      binarize_mask(resize_area(pano_mask, static_cast<int>(opt.dome_height), static_cast<int>(opt.dome_width)));
   it.sun_direction = it.frame.direction(sample.sun_direction);
 
   // Rays (Sec 3.4): panorama rays from the panorama's centre, then rays of every view.

@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 
 namespace sl::train {
 

@@ -2,7 +2,7 @@
 // (documented key by key in configs/README.md), and its conversion to model options.
 //
 // Contract:
-// - default_train_config() returns the JSON defaults (the DESIGN's CPU-scale defaults). The
+// - default_train_config() returns the JSON defaults (the CPU-scale defaults of docs/DESIGN.md, "Scale"). The
 //   train executable validates user configs against it with tools/common/config.h (unknown
 //   keys name the nearest valid key; wrong types name both types).
 // - check_train_config() checks what types cannot: the stage name, positive sizes, the

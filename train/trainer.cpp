@@ -13,6 +13,7 @@
 #include "nn/lr_schedule.h"
 #include "train/distributed.h"
 #include "train/gradient_allreduce.h"
+#include "util/file.h"
 
 namespace sl::train {
 
@@ -95,6 +96,9 @@ RunResult run_training(Stage& stage, const nlohmann::json& config, const RunOpti
   auto log = [&](const std::string& s) {
     if (options.log && root) options.log(s);
   };
+  // A trainer killed while writing a checkpoint leaves ".last.safetensors.tmp.<pid>.<n>" behind.
+  if (const int swept = sweep_stale_temp_files(options.out_dir); swept > 0)
+    log(cat("removed ", swept, " stale temporary file(s) of killed runs from ", options.out_dir));
 
   int64_t step = 0;
   double best = std::numeric_limits<double>::infinity();

@@ -3,7 +3,7 @@
 #include <omp.h>
 
 #include "autodiff/ops.h"
-#include "tests/autodiff/test_util.h"
+#include "support/test_util.h"
 
 namespace sl {
 namespace {

@@ -3,12 +3,12 @@
 #include <gtest/gtest.h>
 
 #include "autodiff/ops.h"
-#include "tests/autodiff/test_util.h"
+#include "support/test_util.h"
 
 namespace sl {
 namespace {
 
-using testing::rand64;
+using test::rand64;
 using Fn = std::function<Tensor(const TensorList&)>;
 
 // A transposed (non-contiguous) view of a contiguous leaf with the transposed shape.

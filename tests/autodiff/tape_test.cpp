@@ -1,12 +1,12 @@
 #include <gtest/gtest.h>
 
 #include "autodiff/ops.h"
-#include "tests/autodiff/test_util.h"
+#include "support/test_util.h"
 
 namespace sl {
 namespace {
 
-using testing::rand64;
+using test::rand64;
 
 TEST(Tape, BackwardAccumulatesIntoLeavesAcrossCalls) {
   Tensor x = Tensor::from_vector({1, 2, 3}, {3}, DType::F64).set_requires_grad(true);
@@ -97,7 +97,7 @@ TEST(Tape, IndependentGraphsSurviveABackwardOfAnother) {
   d_param.zero_grad();
   backward(sum(mul(fake, d_param)));
   ASSERT_TRUE(g_param.grad().defined());
-  EXPECT_TRUE(testing::all_finite(g_param.grad()));
+  EXPECT_TRUE(test::all_finite(g_param.grad()));
 }
 
 TEST(Tape, DroppedForwardResultsAreSweptFromTheTape) {

@@ -1,7 +1,7 @@
 #include <gtest/gtest.h>
 
 #include "autodiff/ops.h"
-#include "tests/autodiff/test_util.h"
+#include "support/test_util.h"
 
 namespace sl {
 namespace {

@@ -5,7 +5,8 @@
 #include "data/augment.h"
 #include "data/panorama_dataset.h"
 #include "render/equirect.h"
-#include "test_files.h"
+#include "support/test_files.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
@@ -59,7 +60,7 @@ TEST(Augment, RandomCropIsSeededAndReturnsItsCamera) {
   const equirect::UV uv = equirect::direction_to_uv(fwd.x, fwd.y, fwd.z, 360, 180);
   EXPECT_NEAR(uv.u - 180.0, a.yaw_deg, 1e-6);
   EXPECT_NEAR(90.0 - uv.v, a.pitch_deg, 1e-6);
-  EXPECT_NEAR(a.crop.camera.intrinsics().horizontal_fov_rad() * 180 / 3.14159265358979, a.fov_deg, 1e-6);
+  EXPECT_NEAR(a.crop.camera.intrinsics().horizontal_fov_rad() * 180 / kPi, a.fov_deg, 1e-6);
 }
 
 TEST(Augment, ExposureJitterScalesHdrAndLdrConsistently) {
@@ -90,7 +91,7 @@ TEST(PanoramaDataset, RotatedSunMatchesTheRotatedPeak) {
   // Same elevation; azimuths differ by the difference of the rotations.
   EXPECT_NEAR(a.sun.elevation_rad, b.sun.elevation_rad, 1e-3);
   const double d = std::remainder((a.sun.azimuth_rad - b.sun.azimuth_rad) - (a.azimuth_rad - b.azimuth_rad),
-                                  2 * 3.14159265358979);
+                                  2 * kPi);
   EXPECT_NEAR(d, 0.0, 1e-3);
   EXPECT_EQ(a.crop_ldr.shape(), (Shape{3, 32, 64}));
 }

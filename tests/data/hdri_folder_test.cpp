@@ -8,12 +8,13 @@
 #include "data/image_io.h"
 #include "data/panorama.h"
 #include "data/sun_extraction.h"
-#include "test_files.h"
+#include "support/test_files.h"
+#include "util/math.h"
 
 namespace {
 
 double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
-  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) * 180.0 / 3.14159265358979323846;
+  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) * 180.0 / sl::kPi;
 }
 
 }  // namespace

@@ -7,8 +7,8 @@
 #include <filesystem>
 #include <string>
 
-#include "autodiff/random.h"
-#include "test_files.h"
+#include "support/test_files.h"
+#include "util/random.h"
 
 namespace {
 

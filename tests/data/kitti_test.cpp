@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "data/kitti.h"
-#include "test_files.h"
+#include "support/test_files.h"
 
 namespace sl {
 namespace {

@@ -3,15 +3,14 @@
 
 #include <cmath>
 
-#include "autodiff/error.h"
 #include "data/object_placement.h"
 #include "data/procedural_car.h"
 #include "render/primitives.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 TEST(ObjectPlacement, CarDrivingAwayHasKittiRotationMinusHalfPi) {
   const Mesh car = make_procedural_car();
@@ -31,7 +30,7 @@ TEST(ObjectPlacement, CarDrivingAwayHasKittiRotationMinusHalfPi) {
   const FootprintXZ f = placed_footprint(car, p);
   EXPECT_NEAR(f.z1 - f.z0, 4.5, 0.15);
   EXPECT_NEAR(f.x1 - f.x0, 1.8, 0.05);
-  const Bounds3 b = place_object(car, p).bounds();
+  const Bounds3 b = placed_mesh(car, p).bounds();
   EXPECT_NEAR(b.lo.y, 0.0, 1e-5);
   EXPECT_NEAR(0.5 * (b.lo.z + b.hi.z), -10.0, 0.05);
 }
@@ -48,7 +47,7 @@ TEST(ObjectPlacement, ObjectFrameTurnsLengthOntoXAndSitsOnTheGround) {
   EXPECT_THROW(to_object_frame(Mesh{}), Error);
   Placement bad;
   bad.scale = 0.0;
-  EXPECT_THROW(place_object(o, bad), Error);
+  EXPECT_THROW(placed_mesh(o, bad), Error);
 }
 
 }  // namespace

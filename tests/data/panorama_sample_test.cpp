@@ -9,11 +9,10 @@
 
 #include "data/panorama.h"
 #include "data/sky_model.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
   return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) * 180.0 / kPi;

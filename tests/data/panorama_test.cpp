@@ -4,12 +4,11 @@
 
 #include <cmath>
 
-#include "autodiff/random.h"
 #include "render/equirect.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 glm::dvec3 from_angles(double elevation_rad, double azimuth_rad) {
   return {std::cos(elevation_rad) * std::sin(azimuth_rad), std::sin(elevation_rad),
@@ -44,27 +43,27 @@ glm::dvec3 centroid(const sl::Tensor& pano) {
 }
 
 double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
-  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) / kDeg;
+  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) / sl::kDegToRad;
 }
 
 }  // namespace
 
 TEST(Panorama, WholePixelAzimuthRotationIsAnExactColumnRoll) {
   const sl::Tensor pano = sl::Tensor::uniform({3, 8, 16}, 0.0, 1.0, 11);
-  const sl::Tensor r = sl::rotate_azimuth(pano, -3 * 2 * 3.14159265358979323846 / 16);
+  const sl::Tensor r = sl::rotate_azimuth(pano, -3 * 2 * sl::kPi / 16);
   for (int c = 0; c < 3; ++c)
     for (int i = 0; i < 8; ++i)
       for (int j = 0; j < 16; ++j) EXPECT_EQ(r.at({c, i, j}), pano.at({c, i, (j + 3) % 16}));
-  const sl::Tensor full = sl::rotate_azimuth(pano, 2 * 3.14159265358979323846);
+  const sl::Tensor full = sl::rotate_azimuth(pano, 2 * sl::kPi);
   EXPECT_EQ(full.to_vector(), pano.to_vector());
 }
 
 TEST(Panorama, AzimuthRotationMovesContentLikeTheDirectionRotation) {
-  const glm::dvec3 blob = from_angles(20 * kDeg, 170 * kDeg);
+  const glm::dvec3 blob = from_angles(20 * sl::kDegToRad, 170 * sl::kDegToRad);
   const sl::Tensor pano = pano_from(1, 64, 128, [&](const glm::dvec3& d) {
-    return glm::dvec3(std::exp(-std::pow(sl::equirect::kPi / 180 * angle_deg(d, blob) / 0.1, 2)));
+    return glm::dvec3(std::exp(-std::pow(sl::kPi / 180 * angle_deg(d, blob) / 0.1, 2)));
   });
-  for (double delta : {37.3 * kDeg, -95.0 * kDeg, 2.8125 * kDeg}) {
+  for (double delta : {37.3 * sl::kDegToRad, -95.0 * sl::kDegToRad, 2.8125 * sl::kDegToRad}) {
     const sl::Tensor r = sl::rotate_azimuth(pano, delta);
     EXPECT_LT(angle_deg(centroid(r), sl::rotate_direction_azimuth(blob, delta)), 0.3) << delta;
     // Linear interpolation along rows keeps each row's sum.
@@ -91,10 +90,10 @@ TEST(Panorama, PerspectiveCropSeesTheDirectionsOfItsCameraAcrossTheSeam) {
   // Each texel stores its own direction; a crop pixel must show its camera ray's direction.
   const sl::Tensor pano = pano_from(3, 256, 512, [](const glm::dvec3& d) { return d; });
   sl::PerspectiveCropParams params;
-  params.horizontal_fov_rad = 70 * kDeg;
-  params.yaw_rad = 175 * kDeg;  // the view straddles azimuth ±180°
-  params.pitch_rad = 15 * kDeg;
-  params.roll_rad = 10 * kDeg;
+  params.horizontal_fov_rad = 70 * sl::kDegToRad;
+  params.yaw_rad = 175 * sl::kDegToRad;  // the view straddles azimuth ±180°
+  params.pitch_rad = 15 * sl::kDegToRad;
+  params.roll_rad = 10 * sl::kDegToRad;
   params.width = 40;
   params.height = 30;
   const sl::PerspectiveCrop crop = sl::crop_perspective(pano, params);
@@ -108,7 +107,7 @@ TEST(Panorama, PerspectiveCropSeesTheDirectionsOfItsCameraAcrossTheSeam) {
       worst = std::max(worst, glm::length(seen - ray));
     }
   EXPECT_LT(worst, 2e-3);
-  EXPECT_NEAR(crop.camera.intrinsics().horizontal_fov_rad(), 70 * kDeg, 1e-12);
+  EXPECT_NEAR(crop.camera.intrinsics().horizontal_fov_rad(), 70 * sl::kDegToRad, 1e-12);
 }
 
 TEST(Panorama, LdrConversionIsThePapersGammaAndClip) {
@@ -126,7 +125,7 @@ TEST(Panorama, SkyMaskHeuristicSeparatesBlueSkyFromBuildingsAndGround) {
   // Blue sky above the horizon, a grey building over azimuths [−40°, 40°] up to 30° elevation,
   // dark ground below.
   const sl::Tensor pano = pano_from(3, 32, 64, [](const glm::dvec3& d) {
-    const double elevation = std::asin(d.y) / kDeg, azimuth = std::atan2(d.x, -d.z) / kDeg;
+    const double elevation = std::asin(d.y) / sl::kDegToRad, azimuth = std::atan2(d.x, -d.z) / sl::kDegToRad;
     if (elevation < 0) return glm::dvec3(0.15, 0.13, 0.1);
     if (elevation < 30 && std::fabs(azimuth) < 40) return glm::dvec3(0.3, 0.3, 0.3);
     return glm::dvec3(0.4, 0.6, 1.0) * (1.0 + 0.5 * d.y);
@@ -136,7 +135,7 @@ TEST(Panorama, SkyMaskHeuristicSeparatesBlueSkyFromBuildingsAndGround) {
   for (int i = 0; i < 32; ++i)
     for (int j = 0; j < 64; ++j) {
       const auto d = sl::equirect::uv_to_direction(j + 0.5, i + 0.5, 64, 32);
-      const double elevation = std::asin(d.y) / kDeg, azimuth = std::atan2(d.x, -d.z) / kDeg;
+      const double elevation = std::asin(d.y) / sl::kDegToRad, azimuth = std::atan2(d.x, -d.z) / sl::kDegToRad;
       const bool sky = elevation > 0 && !(elevation < 30 && std::fabs(azimuth) < 40);
       wrong += (mask.at({0, i, j}) > 0.5) != sky;
     }

@@ -7,26 +7,25 @@
 #include "data/panorama.h"
 #include "data/sun_extraction.h"
 #include "render/equirect.h"
+#include "util/math.h"
 
 namespace {
 
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
-
 glm::dvec3 from_angles(double elevation_deg, double azimuth_deg) {
-  const double e = elevation_deg * kDeg, a = azimuth_deg * kDeg;
+  const double e = elevation_deg * sl::kDegToRad, a = azimuth_deg * sl::kDegToRad;
   return {std::cos(e) * std::sin(a), std::sin(e), -std::cos(e) * std::cos(a)};
 }
 
 double lum(const glm::dvec3& c) { return sl::luminance(c.x, c.y, c.z); }
 
 double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
-  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) / kDeg;
+  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) / sl::kDegToRad;
 }
 
 sl::SkyParams sky(double elevation_deg, double azimuth_deg, double turbidity = 3.0) {
   sl::SkyParams p;
-  p.sun_elevation_rad = elevation_deg * kDeg;
-  p.sun_azimuth_rad = azimuth_deg * kDeg;
+  p.sun_elevation_rad = elevation_deg * sl::kDegToRad;
+  p.sun_azimuth_rad = azimuth_deg * sl::kDegToRad;
   p.turbidity = turbidity;
   return p;
 }
@@ -149,7 +148,7 @@ TEST(SkyModel, GroundIsAlbedoTimesIrradianceOverPi) {
       for (int c = 0; c < 3; ++c) e[c] += pano.at({c, i, j}) * w;
     }
   for (int c = 0; c < 3; ++c) {
-    EXPECT_NEAR(pano.at({c, 100, 10}), 0.3 * e[c] / sl::equirect::kPi, 0.02 * 0.3 * e[c] / sl::equirect::kPi);
+    EXPECT_NEAR(pano.at({c, 100, 10}), 0.3 * e[c] / sl::kPi, 0.02 * 0.3 * e[c] / sl::kPi);
   }
 }
 

@@ -11,7 +11,7 @@
 #include "data/image_io.h"
 #include "data/street_dataset.h"
 #include "render/equirect.h"
-#include "street_fixture.h"
+#include "support/street_fixture.h"
 
 namespace sl {
 namespace {

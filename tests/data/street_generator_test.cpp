@@ -18,7 +18,8 @@
 #include "render/equirect.h"
 #include "render/path_tracer.h"
 #include "render/primitives.h"
-#include "street_fixture.h"
+#include "support/street_fixture.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
@@ -26,7 +27,7 @@ namespace {
 namespace fs = std::filesystem;
 
 double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
-  return std::acos(std::clamp(glm::dot(glm::normalize(a), glm::normalize(b)), -1.0, 1.0)) * 180.0 / 3.14159265358979;
+  return std::acos(std::clamp(glm::dot(glm::normalize(a), glm::normalize(b)), -1.0, 1.0)) * 180.0 / kPi;
 }
 
 TEST(StreetScene, IsValidSmallAndDeterministic) {
@@ -160,11 +161,11 @@ TEST(StreetGenerator, InsertionPairIsBitwiseEqualOutsideObjectAndShadow) {
   pl.z_m = -9.0;
   pl.x_m = 0.5;
   pl.yaw_deg = 80.0;
-  const Mesh placed = place_object(car, pl);
+  const Mesh placed = placed_mesh(car, pl);
   Mesh with = scene.mesh;
   with.append(placed);
   const PathTracer without_t(scene.mesh, env), with_t(with, env), object_t(placed, env);
-  const Camera cam(intrinsics_from_fov(70.0 * 3.14159265 / 180.0, 64, 32), rotation_from_yaw_pitch_roll(0, -0.1, 0),
+  const Camera cam(intrinsics_from_fov(70.0 * kDegToRad, 64, 32), rotation_from_yaw_pitch_roll(0, -0.1, 0),
                    {0.0, 1.6, 0.0});
   PathTracerOptions o;
   o.spp = 4;

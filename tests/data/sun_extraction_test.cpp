@@ -7,22 +7,21 @@
 #include <filesystem>
 #include <string>
 
-#include "autodiff/random.h"
 #include "data/image_io.h"
 #include "render/equirect.h"
-#include "test_files.h"
+#include "support/test_files.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace {
 
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
-
 glm::dvec3 from_angles(double elevation_deg, double azimuth_deg) {
-  const double e = elevation_deg * kDeg, a = azimuth_deg * kDeg;
+  const double e = elevation_deg * sl::kDegToRad, a = azimuth_deg * sl::kDegToRad;
   return {std::cos(e) * std::sin(a), std::sin(e), -std::cos(e) * std::cos(a)};
 }
 
 double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
-  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) / kDeg;
+  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) / sl::kDegToRad;
 }
 
 // A blue-ish sky gradient with a disk sun of the given angular radius (4×4 supersampled) and
@@ -32,7 +31,7 @@ sl::Tensor synthetic_sky(int h, const glm::dvec3& sun, double radius_deg, double
   const int w = 2 * h;
   sl::Tensor t = sl::Tensor::empty({3, h, w});
   float* p = t.data<float>();
-  const double cos_r = std::cos(radius_deg * kDeg);
+  const double cos_r = std::cos(radius_deg * sl::kDegToRad);
   for (int i = 0; i < h; ++i)
     for (int j = 0; j < w; ++j) {
       double covered = 0.0;
@@ -84,7 +83,7 @@ TEST(SunExtraction, HandlesTheAzimuthSeamAndTheZenith) {
 TEST(SunExtraction, PowerOfASunIsIndependentOfResolution) {
   const glm::dvec3 sun = from_angles(35.0, 60.0);
   const double radius_deg = 1.5, radiance = 1e5;
-  const double exact = radiance * 2 * sl::equirect::kPi * (1 - std::cos(radius_deg * kDeg));
+  const double exact = radiance * 2 * sl::kPi * (1 - std::cos(radius_deg * sl::kDegToRad));
   for (int h : {64, 128}) {
     const sl::SunEstimate est =
         sl::extract_sun(synthetic_sky(h, sun, radius_deg, radiance, 0.0, 3), {.threshold_fraction = 0.01});
@@ -142,7 +141,7 @@ TEST(SunExtraction, MatchesMeasuredPeakElevationOfRealHdris) {
   for (const Row& r : rows) {
     const std::string path = dir + "/" + r.file;
     const sl::SunEstimate est = sl::extract_sun(sl::read_image(path, {.channels = 3}));
-    const double elevation = est.elevation_rad / kDeg, error = std::fabs(elevation - r.peak_elevation_deg);
+    const double elevation = est.elevation_rad / sl::kDegToRad, error = std::fabs(elevation - r.peak_elevation_deg);
     std::printf("%-32s %9.1f %9.2f %7.2f %12.1f %6d\n", r.file, r.peak_elevation_deg, elevation, error,
                 est.radiance_rgb.y, est.texel_count);
     if (r.hard_sun) {

@@ -4,12 +4,13 @@
 // size, or throws std::bad_alloc / std::length_error instead of sl::Error).
 #include <gtest/gtest.h>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 #include "data/exr_header.h"
 #include "data/image_io.h"
 #include "nn/safetensors.h"
 #include "render/gltf_loader.h"
 #include "tests/fuzz/hostile_files.h"
+#include "util/error.h"
 
 namespace {
 

@@ -8,7 +8,7 @@
 
 #include "data/image_io.h"
 #include "nn/checkpoint.h"
-#include "nn/layers_linear.h"
+#include "nn/modules/linear.h"
 #include "nn/optim.h"
 #include "render/gltf_writer.h"
 #include "render/primitives.h"

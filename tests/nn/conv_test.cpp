@@ -1,15 +1,15 @@
 // conv2d / conv3d: float64 gradchecks over stride, padding, dilation, bias, size-1 dims and
 // non-contiguous inputs; a direct-loop reference; determinism across thread counts; errors.
-#include "nn/conv.h"
+#include "nn/functional/conv.h"
 
 #include <gtest/gtest.h>
 #include <omp.h>
 
-#include "autodiff/test_util.h"
+#include "support/test_util.h"
 
 namespace sl::nn {
 namespace {
-using sl::testing::rand64;
+using sl::test::rand64;
 
 // Direct 2-D convolution by its definition, in double.
 std::vector<double> conv2d_reference(const Tensor& x, const Tensor& w, const Tensor& b, int64_t sh, int64_t sw,
@@ -186,8 +186,8 @@ TEST(Conv, OutputsAndGradientsFiniteForLargeFiniteInputs) {
   w.set_requires_grad(true);
   Tensor y = conv2d(x, w, Tensor(), {1, 1}, {1, 1});
   backward(sum(y));
-  EXPECT_TRUE(sl::testing::all_finite(y));
-  EXPECT_TRUE(sl::testing::all_finite(x.grad()));
+  EXPECT_TRUE(sl::test::all_finite(y));
+  EXPECT_TRUE(sl::test::all_finite(x.grad()));
 }
 
 }  // namespace

@@ -1,10 +1,10 @@
 // dropout: counter-based mask (same bits for any thread count), scaling, eval identity, gradcheck.
-#include "nn/dropout.h"
+#include "nn/functional/dropout.h"
 
 #include <gtest/gtest.h>
 #include <omp.h>
 
-#include "autodiff/test_util.h"
+#include "support/test_util.h"
 
 namespace sl::nn {
 namespace {
@@ -42,7 +42,7 @@ TEST(Dropout, MaskDependsOnSeedAndStepNotOnThreads) {
 
 TEST(Dropout, GradcheckReplaysTheMask) {
   EXPECT_GRADCHECK([](const TensorList& in) { return dropout(in[0], 0.4, true, 5, 1); },
-                   {sl::testing::rand64({3, 5}, 1)});
+                   {sl::test::rand64({3, 5}, 1)});
 }
 
 TEST(Dropout, RejectsProbabilityOutsideZeroOne) {

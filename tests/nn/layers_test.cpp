@@ -6,12 +6,12 @@
 
 #include "autodiff/gradcheck.h"
 #include "autodiff/ops.h"
-#include "nn/conv.h"
-#include "nn/discriminator.h"
+#include "nn/functional/conv.h"
 #include "nn/layers.h"
-#include "nn/mlp.h"
-#include "nn/resnet.h"
-#include "nn/unet.h"
+#include "nn/modules/mlp.h"
+#include "nn/modules/patch_discriminator.h"
+#include "nn/modules/resnet.h"
+#include "nn/modules/unet.h"
 
 namespace sl::nn {
 namespace {

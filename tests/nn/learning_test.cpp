@@ -7,16 +7,15 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
-#include "autodiff/random.h"
 #include "nn/layers.h"
+#include "nn/modules/resnet.h"
+#include "nn/modules/unet.h"
 #include "nn/optim.h"
-#include "nn/resnet.h"
-#include "nn/unet.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace sl::nn {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // A batch of 16×16 dark images, each with one bright Gaussian blob at radius 5 px from the
 // centre and angle θ ~ U[0, 2π); targets are (cos θ, sin θ) so the task has no wrap-around.

@@ -1,13 +1,13 @@
 // linear: gradcheck over batch dims, bias and non-contiguous inputs; values; errors.
-#include "nn/linear.h"
+#include "nn/functional/linear.h"
 
 #include <gtest/gtest.h>
 
-#include "autodiff/test_util.h"
+#include "support/test_util.h"
 
 namespace sl::nn {
 namespace {
-using sl::testing::rand64;
+using sl::test::rand64;
 
 TEST(Linear, ComputesXTimesWTransposedPlusBias) {
   const Tensor x = Tensor::from_vector({1, 2}, {1, 2}, DType::F64);

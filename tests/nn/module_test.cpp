@@ -5,12 +5,12 @@
 
 #include "autodiff/gradcheck.h"
 #include "autodiff/ops.h"
-#include "nn/activations.h"
 #include "nn/init.h"
-#include "nn/layer_norm.h"
-#include "nn/layers_linear.h"
-#include "nn/mlp.h"
 #include "nn/module.h"
+#include "nn/modules/activations.h"
+#include "nn/modules/layer_norm.h"
+#include "nn/modules/linear.h"
+#include "nn/modules/mlp.h"
 
 namespace sl::nn {
 namespace {

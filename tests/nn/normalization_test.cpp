@@ -1,14 +1,14 @@
 // Batch, group and instance norm: float64 gradchecks in training and eval, the running-stat
 // update (unbiased, as PyTorch), statistics of the output, and errors.
-#include "nn/normalization.h"
+#include "nn/functional/normalization.h"
 
 #include <gtest/gtest.h>
 
-#include "autodiff/test_util.h"
+#include "support/test_util.h"
 
 namespace sl::nn {
 namespace {
-using sl::testing::rand64;
+using sl::test::rand64;
 
 TEST(BatchNorm, GradcheckTrainingAnyRank) {
   for (const Shape& s : {Shape{4, 3}, Shape{2, 3, 4}, Shape{2, 2, 3, 2}, Shape{1, 2, 2, 3, 2}}) {
@@ -44,8 +44,8 @@ TEST(BatchNorm, ConstantInputStaysFinite) {
   x.set_requires_grad(true);
   Tensor y = batch_norm(x, Tensor(), Tensor(), Tensor(), Tensor(), true);
   backward(sum(y));
-  EXPECT_TRUE(sl::testing::all_finite(y));
-  EXPECT_TRUE(sl::testing::all_finite(x.grad()));
+  EXPECT_TRUE(sl::test::all_finite(y));
+  EXPECT_TRUE(sl::test::all_finite(x.grad()));
 }
 
 TEST(GroupNorm, GradcheckWithAndWithoutAffine) {

@@ -1,16 +1,16 @@
 // Pooling: float64 gradchecks (stride, padding, size-1 dims, non-contiguous), PyTorch's
 // conventions for padding and ties, and errors.
-#include "nn/pooling.h"
+#include "nn/functional/pooling.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "autodiff/test_util.h"
+#include "support/test_util.h"
 
 namespace sl::nn {
 namespace {
-using sl::testing::rand64;
+using sl::test::rand64;
 
 // Distinct values spaced far more than the gradcheck eps apart, so no window has a tie.
 Tensor distinct64(const Shape& shape, uint64_t seed) {

@@ -8,8 +8,8 @@
 
 #include "autodiff/ops.h"
 #include "nn/checkpoint.h"
-#include "nn/mlp.h"
-#include "nn/layers_linear.h"
+#include "nn/modules/linear.h"
+#include "nn/modules/mlp.h"
 #include "nn/safetensors.h"
 
 namespace sl::nn {

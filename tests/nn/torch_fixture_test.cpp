@@ -7,17 +7,17 @@
 #include <functional>
 
 #include "autodiff/ops.h"
-#include "nn/conv.h"
-#include "nn/fixture_reader.h"
-#include "nn/linear.h"
-#include "nn/normalization.h"
-#include "nn/pooling.h"
-#include "nn/upsample.h"
+#include "nn/functional/conv.h"
+#include "nn/functional/linear.h"
+#include "nn/functional/normalization.h"
+#include "nn/functional/pooling.h"
+#include "nn/functional/upsample.h"
+#include "support/fixture_reader.h"
 
 namespace sl::nn {
 namespace {
 using nlohmann::json;
-using sl::testing::Fixture;
+using sl::test::Fixture;
 
 std::string fixture_path(const std::string& file) {
   return std::string(STREETLIGHT_SOURCE_DIR) + "/tests/fixtures/torch/" + file;
@@ -48,7 +48,7 @@ using OpFn = std::function<Tensor(const Fixture&, const std::string& name, const
 // Loads the case's inputs as leaves that require grad, runs `op`, and compares the output
 // and every stored gradient.
 void run_family(const std::string& file, const OpFn& op) {
-  const Fixture f = sl::testing::read_fixture(fixture_path(file));
+  const Fixture f = sl::test::read_fixture(fixture_path(file));
   const json cases = json::parse(f.metadata.at("cases"));
   ASSERT_FALSE(cases.empty());
   for (const json& c : cases) {

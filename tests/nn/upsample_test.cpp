@@ -1,13 +1,13 @@
 // Upsampling: float64 gradchecks for every mode and align_corners, exact values on small cases.
-#include "nn/upsample.h"
+#include "nn/functional/upsample.h"
 
 #include <gtest/gtest.h>
 
-#include "autodiff/test_util.h"
+#include "support/test_util.h"
 
 namespace sl::nn {
 namespace {
-using sl::testing::rand64;
+using sl::test::rand64;
 
 TEST(Upsample, NearestRepeatsEachPixel) {
   const Tensor x = reshape(Tensor::arange(4, DType::F64), {1, 1, 2, 2});

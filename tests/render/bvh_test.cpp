@@ -5,9 +5,10 @@
 #include <cmath>
 #include <filesystem>
 
-#include "autodiff/random.h"
 #include "render/bvh.h"
 #include "render/gltf_loader.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace {
 
@@ -15,7 +16,7 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 
 glm::vec3 random_unit(sl::Rng& rng) {
   const float z = static_cast<float>(rng.uniform(-1.0, 1.0));
-  const float phi = static_cast<float>(rng.uniform(0.0, 6.283185307179586));
+  const float phi = static_cast<float>(rng.uniform(0.0, sl::kTwoPi));
   const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
   return {r * std::cos(phi), r * std::sin(phi), z};
 }
@@ -110,7 +111,7 @@ TEST(Bvh, RaysThroughTheSharedVertexOfAFanAlwaysHit) {
   sl::Mesh m;
   m.positions.push_back({0.25f, 0.5f, 0.0f});
   for (int i = 0; i < kSpokes; ++i) {
-    const float a = 6.2831853f * i / kSpokes;
+    const float a = (2.0f * sl::kPiF) * i / kSpokes;
     m.positions.push_back({0.25f + std::cos(a), 0.5f + std::sin(a), 0.1f * std::sin(3.0f * a)});
   }
   for (uint32_t i = 0; i < kSpokes; ++i) m.triangles.push_back({0, 1 + i, 1 + (i + 1) % kSpokes});

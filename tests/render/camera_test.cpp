@@ -8,12 +8,11 @@
 
 #include <unistd.h>
 
-#include "autodiff/error.h"
 #include "render/equirect.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 sl::Camera test_camera() {
   sl::Intrinsics k;
@@ -65,21 +64,21 @@ TEST(Camera, PointsBehindTheCameraAreFlagged) {
 }
 
 TEST(Camera, PixelCentresAreAtHalfIntegers) {
-  const sl::Intrinsics k = sl::intrinsics_from_fov(60.0 * kDeg, 4, 2);
+  const sl::Intrinsics k = sl::intrinsics_from_fov(60.0 * sl::kDegToRad, 4, 2);
   const sl::Camera cam(k, glm::dmat3(1.0), glm::dvec3(0.0));
   // The optical axis passes between the four central pixels of a 4x2 image.
   const glm::dvec3 d = cam.pixel_ray(1, 0).direction + cam.pixel_ray(2, 1).direction;
   EXPECT_NEAR(d.x, 0.0, 1e-12);
   EXPECT_NEAR(d.y, 0.0, 1e-12);
   EXPECT_NEAR(cam.ray(2.0, 1.0).direction.z, 1.0, 1e-12);
-  EXPECT_NEAR(k.horizontal_fov_rad(), 60.0 * kDeg, 1e-12);
+  EXPECT_NEAR(k.horizontal_fov_rad(), 60.0 * sl::kDegToRad, 1e-12);
 }
 
 TEST(Camera, YawPitchRollFollowThePanoramaConvention) {
-  const sl::Intrinsics k = sl::intrinsics_from_fov(90.0 * kDeg, 64, 64);
+  const sl::Intrinsics k = sl::intrinsics_from_fov(90.0 * sl::kDegToRad, 64, 64);
   for (double yaw : {-170.0, -90.0, 0.0, 30.0, 179.0})
     for (double pitch : {-60.0, 0.0, 45.0}) {
-      const sl::Camera cam(k, sl::rotation_from_yaw_pitch_roll(yaw * kDeg, pitch * kDeg, 0.3),
+      const sl::Camera cam(k, sl::rotation_from_yaw_pitch_roll(yaw * sl::kDegToRad, pitch * sl::kDegToRad, 0.3),
                            glm::dvec3(0.0));
       const glm::dvec3 fwd = cam.ray(32.0, 32.0).direction;
       const auto uv = sl::equirect::direction_to_uv(fwd.x, fwd.y, fwd.z, 360, 180);
@@ -92,7 +91,7 @@ TEST(Camera, YawPitchRollFollowThePanoramaConvention) {
   EXPECT_NEAR(glm::length(r * glm::dvec3(0, 1, 0) - glm::dvec3(0, -1, 0)), 0.0, 1e-15);
   EXPECT_NEAR(glm::length(r * glm::dvec3(1, 0, 0) - glm::dvec3(1, 0, 0)), 0.0, 1e-15);
   // Positive roll: the camera's right side goes down.
-  const glm::dmat3 rolled = sl::rotation_from_yaw_pitch_roll(0, 0, 10 * kDeg);
+  const glm::dmat3 rolled = sl::rotation_from_yaw_pitch_roll(0, 0, 10 * sl::kDegToRad);
   EXPECT_LT((rolled * glm::dvec3(1, 0, 0)).y, 0.0);
 }
 

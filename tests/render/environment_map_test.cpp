@@ -7,8 +7,9 @@
 
 #include "autodiff/gradcheck.h"
 #include "autodiff/ops.h"
-#include "autodiff/random.h"
 #include "render/equirect.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace sl {
 namespace {
@@ -89,8 +90,7 @@ TEST(EnvironmentMap, ImportanceSampledEstimateMatchesQuadratureWithAHugeSun) {
   EXPECT_NEAR(est / n / exact, 1.0, 0.03);
 }
 
-
-// Bilinear sampling (issue 19): pdf_bilinear is the density sample_bilinear draws from — a
+// Bilinear sampling: pdf_bilinear is the density sample_bilinear draws from — a
 // histogram on a fine grid (4×4 per texel, so the within-texel shape is checked, not just the
 // texel's mass) against the pdf integrated over each fine cell — and it is proportional to
 // the lookup's luminance inside every cell.
@@ -121,7 +121,7 @@ TEST(EnvironmentMap, BilinearSamplingPdfMatchesTheSampledDensity) {
           // Solid angle of the quadrature point's share: cos(elevation) du dv, exact at the point
           // (the pdf carries 1/cos, which a per-pixel solid angle would not cancel at the poles).
           const double cos_el = std::sqrt(std::max(0.0, 1.0 - d.y * d.y));
-          const double domega = cos_el * (2 * M_PI / (W * sub)) * (M_PI / (H * sub)) / (q * q);
+          const double domega = cos_el * (2 * kPi / (W * sub)) * (kPi / (H * sub)) / (q * q);
           p += env.pdf_bilinear(glm::vec3(d.x, d.y, d.z)) * domega;
         }
       total_prob += p;
@@ -170,10 +170,10 @@ TEST(EnvironmentMap, BilinearSamplingOfAHugeSunHasLowVariance) {
 TEST(EnvironmentMap, BlackMapFallsBackToUniformSphere) {
   EnvironmentMap env(Tensor::zeros({3, 4, 8}));
   const auto s = env.sample(0.3f, 0.7f);
-  EXPECT_NEAR(s.pdf, 1.0 / (4 * M_PI), 1e-6);
+  EXPECT_NEAR(s.pdf, 1.0 / (4 * kPi), 1e-6);
   const auto b = env.sample_bilinear(0.3f, 0.7f);
-  EXPECT_NEAR(b.pdf, 1.0 / (4 * M_PI), 1e-6);
-  EXPECT_NEAR(env.pdf_bilinear(b.direction), 1.0 / (4 * M_PI), 1e-6);
+  EXPECT_NEAR(b.pdf, 1.0 / (4 * kPi), 1e-6);
+  EXPECT_NEAR(env.pdf_bilinear(b.direction), 1.0 / (4 * kPi), 1e-6);
   EXPECT_TRUE(std::isfinite(s.direction.x));
 }
 
@@ -188,7 +188,7 @@ TEST(EnvironmentMap, ResizePreservesTheIntegralWithASun) {
 
 TEST(EnvironmentMap, RotationMovesAzimuthAndKeepsEnergy) {
   EnvironmentMap env(sun_sky(16, 8, 3, 4, 50.0f));
-  EnvironmentMap rot = env.rotated(2 * M_PI * 3 / 16);  // exactly three columns
+  EnvironmentMap rot = env.rotated(2 * kPi * 3 / 16);  // exactly three columns
   EXPECT_FLOAT_EQ(rot.texel(3, 7).r, 50.0f);
   EXPECT_NEAR(rot.integral().x / env.integral().x, 1.0, 1e-6);
 }

@@ -8,9 +8,9 @@
 #include <fstream>
 #include <string>
 
-#include "autodiff/error.h"
 #include "render/gltf_loader.h"
 #include "render/gltf_writer.h"
+#include "util/error.h"
 
 namespace {
 

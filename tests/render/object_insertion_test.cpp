@@ -6,15 +6,14 @@
 
 #include "autodiff/gradcheck.h"
 #include "autodiff/ops.h"
+#include "render/environment_map.h"
 #include "render/equirect.h"
 #include "render/path_tracer.h"
 #include "render/primitives.h"
-#include "render/environment_map.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 // A camera 1.6 m above the ground plane y = 0, looking down −Z and pitched down; the depth map
 // is the ground's camera-z (inf where a pixel sees the sky); the photo is a flat grey.
@@ -25,7 +24,7 @@ struct GroundScene {
 
 GroundScene ground_scene(int W, int H, DType dt, double pitch_deg = -15.0) {
   GroundScene s;
-  s.camera = Camera(intrinsics_from_fov(60 * kDeg, W, H), rotation_from_yaw_pitch_roll(0, pitch_deg * kDeg, 0),
+  s.camera = Camera(intrinsics_from_fov(60 * kDegToRad, W, H), rotation_from_yaw_pitch_roll(0, pitch_deg * kDegToRad, 0),
                     {0.0, 1.6, 0.0});
   std::vector<double> d(size_t(W) * H);
   for (int i = 0; i < H; ++i)
@@ -265,11 +264,11 @@ TEST(ObjectInsertion, InverseRenderingRecoversSunDirectionAndIntensity) {
   opt.shadow_height = 15;
   opt.shadow_rays = 48;
   const int EW = 32, EH = 16;
-  const Tensor truth = Tensor::from_vector({40 * kDeg, 30 * kDeg, std::log(60.0)}, {3}, DType::F64);
+  const Tensor truth = Tensor::from_vector({40 * kDegToRad, 30 * kDegToRad, std::log(60.0)}, {3}, DType::F64);
   const Tensor target =
       insert_objects({s.background, s.depth, s.camera, sg_sky(truth, EW, EH), Tensor(), VsgGrid(), {obj}}, opt)
           .composite.detach();
-  Tensor p = Tensor::from_vector({30 * kDeg, 10 * kDeg, std::log(30.0)}, {3}, DType::F64).set_requires_grad(true);
+  Tensor p = Tensor::from_vector({30 * kDegToRad, 10 * kDegToRad, std::log(30.0)}, {3}, DType::F64).set_requires_grad(true);
   // Adam by hand on three scalars (autodiff/ only; nn's optimiser is not a render dependency).
   std::vector<double> m(3, 0), v(3, 0);
   const double lr = 0.02, b1 = 0.9, b2 = 0.999;
@@ -279,7 +278,7 @@ TEST(ObjectInsertion, InverseRenderingRecoversSunDirectionAndIntensity) {
     const auto g = p.grad().to_vector();
     p.zero_grad();
     if (std::getenv("SL_TRACE") && step % 10 == 0)
-      std::fprintf(stderr, "step %d el %.2f az %.2f I %.2f\n", step, p.at({0}) / kDeg, p.at({1}) / kDeg, std::exp(p.at({2})));
+      std::fprintf(stderr, "step %d el %.2f az %.2f I %.2f\n", step, p.at({0}) / kDegToRad, p.at({1}) / kDegToRad, std::exp(p.at({2})));
     NoGradGuard ng;
     double* pv = p.data<double>();
     for (int k = 0; k < 3; ++k) {
@@ -291,8 +290,8 @@ TEST(ObjectInsertion, InverseRenderingRecoversSunDirectionAndIntensity) {
   }
   const auto got = p.to_vector(), want = truth.to_vector();
   auto dir = [](double el, double az) { return glm::dvec3(std::cos(el) * std::sin(az), std::sin(el), -std::cos(el) * std::cos(az)); };
-  const double angle = std::acos(std::clamp(glm::dot(dir(got[0], got[1]), dir(want[0], want[1])), -1.0, 1.0)) / kDeg;
-  EXPECT_LT(angle, 5.0) << "recovered elevation " << got[0] / kDeg << ", azimuth " << got[1] / kDeg;
+  const double angle = std::acos(std::clamp(glm::dot(dir(got[0], got[1]), dir(want[0], want[1])), -1.0, 1.0)) / kDegToRad;
+  EXPECT_LT(angle, 5.0) << "recovered elevation " << got[0] / kDegToRad << ", azimuth " << got[1] / kDegToRad;
   EXPECT_NEAR(std::exp(got[2]) / std::exp(want[2]), 1.0, 0.10) << "recovered intensity " << std::exp(got[2]);
 }
 
@@ -450,7 +449,7 @@ Tensor one_texel_sun_sky(const Tensor& f, int W, int H) {
 }
 
 glm::dvec3 sun_dir(double el_deg, double az_deg) {
-  const double el = el_deg * kDeg, az = az_deg * kDeg;
+  const double el = el_deg * kDegToRad, az = az_deg * kDegToRad;
   return {std::cos(el) * std::sin(az), std::sin(el), -std::cos(el) * std::cos(az)};
 }
 

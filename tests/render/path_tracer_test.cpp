@@ -12,10 +12,9 @@
 #include "render/equirect.h"
 #include "render/path_tracer.h"
 #include "render/primitives.h"
+#include "util/math.h"
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 sl::EnvironmentMap constant_env(const glm::vec3& L, int width = 16) {
   sl::Tensor t = sl::Tensor::empty({3, width / 2, width});
@@ -64,7 +63,7 @@ sl::Material lambert_material(float albedo) {
 }
 
 sl::Camera camera_at(const glm::dvec3& pos, double yaw, double pitch, int w, int h, double fov_deg = 40.0) {
-  return sl::Camera(sl::intrinsics_from_fov(fov_deg * kPi / 180.0, w, h),
+  return sl::Camera(sl::intrinsics_from_fov(fov_deg * sl::kPi / 180.0, w, h),
                     sl::rotation_from_yaw_pitch_roll(yaw, pitch, 0.0), pos);
 }
 
@@ -124,7 +123,7 @@ TEST(PathTracer, SunOverLambertianPlaneFollowsTheCosineLaw) {
   const float rho = 0.5f;
   const sl::Mesh plane = sl::make_ground_plane(200.0f, 0.0f, lambert_material(rho));
   for (double elevation_deg : {70.0, 25.0}) {
-    const double el = elevation_deg * kPi / 180.0;
+    const double el = elevation_deg * sl::kPi / 180.0;
     const glm::vec3 sun_dir(0.0f, float(std::sin(el)), float(-std::cos(el)));
     const float sun = 1000.0f;
     const sl::EnvironmentMap env = sun_env(sun_dir, 0.1f, sun);
@@ -144,8 +143,8 @@ TEST(PathTracer, SunOverLambertianPlaneFollowsTheCosineLaw) {
         mean += at(img.radiance, 1, r, c);
       }
     mean /= 256;
-    std::printf("sun at %.0f deg: rendered %.4f, rho/pi*E %.4f\n", elevation_deg, mean, rho / kPi * e);
-    EXPECT_NEAR(mean, rho / kPi * e, 0.015 * rho / kPi * e) << elevation_deg;
+    std::printf("sun at %.0f deg: rendered %.4f, rho/pi*E %.4f\n", elevation_deg, mean, rho / sl::kPi * e);
+    EXPECT_NEAR(mean, rho / sl::kPi * e, 0.015 * rho / sl::kPi * e) << elevation_deg;
   }
 }
 

@@ -6,9 +6,9 @@
 #include <cstring>
 #include <vector>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
 #include "render/progressive_render.h"
+#include "util/error.h"
+#include "util/random.h"
 
 namespace {
 

@@ -7,7 +7,7 @@
 #include <fstream>
 #include <vector>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 
 namespace sl::cli {
 namespace {

@@ -1,4 +1,4 @@
-// streetlight-eval on a tiny generated street dataset: every metric of issue 8 is reported, one
+// streetlight-eval on a tiny generated street dataset: every metric of Sec 4.2 is reported, one
 // table row per checkpoint, the error-against-time plot is written, and bad input is one line.
 #include <gtest/gtest.h>
 
@@ -10,11 +10,12 @@
 
 #include <nlohmann/json.hpp>
 
-#include "../data/street_fixture.h"
 #include "data/image_io.h"
 #include "data/sky_model.h"
+#include "support/street_fixture.h"
+#include "support/tool_fixture.h"
 #include "train/real_sky_benchmark.h"
-#include "tool_fixture.h"
+#include "util/math.h"
 
 namespace fs = std::filesystem;
 
@@ -58,8 +59,8 @@ std::string tiny_panorama_folder(const std::string& dir) {
   const char* names[3] = {"a_1k.hdr", "b_1k.hdr", "c_1k.exr"};
   for (int i = 0; i < 3; ++i) {
     sl::SkyParams p;
-    p.sun_elevation_rad = suns[i][0] * 3.14159265358979 / 180;
-    p.sun_azimuth_rad = suns[i][1] * 3.14159265358979 / 180;
+    p.sun_elevation_rad = suns[i][0] * sl::kPi / 180;
+    p.sun_azimuth_rad = suns[i][1] * sl::kPi / 180;
     sl::write_image(pano_dir + "/" + names[i], sl::PreethamSky(p).render(32, 64));
   }
   std::ofstream(dir + "/split.json") << R"({"comment": "test", "train": ["a_1k.hdr", "b_1k.hdr"], "test": ["c_1k.exr"]})";

@@ -1,5 +1,5 @@
 // Every executable answers --help (exit 0) and meets a bad flag with one line "error: ..." and
-// exit 2 (DESIGN: "Executables").
+// exit 2 (docs/DESIGN.md, "Executables").
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 

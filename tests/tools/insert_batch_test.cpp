@@ -1,4 +1,4 @@
-// streetlight-insert --batch as a dataset augmenter (issue 14): a KITTI detector must read the
+// streetlight-insert --batch as a dataset augmenter : a KITTI detector must read the
 // output as is — input labels carried through, inserted objects labelled with boxes that match
 // them, the full calibration copied, frame ids kept — and a killed run resumes to the same set.
 #include <gtest/gtest.h>
@@ -15,7 +15,7 @@
 
 #include "data/image_io.h"
 #include "data/kitti_labels.h"
-#include "tool_fixture.h"
+#include "support/tool_fixture.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;

@@ -1,5 +1,5 @@
 // streetlight-insert end to end on a tiny synthetic photo with a random-weight checkpoint, and
-// every bad input of issue 8: one line "error: ...", exit 2, and no output folder left behind.
+// every bad input the tool documents: one line "error: ...", exit 2, and no output folder left behind.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "data/image_io.h"
-#include "tool_fixture.h"
+#include "support/tool_fixture.h"
 
 namespace fs = std::filesystem;
 

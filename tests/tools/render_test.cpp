@@ -1,4 +1,4 @@
-// streetlight-render (issue 19): the panorama orientation seen in a mirror sphere, budgets,
+// streetlight-render: the panorama orientation seen in a mirror sphere, budgets,
 // and bad input (one line "error: ...", exit 2, no output file).
 #include <gtest/gtest.h>
 
@@ -11,16 +11,16 @@
 #include "render/equirect.h"
 #include "render/gltf_writer.h"
 #include "render/primitives.h"
-#include "tests/tools/tool_fixture.h"
+#include "support/tool_fixture.h"
+#include "util/math.h"
 
 namespace sl {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 glm::dvec3 direction(double azimuth_deg, double elevation_deg) {
-  const double a = azimuth_deg * kDeg, e = elevation_deg * kDeg;
+  const double a = azimuth_deg * kDegToRad, e = elevation_deg * kDegToRad;
   return {std::cos(e) * std::sin(a), std::sin(e), -std::cos(e) * std::cos(a)};  // render/equirect.h
 }
 
@@ -33,7 +33,7 @@ void marker_hdri(const std::string& path, const glm::dvec3 dirs[3]) {
     for (int j = 0; j < W; ++j) {
       const auto d = equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
       for (int c = 0; c < 3; ++c)
-        if (d.x * dirs[c].x + d.y * dirs[c].y + d.z * dirs[c].z > std::cos(12 * kDeg))
+        if (d.x * dirs[c].x + d.y * dirs[c].y + d.z * dirs[c].z > std::cos(12 * kDegToRad))
           t.data<float>()[(c * H + i) * W + j] = 4.0f;
     }
   write_image(path, t);
@@ -43,7 +43,7 @@ void marker_hdri(const std::string& path, const glm::dvec3 dirs[3]) {
 // horizontal field of view on S×S pixels, reflects direction m: the pixel whose centre ray
 // reflects closest to m (analytic ray-sphere intersection, independent of the renderer).
 glm::dvec2 expected_pixel(const glm::dvec3& m, int S) {
-  const double f = 0.5 * S / std::tan(20 * kDeg);
+  const double f = 0.5 * S / std::tan(20 * kDegToRad);
   double best = -2;
   glm::dvec2 at(-1);
   for (int r = 0; r < S; ++r)

@@ -6,14 +6,15 @@
 #include <cmath>
 #include <filesystem>
 
-#include "tests/train/tiny_model.h"
 #include "autodiff/ops.h"
 #include "nn/checkpoint.h"
-#include "nn/discriminator.h"
+#include "nn/modules/patch_discriminator.h"
 #include "render/gltf_writer.h"
 #include "render/object_insertion.h"
 #include "render/primitives.h"
-#include "street_fixture.h"
+#include "support/street_fixture.h"
+#include "support/tiny_model.h"
+#include "train/adversarial_stage.h"
 #include "train/lighting_stage.h"
 #include "train/losses.h"
 #include "train/train_config.h"
@@ -62,7 +63,7 @@ TEST(Adversarial, GeneratorLossReachesTheFirstConvThroughCompositeRendererAndFro
   in.env = select(pred.env, 0, 0);
   in.vsg = select(pred.vsg, 0, 0);
   in.grid = grid;
-  in.objects.push_back(place_object(make_box({-0.8f, 0.0f, -0.8f}, {0.8f, 1.4f, 0.8f}), Placement{.x = 0.0, .z = -6.0},
+  in.objects.push_back(place_object(make_box({-0.8f, 0.0f, -0.8f}, {0.8f, 1.4f, 0.8f}), Placement{.x_m = 0.0, .z_m = -6.0},
                                     view.camera, view.depth));
   InsertionOptions io;
   io.aa_samples = 1;
@@ -117,7 +118,7 @@ TEST(AdversarialStage, StepsRunAndTheDiscriminatorLearns) {
     s.insert_with_object_hdr = pow_scalar(s.views[0].ldr, 2.2);
     return s;
   };
-  LightingStage stage(c, SampleSource{1, make}, SampleSource{1, make});
+  AdversarialStage stage(c, SampleSource{1, make}, SampleSource{1, make});
   double first = 0, last = 0;
   for (int k = 0; k < 20; ++k) {
     stage.set_lr(1e-3);
@@ -169,7 +170,7 @@ TEST(AdversarialStage, UnderTrueLightingTheDiscriminatorStaysAtChance) {
   };
   // Pairs (real, fake under the true light) of scene i with per-pair sample seeds.
   auto pairs = [&](const std::string& real, uint64_t first_seed, size_t count) {
-    LightingStage stage(config(real), SampleSource{kScenes, make}, SampleSource{kScenes, make});
+    AdversarialStage stage(config(real), SampleSource{kScenes, make}, SampleSource{kScenes, make});
     std::vector<LightingStage::Forward> scenes;
     for (size_t i = 0; i < kScenes; ++i) scenes.push_back(stage.forward_val(i));
     std::vector<std::pair<Tensor, Tensor>> out;

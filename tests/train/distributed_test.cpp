@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "autodiff/ops.h"
-#include "nn/layers_linear.h"
+#include "nn/modules/linear.h"
 #include "train/distributed.h"
 #include "train/gradient_allreduce.h"
 #include "train/train_config.h"

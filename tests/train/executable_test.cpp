@@ -1,4 +1,4 @@
-// The train executable's input errors (DESIGN "Executables"): an unknown config key names the
+// The train executable's input errors (docs/DESIGN.md, "Executables"): an unknown config key names the
 // nearest valid key, a missing stage checkpoint is named, and both exit 2 with one line.
 #include <gtest/gtest.h>
 

@@ -7,11 +7,10 @@
 #include "autodiff/ops.h"
 #include "train/losses.h"
 #include "train/metrics.h"
+#include "util/math.h"
 
 namespace sl::train {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 TEST(Losses, LogEncodedL2MatchesHandValue) {
   const Tensor p = Tensor::from_vector({0.0, 3.0}, {2});

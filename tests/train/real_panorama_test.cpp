@@ -14,11 +14,10 @@
 #include "train/real_sky_benchmark.h"
 #include "train/sample_source.h"
 #include "train/street_batch.h"
+#include "util/math.h"
 
 namespace sl::train {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 Tensor clear_sky(double elevation_deg, double azimuth_deg) {
   SkyParams p;

@@ -5,10 +5,10 @@
 #include <cmath>
 #include <filesystem>
 
-#include "tests/train/tiny_model.h"
 #include "autodiff/ops.h"
 #include "nn/checkpoint.h"
-#include "street_fixture.h"
+#include "support/street_fixture.h"
+#include "support/tiny_model.h"
 #include "train/lighting_stage.h"
 #include "train/sky_stage.h"
 #include "train/train_config.h"

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "autodiff/ops.h"
-#include "nn/conv.h"
+#include "nn/functional/conv.h"
 #include "tools/bench/bench.h"
 #include "tools/bench/timing.h"
 

@@ -14,8 +14,6 @@
 #include <string>
 #include <vector>
 
-#include "autodiff/error.h"
-#include "autodiff/random.h"
 #include "render/environment_map.h"
 #include "render/radiance_query.h"
 #include "render/spherical_gaussian.h"
@@ -24,6 +22,9 @@
 #include "tools/common/cli.h"
 #include "train/inference.h"
 #include "train/photo_input.h"
+#include "util/error.h"
+#include "util/math.h"
+#include "util/random.h"
 
 namespace sl::bench {
 namespace {
@@ -125,7 +126,7 @@ int run_eq1_spacing(const std::vector<std::string>& args) {
     o[3 * r] = cam.x + rng.uniform(-3.0, 3.0);
     o[3 * r + 1] = rng.uniform(0.1, 2.0);
     o[3 * r + 2] = cam.z - rng.uniform(5.0, 15.0);
-    const double z = rng.uniform(0.0, 1.0), phi = rng.uniform(0.0, 2.0 * M_PI), s = std::sqrt(1.0 - z * z);
+    const double z = rng.uniform(0.0, 1.0), phi = rng.uniform(0.0, kTwoPi), s = std::sqrt(1.0 - z * z);
     d[3 * r] = s * std::cos(phi), d[3 * r + 1] = z, d[3 * r + 2] = s * std::sin(phi);
   }
   const Tensor origins = Tensor::from_vector(o, {rays, 3}).to(DType::F32);

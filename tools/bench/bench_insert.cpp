@@ -12,7 +12,7 @@
 //   samples per primary sample, an 80×45 shadow map with 128 rays, I_a 0.1, K = 64 volume
 //   samples, VSG 64×64×16, cosine sampling) and the paper's (5000 foreground rays; 160×90, 450;
 //   VSG 256×256×64).
-// --size kitti|nuscenes: the production table of issue 14 — lighting (default-size model,
+// --size kitti|nuscenes: the production table — lighting (default-size model,
 //   random initial weights) plus insertion at 1242×375 (KITTI 000008 with lidar depth) or
 //   1600×900 (nuScenes CAM_FRONT intrinsics, ground plane), error against a 4096-samples-per-
 //   pixel reference of the same renderer over the object and its shadow region.
@@ -30,9 +30,9 @@
 #include "autodiff/ops.h"
 #include "data/image_io.h"
 #include "data/procedural_car.h"
-#include "nn/checkpoint.h"
 #include "data/sky_model.h"
 #include "data/street_generator.h"
+#include "nn/checkpoint.h"
 #include "render/gltf_loader.h"
 #include "render/object_insertion.h"
 #include "render/path_tracer.h"
@@ -46,11 +46,10 @@
 #include "train/photo_input.h"
 #include "train/photo_insertion.h"
 #include "train/train_config.h"
+#include "util/math.h"
 
 namespace sl::bench {
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 struct Scene {
   Camera camera;
@@ -62,7 +61,7 @@ struct Scene {
 Scene make_scene(const std::string& data) {
   Scene s;
   const int W = 256, H = 144;
-  s.camera = Camera(intrinsics_from_fov(60 * kDeg, W, H), rotation_from_yaw_pitch_roll(0, -10 * kDeg, 0), {0, 1.6, 0});
+  s.camera = Camera(intrinsics_from_fov(60 * kDegToRad, W, H), rotation_from_yaw_pitch_roll(0, -10 * kDegToRad, 0), {0, 1.6, 0});
   std::vector<double> d(size_t(W) * H);
   for (int i = 0; i < H; ++i)
     for (int j = 0; j < W; ++j) {
@@ -120,7 +119,7 @@ long max_rss_mb() {
   return u.ru_maxrss / 1024;
 }
 
-// ---- production sizes (issue 14): lighting + insertion at KITTI 1242×375 and nuScenes 1600×900
+// ---- production sizes : lighting + insertion at KITTI 1242×375 and nuScenes 1600×900
 
 // Relative RMSE of the composite over the object and its shadow region: pixels the reference's
 // object covers, or whose reference shadow ratio differs from 1 by more than 1e-3. Both
@@ -162,14 +161,14 @@ RegionError region_error(const InsertionResult& a, const InsertionResult& ref) {
 struct ProductionScene {
   std::string name, depth_source;
   train::Photo photo;
-  Mesh object;  // object frame (train/object_labels.h)
-  train::ObjectPose pose;
+  Mesh object;  // object frame (data/object_placement.h)
+  Placement pose;
 };
 
 ProductionScene production_scene(const std::string& size, const std::string& data) {
   ProductionScene s;
   const std::string kitti = data + "/street/kitti_000008", truck = data + "/models/CesiumMilkTruck.glb";
-  s.object = train::to_object_frame_mesh(std::filesystem::exists(truck) ? load_gltf(truck) : make_procedural_car());
+  s.object = to_object_frame(std::filesystem::exists(truck) ? load_gltf(truck) : make_procedural_car());
   s.pose.yaw_deg = 60.0;
   if (size == "kitti" && std::filesystem::exists(kitti + "/000008.png")) {
     train::PhotoSources src;
@@ -242,7 +241,7 @@ int run_production(const std::string& size, bool json, const std::string& data, 
   // volume of random parameters, so the radiance query does the work a trained model gives it.
   const std::string hdri = data + "/hdri/chinese_garden_1k.hdr";
   InsertionInputs in;
-  in.background = pow_scalar(s.photo.ldr.to(DType::F32).contiguous(), 2.2);
+  in.background = pow_scalar(s.photo.ldr.to(DType::F32).contiguous(), kLdrGamma);
   in.depth = s.photo.depth.to(DType::F32).contiguous();
   in.camera = s.photo.camera;
   in.env = std::filesystem::exists(hdri) ? resize_panorama(read_image(hdri), 128, 32)
@@ -250,8 +249,8 @@ int run_production(const std::string& size, bool json, const std::string& data, 
   in.grid.center = s.photo.camera.position();
   in.vsg = vsg_activate(Tensor::uniform({8, in.grid.dims[0], in.grid.dims[1], in.grid.dims[2]}, -4, 0, 11), 0).detach().contiguous();
   Placement pl;
-  pl.x = s.pose.x_m;
-  pl.z = s.pose.z_m;
+  pl.x_m = s.pose.x_m;
+  pl.z_m = s.pose.z_m;
   pl.yaw_deg = s.pose.yaw_deg;
   in.objects.push_back(place_object(s.object, pl, in.camera, in.depth));
 
@@ -435,8 +434,8 @@ int run_insert(const std::vector<std::string>& args) {
   const auto dims = tc.at("model").at("volume").at("dims");
   train_grid.dims = {dims[0].get<int64_t>(), dims[1].get<int64_t>(), dims[2].get<int64_t>()};
   const StreetGeneratorConfig gen;
-  const Camera train_cam(intrinsics_from_fov(60 * kDeg, gen.view_width, gen.view_height),
-                         rotation_from_yaw_pitch_roll(0, -10 * kDeg, 0), {0, 1.6, 0});
+  const Camera train_cam(intrinsics_from_fov(60 * kDegToRad, gen.view_width, gen.view_height),
+                         rotation_from_yaw_pitch_roll(0, -10 * kDegToRad, 0), {0, 1.6, 0});
   const Tensor train_depth = train::ground_plane_depth(train_cam);
   const Tensor train_bg = Tensor::full({3, gen.view_height, gen.view_width}, 0.3);
   InsertionOptions paper_opt;

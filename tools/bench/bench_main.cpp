@@ -4,8 +4,8 @@
 #include <string>
 #include <vector>
 
-#include "autodiff/error.h"
 #include "tools/bench/bench.h"
+#include "util/error.h"
 
 namespace sl::bench {
 namespace {

@@ -9,8 +9,8 @@
 #include <cstdio>
 
 #include "autodiff/ops.h"
-#include "nn/resnet.h"
-#include "nn/unet.h"
+#include "nn/modules/resnet.h"
+#include "nn/modules/unet.h"
 #include "tools/bench/bench.h"
 #include "tools/bench/timing.h"
 

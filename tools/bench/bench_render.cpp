@@ -1,9 +1,9 @@
 // streetlight-bench render: error against time of the reference path tracer (render/path_tracer.h)
-// as samples per pixel grow, for its estimators (issue 19):
+// as samples per pixel grow, for its estimators:
 //   stratified   environment importance sampling + BRDF sampling + MIS, Owen-scrambled Sobol
 //                samples, uncapped roulette (the default estimator)
 //   independent  the same NEE + MIS with independent random numbers and roulette capped at 0.95
-//                (the estimator before issue 19)
+//                (the original independent estimator)
 //   brdf_only    BRDF sampling only, independent numbers (the older baseline)
 // Scene: a glTF model (default CesiumMilkTruck) standing on a grey ground plane under each
 // HDRI (default: chinese_garden = hard sun, potsdamer_platz = soft sky), seen from a fixed
@@ -22,10 +22,10 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <sstream>
 #include <string>
 #include <vector>
 
-#include "autodiff/error.h"
 #include "data/image_io.h"
 #include "render/camera.h"
 #include "render/environment_map.h"
@@ -35,11 +35,12 @@
 #include "tools/bench/bench.h"
 #include "tools/bench/timing.h"
 #include "tools/common/plot.h"
+#include "util/error.h"
+#include "util/file.h"
+#include "util/math.h"
 
 namespace sl::bench {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Shared data folder: $STREETLIGHT_DATA, else ../shared/data (the checkout's sibling, as in tests).
 std::string data_root() {
@@ -176,7 +177,7 @@ int run_render(const std::vector<std::string>& argv) {
           "  Path-traces the model on a ground plane under each HDRI at 1, 2, 4, ... --max-spp samples per\n"
           "  pixel with each estimator of LIST (comma-separated; default stratified,independent,brdf_only:\n"
           "  stratified = NEE + MIS with Owen-scrambled Sobol samples, the default; independent = NEE + MIS\n"
-          "  with independent numbers, the estimator before issue 19; brdf_only = BRDF sampling alone) and\n"
+          "  with independent numbers, the original independent estimator; brdf_only = BRDF sampling alone) and\n"
           "  reports time, RMSE against a --ref-spp stratified reference, and the pixel noise from two seeds.\n"
           "  Writes DIR/render_bench.csv, DIR/render_bench.png (log-log RMSE vs time in ms) and\n"
           "  DIR/render_reference_<hdri>.exr. Defaults: CesiumMilkTruck.glb, chinese_garden_1k.hdr (hard sun)\n"
@@ -238,17 +239,15 @@ int run_render(const std::vector<std::string>& argv) {
       }
   }
 
-  const std::string csv = args.out + "/render_bench.csv", tmp = csv + ".tmp";
+  const std::string csv = args.out + "/render_bench.csv";
   {
-    std::ofstream f(tmp, std::ios::trunc);
-    SL_CHECK(f.good(), "render: cannot write '", tmp, "'");
+    std::ostringstream f;
     f << "hdri,method,spp,time_ms,rmse,noise,relative_noise,mean\n";
     for (const Point& p : pts)
       f << p.hdri << ',' << p.method << ',' << p.spp << ',' << p.time_ms << ',' << p.rmse << ',' << p.noise << ','
         << p.relative_noise << ',' << p.mean << '\n';
-    SL_CHECK(f.good(), "render: failed writing '", tmp, "'");
+    write_file_atomic(csv, f.str());
   }
-  SL_CHECK(std::rename(tmp.c_str(), csv.c_str()) == 0, "render: cannot rename '", tmp, "' to '", csv, "'");
   ImageWriteOptions wo;
   wo.transfer = Transfer::Linear;  // the plot's colours are display values already
   std::vector<cli::PlotPoint> plot_points;

@@ -18,14 +18,16 @@
 
 #include <nlohmann/json.hpp>
 
-#include "autodiff/error.h"
-#include "autodiff/parallel.h"
-#include "autodiff/random.h"
 #include "render/bvh.h"
 #include "render/gltf_loader.h"
 #include "render/gltf_writer.h"
 #include "render/ray_file.h"
 #include "tools/bench/bench.h"
+#include "util/error.h"
+#include "util/math.h"
+#include "util/parallel.h"
+#include "util/random.h"
+#include "util/file.h"
 
 namespace sl::bench {
 namespace {
@@ -77,23 +79,6 @@ bool wants_help(const std::vector<std::string>& args) {
   return false;
 }
 
-void write_atomically(const std::string& path, const void* data, size_t bytes, const std::string& command) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    SL_CHECK(f.good(), command, ": cannot open '", tmp, "' for writing");
-    f.write(static_cast<const char*>(data), static_cast<std::streamsize>(bytes));
-    f.close();
-    if (!f.good()) {
-      std::remove(tmp.c_str());
-      fail(command, ": failed writing '", tmp, "'");
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    fail(command, ": cannot rename '", tmp, "' to '", path, "'");
-  }
-}
 
 Mesh load_mesh(const std::string& command, const std::string& path) {
   Mesh m = load_gltf(path);
@@ -141,7 +126,7 @@ int run_trace(const std::vector<std::string>& args) {
   if (o.has("--hits-out")) {
     std::vector<float> t(rays.size());
     for (size_t i = 0; i < rays.size(); ++i) t[i] = hits[i].hit() ? hits[i].t : std::numeric_limits<float>::infinity();
-    write_atomically(o.get("trace", "--hits-out"), t.data(), t.size() * 4, "trace");
+    write_file_atomic(o.get("trace", "--hits-out"), std::string_view(reinterpret_cast<const char*>(t.data()), t.size() * 4));
   }
   const double n = static_cast<double>(rays.size());
   const double closest_mrays = n / (best_closest * 1e3), any_mrays = n / (best_any * 1e3);
@@ -167,7 +152,7 @@ int run_trace(const std::vector<std::string>& args) {
 // Unit vector uniform on the sphere from two counters of (seed, ray).
 glm::vec3 uniform_direction(uint64_t seed, uint64_t ray) {
   const float z = 1.0f - 2.0f * uniform01f(seed, ray, 3);
-  const float phi = 6.2831853f * uniform01f(seed, ray, 4);
+  const float phi = (2.0f * kPiF) * uniform01f(seed, ray, 4);
   const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
   return {r * std::cos(phi), r * std::sin(phi), z};
 }
@@ -229,7 +214,7 @@ int run_gen_rays(const std::vector<std::string>& args) {
       }
     });
   }
-  write_atomically(out, data.data(), data.size() * 4, cmd);
+  write_file_atomic(out, std::string_view(reinterpret_cast<const char*>(data.data()), data.size() * 4));
   std::fprintf(stderr, "gen-rays: wrote %lld %s rays to %s\n", static_cast<long long>(count), kind.c_str(),
                out.c_str());
   return 0;
@@ -248,7 +233,7 @@ Mesh displaced_sphere(int64_t min_triangles) {
                    0.05f * std::sin(23.0f * theta + 1.0f) * std::sin(19.0f * phi) +
                    0.02f * std::cos(61.0f * theta) * std::sin(53.0f * phi + 2.0f));
   };
-  const float pi = 3.14159265f;
+  const float pi = kPiF;
   m.positions.push_back({0.0f, radius(0.0f, 0.0f), 0.0f});
   for (int64_t i = 1; i < bands; ++i) {
     const float theta = pi * static_cast<float>(i) / bands;

@@ -8,8 +8,8 @@
 #include <cstdio>
 #include <exception>
 
-#include "autodiff/error.h"
 #include "tools/common/config.h"
+#include "util/error.h"
 
 namespace sl::cli {
 

@@ -1,4 +1,4 @@
-// The shared style of every Streetlight executable (DESIGN: "Executables").
+// The shared style of every Streetlight executable (docs/DESIGN.md, "Executables").
 //
 // Contract:
 // - Args: --help prints the synopsis and every flag and returns false from parse(); an unknown

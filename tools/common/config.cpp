@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <fstream>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 
 namespace sl::cli {
 

@@ -1,4 +1,4 @@
-// JSON configs validated against their defaults (DESIGN: "Executables share one style").
+// JSON configs validated against their defaults (docs/DESIGN.md, "Executables share one style").
 //
 // Contract: a Config starts from a defaults object that lists EVERY valid key with its default
 // value and type. merge_file() and set() apply overrides. A key the defaults do not have is an

@@ -1,4 +1,4 @@
-// streetlight-embree-trace: the Embree 3 anchor for `streetlight-bench trace` (DESIGN: "Anchors").
+// streetlight-embree-trace: the Embree 3 anchor for `streetlight-bench trace` (docs/DESIGN.md, "Anchors").
 // Optional and never linked into the library. Same inputs and outputs as bench trace:
 // RAYS.bin (float32 ox oy oz dx dy dz per ray, t in [0, inf)), HITS.bin (float32 closest t or
 // +inf). rtcIntersect1 / rtcOccluded1 in an OpenMP loop on OMP_NUM_THREADS threads, best of 5.
@@ -17,8 +17,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "autodiff/error.h"
 #include "render/gltf_loader.h"
+#include "util/error.h"
+#include "util/file.h"
 
 namespace {
 
@@ -39,14 +40,7 @@ std::vector<float> read_rays(const std::string& path) {
 }
 
 void write_atomically(const std::string& path, const std::vector<float>& v) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    SL_CHECK(f.good(), "cannot open '", tmp, "' for writing");
-    f.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(v.size() * 4));
-    SL_CHECK(f.good(), "failed writing '", tmp, "'");
-  }
-  SL_CHECK(std::rename(tmp.c_str(), path.c_str()) == 0, "cannot rename '", tmp, "' to '", path, "'");
+  sl::write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(v.data()), v.size() * 4));
 }
 
 RTCRayHit make_ray(const float* p) {

@@ -2,7 +2,7 @@
 #pragma once
 #include <exception>
 
-#include "autodiff/error.h"
+#include "util/error.h"
 
 namespace sl::fuzz {
 

@@ -4,7 +4,7 @@
 // model's shapes unchanged.
 #include "autodiff/tape.h"
 #include "nn/checkpoint.h"
-#include "nn/layers_linear.h"
+#include "nn/modules/linear.h"
 #include "nn/optim.h"
 #include "nn/safetensors.h"
 #include "tests/fuzz/harness/fuzz_harness.h"

@@ -1,0 +1,361 @@
+#include "nn/functional/conv_implicit_gemm.h"
+
+#include <algorithm>
+#include <array>
+#include <cstdlib>
+#include <memory>
+#include <vector>
+
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
+
+#include "nn/functional/conv_microkernel.h"
+#include "nn/functional/work_grain.h"
+#include "util/error.h"
+#include "util/parallel.h"
+
+namespace sl::nn::detail {
+namespace {
+
+using Axes = std::array<int64_t, 3>;
+using Order = std::array<int, 3>;  // order[i]: the original spatial axis stored at position i
+
+Axes permute(const Axes& v, const Order& order) { return {v[order[0]], v[order[1]], v[order[2]]}; }
+
+// 64-byte aligned scratch, so that rows whose pitch is a multiple of 16 floats load without
+// splitting cache lines (it made the weight-gradient kernel 1.7× faster on 2-D shapes).
+struct FreeDeleter {
+  void operator()(float* p) const { std::free(p); }
+};
+using Scratch = std::unique_ptr<float[], FreeDeleter>;
+constexpr int64_t kSlack = 2 * kPanelCols;  // windows of dropped columns may run past the end
+
+Scratch make_scratch(int64_t floats) {
+  const size_t bytes = (static_cast<size_t>(floats) * sizeof(float) + 63) / 64 * 64;
+  auto* p = static_cast<float*>(std::aligned_alloc(64, bytes == 0 ? 64 : bytes));
+  SL_CHECK(p != nullptr, "conv: out of memory allocating ", bytes, " bytes of scratch");
+  return Scratch(p);
+}
+
+// Storage order of the spatial axes, outermost first. Output positions run along the padded
+// row pitch, so dilation·(k - 1) / (in + 2·pad) of the work on the innermost axis is wasted on
+// dropped columns (and, for the weight gradient, as much on the middle axis). A 64×64×16 volume
+// stored as is wastes 11% along its 16-deep axis (33% at the 4-deep level of a UNet); stored
+// with a 64-long axis innermost it wastes 3%. The copy made for padding does the reordering,
+// and the output is written back through the original strides, so reordering costs strided
+// gathers and scatters: it is used only when the innermost axis wastes over 5% and another
+// axis of at least 32 positions wastes less than half of that.
+Order storage_order(const ConvGeometry& g) {
+  auto waste = [&](int a) {
+    return static_cast<double>(g.dil[a] * (g.k[a] - 1)) / static_cast<double>(g.in[a] + 2 * g.pad[a]);
+  };
+  if (waste(2) <= 0.05) return {0, 1, 2};
+  int inner = 2;
+  for (int a : {1, 0})  // axis 1 first: its smaller original stride keeps the gathers local
+    if (g.out[a] >= 32 && waste(a) < 0.5 * waste(2) && (inner == 2 || waste(a) < 0.67 * waste(inner))) inner = a;
+  if (inner == 2) return {0, 1, 2};
+  int rest[2], n = 0;
+  for (int a = 0; a < 3; ++a)
+    if (a != inner) rest[n++] = a;
+  if (waste(rest[1]) > waste(rest[0])) std::swap(rest[0], rest[1]);  // the more wasteful axis outermost
+  return {rest[0], rest[1], inner};
+}
+
+Axes plane_strides(const Axes& ext) { return {ext[1] * ext[2], ext[2], 1}; }
+
+// planes × [ext0][ext1][ext2] (storage order) with
+//   dst[p][s] = src[p·src_plane + Σ_i (s_i - lo_i)·src_stride_i] inside the source, 0 outside.
+struct Padded {
+  Axes ext{};
+  int64_t volume = 0;  // per plane
+  Scratch data;
+};
+
+#if defined(__AVX512F__)
+// In-register transpose of a 16 × 16 block: r[a][b] -> r[b][a].
+inline void transpose16(__m512 r[16]) {
+  __m512 t[16], u[16];
+  for (int k = 0; k < 8; ++k) {
+    t[2 * k] = _mm512_unpacklo_ps(r[2 * k], r[2 * k + 1]);
+    t[2 * k + 1] = _mm512_unpackhi_ps(r[2 * k], r[2 * k + 1]);
+  }
+  for (int k = 0; k < 4; ++k) {  // u[4k + e], 128-bit lane L: rows 4k..4k+3 at column 4L + e
+    u[4 * k] = _mm512_shuffle_ps(t[4 * k], t[4 * k + 2], _MM_SHUFFLE(1, 0, 1, 0));
+    u[4 * k + 1] = _mm512_shuffle_ps(t[4 * k], t[4 * k + 2], _MM_SHUFFLE(3, 2, 3, 2));
+    u[4 * k + 2] = _mm512_shuffle_ps(t[4 * k + 1], t[4 * k + 3], _MM_SHUFFLE(1, 0, 1, 0));
+    u[4 * k + 3] = _mm512_shuffle_ps(t[4 * k + 1], t[4 * k + 3], _MM_SHUFFLE(3, 2, 3, 2));
+  }
+  for (int e = 0; e < 4; ++e) {
+    const __m512 v0 = _mm512_shuffle_f32x4(u[e], u[4 + e], _MM_SHUFFLE(2, 0, 2, 0));
+    const __m512 v1 = _mm512_shuffle_f32x4(u[e], u[4 + e], _MM_SHUFFLE(3, 1, 3, 1));
+    const __m512 v2 = _mm512_shuffle_f32x4(u[8 + e], u[12 + e], _MM_SHUFFLE(2, 0, 2, 0));
+    const __m512 v3 = _mm512_shuffle_f32x4(u[8 + e], u[12 + e], _MM_SHUFFLE(3, 1, 3, 1));
+    r[e] = _mm512_shuffle_f32x4(v0, v2, _MM_SHUFFLE(2, 0, 2, 0));
+    r[8 + e] = _mm512_shuffle_f32x4(v0, v2, _MM_SHUFFLE(3, 1, 3, 1));
+    r[4 + e] = _mm512_shuffle_f32x4(v1, v3, _MM_SHUFFLE(2, 0, 2, 0));
+    r[12 + e] = _mm512_shuffle_f32x4(v1, v3, _MM_SHUFFLE(3, 1, 3, 1));
+  }
+}
+
+// dst[j·dst_step + i] = src[i·src_step + j] for i < ni, j < nj, in 16 × 16 register blocks: the
+// reordered copy of a volume whose original innermost axis is stored outermost. Element-wise, it
+// is one store per element to a different row and was 10% of a 3-D convolution's time.
+void transpose_copy(const float* src, int64_t src_step, int64_t ni, int64_t nj, float* dst, int64_t dst_step) {
+  for (int64_t i0 = 0; i0 < ni; i0 += 16) {
+    const int64_t bi = std::min<int64_t>(16, ni - i0);
+    const __mmask16 mi = static_cast<__mmask16>((1u << bi) - 1u);
+    for (int64_t j0 = 0; j0 < nj; j0 += 16) {
+      const int64_t bj = std::min<int64_t>(16, nj - j0);
+      const __mmask16 mj = static_cast<__mmask16>((1u << bj) - 1u);
+      __m512 r[16];
+      for (int64_t a = 0; a < 16; ++a)
+        r[a] = a < bi ? _mm512_maskz_loadu_ps(mj, src + (i0 + a) * src_step + j0) : _mm512_setzero_ps();
+      transpose16(r);
+      for (int64_t b = 0; b < bj; ++b) _mm512_mask_storeu_ps(dst + (j0 + b) * dst_step + i0, mi, r[b]);
+    }
+  }
+}
+#endif
+
+Padded pad_copy(const float* src, int64_t planes, int64_t src_plane, const Axes& src_ext, const Axes& src_stride,
+                const Axes& lo, const Axes& ext) {
+  Padded out;
+  out.ext = ext;
+  out.volume = ext[0] * ext[1] * ext[2];
+  out.data = make_scratch(planes * out.volume + kSlack);
+  float* base = out.data.get();
+  std::fill(base + planes * out.volume, base + planes * out.volume + kSlack, 0.0f);
+  const int64_t lo2 = lo[2], n2 = src_ext[2];
+  auto inside = [&](int64_t s, int a) { return s - lo[a] >= 0 && s - lo[a] < src_ext[a]; };
+  // When the outer storage axis is the closer one in the source (a reordered copy), walk the
+  // source in its own order so that reads are contiguous and the writes stay in a few rows.
+  const bool transposed = src_stride[2] != 1 && src_stride[0] < src_stride[2];
+  parallel_for(planes, grain_for(out.volume), [&](int64_t p0, int64_t p1) {
+    for (int64_t p = p0; p < p1; ++p) {
+      float* vol = base + p * out.volume;
+      const float* sp = src + p * src_plane;
+      for (int64_t s0 = 0; s0 < ext[0]; ++s0)
+        for (int64_t s1 = 0; s1 < ext[1]; ++s1) {  // borders: zero rows and margins
+          float* dst = vol + (s0 * ext[1] + s1) * ext[2];
+          if (!inside(s0, 0) || !inside(s1, 1)) {
+            std::fill(dst, dst + ext[2], 0.0f);
+            continue;
+          }
+          std::fill(dst, dst + lo2, 0.0f);
+          std::fill(dst + lo2 + n2, dst + ext[2], 0.0f);
+          if (transposed) continue;
+          const float* row = sp + (s0 - lo[0]) * src_stride[0] + (s1 - lo[1]) * src_stride[1];
+          if (src_stride[2] == 1) {
+            std::copy(row, row + n2, dst + lo2);
+          } else {
+            for (int64_t i = 0; i < n2; ++i) dst[lo2 + i] = row[i * src_stride[2]];
+          }
+        }
+      if (!transposed) continue;
+      for (int64_t s1 = lo[1]; s1 < lo[1] + src_ext[1]; ++s1) {
+        const float* slab = sp + (s1 - lo[1]) * src_stride[1];
+        float* dst = vol + s1 * ext[2] + lo2 + lo[0] * ext[1] * ext[2];
+#if defined(__AVX512F__)
+        if (src_stride[0] == 1) {
+          transpose_copy(slab, src_stride[2], n2, src_ext[0], dst, ext[1] * ext[2]);
+          continue;
+        }
+#endif
+        for (int64_t i = 0; i < n2; ++i)
+          for (int64_t j = 0; j < src_ext[0]; ++j) dst[j * ext[1] * ext[2] + i] = slab[i * src_stride[2] + j * src_stride[0]];
+      }
+    }
+  });
+  return out;
+}
+
+// Offset of tap r = (c, k0, k1, k2) (original order, as the weights are laid out) in a padded
+// copy: channel plane plus the dilated kernel offset through the storage strides.
+std::vector<int64_t> tap_offsets(const ConvGeometry& g, const Order& order, const Padded& xp) {
+  const Axes ps = plane_strides(xp.ext);
+  Axes stride_of{};  // padded stride of each ORIGINAL axis
+  for (int i = 0; i < 3; ++i) stride_of[order[i]] = ps[i];
+  std::vector<int64_t> off(static_cast<size_t>(g.rows()));
+  for (int64_t c = 0, r = 0; c < g.C; ++c)
+    for (int64_t k0 = 0; k0 < g.k[0]; ++k0)
+      for (int64_t k1 = 0; k1 < g.k[1]; ++k1)
+        for (int64_t k2 = 0; k2 < g.k[2]; ++k2, ++r)
+          off[r] = c * xp.volume + k0 * g.dil[0] * stride_of[0] + k1 * g.dil[1] * stride_of[1] +
+                   k2 * g.dil[2] * stride_of[2];
+  return off;
+}
+
+Axes in_strides(const ConvGeometry& g) { return plane_strides(g.in); }
+Axes out_strides(const ConvGeometry& g) { return plane_strides(g.out); }
+
+Padded pad_input(const ConvGeometry& g, const Order& order, const float* x) {
+  Axes padded{};
+  for (int a = 0; a < 3; ++a) padded[a] = g.in[a] + 2 * g.pad[a];
+  return pad_copy(x, g.N * g.C, g.in_plane(), permute(g.in, order), permute(in_strides(g), order),
+                  permute(g.pad, order), permute(padded, order));
+}
+
+// y = conv(x) + b from the padded copy. Tasks are (batch item, chunk of 8 panels, block of
+// outer planes), blocks fastest. When the outer storage axis is y's innermost one (a reordered
+// copy), a block of up to 16 planes is computed first and then stored with the planes
+// contiguous, so y is written in whole cache lines rather than one float per line.
+void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp, const std::vector<int64_t>& taps,
+                    const float* w, const float* b, float* y) {
+  const int64_t R = g.rows(), P = g.out_plane(), Hp = xp.ext[1], Wp = xp.ext[2];
+  const Axes out = permute(g.out, order), ys = permute(out_strides(g), order);
+  const std::vector<float> packed = pack_weights(w, g.O, R);
+  const int64_t span = (out[1] - 1) * Wp + out[2];  // one output plane on the padded pitch
+  const int64_t chunk = 8 * kPanelCols, chunks = (span + chunk - 1) / chunk;
+  const int64_t tile_floats = (g.O + kBlockRows) * kPanelCols;
+  const int64_t block = ys[0] == 1 && out[0] > 1 ? std::clamp<int64_t>(65536 / tile_floats, 1, 16) : 1;
+  const int64_t blocks = (out[0] + block - 1) / block;
+  parallel_for(g.N * chunks * blocks, grain_for(g.O * R * chunk * block), [&](int64_t t0, int64_t t1) {
+    std::vector<float> tiles(static_cast<size_t>(block * tile_floats));
+    for (int64_t t = t0; t < t1; ++t) {
+      const int64_t z0 = t % blocks * block, c0 = (t / blocks) % chunks * chunk, n = t / (blocks * chunks);
+      const int64_t nz = std::min(block, out[0] - z0);
+      const float* xn = xp.data.get() + n * g.C * xp.volume;
+      float* yz = y + n * g.O * P + z0 * ys[0];
+      for (int64_t q0 = c0; q0 < std::min(span, c0 + chunk); q0 += kPanelCols) {
+        for (int64_t j = 0; j < nz; ++j)
+          conv_gemm_window(packed.data(), g.O, R, xn + (z0 + j) * Hp * Wp + q0, taps.data(),
+                           tiles.data() + j * tile_floats);
+        const int64_t q1 = std::min(span, q0 + kPanelCols);
+        for (int64_t q = q0; q < q1;) {  // copy the runs with column < out[2] into y, adding the bias
+          const int64_t row = q / Wp, col = q % Wp, run_end = std::min(q1, row * Wp + out[2]);
+          if (col < out[2]) {
+            const int64_t len = run_end - q;
+            for (int64_t o = 0; o < g.O; ++o) {
+              const float bias = b ? b[o] : 0.0f;
+              const float* src = tiles.data() + o * kPanelCols + (q - q0);
+              float* dst = yz + o * P + row * ys[1] + col * ys[2];
+              if (block > 1) {  // ys[0] == 1: the planes of the block are contiguous in y
+                for (int64_t i = 0; i < len; ++i)
+                  for (int64_t j = 0; j < nz; ++j) dst[i * ys[2] + j] = src[j * tile_floats + i] + bias;
+              } else if (ys[2] == 1) {
+                for (int64_t i = 0; i < len; ++i) dst[i] = src[i] + bias;
+              } else {
+                for (int64_t i = 0; i < len; ++i) dst[i * ys[2]] = src[i] + bias;
+              }
+            }
+          }
+          q = (row + 1) * Wp;
+        }
+      }
+    }
+  });
+}
+
+// wt[c][o][flipped tap] = w[o][c][tap]
+std::vector<float> flipped_transposed(const ConvGeometry& g, const float* w) {
+  const int64_t taps = g.taps();
+  std::vector<float> wt(static_cast<size_t>(g.O * g.rows()));
+  for (int64_t o = 0; o < g.O; ++o)
+    for (int64_t c = 0; c < g.C; ++c)
+      for (int64_t k = 0; k < taps; ++k) wt[(c * g.O + o) * taps + (taps - 1 - k)] = w[(o * g.C + c) * taps + k];
+  return wt;
+}
+
+void input_grad_from(const ConvGeometry& g, const Order& order, const Padded& padded_dy, const float* w, float* dx) {
+  const ConvGeometry t = input_grad_geometry(g);
+  forward_padded(t, order, padded_dy, tap_offsets(t, order, padded_dy), flipped_transposed(g, w).data(), nullptr, dx);
+}
+
+// dw[o][tap] = Σ_n Σ_q dy[n][o][q] · x_padded[n][tap offset + q] over the output positions q on
+// the padded pitch, where dy is zero at the dropped positions. Flat chunks of each batch item are
+// cut into a number of groups fixed by the shapes; each group sums its chunks in order into its
+// own partial, and the partials are added in group order: the bits never depend on threads.
+// padded_dy, when given, is dy padded for the input gradient of a "same" convolution: it has
+// exactly the padded input's extents, with dy starting `pad` positions in on every axis.
+void weight_grad(const ConvGeometry& g, const Order& order, const float* x, const float* dy, float* dw,
+                 const Padded* padded_dy) {
+  const Padded xp = pad_input(g, order, x);
+  const std::vector<int64_t> taps = tap_offsets(g, order, xp);
+  const int64_t R = g.rows(), Hp = xp.ext[1], Wp = xp.ext[2];
+  const Axes out = permute(g.out, order);
+  const int64_t flat = out[0] * Hp * Wp, len_total = (out[0] - 1) * Hp * Wp + (out[1] - 1) * Wp + out[2];
+  const float* dy_base = nullptr;
+  int64_t dy_pitch = flat;  // floats per (n, o) plane of the padded dy
+  Padded own;
+  if (padded_dy) {
+    const Axes lo = permute(g.pad, order);
+    dy_base = padded_dy->data.get() + (lo[0] * Hp + lo[1]) * Wp + lo[2];
+    dy_pitch = padded_dy->volume;
+  } else {
+    own = pad_copy(dy, g.N * g.O, g.out_plane(), out, permute(out_strides(g), order), {0, 0, 0}, {out[0], Hp, Wp});
+    dy_base = own.data.get();
+  }
+  constexpr int64_t kChunk = 1024;  // positions per task: 8 rows of dy (32 KiB) stay in L1 across taps
+  const int64_t chunks = (len_total + kChunk - 1) / kChunk, tasks = g.N * chunks;
+  // Partials are capped at 16 MiB: deep layers (512 channels × 4608 taps on a few positions)
+  // would otherwise spend longer zeroing and adding partials than computing. Parallelism then
+  // comes from splitting the output channels (8-row blocks) of each group across tasks, which
+  // keeps every dw element summed by one task in a fixed order.
+  const int64_t memory_cap = std::max<int64_t>(1, (int64_t{16} << 20) / (g.O * R * 4));
+  const int64_t groups = std::min({tasks, int64_t{16}, memory_cap});  // 16: even split over 2-4 threads
+  const int64_t row_blocks = (g.O + kBlockRows - 1) / kBlockRows;
+  const int64_t parts = groups >= 8 ? 1 : std::min(row_blocks, (16 + groups - 1) / groups);
+  std::vector<float> partial(static_cast<size_t>(groups * g.O * R), 0.0f);
+  parallel_for(groups * parts, grain_for(g.O * R * len_total * g.N / (groups * parts)), [&](int64_t t0, int64_t t1) {
+    for (int64_t task = t0; task < t1; ++task) {
+      const int64_t grp = task / parts, part = task % parts;
+      const int64_t o0 = part * row_blocks / parts * kBlockRows;
+      const int64_t o1 = std::min(g.O, (part + 1) * row_blocks / parts * kBlockRows);
+      for (int64_t t = grp * tasks / groups; t < (grp + 1) * tasks / groups; ++t) {
+        const int64_t n = t / chunks, i0 = (t % chunks) * kChunk, len = std::min(kChunk, len_total - i0);
+        conv_weight_grad_window(dy_base + (n * g.O + o0) * dy_pitch + i0, dy_pitch, o1 - o0,
+                                xp.data.get() + n * g.C * xp.volume + i0, taps.data(), R, len,
+                                partial.data() + (grp * g.O + o0) * R);
+      }
+    }
+  });
+  for (int64_t i = 0; i < g.O * R; ++i) {
+    float acc = 0;
+    for (int64_t grp = 0; grp < groups; ++grp) acc += partial[grp * g.O * R + i];
+    dw[i] = acc;
+  }
+}
+
+Padded pad_output_grad(const ConvGeometry& g, const Order& order, const float* dy) {
+  const ConvGeometry t = input_grad_geometry(g);
+  return pad_input(t, order, dy);
+}
+
+}  // namespace
+
+bool direct_input_grad_supported(const ConvGeometry& g) {
+  for (int a = 0; a < 3; ++a)
+    if (g.stride[a] != 1 || g.dil[a] * (g.k[a] - 1) - g.pad[a] < 0) return false;
+  return true;
+}
+
+void direct_forward(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y) {
+  const Order order = storage_order(g);
+  const Padded xp = pad_input(g, order, x);
+  forward_padded(g, order, xp, tap_offsets(g, order, xp), w, b, y);
+}
+
+void direct_backward_input(const ConvGeometry& g, const float* w, const float* dy, float* dx) {
+  const Order order = storage_order(g);
+  input_grad_from(g, order, pad_output_grad(g, order, dy), w, dx);
+}
+
+void direct_backward_weight(const ConvGeometry& g, const float* x, const float* dy, float* dw) {
+  weight_grad(g, storage_order(g), x, dy, dw, nullptr);
+}
+
+// For a "same" convolution the padded dy made for the input gradient has exactly the padded
+// input's extents, so the weight gradient reads it too instead of making a second copy of dy.
+bool direct_backward_fused(const ConvGeometry& g, const float* x, const float* w, const float* dy, float* dx,
+                           float* dw) {
+  for (int a = 0; a < 3; ++a)
+    if (g.stride[a] != 1 || g.dil[a] * (g.k[a] - 1) != 2 * g.pad[a]) return false;
+  const Order order = storage_order(g);
+  const Padded padded_dy = pad_output_grad(g, order, dy);
+  input_grad_from(g, order, padded_dy, w, dx);
+  weight_grad(g, order, x, dy, dw, &padded_dy);
+  return true;
+}
+
+}  // namespace sl::nn::detail

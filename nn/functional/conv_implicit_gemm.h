@@ -1,0 +1,31 @@
+// Stride-1 float convolution as an implicit GEMM on padded windows (internal to nn/functional/conv.cpp).
+//
+// Contract: for a float ConvGeometry with stride 1 on every axis (any padding, dilation and
+// kernel), these compute exactly what conv.cpp's reference path computes, up to float rounding:
+//   forward:        y = conv(x, w) + b                     (b may be null)
+//   backward_input: dx = conv(dy, flipped wᵀ)              (needs dilation·(k - 1) >= pad)
+//   backward_weight: dw = Σ dy ⊗ windows of x
+//   backward_fused:  dx and dw of a "same" convolution (dilation·(k - 1) = 2·pad), sharing one
+//                    padded copy of dy; returns false (nothing written) for other shapes.
+// Every output element is produced by one fixed sequence of operations whatever the thread
+// count, and the weight gradient is summed over fixed groups in a fixed order, so results are
+// bitwise identical for any OMP_NUM_THREADS. Requires conv_gemm_available().
+//
+// How: the input is zero-padded once into a scratch copy whose spatial axes are stored in an
+// order chosen per shape (see conv_direct.cpp). Output positions are enumerated on the padded
+// row pitch, so that each kernel tap of 48 consecutive positions is one contiguous window of
+// the copy and the micro-kernel of conv_gemm.h streams it directly: no column matrix.
+#pragma once
+#include "nn/functional/conv_geometry.h"
+
+namespace sl::nn::detail {
+
+bool direct_input_grad_supported(const ConvGeometry& g);
+
+void direct_forward(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y);
+void direct_backward_input(const ConvGeometry& g, const float* w, const float* dy, float* dx);
+void direct_backward_weight(const ConvGeometry& g, const float* x, const float* dy, float* dw);
+bool direct_backward_fused(const ConvGeometry& g, const float* x, const float* w, const float* dy, float* dx,
+                           float* dw);
+
+}  // namespace sl::nn::detail

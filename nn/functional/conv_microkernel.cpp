@@ -1,0 +1,199 @@
+#include "nn/functional/conv_microkernel.h"
+
+#include <algorithm>
+
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
+
+namespace sl::nn::detail {
+
+std::vector<float> pack_weights(const float* a, int64_t M, int64_t K) {
+  const int64_t blocks = (M + kBlockRows - 1) / kBlockRows;
+  std::vector<float> packed(static_cast<size_t>(blocks * K * kBlockRows), 0.0f);
+  for (int64_t m = 0; m < M; ++m)
+    for (int64_t k = 0; k < K; ++k)
+      packed[((m / kBlockRows) * K + k) * kBlockRows + m % kBlockRows] = a[m * K + k];
+  return packed;
+}
+
+#if defined(__AVX512F__)
+
+bool conv_gemm_available() { return true; }
+
+namespace {
+
+// One 8 × 48 tile: 24 named accumulators, so that they stay in registers (an array of them
+// made GCC spill every accumulator on each k step).
+// Row k of B starts at b + row(k): a packed panel (row(k) = 48·k) or a shifted window of a
+// padded input (row(k) = offset table), see conv_gemm.h.
+// prefetch > 0 touches, for every k, the window `prefetch` floats ahead (the next panel's), so
+// that its lines come from L3 while this panel computes: a padded 3-D input has one stream per
+// (channel, kz, ky), too many for the hardware prefetchers to follow.
+template <class Row>
+inline void micro_kernel(const float* a, const float* b, Row row, int64_t K, int64_t n, int64_t rows,
+                         const float* bias, float* c, int64_t ldc, int64_t prefetch = 0) {
+#define SL_ROW(i) __m512 c##i##0 = _mm512_setzero_ps(), c##i##1 = c##i##0, c##i##2 = c##i##0;
+  SL_ROW(0) SL_ROW(1) SL_ROW(2) SL_ROW(3) SL_ROW(4) SL_ROW(5) SL_ROW(6) SL_ROW(7)
+#undef SL_ROW
+  for (int64_t k = 0; k < K; ++k) {
+    const float* bk = b + row(k);
+    if (prefetch) {
+      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch), _MM_HINT_T0);
+      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch + 16), _MM_HINT_T0);
+      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch + 32), _MM_HINT_T0);
+    }
+    const __m512 b0 = _mm512_loadu_ps(bk);
+    const __m512 b1 = _mm512_loadu_ps(bk + 16);
+    const __m512 b2 = _mm512_loadu_ps(bk + 32);
+    const float* ak = a + k * kBlockRows;
+#define SL_FMA(i)                                  \
+  {                                                \
+    const __m512 ai = _mm512_set1_ps(ak[i]);       \
+    c##i##0 = _mm512_fmadd_ps(ai, b0, c##i##0);    \
+    c##i##1 = _mm512_fmadd_ps(ai, b1, c##i##1);    \
+    c##i##2 = _mm512_fmadd_ps(ai, b2, c##i##2);    \
+  }
+    SL_FMA(0) SL_FMA(1) SL_FMA(2) SL_FMA(3) SL_FMA(4) SL_FMA(5) SL_FMA(6) SL_FMA(7)
+#undef SL_FMA
+  }
+  __mmask16 mask[3];
+  for (int j = 0; j < 3; ++j) {
+    const int64_t cols = std::clamp<int64_t>(n - 16 * j, 0, 16);
+    mask[j] = static_cast<__mmask16>((1u << cols) - 1u);
+  }
+#define SL_STORE(i)                                                                  \
+  if (i < rows) {                                                                    \
+    const __m512 bi = _mm512_set1_ps(bias ? bias[i] : 0.0f);                         \
+    _mm512_mask_storeu_ps(c + i * ldc, mask[0], _mm512_add_ps(c##i##0, bi));         \
+    _mm512_mask_storeu_ps(c + i * ldc + 16, mask[1], _mm512_add_ps(c##i##1, bi));    \
+    _mm512_mask_storeu_ps(c + i * ldc + 32, mask[2], _mm512_add_ps(c##i##2, bi));    \
+  }
+  SL_STORE(0) SL_STORE(1) SL_STORE(2) SL_STORE(3) SL_STORE(4) SL_STORE(5) SL_STORE(6) SL_STORE(7)
+#undef SL_STORE
+}
+
+}  // namespace
+
+void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
+                     const float* bias, float* c, int64_t ldc) {
+  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
+    micro_kernel(packed_a + m0 * K, b_panel, [](int64_t k) { return k * kPanelCols; }, K, n,
+                 std::min(kBlockRows, M - m0), bias ? bias + m0 : nullptr, c + m0 * ldc, ldc);
+}
+
+void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
+                      float* tile) {
+  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
+    micro_kernel(packed_a + m0 * K, base, [row_offset](int64_t k) { return row_offset[k]; }, K, kPanelCols,
+                 std::min(kBlockRows, M - m0), nullptr, tile + m0 * kPanelCols, kPanelCols,
+                 m0 == 0 ? kPanelCols : 0);
+}
+
+// {Σ lanes of v0, ..., Σ lanes of v7}: a shuffle tree (24 operations) instead of eight
+// independent horizontal reductions (about 64).
+inline __m256 reduce8(__m512 v0, __m512 v1, __m512 v2, __m512 v3, __m512 v4, __m512 v5, __m512 v6, __m512 v7) {
+  auto pair = [](__m512 a, __m512 b) { return _mm512_add_ps(_mm512_unpacklo_ps(a, b), _mm512_unpackhi_ps(a, b)); };
+  auto quad = [](__m512 ab, __m512 cd) {  // per 128-bit lane: {a, b, c, d} partial sums
+    return _mm512_add_ps(_mm512_shuffle_ps(ab, cd, _MM_SHUFFLE(1, 0, 1, 0)),
+                         _mm512_shuffle_ps(ab, cd, _MM_SHUFFLE(3, 2, 3, 2)));
+  };
+  const __m512 lo = quad(pair(v0, v1), pair(v2, v3)), hi = quad(pair(v4, v5), pair(v6, v7));
+  const __m512 u = _mm512_add_ps(_mm512_shuffle_f32x4(lo, hi, _MM_SHUFFLE(2, 0, 2, 0)),
+                                 _mm512_shuffle_f32x4(lo, hi, _MM_SHUFFLE(3, 1, 3, 1)));
+  const __m512 t = _mm512_add_ps(_mm512_shuffle_f32x4(u, u, _MM_SHUFFLE(2, 0, 2, 0)),
+                                 _mm512_shuffle_f32x4(u, u, _MM_SHUFFLE(3, 1, 3, 1)));
+  return _mm512_castps512_ps256(t);
+}
+
+// dw[o][k] += Σ_i dy[o][i] · base[row_offset[k] + i]: 8 rows of dy against 3 windows of the padded
+// input, 16 positions per step, 24 vector accumulators reduced once at the end of the range.
+void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
+                             int64_t K, int64_t len, float* dw) {
+  const int64_t full = len / 16 * 16;
+  const __mmask16 tail = static_cast<__mmask16>((1u << (len - full)) - 1u);
+  for (int64_t o0 = 0; o0 < M; o0 += kBlockRows) {
+    const int64_t rows = std::min(kBlockRows, M - o0);
+    const float* d[kBlockRows];
+    for (int64_t i = 0; i < kBlockRows; ++i) d[i] = dy + (o0 + std::min(i, rows - 1)) * ldy;  // extra rows dropped
+    for (int64_t k0 = 0; k0 < K; k0 += 3) {
+      const int64_t cols = std::min<int64_t>(3, K - k0);
+      const float* x0 = base + row_offset[k0];
+      const float* x1 = base + row_offset[k0 + std::min<int64_t>(1, cols - 1)];
+      const float* x2 = base + row_offset[k0 + std::min<int64_t>(2, cols - 1)];
+#define SL_ROW(i) __m512 a##i##0 = _mm512_setzero_ps(), a##i##1 = a##i##0, a##i##2 = a##i##0;
+      SL_ROW(0) SL_ROW(1) SL_ROW(2) SL_ROW(3) SL_ROW(4) SL_ROW(5) SL_ROW(6) SL_ROW(7)
+#undef SL_ROW
+#define SL_FMA(r, m)                                     \
+  {                                                      \
+    const __m512 g = _mm512_maskz_loadu_ps(m, d[r] + i); \
+    a##r##0 = _mm512_fmadd_ps(g, v0, a##r##0);           \
+    a##r##1 = _mm512_fmadd_ps(g, v1, a##r##1);           \
+    a##r##2 = _mm512_fmadd_ps(g, v2, a##r##2);           \
+  }
+#define SL_STEP(m)                                                                                 \
+  {                                                                                                \
+    const __m512 v0 = _mm512_maskz_loadu_ps(m, x0 + i);                                            \
+    const __m512 v1 = _mm512_maskz_loadu_ps(m, x1 + i);                                            \
+    const __m512 v2 = _mm512_maskz_loadu_ps(m, x2 + i);                                            \
+    SL_FMA(0, m) SL_FMA(1, m) SL_FMA(2, m) SL_FMA(3, m) SL_FMA(4, m) SL_FMA(5, m) SL_FMA(6, m) SL_FMA(7, m) \
+  }
+      // An opaque all-ones mask: with a constant one GCC folds each dy load into its three FMAs
+      // as memory operands (27 loads per step instead of 11), and the loop becomes load-bound.
+      unsigned all_lanes = 0xffffu;
+      asm("" : "+r"(all_lanes));
+      const __mmask16 all = static_cast<__mmask16>(all_lanes);
+      int64_t i = 0;
+      for (; i < full; i += 16) SL_STEP(all)
+      if (tail) SL_STEP(tail)
+#undef SL_STEP
+#undef SL_FMA
+      alignas(32) float sums[3][8];
+      _mm256_store_ps(sums[0], reduce8(a00, a10, a20, a30, a40, a50, a60, a70));
+      _mm256_store_ps(sums[1], reduce8(a01, a11, a21, a31, a41, a51, a61, a71));
+      _mm256_store_ps(sums[2], reduce8(a02, a12, a22, a32, a42, a52, a62, a72));
+      for (int64_t r = 0; r < rows; ++r)
+        for (int64_t j = 0; j < cols; ++j) dw[(o0 + r) * K + k0 + j] += sums[j][r];
+    }
+  }
+}
+
+#else
+
+bool conv_gemm_available() { return false; }
+
+void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
+                     const float* bias, float* c, int64_t ldc) {
+  for (int64_t m = 0; m < M; ++m)
+    for (int64_t j = 0; j < n; ++j) {
+      float acc = 0.0f;
+      for (int64_t k = 0; k < K; ++k)
+        acc += packed_a[((m / kBlockRows) * K + k) * kBlockRows + m % kBlockRows] * b_panel[k * kPanelCols + j];
+      c[m * ldc + j] = acc + (bias ? bias[m] : 0.0f);
+    }
+}
+
+void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
+                      float* tile) {
+  for (int64_t m = 0; m < M; ++m)
+    for (int64_t j = 0; j < kPanelCols; ++j) {
+      float acc = 0.0f;
+      for (int64_t k = 0; k < K; ++k)
+        acc += packed_a[((m / kBlockRows) * K + k) * kBlockRows + m % kBlockRows] * base[row_offset[k] + j];
+      tile[m * kPanelCols + j] = acc;
+    }
+}
+
+void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
+                             int64_t K, int64_t len, float* dw) {
+  for (int64_t o = 0; o < M; ++o)
+    for (int64_t k = 0; k < K; ++k) {
+      float acc = 0.0f;
+      for (int64_t i = 0; i < len; ++i) acc += dy[o * ldy + i] * base[row_offset[k] + i];
+      dw[o * K + k] += acc;
+    }
+}
+
+#endif
+
+}  // namespace sl::nn::detail

@@ -1,0 +1,42 @@
+// The register-blocked float GEMM behind convolution (internal to nn/functional/conv.cpp).
+//
+// Contract: C[M, n] = A[M, K] · B[K, n] (+ bias[m]) for one panel of n <= kPanelCols columns,
+// where A was packed once by pack_weights into row blocks [ceil(M / kBlockRows)][K][kBlockRows]
+// and B is one im2col panel [K][kPanelCols] (columns past n are ignored). C has leading
+// dimension ldc. Each output element is one fixed sequence of FMAs over k = 0..K-1, so the
+// result does not depend on threads or on which panel it is computed in.
+// Why not Eigen here: im2col can write its panel directly in the layout the micro-kernel
+// streams, which saves Eigen's second packing copy of the column matrix, and the 8×48 tile keeps
+// 24 AVX-512 accumulators busy for the 16-64 output channels typical of these networks.
+// available() is false without AVX-512; conv.cpp then uses autodiff's Eigen GEMM.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+namespace sl::nn::detail {
+
+constexpr int64_t kBlockRows = 8;
+constexpr int64_t kPanelCols = 48;
+
+bool conv_gemm_available();
+
+// Zero-padded row blocks of A [M, K] (row-major, leading dim K).
+std::vector<float> pack_weights(const float* a, int64_t M, int64_t K);
+
+void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
+                     const float* bias, float* c, int64_t ldc);
+
+// Implicit GEMM for stride-1 convolutions: B[k][j] = base[row_offset[k] + j] for j < 48, i.e.
+// every row of B is a shifted window of a zero-padded input, so no column matrix is built.
+// Writes all 48 columns of tile [M][48] (the caller keeps the valid ones).
+void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
+                      float* tile);
+
+// Weight gradient of a stride-1 convolution on the same windows: for o < M and k < K,
+// dw[o·K + k] += Σ_{i < len} dy[o·ldy + i] · base[row_offset[k] + i], where dy is the output
+// gradient laid out on the padded pitch (zeros at dropped positions). Reads nothing past
+// base[row_offset[k] + len - 1].
+void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
+                             int64_t K, int64_t len, float* dw);
+
+}  // namespace sl::nn::detail

@@ -1,0 +1,33 @@
+#include "nn/modules/group_norm.h"
+
+#include "autodiff/tape.h"
+#include "nn/functional/normalization.h"
+#include "nn/init.h"
+#include "nn/modules/activations.h"
+
+namespace sl::nn {
+
+GroupNorm::GroupNorm(int64_t groups, int64_t channels, double eps, bool affine)
+    : Module("GroupNorm"), groups_(groups), channels_(channels), eps_(eps), affine_(affine) {
+  SL_CHECK(groups > 0 && channels > 0 && channels % groups == 0 && eps > 0, "GroupNorm: ", channels,
+           " channels must divide into ", groups, " groups (both > 0) and eps ", eps, " must be > 0");
+  if (affine) {
+    register_parameter("weight", Tensor::ones({channels}));
+    register_parameter("bias", Tensor::zeros({channels}));
+  }
+}
+
+void GroupNorm::reset_parameters(uint64_t, const std::string&) {
+  if (affine_) norm_affine_init(parameter("weight"), parameter("bias"));
+}
+
+Tensor GroupNorm::forward(const Tensor& x) {
+  SL_CHECK(x.dim() >= 2 && x.size(1) == channels_, "GroupNorm(", groups_, ", ", channels_, "): expected [N, ",
+           channels_, ", ...], got ", x.describe());
+  return group_norm(x, groups_, affine_ ? parameter("weight") : Tensor(), affine_ ? parameter("bias") : Tensor(),
+                    eps_);
+}
+
+// ---------------------------------------------------------------- InstanceNorm
+
+}  // namespace sl::nn

@@ -1,0 +1,165 @@
+// Eq. 2: the G-buffer and the light rays of the inserted object (see insertion_foreground.h).
+#include "render/insertion_foreground.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "render/sampling.h"
+#include "util/math.h"
+#include "util/parallel.h"
+#include "util/random.h"
+
+namespace sl::insertion {
+namespace {
+
+disney::Params material_at(const Mesh& mesh, const Hit& hit) {
+  disney::Params p;
+  if (mesh.materials.empty()) return p;
+  const uint32_t id = hit.triangle < mesh.material_ids.size() ? mesh.material_ids[hit.triangle] : 0;
+  const Material& m = mesh.materials[std::min<size_t>(id, mesh.materials.size() - 1)];
+  glm::vec2 uv(0.0f);
+  if (!mesh.uvs.empty()) {
+    const glm::uvec3 t = mesh.triangles[hit.triangle];
+    uv = (1 - hit.u - hit.v) * mesh.uvs[t.x] + hit.u * mesh.uvs[t.y] + hit.v * mesh.uvs[t.z];
+  }
+  p.base_color = glm::vec3(m.base_color(uv));
+  p.metallic = m.metallic;
+  p.roughness = m.roughness;
+  p.clearcoat = m.clearcoat;
+  p.clearcoat_gloss = 1.0f - m.clearcoat_roughness;
+  return p;
+}
+
+glm::vec3 shading_normal(const Mesh& mesh, const Hit& hit, const glm::vec3& dir) {
+  const glm::uvec3 t = mesh.triangles[hit.triangle];
+  glm::vec3 n;
+  if (mesh.normals.size() == mesh.positions.size())
+    n = (1 - hit.u - hit.v) * mesh.normals[t.x] + hit.u * mesh.normals[t.y] + hit.v * mesh.normals[t.z];
+  else
+    n = glm::cross(mesh.positions[t.y] - mesh.positions[t.x], mesh.positions[t.z] - mesh.positions[t.x]);
+  n = safe_normalize(n);
+  if (glm::dot(n, n) == 0.0f) n = -dir;
+  return glm::dot(n, dir) > 0 ? -n : n;  // face the viewer
+}
+
+}  // namespace
+
+// Pass 1: primary rays against the objects, in parallel over image rows.
+std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& opt, const Mesh& mesh, const Bvh& bvh,
+                             const double* depth, Foreground& fg, InsertionStats& stats) {
+  const Camera& cam = in.camera;
+  const int W = cam.intrinsics().width, H = cam.intrinsics().height;
+  const Rect r = screen_bounds(mesh.bounds(), cam, opt.prune);
+  stats.image_pixels_total = int64_t(W) * H;
+  stats.foreground_pixels_shaded = r.area();
+  fg.coverage.assign(size_t(W) * H, 0.0f);
+  fg.depth.assign(size_t(W) * H, 0.0f);
+  fg.silhouette.assign(size_t(W) * H, 0.0f);
+  const uint64_t aa_seed = hash_counter(opt.seed, kTagAa);
+  std::vector<std::vector<GSample>> rows(size_t(std::max(0, r.y1 - r.y0)));
+  parallel_for(int64_t(rows.size()), 1, [&](int64_t b, int64_t e) {
+    for (int64_t ri = b; ri < e; ++ri) {
+      const int row = r.y0 + int(ri);
+      for (int col = r.x0; col < r.x1; ++col) {
+        const int64_t pix = int64_t(row) * W + col;
+        int visible = 0, hits = 0;
+        double zsum = 0;
+        for (int s = 0; s < opt.aa_samples; ++s) {
+          const double u = col + uniform01(aa_seed, uint64_t(pix), 2 * s), v = row + uniform01(aa_seed, uint64_t(pix), 2 * s + 1);
+          const CameraRay cr = cam.ray(u, v);
+          Ray ray;
+          ray.origin = glm::vec3(cr.origin);
+          ray.direction = glm::vec3(cr.direction);
+          const Hit hit = bvh.intersect(ray);
+          if (!hit.hit()) continue;
+          const glm::vec3 x = ray.origin + hit.t * ray.direction;
+          const double z = cam.world_to_camera(glm::dvec3(x)).z;
+          ++hits;
+          // Scene geometry nearer than the object hides it: the photo wins.
+          if (valid_depth(depth[pix]) && depth[pix] < z * (1.0 - 1e-3)) continue;
+          ++visible;
+          zsum += z;
+          rows[ri].push_back({pix, uint64_t(pix) * uint64_t(opt.aa_samples) + uint64_t(s), x,
+                              shading_normal(mesh, hit, ray.direction), -ray.direction, material_at(mesh, hit)});
+        }
+        fg.silhouette[pix] = float(hits) / opt.aa_samples;
+        if (visible > 0) {
+          fg.coverage[pix] = float(visible) / opt.aa_samples;
+          fg.depth[pix] = float(zsum / visible);
+        }
+      }
+    }
+  });
+  std::vector<GSample> all;
+  for (auto& row : rows) all.insert(all.end(), row.begin(), row.end());
+  stats.foreground_samples = int64_t(all.size());
+  return all;
+}
+
+// Pass 2: N light directions per G-buffer sample, written to fixed slots [i·N, (i+1)·N).
+void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
+                      const std::vector<GSample>& gs, Foreground& fg, QueryRays& rays) {
+  const int N = fg.light_samples;
+  const uint64_t light_seed = sample_seed(opt, kTagLight), choice_seed = sample_seed(opt, kTagChoice);
+  const uint64_t rot_seed = sample_seed(opt, kTagRotation);
+  const int n_brdf = N / 2;  // inference: BRDF samples first, then environment samples
+  const float c_brdf = float(n_brdf) / float(N), c_env = 1.0f - c_brdf;
+  fg.weights.assign(gs.size() * size_t(N) * 3, 0.0f);
+  const float norm = 1.0f / float(N * opt.aa_samples);
+  parallel_for(int64_t(gs.size()), 16, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) {
+      const GSample& g = gs[size_t(i)];
+      const Frame frame(g.n);
+      const glm::vec3 origin = g.x + ray_epsilon(g.x) * g.n;
+      for (int k = 0; k < N; ++k) {
+        glm::vec3 l;
+        float pdf;
+        const bool split = opt.importance_sampling && n_brdf > 0;
+        const float u1 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k);
+        const float u2 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k + 1);
+        if (!opt.importance_sampling) {  // training: cosine-weighted hemisphere
+          l = frame.to_world(cosine_hemisphere(u1, u2));
+          pdf = cosine_hemisphere_pdf(glm::dot(l, g.n));
+        } else if (n_brdf == 0) {  // a single sample: one-sample MIS (balance heuristic)
+          if (uniform01f(choice_seed, g.stream, k) < 0.5f)
+            l = disney::sample(g.material, g.n, g.wo, u1, u2, uniform01f(choice_seed, g.stream, k + N)).wi;
+          else
+            l = env_map.sample(u1, u2).direction;
+          pdf = 0.5f * disney::pdf(g.material, g.n, g.wo, l) + 0.5f * env_map.pdf(l);
+        } else {  // inference: stratified multi-sample MIS of BRDF and environment sampling
+          const SplitSample sp = split_sample(rot_seed, g.stream, k, N, n_brdf);
+          if (sp.technique == 0)
+            l = disney::sample(g.material, g.n, g.wo, sp.u.x, sp.u.y, uniform01f(choice_seed, g.stream, k + N)).wi;
+          else
+            l = env_map.sample(sp.u.x, sp.u.y).direction;
+          pdf = c_brdf * disney::pdf(g.material, g.n, g.wo, l) + c_env * env_map.pdf(l);
+        }
+        const float cos_l = glm::dot(l, g.n);
+        glm::vec3 w(0.0f);
+        if (cos_l > 0 && pdf > 0 && std::isfinite(pdf)) {
+          w = disney::eval(g.material, g.n, g.wo, l) * (cos_l / pdf) * norm;
+          if (!all_finite(w)) w = glm::vec3(0.0f);
+          Ray shadow;
+          shadow.origin = origin;
+          shadow.direction = l;
+          if (bvh.occluded(shadow)) w *= float(opt.ambient);  // blocked by the object itself
+        } else {
+          l = g.n;  // a harmless ray with zero weight keeps the layout regular
+        }
+        const int64_t slot = i * N + k;
+        rays.set(slot, origin, l);
+        for (int c = 0; c < 3; ++c) fg.weights[size_t(3 * slot + c)] = w[c];
+      }
+    }
+  });
+  fg.offsets.assign(1, 0);
+  for (size_t i = 0; i < gs.size(); ++i) {
+    if (i == 0 || gs[i].pixel != gs[i - 1].pixel) {
+      if (i > 0) fg.offsets.push_back(int64_t(i) * N);
+      fg.pixels.push_back(gs[i].pixel);
+    }
+  }
+  if (!gs.empty()) fg.offsets.push_back(int64_t(gs.size()) * N);
+}
+
+}  // namespace sl::insertion

@@ -1,0 +1,112 @@
+// train/inference.h: frames, sun editing and multi-view fusion on a random-weight tiny model.
+#include <gtest/gtest.h>
+
+#include "autodiff/ops.h"
+#include "render/bvh.h"
+#include "render/primitives.h"
+#include "support/tool_fixture.h"
+#include "train/inference.h"
+#include "train/photo_insertion.h"
+#include "util/math.h"
+
+namespace {
+
+using namespace sl;
+using namespace sl::train;
+
+InferenceView view_at(double yaw_deg) {
+  const Intrinsics k = intrinsics_from_fov(1.2, 64, 32);
+  InferenceView v;
+  v.camera = Camera(k, rotation_from_yaw_pitch_roll(yaw_deg * kPi / 180.0, 0.0, 0.0), {0.0, 1.6, 0.0});
+  v.ldr = Tensor::uniform({3, 32, 64}, 0.0, 1.0, 3);
+  v.depth = ground_plane_depth(v.camera);
+  return v;
+}
+
+TEST(Inference, SunEditSetsTheWorldAzimuthWhateverTheCameraYaw) {
+  const std::string dir = test::tool_dir("inference_sun");
+  LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  SunEdit e;
+  e.azimuth_deg = 40.0;
+  e.elevation_deg = 25.0;
+  for (double yaw : {0.0, 70.0, -120.0}) {
+    const EstimatedLighting l = est.estimate({view_at(yaw)}, e);
+    EXPECT_NEAR(azimuth_deg_of(l.sun_direction_world()), 40.0, 1e-6) << yaw;
+    EXPECT_NEAR(elevation_deg_of(l.sun_direction_world()), 25.0, 1e-6) << yaw;
+  }
+}
+
+TEST(Inference, FusingAViewWithItselfChangesNothing) {
+  const std::string dir = test::tool_dir("inference_fuse");
+  LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  const InferenceView v = view_at(30.0);
+  const EstimatedLighting one = est.estimate({v}), two = est.estimate({v, v});
+  EXPECT_LT(max(abs(sub(one.env, two.env))).item(), 1e-5);
+  EXPECT_NEAR(glm::length(one.sun_direction_canonical - two.sun_direction_canonical), 0.0, 1e-9);
+  ASSERT_TRUE(two.vsg.defined());
+  EXPECT_LT(max(abs(sub(one.vsg, two.vsg))).item(), 1e-4);
+}
+
+TEST(Inference, ResamplingOntoTheSameGridIsTheIdentity) {
+  VsgGrid g;
+  g.dims = {8, 8, 4};
+  CanonicalFrame f;
+  const Tensor vsg = Tensor::uniform({8, 8, 8, 4}, 0.0, 1.0, 5);
+  EXPECT_LT(max(abs(sub(resample_vsg(vsg, g, f, g, f), vsg))).item(), 1e-6);
+}
+
+TEST(Inference, GroundPlaneDepthPutsBelowHorizonPixelsOnYZero) {
+  const Camera cam = view_at(0.0).camera;
+  const Tensor d = ground_plane_depth(cam);
+  const float* p = d.data<float>();
+  for (int r = 20; r < 32; r += 5) {
+    const double z = p[r * 64 + 10];
+    ASSERT_GT(z, 0.0);
+    EXPECT_NEAR(cam.unproject(10.5, r + 0.5, z).y, 0.0, 1e-4);
+  }
+  EXPECT_EQ(p[2 * 64 + 10], 0.0f);  // above the horizon: a hole
+}
+
+// The object a photo insertion renders (in the lighting's canonical frame) is the object the
+// pose describes in the world (the frame of the generator's truth and of the KITTI labels),
+// whatever the camera's yaw: its coverage matches a world-frame ray cast of the posed mesh.
+TEST(Inference, InsertedObjectMatchesTheWorldPoseWhateverTheCameraYaw) {
+  const std::string dir = test::tool_dir("inference_pose");
+  LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  const Mesh car = make_box({-2.25f, 0.0f, -0.9f}, {2.25f, 1.5f, 0.9f});  // object frame: long along +X
+  for (double cam_yaw : {0.0, 35.0, -50.0}) {
+    const InferenceView v = view_at(cam_yaw);
+    const EstimatedLighting l = est.estimate({v});
+    // 8 m in front of the camera, heading 30° off the camera's own heading.
+    Placement pose;
+    pose.x_m = 8.0 * v.camera.rotation()[2].x;
+    pose.z_m = 8.0 * v.camera.rotation()[2].z;
+    pose.yaw_deg = 30.0;
+    PhotoInsertionOptions o;
+    o.aa_samples = 4, o.light_samples = 1, o.shadow_rays = 1, o.shadow_width = 8, o.shadow_height = 4;
+    const PhotoInsertion ins = insert_into_photo(l, v.ldr, v.depth, v.camera, car, pose, o);
+    // World frame: yaw about +Y (+X turns toward −Z), then translate; ray cast per pixel centre.
+    const double y = pose.yaw_deg * kPi / 180.0, c = std::cos(y), s = std::sin(y);
+    Mesh world = car;
+    for (glm::vec3& p : world.positions)
+      p = glm::vec3(float(c * p.x + s * p.z + pose.x_m), p.y, float(-s * p.x + c * p.z + pose.z_m));
+    const Bvh bvh(world);
+    const int W = v.camera.intrinsics().width, H = v.camera.intrinsics().height;
+    int both = 0, either = 0;
+    for (int r = 0; r < H; ++r)
+      for (int col = 0; col < W; ++col) {
+        const CameraRay cr = v.camera.pixel_ray(col + 0.5, r + 0.5);
+        Ray ray;
+        ray.origin = glm::vec3(cr.origin);
+        ray.direction = glm::vec3(cr.direction);
+        const bool truth = bvh.intersect(ray).hit();
+        const bool ours = ins.object_mask.data<float>()[r * W + col] >= 0.5f;
+        both += truth && ours;
+        either += truth || ours;
+      }
+    ASSERT_GT(either, 20) << "camera yaw " << cam_yaw;
+    EXPECT_GT(double(both) / either, 0.9) << "camera yaw " << cam_yaw << ": IoU of the rendered and the posed object";
+  }
+}
+
+}  // namespace

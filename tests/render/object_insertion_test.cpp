@@ -236,15 +236,20 @@ TEST(ObjectInsertion, PlacementBehindTheCameraOrOffScreenIsAnError) {
 
 // ---- inverse rendering: recover a sun through the composite alone
 
-// Sky = constant + an SG sun lobe, as differentiable functions of (elevation, azimuth, log I).
-Tensor sg_sky(const Tensor& params, int W, int H) {
+// Unit direction of every texel centre of a W×H panorama, row-major: [H·W, 3] float64.
+Tensor texel_directions(int W, int H) {
   std::vector<double> dirs;
   for (int i = 0; i < H; ++i)
     for (int j = 0; j < W; ++j) {
       const auto d = equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
       dirs.insert(dirs.end(), {d.x, d.y, d.z});
     }
-  const Tensor D = Tensor::from_vector(dirs, {H * W, 3}, DType::F64);
+  return Tensor::from_vector(dirs, {H * W, 3}, DType::F64);
+}
+
+// Sky = constant + an SG sun lobe, as differentiable functions of (elevation, azimuth, log I).
+Tensor sg_sky(const Tensor& params, int W, int H) {
+  const Tensor D = texel_directions(W, H);
   const Tensor el = select(params, 0, 0), az = select(params, 0, 1), log_i = select(params, 0, 2);
   const Tensor mu = stack({mul(cos(el), sin(az)), sin(el), neg(mul(cos(el), cos(az)))}, 0);  // [3]
   const Tensor dot = matmul(D, reshape(mu, {3, 1}));                                         // [HW, 1]
@@ -435,13 +440,7 @@ namespace {
 // analytic sun, train/sky_autoencoder.h): exp(λ(d·f̂ − 1)) with λ = 600 has a 6° full width at
 // half maximum, one texel of this 64×32 panorama. f is a free 3-vector, normalised on the tape.
 Tensor one_texel_sun_sky(const Tensor& f, int W, int H) {
-  std::vector<double> dirs;
-  for (int i = 0; i < H; ++i)
-    for (int j = 0; j < W; ++j) {
-      const auto d = equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
-      dirs.insert(dirs.end(), {d.x, d.y, d.z});
-    }
-  const Tensor D = Tensor::from_vector(dirs, {H * W, 3}, DType::F64);
+  const Tensor D = texel_directions(W, H);
   const Tensor fhat = div(f, sqrt(sum(square(f))));
   const Tensor dot = matmul(D, reshape(fhat, {3, 1}));
   const Tensor sky = add_scalar(mul_scalar(exp(mul_scalar(add_scalar(dot, -1.0), 600.0)), 1e4), 0.5);

@@ -7,7 +7,10 @@
 #include "util/math.h"
 #include "util/random.h"
 
-namespace sl {
+using sl::render::Camera;
+using sl::render::Intrinsics;
+
+namespace sl::data {
 namespace {
 
 void check_image(const Tensor& t, const char* fn) {
@@ -100,4 +103,4 @@ Tensor scale_ldr(const Tensor& ldr, double factor) {
   return out;
 }
 
-}  // namespace sl
+}  // namespace sl::data

@@ -24,7 +24,7 @@
 #include "data/panorama.h"
 #include "data/street_dataset.h"
 
-namespace sl {
+namespace sl::data {
 
 struct CropRanges {
   double fov_min_deg = 50.0, fov_max_deg = 80.0;
@@ -60,4 +60,4 @@ double random_exposure_factor(uint64_t seed, uint64_t stream, double stops);
 Tensor scale_hdr(const Tensor& hdr, double factor);
 Tensor scale_ldr(const Tensor& ldr, double factor);  // clip(factor^(1/2.2)·ldr, 0, 1)
 
-}  // namespace sl
+}  // namespace sl::data

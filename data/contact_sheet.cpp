@@ -7,7 +7,7 @@
 #include "data/image_io.h"
 #include "util/error.h"
 
-namespace sl {
+namespace sl::data {
 
 namespace fs = std::filesystem;
 
@@ -111,4 +111,4 @@ void write_contact_sheet(const std::string& dataset_dir, const std::string& png_
   write_image(png_path, compose_contact_sheet(dataset_dir, rows, th), o);
 }
 
-}  // namespace sl
+}  // namespace sl::data

@@ -11,11 +11,11 @@
 
 #include "autodiff/tensor.h"
 
-namespace sl {
+namespace sl::data {
 
 // [3, H, W] in [0, 1]; `rows` samples (in index order) from `dataset_dir`.
 Tensor compose_contact_sheet(const std::string& dataset_dir, int rows, int tile_height = 96);
 void write_contact_sheet(const std::string& dataset_dir, const std::string& png_path, int rows,
                          int tile_height = 96);
 
-}  // namespace sl
+}  // namespace sl::data

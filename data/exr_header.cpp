@@ -5,7 +5,7 @@
 #include <cstring>
 #include <fstream>
 
-namespace sl {
+namespace sl::data {
 
 namespace {
 
@@ -80,4 +80,4 @@ ExrHeaderSummary summarize_exr_header(const std::string& path) {
   }
 }
 
-}  // namespace sl
+}  // namespace sl::data

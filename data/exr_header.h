@@ -19,7 +19,7 @@
 #include <cstdint>
 #include <string>
 
-namespace sl {
+namespace sl::data {
 
 struct ExrHeaderSummary {
   int64_t largest_window_pixels = 0;
@@ -29,4 +29,4 @@ struct ExrHeaderSummary {
 
 ExrHeaderSummary summarize_exr_header(const std::string& path);
 
-}  // namespace sl
+}  // namespace sl::data

@@ -10,7 +10,7 @@
 #include "util/math.h"
 #include "util/random.h"
 
-namespace sl {
+namespace sl::data {
 
 namespace fs = std::filesystem;
 
@@ -84,4 +84,4 @@ AugmentedPanorama HdriFolder::load_augmented(size_t index, uint64_t seed,
   return augment_panorama(load(index), seed, index, augmentation);
 }
 
-}  // namespace sl
+}  // namespace sl::data

@@ -18,7 +18,7 @@
 
 #include "autodiff/tensor.h"
 
-namespace sl {
+namespace sl::data {
 
 struct HdriAugmentation {
   bool rotate = true;
@@ -56,4 +56,4 @@ class HdriFolder {
 AugmentedPanorama augment_panorama(const Tensor& pano, uint64_t seed, uint64_t stream,
                                    const HdriAugmentation& augmentation);
 
-}  // namespace sl
+}  // namespace sl::data

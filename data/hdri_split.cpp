@@ -9,7 +9,7 @@
 
 #include "util/error.h"
 
-namespace sl {
+namespace sl::data {
 
 namespace fs = std::filesystem;
 
@@ -57,4 +57,4 @@ std::vector<std::string> HdriSplit::split_paths(const std::string& folder, const
   return out;
 }
 
-}  // namespace sl
+}  // namespace sl::data

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-namespace sl {
+namespace sl::data {
 
 struct HdriSplit {
   std::string file;  // the JSON file it was read from
@@ -26,4 +26,4 @@ struct HdriSplit {
 
 HdriSplit read_hdri_split(const std::string& path);
 
-}  // namespace sl
+}  // namespace sl::data

@@ -16,7 +16,7 @@
 #include "util/parallel.h"
 #include "util/file.h"
 
-namespace sl {
+namespace sl::data {
 
 namespace fs = std::filesystem;
 
@@ -362,4 +362,4 @@ void write_depth(const std::string& path, const Tensor& depth_m) {
   write_pixels(path, OIIO::ImageSpec(w, h, 1, OIIO::TypeDesc::UINT16), out.data(), op);
 }
 
-}  // namespace sl
+}  // namespace sl::data

@@ -32,7 +32,7 @@
 
 #include "autodiff/tensor.h"
 
-namespace sl {
+namespace sl::data {
 
 enum class Transfer { Auto, Linear, SRGB };
 
@@ -72,4 +72,4 @@ void write_depth(const std::string& path, const Tensor& depth_m);
 float srgb_to_linear(float encoded);
 float linear_to_srgb(float linear);
 
-}  // namespace sl
+}  // namespace sl::data

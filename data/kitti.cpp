@@ -12,7 +12,13 @@
 #include "util/error.h"
 #include "util/random.h"
 
-namespace sl {
+using sl::render::Camera;
+using sl::render::Intrinsics;
+using sl::render::kitti_projection_from_file;
+using sl::render::kitti_projection_from_values;
+using sl::render::rotation_from_yaw_pitch_roll;
+
+namespace sl::data {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
@@ -278,4 +284,4 @@ KittiFrame load_kitti_frame(const std::string& image_path, const std::string& ca
   return f;
 }
 
-}  // namespace sl
+}  // namespace sl::data

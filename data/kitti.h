@@ -29,10 +29,10 @@
 #include "autodiff/tensor.h"
 #include "render/camera.h"
 
-namespace sl {
+namespace sl::data {
 
 struct KittiCalibration {
-  KittiProjection p2;                 // intrinsics and t = K⁻¹·P2[:, 3]
+  render::KittiProjection p2;  // intrinsics and t = K⁻¹·P2[:, 3]
   std::array<double, 12> p2_row_major{};
   glm::dmat4 lidar_to_cam{1.0};       // lidar → rectified reference camera (R0_rect · Tr_velo_to_cam)
   bool has_lidar = false;
@@ -59,14 +59,14 @@ struct DensifyParams {
   double max_ground_distance_m = 80.0;
 };
 // `camera_points` feed the ground-plane fit (may be empty to skip it).
-Tensor densify_depth(const Tensor& sparse_depth, const Intrinsics& intrinsics,
+Tensor densify_depth(const Tensor& sparse_depth, const render::Intrinsics& intrinsics,
                      const std::vector<glm::dvec3>& camera_points, const DensifyParams& params = {},
                      GroundPlane* plane = nullptr);
 
 struct KittiFrame {
   Tensor image;  // [3, H, W] stored 8-bit values in [0, 1] (sRGB-encoded, not decoded)
   KittiCalibration calibration;
-  Camera camera;
+  render::Camera camera;
   std::vector<glm::vec4> points;      // empty without a velodyne file
   std::vector<glm::dvec3> camera_points;  // the points in camera-2 coordinates (z > 0.5 m)
   Tensor sparse_depth;                // [H, W], undefined without a velodyne file
@@ -75,4 +75,4 @@ struct KittiFrame {
 KittiFrame load_kitti_frame(const std::string& image_path, const std::string& calibration_path,
                             const std::string& velodyne_path = "", double camera_height_m = 1.65);
 
-}  // namespace sl
+}  // namespace sl::data

@@ -12,7 +12,9 @@
 
 #include "util/error.h"
 
-namespace sl {
+using sl::render::Intrinsics;
+
+namespace sl::data {
 
 using json = nlohmann::json;
 
@@ -173,4 +175,4 @@ std::string kitti_calibration_from_intrinsics(const Intrinsics& k) {
   return out;
 }
 
-}  // namespace sl
+}  // namespace sl::data

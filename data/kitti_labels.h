@@ -26,7 +26,7 @@
 
 #include "render/camera.h"
 
-namespace sl {
+namespace sl::data {
 
 struct KittiLabel {
   std::string type;
@@ -47,6 +47,6 @@ int occlusion_level(double hidden_fraction);
 void cover_label(KittiLabel& label, double covered_fraction);
 
 std::string kitti_calibration_text(const std::string& path);
-std::string kitti_calibration_from_intrinsics(const Intrinsics& k);
+std::string kitti_calibration_from_intrinsics(const render::Intrinsics& k);
 
-}  // namespace sl
+}  // namespace sl::data

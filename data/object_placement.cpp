@@ -5,7 +5,14 @@
 #include "util/error.h"
 #include "util/math.h"
 
-namespace sl {
+using sl::render::Bounds3;
+using sl::render::Camera;
+using sl::render::check_placement;
+using sl::render::Mesh;
+using sl::render::Placement;
+using sl::render::rotate_yaw;
+
+namespace sl::data {
 namespace {
 
 void check_object(const Mesh& m, const char* fn) {
@@ -68,4 +75,4 @@ std::array<double, 7> kitti_box3d(const Mesh& object, const Placement& p, const 
   return {e.y, e.z, e.x, loc.x, loc.y, loc.z, ry};
 }
 
-}  // namespace sl
+}  // namespace sl::data

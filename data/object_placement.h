@@ -23,20 +23,20 @@
 #include "render/mesh.h"
 #include "render/object_placement.h"
 
-namespace sl {
+namespace sl::data {
 
 // Moves a mesh into the object frame: footprint centred on the origin, bottom on y = 0, and the
 // longer horizontal extent along X (a model longer along Z is turned a quarter turn about +Y;
 // which end is the front is unknown for an arbitrary model, so headings are ±180° ambiguous).
-Mesh to_object_frame(const Mesh& mesh);
+render::Mesh to_object_frame(const render::Mesh& mesh);
 // Uniform scale that makes the longer horizontal extent `length_m`.
-double scale_to_length(const Mesh& object_frame_mesh, double length_m);
+double scale_to_length(const render::Mesh& object_frame_mesh, double length_m);
 
 // The placed object's axis-aligned world footprint.
-FootprintXZ placed_footprint(const Mesh& object_frame_mesh, const Placement& placement);
+FootprintXZ placed_footprint(const render::Mesh& object_frame_mesh, const render::Placement& placement);
 
 // h w l x y z ry (see above).
-std::array<double, 7> kitti_box3d(const Mesh& object_frame_mesh, const Placement& placement,
-                                  const Camera& camera);
+std::array<double, 7> kitti_box3d(const render::Mesh& object_frame_mesh, const render::Placement& placement,
+                                  const render::Camera& camera);
 
-}  // namespace sl
+}  // namespace sl::data

@@ -8,7 +8,12 @@
 #include "util/math.h"
 #include "util/parallel.h"
 
-namespace sl {
+using sl::render::Camera;
+using sl::render::Intrinsics;
+using sl::render::intrinsics_from_fov;
+using sl::render::rotation_from_yaw_pitch_roll;
+
+namespace sl::data {
 
 namespace {
 
@@ -142,7 +147,7 @@ double radiant_power(const Tensor& pano, int channel) {
            " out of range for ", pano.describe());
   const float* p = pano.data<float>() + static_cast<int64_t>(channel) * d.h * d.w;
   return deterministic_sum(static_cast<int64_t>(d.h) * d.w, [&](int64_t i) {
-    return p[i] * equirect::pixel_solid_angle(static_cast<int>(i / d.w), d.w, d.h);
+    return p[i] * render::equirect::pixel_solid_angle(static_cast<int>(i / d.w), d.w, d.h);
   });
 }
 
@@ -181,7 +186,7 @@ PerspectiveCrop crop_perspective(const Tensor& pano, const PerspectiveCropParams
     for (int64_t row = r0; row < r1; ++row)
       for (int col = 0; col < params.width; ++col) {
         const glm::dvec3 dir = crop.camera.pixel_ray(col, static_cast<int>(row)).direction;
-        const auto uv = equirect::direction_to_uv(dir.x, dir.y, dir.z, d.w, d.h);
+        const auto uv = render::equirect::direction_to_uv(dir.x, dir.y, dir.z, d.w, d.h);
         sample_bilinear(src, d.c, d.h, d.w, uv.u, uv.v, value.data());
         for (int c = 0; c < d.c; ++c) dst[c * plane + row * params.width + col] = value[static_cast<size_t>(c)];
       }
@@ -245,4 +250,4 @@ Tensor binarize_mask(Tensor m) {
   return m;
 }
 
-}  // namespace sl
+}  // namespace sl::data

@@ -22,7 +22,7 @@
 #include "render/exposure.h"  // median_luminance, exposure_for_ldr_median
 #include "util/math.h"  // luminance
 
-namespace sl {
+namespace sl::data {
 
 // Checks an F32 [C, H, W] panorama with C ≥ 1, H ≥ 1, W ≥ 1.
 void check_panorama(const Tensor& pano, const char* op);
@@ -49,7 +49,7 @@ struct PerspectiveCropParams {
 };
 struct PerspectiveCrop {
   Tensor image;   // [C, height, width]
-  Camera camera;  // intrinsics from the fov, pose from yaw/pitch/roll, centre at the origin
+  render::Camera camera;  // intrinsics from the fov, pose from yaw/pitch/roll, centre at the origin
 };
 PerspectiveCrop crop_perspective(const Tensor& pano, const PerspectiveCropParams& params);
 
@@ -72,4 +72,4 @@ Tensor estimate_sky_mask(const Tensor& pano, const SkyMaskParams& params = {});
 // contiguous F32 tensor (a fresh resample) and returns it.
 Tensor binarize_mask(Tensor mask);
 
-}  // namespace sl
+}  // namespace sl::data

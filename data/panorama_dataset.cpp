@@ -9,7 +9,9 @@
 #include "util/math.h"
 #include "util/random.h"
 
-namespace sl {
+using sl::render::exposure_for_ldr_median;
+
+namespace sl::data {
 
 PanoramaDataset::PanoramaDataset(const std::string& folder, const CropRanges& crop, double ldr_median)
     : folder_(folder), crop_(crop), ldr_median_(ldr_median) {
@@ -36,4 +38,4 @@ PanoramaItem PanoramaDataset::load(size_t index, uint64_t seed) const {
   return item;
 }
 
-}  // namespace sl
+}  // namespace sl::data

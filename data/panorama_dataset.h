@@ -19,7 +19,7 @@
 #include "data/hdri_folder.h"
 #include "data/sun_extraction.h"
 
-namespace sl {
+namespace sl::data {
 
 struct PanoramaItem {
   std::string file;
@@ -44,4 +44,4 @@ class PanoramaDataset {
   double ldr_median_;
 };
 
-}  // namespace sl
+}  // namespace sl::data

@@ -11,7 +11,9 @@
 #include "util/math.h"
 #include "util/random.h"
 
-namespace sl {
+using sl::render::exposure_for_ldr_median;
+
+namespace sl::data {
 
 Tensor sanitized_panorama(const Tensor& pano, const std::string& name) {
   SL_CHECK(pano.defined() && pano.dim() == 3 && pano.size(0) == 3, "panorama '", name,
@@ -40,7 +42,7 @@ SunHardness sun_hardness(const Tensor& pano, double radius_deg, double min_share
       const int64_t i = r * W + c;
       const double l = luminance(p[i], p[plane + i], p[2 * plane + i]) * omega;
       total += l;
-      const auto d = equirect::uv_to_direction(c + 0.5, r + 0.5, static_cast<int>(W), static_cast<int>(H));
+      const auto d = render::equirect::uv_to_direction(c + 0.5, r + 0.5, static_cast<int>(W), static_cast<int>(H));
       if (d.x * s.x + d.y * s.y + d.z * s.z >= cos_r) near += l;
     }
   }
@@ -113,4 +115,4 @@ StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id
   return s;
 }
 
-}  // namespace sl
+}  // namespace sl::data

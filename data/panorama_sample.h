@@ -37,7 +37,7 @@
 #include "data/street_dataset.h"
 #include "data/sun_extraction.h"
 
-namespace sl {
+namespace sl::data {
 
 struct PanoramaSampleOptions {
   CropRanges crop{};                         // view size, fov / pitch / roll ranges
@@ -66,4 +66,4 @@ Tensor sanitized_panorama(const Tensor& pano, const std::string& name);
 StreetSample panorama_street_sample(const Tensor& pano_hdr, const std::string& id, uint64_t seed, uint64_t stream,
                                     const PanoramaSampleOptions& options = {});
 
-}  // namespace sl
+}  // namespace sl::data

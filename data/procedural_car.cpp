@@ -6,7 +6,11 @@
 #include "util/error.h"
 #include "util/math.h"
 
-namespace sl {
+using sl::render::make_box;
+using sl::render::Material;
+using sl::render::Mesh;
+
+namespace sl::data {
 namespace {
 
 Material paint_material(const glm::vec3& rgb) {
@@ -114,4 +118,4 @@ Mesh make_procedural_car(const ProceduralCarParams& p) {
   return car;
 }
 
-}  // namespace sl
+}  // namespace sl::data

@@ -14,7 +14,7 @@
 
 #include "render/mesh.h"
 
-namespace sl {
+namespace sl::data {
 
 struct ProceduralCarParams {
   double length_m = 4.5, width_m = 1.8, height_m = 1.5;
@@ -22,10 +22,10 @@ struct ProceduralCarParams {
   int wheel_segments = 12;                   // facets around each wheel (>= 6)
 };
 
-Mesh make_procedural_car(const ProceduralCarParams& params = {});
+render::Mesh make_procedural_car(const ProceduralCarParams& params = {});
 
 // A closed cylinder along +Z from z0 to z1 (flat-shaded caps, smooth sides), used for wheels.
-Mesh make_cylinder_z(const glm::vec3& centre_at_z0, float radius, float length, int segments,
-                     const Material& material);
+render::Mesh make_cylinder_z(const glm::vec3& centre_at_z0, float radius, float length, int segments,
+                             const render::Material& material);
 
-}  // namespace sl
+}  // namespace sl::data

@@ -9,7 +9,7 @@
 #include "util/parallel.h"
 #include "util/random.h"
 
-namespace sl {
+namespace sl::data {
 
 namespace {
 
@@ -207,7 +207,7 @@ Tensor PreethamSky::render(int height, int width) const {
   parallel_for(height, 2, [&](int64_t r0, int64_t r1) {
     for (int64_t i = r0; i < r1; ++i)
       for (int j = 0; j < width; ++j) {
-        const auto d = equirect::uv_to_direction(j + 0.5, i + 0.5, width, height);
+        const auto d = render::equirect::uv_to_direction(j + 0.5, i + 0.5, width, height);
         // A texel whose centre is at or above the horizon shows sky.
         const glm::dvec3 dir(d.x, std::fabs(d.y) < 1e-12 ? 0.0 : d.y, d.z);
         const glm::dvec3 l = radiance(dir);
@@ -228,10 +228,10 @@ Tensor PreethamSky::render(int height, int width) const {
     const double sin_alpha = std::sqrt(std::max(0.0, 1.0 - cos_alpha * cos_alpha));
     const double phi = 2.0 * kPi * b;
     const glm::dvec3 d = cos_alpha * sun_dir_ + sin_alpha * (std::cos(phi) * t1 + std::sin(phi) * t2);
-    const auto uv = equirect::direction_to_uv(d.x, d.y, d.z, width, height);
+    const auto uv = render::equirect::direction_to_uv(d.x, d.y, d.z, width, height);
     const int col = std::clamp(static_cast<int>(std::floor(uv.u)), 0, width - 1);
     const int row = std::clamp(static_cast<int>(std::floor(uv.v)), 0, height - 1);
-    const double omega = equirect::pixel_solid_angle(row, width, height);
+    const double omega = render::equirect::pixel_solid_angle(row, width, height);
     for (int c = 0; c < 3; ++c)
       p[c * plane + static_cast<int64_t>(row) * width + col] += static_cast<float>(sun_rgb_[c] * energy / omega);
   }
@@ -252,4 +252,4 @@ SkyParams sample_sky_params(uint64_t seed, uint64_t index) {
   return p;
 }
 
-}  // namespace sl
+}  // namespace sl::data

@@ -33,7 +33,7 @@
 
 #include "autodiff/tensor.h"
 
-namespace sl {
+namespace sl::data {
 
 struct SkyParams {
   double sun_elevation_rad = 0.7853981633974483;  // 45°
@@ -80,4 +80,4 @@ class PreethamSky {
 // in [0.1, 0.7]. Sample `index` of `seed` is the same on every machine and thread count.
 SkyParams sample_sky_params(uint64_t seed, uint64_t index);
 
-}  // namespace sl
+}  // namespace sl::data

@@ -10,7 +10,10 @@
 #include "util/error.h"
 #include "util/random.h"
 
-namespace sl {
+using sl::render::Camera;
+using sl::render::Intrinsics;
+
+namespace sl::data {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
@@ -280,4 +283,4 @@ uint64_t SampleLoader::epoch() const {
   return epoch_;
 }
 
-}  // namespace sl
+}  // namespace sl::data

@@ -27,14 +27,14 @@
 #include "autodiff/tensor.h"
 #include "render/camera.h"
 
-namespace sl {
+namespace sl::data {
 
 struct StreetView {
   Tensor ldr;       // [3, H, W] in [0, 1], the stored LDR values (NOT sRGB-decoded)
   Tensor hdr;       // [3, H, W] linear HDR, or undefined when the file is absent
   Tensor depth;     // [H, W] metres, camera z; 0 where there is no surface (sky)
   Tensor sky_mask;  // [1, H, W] 0/1
-  Camera camera;
+  render::Camera camera;
 };
 
 struct StreetSample {
@@ -103,4 +103,4 @@ class SampleLoader {
   std::thread thread_;
 };
 
-}  // namespace sl
+}  // namespace sl::data

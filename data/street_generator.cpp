@@ -29,7 +29,28 @@
 #include "util/random.h"
 #include "util/file.h"
 
-namespace sl {
+using sl::render::Bounds3;
+using sl::render::Camera;
+using sl::render::CameraRay;
+using sl::render::EnvironmentMap;
+using sl::render::exposure_for_ldr_median;
+using sl::render::Intrinsics;
+using sl::render::intrinsics_from_fov;
+using sl::render::Mesh;
+using sl::render::PathTracer;
+using sl::render::PathTracerImage;
+using sl::render::PathTracerOptions;
+using sl::render::placed_mesh;
+using sl::render::Placement;
+using sl::render::ProgressiveOptions;
+using sl::render::ProgressiveResult;
+using sl::render::ProgressiveStatus;
+using sl::render::Projection;
+using sl::render::render_progressive;
+using sl::render::rotation_from_yaw_pitch_roll;
+using sl::render::write_glb;
+
+namespace sl::data {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
@@ -139,13 +160,14 @@ PanoramaRender render_panorama(const PathTracer& tracer, const glm::dvec3& origi
       for (int k = 0; k < o.spp; ++k) {
         const uint64_t s = static_cast<uint64_t>(o.sample_offset) + k;
         const glm::vec2 jitter = PathTracer::pixel_jitter(pixel, s, o);
-        const equirect::Dir d = equirect::uv_to_direction(col + double(jitter.x), row + double(jitter.y), W, H);
+        const render::equirect::Dir d =
+            render::equirect::uv_to_direction(col + double(jitter.x), row + double(jitter.y), W, H);
         const glm::vec3 L = tracer.radiance(org, glm::vec3(d.x, d.y, d.z), pixel, s, o);
         if (std::isfinite(L.x + L.y + L.z)) sum += glm::dvec3(L), ++kept;
       }
       sum /= o.spp;  // a dropped sample counts as black, as in PathTracer::render
       for (int ch = 0; ch < 3; ++ch) rad[ch * plane + pixel] = static_cast<float>(std::min(sum[ch], 3.0e38));
-      const equirect::Dir d = equirect::uv_to_direction(col + 0.5, row + 0.5, W, H);
+      const render::equirect::Dir d = render::equirect::uv_to_direction(col + 0.5, row + 0.5, W, H);
       sky[pixel] = tracer.first_hit(org, glm::vec3(d.x, d.y, d.z)).hit ? 0.0f : 1.0f;
     }
   }
@@ -509,4 +531,4 @@ void write_dataset_index(const std::string& out_dir, const StreetGeneratorConfig
   write_file_atomic((fs::path(out_dir) / "index.json").string(), index.dump(2) + "\n");
 }
 
-}  // namespace sl
+}  // namespace sl::data

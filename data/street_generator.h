@@ -35,7 +35,7 @@
 #include "data/street_scene.h"
 #include "render/mesh.h"
 
-namespace sl {
+namespace sl::data {
 
 struct StreetGeneratorConfig {
   nlohmann::json tree;  // the validated JSON it came from (stored in index.json)
@@ -72,7 +72,7 @@ struct StreetGeneratorConfig {
   // Insertion.
   bool insertion = true;
   std::string object_file;  // .glb/.gltf; empty = the procedural car
-  std::shared_ptr<const Mesh> object_mesh;  // loaded object, object frame (null = procedural)
+  std::shared_ptr<const render::Mesh> object_mesh;  // loaded object, object frame (null = procedural)
   double object_length_m = 4.5;
   double object_distance_min_m = 6.0, object_distance_max_m = 25.0;
   int object_min_visible_pixels = 30;
@@ -113,4 +113,4 @@ void write_dataset_index(const std::string& out_dir, const StreetGeneratorConfig
 // Writes text to `path` through a temporary file and a rename.
 void write_text_atomic(const std::string& path, const std::string& text);
 
-}  // namespace sl
+}  // namespace sl::data

@@ -8,7 +8,10 @@
 #include "render/gltf_loader.h"
 #include "util/error.h"
 
-namespace sl {
+using sl::render::load_gltf;
+using sl::render::Mesh;
+
+namespace sl::data {
 
 using json = nlohmann::json;
 
@@ -237,4 +240,4 @@ StreetGeneratorConfig street_generator_config(const json& t) {
   return c;
 }
 
-}  // namespace sl
+}  // namespace sl::data

@@ -9,7 +9,15 @@
 #include "util/error.h"
 #include "util/random.h"
 
-namespace sl {
+using sl::render::make_box;
+using sl::render::make_ground_plane;
+using sl::render::make_icosphere;
+using sl::render::Material;
+using sl::render::Mesh;
+using sl::render::placed_mesh;
+using sl::render::Placement;
+
+namespace sl::data {
 namespace {
 
 Material material(const char* name, glm::vec3 rgb, float roughness, float metallic = 0.0f) {
@@ -224,4 +232,4 @@ StreetScene build_street_scene(const StreetSceneConfig& c, uint64_t seed) {
   return s;
 }
 
-}  // namespace sl
+}  // namespace sl::data

@@ -22,7 +22,7 @@
 
 #include "render/mesh.h"
 
-namespace sl {
+namespace sl::data {
 
 struct StreetSceneConfig {
   double road_half_width_min_m = 4.0, road_half_width_max_m = 7.0;
@@ -40,7 +40,7 @@ struct StreetSceneConfig {
   double tree_probability = 0.5;  // per pole slot, on the opposite spacing
   int parked_cars_max = 4;
   // Object-frame meshes (data/procedural_car.h frame) used for parked cars; empty = procedural.
-  std::vector<std::shared_ptr<const Mesh>> car_models;
+  std::vector<std::shared_ptr<const render::Mesh>> car_models;
   double car_model_length_m = 4.5;  // car models are scaled to this length (±5 %)
 };
 
@@ -56,7 +56,7 @@ struct FootprintXZ {
 };
 
 struct StreetScene {
-  Mesh mesh;
+  render::Mesh mesh;
   double road_half_width_m = 0.0;
   double sidewalk_width_m = 0.0;
   double z_front = 0.0, z_back = 0.0;  // the street's extent along Z (z_front < 0 < z_back)
@@ -65,4 +65,4 @@ struct StreetScene {
 
 StreetScene build_street_scene(const StreetSceneConfig& config, uint64_t seed);
 
-}  // namespace sl
+}  // namespace sl::data

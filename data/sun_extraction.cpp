@@ -9,12 +9,12 @@
 #include "util/math.h"
 #include "util/parallel.h"
 
-namespace sl {
+namespace sl::data {
 
 namespace {
 
 glm::dvec3 texel_direction(int row, int col, int w, int h) {
-  const auto d = equirect::uv_to_direction(col + 0.5, row + 0.5, w, h);
+  const auto d = render::equirect::uv_to_direction(col + 0.5, row + 0.5, w, h);
   return {d.x, d.y, d.z};
 }
 
@@ -79,7 +79,7 @@ SunEstimate extract_sun(const Tensor& pano, const SunExtractionParams& params) {
   std::vector<Texel> region;
   double peak = 0.0;
   for (int i = row0; i <= row1; ++i) {
-    const double omega = equirect::pixel_solid_angle(i, w, h);
+    const double omega = render::equirect::pixel_solid_angle(i, w, h);
     for (int j = 0; j < w; ++j) {
       const glm::dvec3 d = texel_direction(i, j, w, h);
       if (glm::dot(d, seed) < cos_radius) continue;
@@ -113,4 +113,4 @@ SunEstimate extract_sun(const Tensor& pano, const SunExtractionParams& params) {
   return est;
 }
 
-}  // namespace sl
+}  // namespace sl::data

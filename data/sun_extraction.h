@@ -19,7 +19,7 @@
 
 #include "autodiff/tensor.h"
 
-namespace sl {
+namespace sl::data {
 
 struct SunExtractionParams {
   double threshold_fraction = 0.5;  // of the region's peak luminance, in (0, 1)
@@ -42,4 +42,4 @@ struct SunEstimate {
 
 SunEstimate extract_sun(const Tensor& pano, const SunExtractionParams& params = {});
 
-}  // namespace sl
+}  // namespace sl::data

@@ -13,7 +13,7 @@
 #include <immintrin.h>
 #endif
 
-namespace sl {
+namespace sl::render {
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -439,4 +439,4 @@ Hit intersect_brute_force(const std::vector<glm::vec3>& positions, const std::ve
   return hit;
 }
 
-}  // namespace sl
+}  // namespace sl::render

@@ -36,7 +36,7 @@
 
 #include "render/mesh.h"
 
-namespace sl {
+namespace sl::render {
 
 struct Ray {
   glm::vec3 origin{0.0f};
@@ -134,4 +134,4 @@ class Bvh {
 Hit intersect_brute_force(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>& triangles,
                           const Ray& ray);
 
-}  // namespace sl
+}  // namespace sl::render

@@ -19,7 +19,7 @@
 #include <sys/mman.h>
 #endif
 
-namespace sl {
+namespace sl::render {
 
 constexpr size_t kHugePage = size_t{2} << 20;
 
@@ -115,7 +115,7 @@ struct Box4 {
   V4 lo = splat(kInf), hi = splat(-kInf);
   void extend(const Box4& b) { lo = vmin(lo, b.lo), hi = vmax(hi, b.hi); }
   void extend(V4 p) { lo = vmin(lo, p), hi = vmax(hi, p); }
-  float half_area() const { return sl::half_area(lo, hi); }
+  float half_area() const { return render::half_area(lo, hi); }
 };
 
 // A triangle's box; lo[3] carries the mesh triangle index, hi[3] is 0.
@@ -496,4 +496,4 @@ Bvh::Bvh(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>&
   SL_CHECK(depth_ <= kMaxDepth, "Bvh: tree depth ", depth_, " exceeds ", kMaxDepth);
 }
 
-}  // namespace sl
+}  // namespace sl::render

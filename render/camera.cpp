@@ -10,7 +10,7 @@
 #include "util/error.h"
 #include "util/math.h"
 
-namespace sl {
+namespace sl::render {
 
 double Intrinsics::horizontal_fov_rad() const { return 2.0 * std::atan(0.5 * width / fx); }
 double Intrinsics::vertical_fov_rad() const { return 2.0 * std::atan(0.5 * height / fy); }
@@ -216,4 +216,4 @@ Projection Camera::project(const glm::dvec3& p_world) const {
   return out;
 }
 
-}  // namespace sl
+}  // namespace sl::render

@@ -28,7 +28,7 @@
 
 #include <glm/glm.hpp>
 
-namespace sl {
+namespace sl::render {
 
 struct Intrinsics {
   double fx = 1.0, fy = 1.0;  // focal lengths in pixels
@@ -111,4 +111,4 @@ class Camera {
   glm::dvec3 t_{0.0};
 };
 
-}  // namespace sl
+}  // namespace sl::render

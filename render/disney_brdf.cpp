@@ -4,7 +4,7 @@
 // "Sampling the GGX distribution of visible normals", JCGT 7(4)).
 #include "render/disney_brdf.h"
 
-namespace sl::disney {
+namespace sl::render::disney {
 namespace {
 
 // [0, 1] clamp that also maps NaN to 0.
@@ -183,4 +183,4 @@ Sample sample(const Params& p, const glm::vec3& n_in, const glm::vec3& wo_in, fl
   return s;
 }
 
-}  // namespace sl::disney
+}  // namespace sl::render::disney

@@ -34,7 +34,7 @@
 
 #include "render/sampling.h"
 
-namespace sl::disney {
+namespace sl::render::disney {
 
 inline constexpr float kMinAlpha = 1e-3f;  // roughness 0 becomes a very sharp, finite GGX lobe
 
@@ -153,4 +153,4 @@ struct LobeWeights {
 };
 LobeWeights lobe_weights(const Params& p, float n_dot_wo);
 
-}  // namespace sl::disney
+}  // namespace sl::render::disney

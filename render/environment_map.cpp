@@ -8,7 +8,7 @@
 #include "util/math.h"
 #include "util/parallel.h"
 
-namespace sl {
+namespace sl::render {
 namespace {
 
 bool all_finite3(const glm::vec3& d) { return std::isfinite(d.x) && std::isfinite(d.y) && std::isfinite(d.z); }
@@ -414,4 +414,4 @@ Tensor env_lookup(const Tensor& env, const Tensor& directions) {
   return out;
 }
 
-}  // namespace sl
+}  // namespace sl::render

@@ -32,7 +32,7 @@
 
 #include "autodiff/tensor.h"
 
-namespace sl {
+namespace sl::render {
 
 class EnvironmentMap {
  public:
@@ -95,4 +95,4 @@ Tensor env_lookup(const Tensor& env, const Tensor& directions);
 // Resizes a [3, H, W] panorama tensor preserving the integral over the sphere.
 Tensor resize_panorama(const Tensor& panorama, int width, int height);
 
-}  // namespace sl
+}  // namespace sl::render

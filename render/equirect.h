@@ -13,7 +13,7 @@
 
 #include "util/math.h"
 
-namespace sl::equirect {
+namespace sl::render::equirect {
 
 struct UV {
   double u, v;
@@ -45,4 +45,4 @@ inline double pixel_solid_angle(int row, int width, int height) {
   return (2.0 * kPi / width) * (std::sin(t0) - std::sin(t1));
 }
 
-}  // namespace sl::equirect
+}  // namespace sl::render::equirect

@@ -6,7 +6,7 @@
 #include "util/error.h"
 #include "util/math.h"
 
-namespace sl {
+namespace sl::render {
 
 double median_luminance(const Tensor& image) {
   SL_CHECK(image.defined() && image.dim() == 3 && image.size(0) == 3 && image.dtype() == DType::F32,
@@ -25,4 +25,4 @@ double exposure_for_ldr_median(const Tensor& image, double ldr_median) {
   return exposure_for_median(median_luminance(image), ldr_median);
 }
 
-}  // namespace sl
+}  // namespace sl::render

@@ -9,10 +9,10 @@
 #pragma once
 #include "autodiff/tensor.h"
 
-namespace sl {
+namespace sl::render {
 
 double median_luminance(const Tensor& image);
 // The exposure that maps the image's median luminance to the LDR value `ldr_median`.
 double exposure_for_ldr_median(const Tensor& image, double ldr_median);
 
-}  // namespace sl
+}  // namespace sl::render

@@ -16,7 +16,7 @@
 
 #include "util/error.h"
 
-namespace sl {
+namespace sl::render {
 namespace {
 
 constexpr const char* kCompressionExtensions[] = {"KHR_draco_mesh_compression", "EXT_meshopt_compression",
@@ -462,4 +462,4 @@ Mesh load_gltf(const std::string& path) {
   return Importer(model, path).run();
 }
 
-}  // namespace sl
+}  // namespace sl::render

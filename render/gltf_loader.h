@@ -17,8 +17,8 @@
 
 #include "render/mesh.h"
 
-namespace sl {
+namespace sl::render {
 
 Mesh load_gltf(const std::string& path);
 
-}  // namespace sl
+}  // namespace sl::render

@@ -9,7 +9,7 @@
 #include "util/error.h"
 #include "util/file.h"
 
-namespace sl {
+namespace sl::render {
 namespace {
 
 using json = nlohmann::json;
@@ -139,4 +139,4 @@ void write_glb(const Mesh& mesh, const std::string& path) {
   write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(out.data()), out.size()));
 }
 
-}  // namespace sl
+}  // namespace sl::render

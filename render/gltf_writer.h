@@ -12,8 +12,8 @@
 
 #include "render/mesh.h"
 
-namespace sl {
+namespace sl::render {
 
 void write_glb(const Mesh& mesh, const std::string& path);
 
-}  // namespace sl
+}  // namespace sl::render

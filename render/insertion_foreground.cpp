@@ -9,7 +9,7 @@
 #include "util/parallel.h"
 #include "util/random.h"
 
-namespace sl::insertion {
+namespace sl::render::insertion {
 namespace {
 
 disney::Params material_at(const Mesh& mesh, const Hit& hit) {
@@ -162,4 +162,4 @@ void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
   if (!gs.empty()) fg.offsets.push_back(int64_t(gs.size()) * N);
 }
 
-}  // namespace sl::insertion
+}  // namespace sl::render::insertion

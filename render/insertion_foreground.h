@@ -22,7 +22,7 @@
 #include "render/mesh.h"
 #include "render/object_insertion.h"
 
-namespace sl::insertion {
+namespace sl::render::insertion {
 
 struct Foreground {
   std::vector<int64_t> pixels;   // image pixels with at least one visible sample
@@ -48,4 +48,4 @@ std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& 
 void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
                       const std::vector<GSample>& gs, Foreground& fg, QueryRays& rays);
 
-}  // namespace sl::insertion
+}  // namespace sl::render::insertion

@@ -3,7 +3,7 @@
 #include "autodiff/tape.h"
 #include "util/parallel.h"
 
-namespace sl {
+namespace sl::render {
 namespace {
 
 void check_offsets(const char* op, const std::vector<int64_t>& o, int64_t rows) {
@@ -106,4 +106,4 @@ Tensor shadow_ratio(const Tensor& radiance, const std::vector<double>& weights, 
   return S;
 }
 
-}  // namespace sl
+}  // namespace sl::render

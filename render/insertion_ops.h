@@ -15,10 +15,10 @@
 
 #include "autodiff/tensor.h"
 
-namespace sl {
+namespace sl::render {
 
 Tensor weighted_segment_sum(const Tensor& values, const Tensor& weights, const std::vector<int64_t>& offsets);
 Tensor shadow_ratio(const Tensor& radiance, const std::vector<double>& weights, const std::vector<double>& visibility,
                     const std::vector<int64_t>& offsets, double epsilon);
 
-}  // namespace sl
+}  // namespace sl::render

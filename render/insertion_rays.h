@@ -19,7 +19,7 @@
 #include "util/check.h"
 #include "util/random.h"
 
-namespace sl::insertion {
+namespace sl::render::insertion {
 
 inline constexpr uint64_t kTagAa = 0xA11A5EEDull, kTagLight = 0x11647ull, kTagShadow = 0x5AD0Eull, kTagChoice = 0xC401CEull;
 
@@ -121,4 +121,4 @@ inline bool ray_hits_box(const glm::vec3& o, const glm::vec3& d, const Bounds3& 
   return t0 <= t1;
 }
 
-}  // namespace sl::insertion
+}  // namespace sl::render::insertion

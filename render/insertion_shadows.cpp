@@ -11,7 +11,7 @@
 #include "util/parallel.h"
 #include "util/random.h"
 
-namespace sl::insertion {
+namespace sl::render::insertion {
 namespace {
 
 // The k-th shadow direction of texel t and its weight cos/pdf (0 marks an unusable sample).
@@ -142,4 +142,4 @@ void upsample_taps(const InsertionInputs& in, const InsertionOptions& opt, const
   });
 }
 
-}  // namespace sl::insertion
+}  // namespace sl::render::insertion

@@ -18,7 +18,7 @@
 #include "render/insertion_rays.h"
 #include "render/object_insertion.h"
 
-namespace sl::insertion {
+namespace sl::render::insertion {
 
 struct Shadows {
   std::vector<int64_t> texels;   // shadow-map texels computed
@@ -39,4 +39,4 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
 void upsample_taps(const InsertionInputs& in, const InsertionOptions& opt, const Shadows& sh, const double* depth,
                    std::vector<int64_t>& idx, std::vector<double>& w);
 
-}  // namespace sl::insertion
+}  // namespace sl::render::insertion

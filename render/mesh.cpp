@@ -4,7 +4,7 @@
 
 #include "util/error.h"
 
-namespace sl {
+namespace sl::render {
 
 glm::vec4 Texture::sample(glm::vec2 uv) const {
   if (width <= 0 || height <= 0 || rgba.size() < static_cast<size_t>(width) * height * 4) return glm::vec4(1.0f);
@@ -99,4 +99,4 @@ void Mesh::append(const Mesh& other) {
   materials.insert(materials.end(), other.materials.begin(), other.materials.end());
 }
 
-}  // namespace sl
+}  // namespace sl::render

@@ -17,7 +17,7 @@
 
 #include <glm/glm.hpp>
 
-namespace sl {
+namespace sl::render {
 
 struct Bounds3 {
   glm::vec3 lo{std::numeric_limits<float>::infinity()};
@@ -89,4 +89,4 @@ struct Mesh {
   void append(const Mesh& other);
 };
 
-}  // namespace sl
+}  // namespace sl::render

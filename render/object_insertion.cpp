@@ -21,7 +21,7 @@
 #include "util/parallel.h"
 #include "util/random.h"
 
-namespace sl {
+namespace sl::render {
 namespace {
 using insertion::QueryRays;
 
@@ -258,4 +258,4 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   return out;
 }
 
-}  // namespace sl
+}  // namespace sl::render

@@ -53,7 +53,7 @@
 #include "render/object_placement.h"
 #include "render/radiance_query.h"
 
-namespace sl {
+namespace sl::render {
 
 struct InsertionOptions {
   int aa_samples = 4;           // primary rays per pixel
@@ -102,4 +102,4 @@ struct InsertionInputs {
 
 InsertionResult insert_objects(const InsertionInputs& inputs, const InsertionOptions& options = {});
 
-}  // namespace sl
+}  // namespace sl::render

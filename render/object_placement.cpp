@@ -8,7 +8,7 @@
 #include "util/error.h"
 #include "util/math.h"
 
-namespace sl {
+namespace sl::render {
 
 Bounds3 PlacedObject::world_bounds() const { return mesh.bounds(); }
 
@@ -85,4 +85,4 @@ PlacedObject place_object(const Mesh& mesh, const Placement& placement, const Ca
   return obj;
 }
 
-}  // namespace sl
+}  // namespace sl::render

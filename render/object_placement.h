@@ -21,7 +21,7 @@
 #include "render/camera.h"
 #include "render/mesh.h"
 
-namespace sl {
+namespace sl::render {
 
 struct Placement {
   double x_m = 0.0, z_m = 0.0;  // world ground position (metres)
@@ -55,4 +55,4 @@ struct PlacedObject {
 // is [H, W] camera-z depth matching the camera's image.
 PlacedObject place_object(const Mesh& mesh, const Placement& placement, const Camera& camera, const Tensor& depth);
 
-}  // namespace sl
+}  // namespace sl::render

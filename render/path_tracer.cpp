@@ -1,6 +1,6 @@
 // Reference path tracer: the per-path integrator (NEE + MIS, Russian roulette) over the BVH.
 // The per-pixel image loop lives in path_tracer_image.cpp (it needs render/camera.h, whose
-// sl::Ray clashes with render/bvh.h's sl::Ray in one translation unit).
+// sl::render::Ray clashes with render/bvh.h's sl::render::Ray in one translation unit).
 #include "render/path_tracer.h"
 
 #include <cmath>
@@ -12,7 +12,7 @@
 #include "util/error.h"
 #include "util/random.h"
 
-namespace sl {
+namespace sl::render {
 
 struct PathTracer::Scene {
   const Mesh& mesh;
@@ -228,4 +228,4 @@ PathTracer::PrimaryHit PathTracer::first_hit(const glm::vec3& origin, const glm:
   return out;
 }
 
-}  // namespace sl
+}  // namespace sl::render

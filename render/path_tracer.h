@@ -41,7 +41,7 @@
 #include "render/environment_map.h"
 #include "render/mesh.h"
 
-namespace sl {
+namespace sl::render {
 
 class Camera;  // render/camera.h
 
@@ -112,4 +112,4 @@ class PathTracer {
   std::unique_ptr<Scene> scene_;
 };
 
-}  // namespace sl
+}  // namespace sl::render

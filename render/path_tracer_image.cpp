@@ -11,7 +11,7 @@
 #include "util/error.h"
 #include "util/random.h"
 
-namespace sl {
+namespace sl::render {
 
 PathTracerImage PathTracer::render(const Camera& camera, const PathTracerOptions& options) const {
   validate(options);
@@ -43,7 +43,7 @@ PathTracerImage PathTracer::render(const Camera& camera, const PathTracerOptions
       for (int k = 0; k < options.spp; ++k) {
         const uint64_t s = static_cast<uint64_t>(options.sample_offset) + k;
         const glm::vec2 jitter = pixel_jitter(pixel, s, options);
-        const sl::CameraRay r = camera.ray(col + double(jitter.x), row + double(jitter.y));
+        const sl::render::CameraRay r = camera.ray(col + double(jitter.x), row + double(jitter.y));
         const glm::vec3 L = radiance(glm::vec3(r.origin), glm::vec3(r.direction), pixel, s, options);
         if (std::isfinite(L.x) && std::isfinite(L.y) && std::isfinite(L.z))
           sum += glm::dvec3(L);
@@ -54,7 +54,7 @@ PathTracerImage PathTracer::render(const Camera& camera, const PathTracerOptions
       // Finite samples can still sum past the float range (a 10^38 sun); keep the output finite.
       for (int ch = 0; ch < 3; ++ch) rad[ch * plane + o] = static_cast<float>(std::min(sum[ch], 3.0e38));
 
-      const sl::CameraRay centre = camera.pixel_ray(col, row);
+      const sl::render::CameraRay centre = camera.pixel_ray(col, row);
       const PrimaryHit h = first_hit(glm::vec3(centre.origin), glm::vec3(centre.direction));
       if (h.hit) {
         mask[o] = 1.0f;
@@ -67,4 +67,4 @@ PathTracerImage PathTracer::render(const Camera& camera, const PathTracerOptions
   return out;
 }
 
-}  // namespace sl
+}  // namespace sl::render

@@ -9,7 +9,7 @@
 #include "util/error.h"
 #include "util/math.h"
 
-namespace sl {
+namespace sl::render {
 namespace {
 
 void check_size(float value, const char* what, const char* fn) {
@@ -119,4 +119,4 @@ Mesh make_box(const glm::vec3& lo, const glm::vec3& hi, const Material& material
   return with_material(std::move(m), material);
 }
 
-}  // namespace sl
+}  // namespace sl::render

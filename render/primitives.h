@@ -8,7 +8,7 @@
 #pragma once
 #include "render/mesh.h"
 
-namespace sl {
+namespace sl::render {
 
 // Geodesic sphere: an icosahedron subdivided `subdivisions` times (20·4^s triangles), vertices
 // projected onto the sphere, so normals are exact (position − centre) / radius.
@@ -21,4 +21,4 @@ Mesh make_ground_plane(float size_m, float height = 0.0f, const Material& materi
 // Axis-aligned box with flat-shaded faces (24 vertices, 12 triangles).
 Mesh make_box(const glm::vec3& lo, const glm::vec3& hi, const Material& material = {});
 
-}  // namespace sl
+}  // namespace sl::render

@@ -10,7 +10,7 @@
 #include "util/math.h"
 #include "util/random.h"
 
-namespace sl {
+namespace sl::render {
 namespace {
 
 // acc = (acc·n_acc + pass·n_pass) / (n_acc + n_pass), in place.
@@ -86,4 +86,4 @@ ProgressiveResult render_progressive(const RenderPass& pass, const ProgressiveOp
   return result;
 }
 
-}  // namespace sl
+}  // namespace sl::render

@@ -27,7 +27,7 @@
 
 #include "autodiff/tensor.h"
 
-namespace sl {
+namespace sl::render {
 
 using RenderPass = std::function<Tensor(uint64_t seed, int64_t sample_offset, int spp)>;
 
@@ -63,4 +63,4 @@ ProgressiveResult render_progressive(const RenderPass& pass, const ProgressiveOp
 // The LDR noise of the mean of two independent estimates a and b ([3, H, W] F32).
 double ldr_noise(const Tensor& a, const Tensor& b, double exposure);
 
-}  // namespace sl
+}  // namespace sl::render

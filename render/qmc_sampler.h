@@ -20,7 +20,7 @@
 
 #include "util/random.h"
 
-namespace sl::qmc {
+namespace sl::render::qmc {
 
 inline uint32_t reverse_bits(uint32_t x) {
   x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
@@ -70,4 +70,4 @@ inline glm::vec2 owen_pair(uint64_t seed, uint64_t stream, uint64_t sample, uint
   return {to_unit(nested_uniform_scramble(p.x, x_seed)), to_unit(nested_uniform_scramble(p.y, y_seed))};
 }
 
-}  // namespace sl::qmc
+}  // namespace sl::render::qmc

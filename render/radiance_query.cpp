@@ -9,7 +9,7 @@
 #include "render/spherical_gaussian.h"
 #include "util/parallel.h"
 
-namespace sl {
+namespace sl::render {
 namespace {
 
 constexpr int kGradBuffers = 4;  // fixed, so the summation order never depends on threads
@@ -415,4 +415,4 @@ RadianceQueryResult radiance_query(const Tensor& vsg, const Tensor& env, const T
   return {squeeze(out[0], 0), squeeze(out[1], 0), squeeze(out[2], 0)};
 }
 
-}  // namespace sl
+}  // namespace sl::render

@@ -40,7 +40,7 @@
 #include "autodiff/tape.h"
 #include "render/vsg_volume.h"
 
-namespace sl {
+namespace sl::render {
 
 // Where Eq. 1's K samples sit along a ray (see "Samples" above).
 enum class SampleSpacing { kMetric, kGrid };
@@ -73,4 +73,4 @@ RadianceQueryResult radiance_query(const Tensor& vsg, const Tensor& env, const T
                                    const Tensor& directions, const VsgGrid& grid,
                                    const RadianceQueryOptions& options = {}, RadianceQueryStats* stats = nullptr);
 
-}  // namespace sl
+}  // namespace sl::render

@@ -5,7 +5,7 @@
 
 #include "util/error.h"
 
-namespace sl {
+namespace sl::render {
 
 std::vector<Ray> read_ray_file(const std::string& path, const std::string& what) {
   std::ifstream in(path, std::ios::binary | std::ios::ate);
@@ -28,4 +28,4 @@ std::vector<Ray> read_ray_file(const std::string& path, const std::string& what)
   return rays;
 }
 
-}  // namespace sl
+}  // namespace sl::render

@@ -12,8 +12,8 @@
 
 #include "render/bvh.h"
 
-namespace sl {
+namespace sl::render {
 
 std::vector<Ray> read_ray_file(const std::string& path, const std::string& what = "ray file");
 
-}  // namespace sl
+}  // namespace sl::render

@@ -11,7 +11,7 @@
 
 #include "util/math.h"
 
-namespace sl {
+namespace sl::render {
 
 // Orthonormal basis around a unit vector n (Duff et al. 2017, "Building an orthonormal basis,
 // revisited"): branchless and continuous except on the n.z = -1 seam, which it handles.
@@ -69,4 +69,4 @@ inline glm::vec3 safe_normalize(const glm::vec3& v) {
 
 inline bool all_finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
-}  // namespace sl
+}  // namespace sl::render

@@ -8,7 +8,7 @@
 #pragma once
 #include <cmath>
 
-namespace sl::sg {
+namespace sl::render::sg {
 
 constexpr double kAxisEps = 1e-8;
 
@@ -66,4 +66,4 @@ inline void backward(const Lobe<T>& lobe, const T v[3], const LobeEval<T>& r, co
   }
 }
 
-}  // namespace sl::sg
+}  // namespace sl::render::sg

@@ -5,7 +5,7 @@
 
 #include "autodiff/ops.h"
 
-namespace sl {
+namespace sl::render {
 namespace {
 
 // World axis feeding each voxel axis: X <- x, Y <- z, Z <- y.
@@ -87,4 +87,4 @@ Tensor vsg_activate(const Tensor& raw, int64_t channel_dim) {
   return concat({c, mu, sharp, alpha}, d);
 }
 
-}  // namespace sl
+}  // namespace sl::render

@@ -25,7 +25,7 @@
 
 #include "autodiff/tensor.h"
 
-namespace sl {
+namespace sl::render {
 
 struct VsgGrid {
   std::array<int64_t, 3> dims{64, 64, 16};              // X (world x), Y (world z), Z (world y)
@@ -48,4 +48,4 @@ struct VsgGrid {
 // Raw network output [.., 8, ...] -> VSG parameters (see the header comment). Differentiable.
 Tensor vsg_activate(const Tensor& raw, int64_t channel_dim = -4);
 
-}  // namespace sl
+}  // namespace sl::render

@@ -40,7 +40,7 @@ int run(int argc, char** argv) {
        {"--json", "", "print a machine-readable summary on stdout"}});
   if (!args.parse(argc, argv)) return 0;
 
-  sl::cli::Config config(sl::street_generator_defaults());
+  sl::cli::Config config(sl::data::street_generator_defaults());
   if (args.has("--config")) config.merge_file(args.get("--config"));
   for (const std::string& s : args.all("--set")) config.set(s);
   if (args.has("--samples")) config.set("samples=" + std::to_string(args.integer("--samples", 0)));
@@ -49,7 +49,7 @@ int run(int argc, char** argv) {
     return 0;
   }
   SL_CHECK(args.has("--out"), "streetlight-datagen: --out DIR is required; try --help");
-  const sl::StreetGeneratorConfig c = sl::street_generator_config(config.tree());
+  const sl::data::StreetGeneratorConfig c = sl::data::street_generator_config(config.tree());
   const std::string out = args.get("--out");
   const int contact_rows = static_cast<int>(args.integer("--contact-rows", 4));
   int64_t shard = 0, shards = 1;
@@ -82,7 +82,7 @@ int run(int argc, char** argv) {
       ids.push_back(id);
       const bool mine = i % shards == shard;
       if (!mine || (args.has("--skip-existing") && fs::exists(samples_dir / id / "meta.json"))) continue;
-      const sl::GeneratedSample g = sl::generate_street_sample(c, i, samples_dir.string());
+      const sl::data::GeneratedSample g = sl::data::generate_street_sample(c, i, samples_dir.string());
       SL_CHECK(g.id == ids.back(), "datagen: sample ", i, " has id '", g.id, "', expected '", ids.back(), "'");
       with_object += g.has_insertion ? 1 : 0;
       ++rendered;
@@ -91,10 +91,9 @@ int run(int argc, char** argv) {
     progress.finish();
     // The index depends only on the config (a seeded split of all ids), so every shard writes
     // the same file; it is complete once every shard has finished.
-    sl::write_dataset_index(out, c, sl::split_ids(ids, c.seed, c.train_fraction, c.val_fraction));
+    sl::data::write_dataset_index(out, c, sl::data::split_ids(ids, c.seed, c.train_fraction, c.val_fraction));
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (args.has("--contact-sheet"))
-      sl::write_contact_sheet(out, args.get("--contact-sheet"), contact_rows);
+    if (args.has("--contact-sheet")) sl::data::write_contact_sheet(out, args.get("--contact-sheet"), contact_rows);
     const nlohmann::json summary = {{"out", out},
                                     {"samples", c.samples},
                                     {"rendered", rendered},

@@ -49,6 +49,31 @@
 #include "train/train_config.h"
 #include "util/file.h"
 
+using sl::data::extract_sun;
+using sl::data::HdriFolder;
+using sl::data::HdriSplit;
+using sl::data::ImageWriteOptions;
+using sl::data::PerspectiveCropParams;
+using sl::data::read_hdri_split;
+using sl::data::resize_area;
+using sl::data::sample_bilinear;
+using sl::data::StreetDataset;
+using sl::data::StreetSample;
+using sl::data::StreetView;
+using sl::data::to_ldr;
+using sl::data::to_object_frame;
+using sl::data::Transfer;
+using sl::data::write_image;
+using sl::render::Camera;
+using sl::render::CameraRay;
+using sl::render::env_lookup;
+using sl::render::Intrinsics;
+using sl::render::load_gltf;
+using sl::render::Mesh;
+using sl::render::Placement;
+using sl::render::radiance_query;
+using sl::render::RadianceQueryOptions;
+
 namespace fs = std::filesystem;
 using nlohmann::json;
 using namespace sl;
@@ -211,7 +236,7 @@ Tensor render_truth(const Tensor& pano_hdr, const Camera& cam, double exposure) 
   for (int r = 0; r < k.height; ++r)
     for (int c = 0; c < k.width; ++c) {
       const glm::dvec3 d = cam.pixel_ray(c, r).direction;
-      const auto uv = equirect::direction_to_uv(d.x, d.y, d.z, w, h);
+      const auto uv = render::equirect::direction_to_uv(d.x, d.y, d.z, w, h);
       float rgb[3];
       sample_bilinear(p.data<float>(), 3, h, w, uv.u, uv.v, rgb);
       for (int ch = 0; ch < 3; ++ch) o[ch * plane + static_cast<int64_t>(r) * k.width + c] = rgb[ch];

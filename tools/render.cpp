@@ -33,6 +33,30 @@
 #include "util/error.h"
 #include "util/math.h"
 
+using sl::data::ImageReadOptions;
+using sl::data::ImageWriteOptions;
+using sl::data::read_image;
+using sl::data::Transfer;
+using sl::data::write_image;
+using sl::render::Bounds3;
+using sl::render::Camera;
+using sl::render::EnvironmentMap;
+using sl::render::exposure_for_ldr_median;
+using sl::render::intrinsics_from_fov;
+using sl::render::load_gltf;
+using sl::render::make_ground_plane;
+using sl::render::Material;
+using sl::render::Mesh;
+using sl::render::PathEstimator;
+using sl::render::PathTracer;
+using sl::render::PathTracerOptions;
+using sl::render::ProgressiveOptions;
+using sl::render::ProgressiveResult;
+using sl::render::ProgressiveStatus;
+using sl::render::render_progressive;
+using sl::render::RenderPass;
+using sl::render::rotation_from_yaw_pitch_roll;
+
 namespace fs = std::filesystem;
 using namespace sl;
 

@@ -19,6 +19,17 @@
 #include "util/math.h"
 #include "util/random.h"
 
+using sl::data::resize_area;
+using sl::data::StreetSample;
+using sl::data::StreetView;
+using sl::data::to_ldr;
+using sl::render::insert_objects;
+using sl::render::InsertionInputs;
+using sl::render::load_gltf;
+using sl::render::Mesh;
+using sl::render::place_object;
+using sl::render::Placement;
+
 namespace sl::train {
 
 namespace {

@@ -42,11 +42,11 @@ class AdversarialStage : public LightingStage {
   Tensor strip_composite(const Forward& f) override;
 
  private:
-  const Mesh& object_mesh(const std::string& path);
+  const render::Mesh& object_mesh(const std::string& path);
   // Data parallel: a rank with no insertable sample while others have one still takes part in
   // both updates (its supervised gradients, no discriminator gradient).
   Metrics step_without_samples(int64_t step, const Tensor& total, Metrics& m, double forward_ms);
-  std::map<std::string, Mesh> meshes_;
+  std::map<std::string, render::Mesh> meshes_;
 };
 
 }  // namespace sl::train

@@ -6,6 +6,10 @@
 
 #include "data/image_io.h"
 
+using sl::data::ImageWriteOptions;
+using sl::data::Transfer;
+using sl::data::write_image;
+
 namespace sl::train {
 
 void write_strip(const std::string& path, const std::vector<Tensor>& images, int64_t width) {

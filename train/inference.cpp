@@ -13,6 +13,12 @@
 #include "train/unprojection.h"
 #include "util/math.h"
 
+using sl::data::rotate_azimuth;
+using sl::data::rotate_direction_azimuth;
+using sl::render::Intrinsics;
+using sl::render::RadianceQueryOptions;
+using sl::render::VsgGrid;
+
 namespace sl::train {
 
 namespace {

@@ -47,7 +47,7 @@ namespace sl::train {
 struct InferenceView {
   Tensor ldr;    // [3, H, W] in [0, 1]
   Tensor depth;  // [H, W] metres, camera z
-  Camera camera; // world frame
+  render::Camera camera;  // world frame
 };
 
 struct SunEdit {
@@ -58,10 +58,10 @@ struct SunEdit {
 
 struct EstimatedLighting {
   CanonicalFrame frame;  // canonical frame of view 0
-  Camera camera;         // view 0's camera in that frame
+  render::Camera camera;  // view 0's camera in that frame
   Tensor env;            // [3, Hs, Ws] sky dome, canonical frame, exposure-normalised radiance
   Tensor vsg;            // [8, X, Y, Z] activated, or undefined (sky-only)
-  VsgGrid grid;          // centred on view 0's canonical camera
+  render::VsgGrid grid;  // centred on view 0's canonical camera
   bool has_sky_code = false;
   glm::dvec3 sun_direction_canonical{0.0, 1.0, 0.0};
   glm::dvec3 sun_intensity_rgb{0.0};  // f_intensity (0 without a sky code: see sun_from_env)
@@ -82,14 +82,14 @@ class LightingEstimator {
   const std::string& path() const { return path_; }
   const std::string& stage() const { return stage_; }
   int64_t step() const { return step_; }
-  RadianceQueryOptions volume_query() const;  // model.volume: K of Eq. 1, its spacing and lookup
+  render::RadianceQueryOptions volume_query() const;  // model.volume: K of Eq. 1, its spacing and lookup
   LightingPredictor& predictor() { return *predictor_; }
 
  private:
   struct Single {
     CanonicalFrame frame;
-    Camera camera;
-    VsgGrid grid;
+    render::Camera camera;
+    render::VsgGrid grid;
     LightingPrediction pred;
   };
   Single predict_one(const InferenceView& view);
@@ -98,7 +98,7 @@ class LightingEstimator {
   int64_t step_ = 0;
   nlohmann::json config_;
   std::shared_ptr<LightingPredictor> predictor_;
-  VsgGrid grid_template_;
+  render::VsgGrid grid_template_;
 };
 
 // World unit direction of a panorama (azimuth, elevation) in degrees (render/equirect.h).
@@ -108,7 +108,7 @@ double elevation_deg_of(const glm::dvec3& d);
 
 // Resamples a VSG volume from one canonical frame/grid onto another (nearest voxel; lobe axes
 // rotated); voxels that fall outside the source grid get α = 0 and zero colour.
-Tensor resample_vsg(const Tensor& vsg, const VsgGrid& from_grid, const CanonicalFrame& from_frame,
-                    const VsgGrid& to_grid, const CanonicalFrame& to_frame);
+Tensor resample_vsg(const Tensor& vsg, const render::VsgGrid& from_grid, const CanonicalFrame& from_frame,
+                    const render::VsgGrid& to_grid, const CanonicalFrame& to_frame);
 
 }  // namespace sl::train

@@ -8,6 +8,8 @@
 #include "nn/modules/unet.h"
 #include "render/vsg_volume.h"
 
+using sl::render::vsg_activate;
+
 namespace sl::train {
 
 namespace {

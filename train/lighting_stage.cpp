@@ -24,6 +24,20 @@
 #include "train/gradient_allreduce.h"
 #include "util/random.h"
 
+using sl::data::epoch_order;
+using sl::data::extract_sun;
+using sl::data::PanoramaSampleOptions;
+using sl::data::StreetSample;
+using sl::data::StreetView;
+using sl::data::to_ldr;
+using sl::render::Camera;
+using sl::render::CameraRay;
+using sl::render::env_lookup;
+using sl::render::Intrinsics;
+using sl::render::radiance_query;
+using sl::render::RadianceQueryOptions;
+using sl::render::RadianceQueryResult;
+
 namespace sl::train {
 
 namespace {

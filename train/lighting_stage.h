@@ -62,7 +62,7 @@ class LightingStage : public Stage {
   nn::PatchDiscriminator* discriminator() { return discriminator_.get(); }
 
   struct Forward {
-    std::vector<StreetSample> samples;
+    std::vector<data::StreetSample> samples;
     std::vector<StreetItem> items;
     LightingPrediction pred;
     // Data parallel: this shard's factor on the sky_ldr masked mean (distributed.h, global_share).
@@ -79,12 +79,12 @@ class LightingStage : public Stage {
   // The composite shown in the training strip (undefined: none); stage 3 overrides it.
   virtual Tensor strip_composite(const Forward& f) { return Tensor(); }
   struct Batch {
-    std::vector<StreetSample> samples;
+    std::vector<data::StreetSample> samples;
     std::vector<StreetItem> items;
   };
   // The samples and items of training step `step`: a pure function of it (thread-safe).
   Batch train_batch(int64_t step) const;
-  Batch make_batch(std::vector<StreetSample> samples, const std::vector<size_t>& views, uint64_t seed,
+  Batch make_batch(std::vector<data::StreetSample> samples, const std::vector<size_t>& views, uint64_t seed,
                    uint64_t first_stream) const;
   Forward run_predictor(Batch batch);
   struct Query {
@@ -100,7 +100,7 @@ class LightingStage : public Stage {
   double clip_, lr_ = 0.0;
   SampleSource train_, val_;
   StreetBatchOptions batch_opt_;
-  VsgGrid grid_template_;
+  render::VsgGrid grid_template_;
   std::shared_ptr<nn::Module> model_;
   std::shared_ptr<LightingPredictor> predictor_;
   std::shared_ptr<SkyAutoencoder> teacher_;

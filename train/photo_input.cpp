@@ -12,6 +12,21 @@
 #include "train/photo_insertion.h"
 #include "util/math.h"
 
+using sl::data::densify_depth;
+using sl::data::ImageReadOptions;
+using sl::data::KittiFrame;
+using sl::data::load_kitti_frame;
+using sl::data::MissingDepth;
+using sl::data::read_depth;
+using sl::data::read_image;
+using sl::data::read_kitti_calibration;
+using sl::data::Transfer;
+using sl::render::Camera;
+using sl::render::Intrinsics;
+using sl::render::kitti_projection_from_file;
+using sl::render::Placement;
+using sl::render::rotation_from_yaw_pitch_roll;
+
 namespace sl::train {
 
 namespace {

@@ -23,7 +23,7 @@
 
 namespace sl::train {
 
-Intrinsics read_intrinsics(const std::string& path, int width, int height);
+render::Intrinsics read_intrinsics(const std::string& path, int width, int height);
 
 struct PhotoSources {
   std::string image, intrinsics, depth, lidar, calib;
@@ -36,7 +36,7 @@ struct PhotoSources {
 struct Photo {
   Tensor ldr;    // [3, H, W]
   Tensor depth;  // [H, W]
-  Camera camera;
+  render::Camera camera;
   std::string depth_source;
 };
 
@@ -45,6 +45,6 @@ Photo load_photo(const PhotoSources& sources);
 // View `view` of a generated street sample folder (docs/DATASET.md: DIR/samples/<id>): its LDR,
 // depth and full camera pose from meta.json (depth_source "dataset"). When the sample has an
 // inserted object, *placement receives its world placement (x, z, yaw, scale) and true is returned.
-Photo load_street_view(const std::string& sample_dir, int view, Placement* placement, bool* has_placement);
+Photo load_street_view(const std::string& sample_dir, int view, render::Placement* placement, bool* has_placement);
 
 }  // namespace sl::train

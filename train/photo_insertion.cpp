@@ -11,6 +11,19 @@
 #include "train/losses.h"
 #include "util/math.h"
 
+using sl::data::kitti_box3d;
+using sl::render::Camera;
+using sl::render::CameraRay;
+using sl::render::insert_objects;
+using sl::render::InsertionInputs;
+using sl::render::InsertionOptions;
+using sl::render::InsertionResult;
+using sl::render::Intrinsics;
+using sl::render::Mesh;
+using sl::render::place_object;
+using sl::render::Placement;
+using sl::render::Projection;
+
 namespace sl::train {
 
 Tensor ground_plane_depth(const Camera& camera) {

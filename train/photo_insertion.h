@@ -30,20 +30,20 @@
 
 namespace sl::train {
 
-Tensor ground_plane_depth(const Camera& camera);
+Tensor ground_plane_depth(const render::Camera& camera);
 
 struct PhotoInsertionOptions {
   int aa_samples = 4, light_samples = 16;  // 64 light samples per fully covered pixel
   int shadow_width = 160, shadow_height = 90, shadow_rays = 64;
   double ambient = 0.1;
-  RadianceQueryOptions volume_query{.samples = 32};  // Eq. 1: K, spacing, lookup (the model's)
+  render::RadianceQueryOptions volume_query{.samples = 32};  // Eq. 1: K, spacing, lookup (the model's)
   double max_ground_offset_m = 1.0;
   uint64_t seed = 0;
   bool radiance_cache = true;  // render/object_insertion.h: probes instead of per-ray volume marches
 };
 
 // The renderer's options for a photo insertion (importance sampling, the inference path).
-InsertionOptions insertion_options(const PhotoInsertionOptions& options);
+render::InsertionOptions insertion_options(const PhotoInsertionOptions& options);
 
 struct PhotoInsertion {
   Tensor composite_ldr;     // [3, H, W]
@@ -61,7 +61,7 @@ struct PhotoInsertion {
 };
 
 PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor& ldr, const Tensor& depth,
-                                 const Camera& world_camera, const Mesh& object_frame_mesh, const Placement& pose,
-                                 const PhotoInsertionOptions& options);
+                                 const render::Camera& world_camera, const render::Mesh& object_frame_mesh,
+                                 const render::Placement& pose, const PhotoInsertionOptions& options);
 
 }  // namespace sl::train

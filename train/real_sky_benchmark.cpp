@@ -7,6 +7,13 @@
 #include "train/metrics.h"
 #include "train/street_batch.h"
 
+using sl::data::HdriFolder;
+using sl::data::panorama_street_sample;
+using sl::data::PanoramaSampleOptions;
+using sl::data::sanitized_panorama;
+using sl::render::Camera;
+using sl::render::Projection;
+
 namespace sl::train {
 
 PanoramaSampleOptions real_sky_crop_options(int width, int height) {

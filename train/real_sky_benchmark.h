@@ -24,15 +24,15 @@ namespace sl::train {
 
 struct RealSkyCrop {
   std::string panorama;  // file name
-  StreetSample sample;   // one view: the crop (its camera at the panorama's centre)
+  data::StreetSample sample;  // one view: the crop (its camera at the panorama's centre)
   glm::dvec3 sun_canonical{0.0, 1.0, 0.0};
   bool sun_known = false, sun_in_crop = false;
 };
 
-PanoramaSampleOptions real_sky_crop_options(int width = 256, int height = 128);
+data::PanoramaSampleOptions real_sky_crop_options(int width = 256, int height = 128);
 
 std::vector<RealSkyCrop> real_sky_crops(const std::vector<std::string>& paths, int crops_per_panorama, uint64_t seed,
-                                        const PanoramaSampleOptions& options = real_sky_crop_options());
+                                        const data::PanoramaSampleOptions& options = real_sky_crop_options());
 
 // Normalised mean of sun_canonical over the crops with a known sun (+Y when there is none).
 glm::dvec3 constant_baseline_direction(const std::vector<RealSkyCrop>& training_crops);

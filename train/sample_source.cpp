@@ -9,6 +9,13 @@
 #include "data/hdri_split.h"
 #include "util/error.h"
 
+using sl::data::HdriFolder;
+using sl::data::panorama_street_sample;
+using sl::data::PanoramaSampleOptions;
+using sl::data::read_hdri_split;
+using sl::data::sanitized_panorama;
+using sl::data::StreetDataset;
+
 namespace sl::train {
 
 SampleSource dataset_source(const std::string& dir, const std::string& split, size_t max_items) {

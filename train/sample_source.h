@@ -28,7 +28,7 @@ namespace sl::train {
 
 struct SampleSource {
   size_t size = 0;
-  std::function<StreetSample(size_t index, uint64_t draw)> load;
+  std::function<data::StreetSample(size_t index, uint64_t draw)> load;
 };
 
 SampleSource dataset_source(const std::string& dir, const std::string& split, size_t max_items = 0);
@@ -37,8 +37,8 @@ SampleSource dataset_source(const std::string& dir, const std::string& split, si
 // i mod n with augmentation stream `draw`. Fixed (vary_with_draw = false, for validation and
 // evaluation): item i is panorama i / crops_per_panorama with stream i, and no flip or jitter
 // is added beyond what `options` says.
-SampleSource panorama_source(const std::vector<std::string>& paths, const PanoramaSampleOptions& options, uint64_t seed,
-                             size_t items, bool vary_with_draw);
+SampleSource panorama_source(const std::vector<std::string>& paths, const data::PanoramaSampleOptions& options,
+                             uint64_t seed, size_t items, bool vary_with_draw);
 
 SampleSource mixed_source(SampleSource a, SampleSource b, double fraction_b);
 

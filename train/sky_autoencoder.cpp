@@ -66,7 +66,8 @@ Tensor panorama_directions(int64_t height, int64_t width, DType dtype) {
   const int64_t plane = height * width;
   for (int64_t i = 0; i < height; ++i)
     for (int64_t j = 0; j < width; ++j) {
-      const auto d = equirect::uv_to_direction(j + 0.5, i + 0.5, static_cast<int>(width), static_cast<int>(height));
+      const auto d =
+          render::equirect::uv_to_direction(j + 0.5, i + 0.5, static_cast<int>(width), static_cast<int>(height));
       v[static_cast<size_t>(i * width + j)] = d.x;
       v[static_cast<size_t>(plane + i * width + j)] = d.y;
       v[static_cast<size_t>(2 * plane + i * width + j)] = d.z;

@@ -10,6 +10,17 @@
 #include "data/sun_extraction.h"
 #include "util/random.h"
 
+using sl::data::augment_panorama;
+using sl::data::check_panorama;
+using sl::data::extract_sun;
+using sl::data::HdriAugmentation;
+using sl::data::HdriFolder;
+using sl::data::PreethamSky;
+using sl::data::resize_area;
+using sl::data::sample_sky_params;
+using sl::data::SunEstimate;
+using sl::data::to_ldr;
+
 namespace sl::train {
 
 namespace {

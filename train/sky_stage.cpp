@@ -13,6 +13,8 @@
 #include "train/distributed.h"
 #include "train/gradient_allreduce.h"
 
+using sl::data::to_ldr;
+
 namespace sl::train {
 
 namespace {

@@ -11,6 +11,16 @@
 #include "util/math.h"
 #include "util/random.h"
 
+using sl::data::binarize_mask;
+using sl::data::resize_area;
+using sl::data::rotate_azimuth;
+using sl::data::rotate_direction_azimuth;
+using sl::data::StreetSample;
+using sl::data::StreetView;
+using sl::render::Camera;
+using sl::render::CameraRay;
+using sl::render::VsgGrid;
+
 namespace sl::train {
 
 glm::dvec3 CanonicalFrame::direction(const glm::dvec3& d) const { return rotate_direction_azimuth(d, -yaw_rad); }
@@ -115,7 +125,8 @@ StreetItem make_street_item(const StreetSample& sample, size_t input_view, const
     const float* m = pano_mask.data<float>();
     for (int64_t r = 0; r < opt.pano_rays; ++r) {
       const int64_t row = rng.randint(hp), col = rng.randint(wp);
-      const auto d = equirect::uv_to_direction(col + 0.5, row + 0.5, static_cast<int>(wp), static_cast<int>(hp));
+      const auto d =
+          render::equirect::uv_to_direction(col + 0.5, row + 0.5, static_cast<int>(wp), static_cast<int>(hp));
       rays.push(origin, {d.x, d.y, d.z}, c + row * wp + col, plane, nan, m[row * wp + col] >= 0.5f ? 1.0 : 0.0);
     }
   }

@@ -36,7 +36,7 @@ struct CanonicalFrame {
   glm::dvec3 camera_world{0.0};
   glm::dvec3 point(const glm::dvec3& world) const;      // world → canonical position
   glm::dvec3 direction(const glm::dvec3& world) const;  // world → canonical direction
-  Camera camera(const Camera& world_camera) const;      // a camera re-expressed in the frame
+  render::Camera camera(const render::Camera& world_camera) const;  // a camera re-expressed in the frame
   Tensor panorama(const Tensor& world_pano) const;      // rolled so world azimuth yaw → 0
   // An object's yaw about +Y (render/object_insertion.h, data/object_placement.h: +X turns toward
   // −Z as yaw grows) re-expressed in the frame. The frame turns the world by +yaw_rad about +Y
@@ -44,7 +44,7 @@ struct CanonicalFrame {
   double object_yaw_deg(double world_yaw_deg) const;
 };
 
-CanonicalFrame canonical_frame(const Camera& input_camera);
+CanonicalFrame canonical_frame(const render::Camera& input_camera);
 
 struct StreetBatchOptions {
   int64_t image_height = 128, image_width = 256;
@@ -55,15 +55,15 @@ struct StreetBatchOptions {
 
 struct StreetItem {
   CanonicalFrame frame;
-  Camera camera;  // the input view's camera in the canonical frame
-  VsgGrid grid;
+  render::Camera camera;  // the input view's camera in the canonical frame
+  render::VsgGrid grid;
   Tensor image, rgba, pano_ldr_dome, pano_mask_dome;
   glm::dvec3 sun_direction{0.0, 1.0, 0.0};
   Tensor origins, directions, target_ldr, target_distance, sky;
 };
 
 // `grid_template` gives dims and extents; its centre is replaced by the camera's position.
-StreetItem make_street_item(const StreetSample& sample, size_t input_view, const VsgGrid& grid_template,
+StreetItem make_street_item(const data::StreetSample& sample, size_t input_view, const render::VsgGrid& grid_template,
                             const StreetBatchOptions& options, uint64_t seed, uint64_t stream);
 
 // Bilinear resize of an image [C, H, W] (align_corners = false, as torch's interpolate).

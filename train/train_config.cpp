@@ -6,6 +6,11 @@
 
 #include "util/error.h"
 
+using sl::render::InsertionOptions;
+using sl::render::parse_sample_spacing;
+using sl::render::RadianceQueryOptions;
+using sl::render::VsgGrid;
+
 namespace sl::train {
 
 using nlohmann::json;

@@ -29,12 +29,12 @@ void check_train_config(const nlohmann::json& config);
 SkyAutoencoderOptions sky_options(const nlohmann::json& config);
 LightingPredictorOptions predictor_options(const nlohmann::json& config);
 // The VSG grid centred on a camera at height `camera_height_m` above the canonical origin.
-VsgGrid vsg_grid(const nlohmann::json& config, double camera_height_m);
+render::VsgGrid vsg_grid(const nlohmann::json& config, double camera_height_m);
 // Eq. 1's query options from model.volume: samples (K), spacing ("metric" | "grid"), trilinear.
-RadianceQueryOptions volume_query_options(const nlohmann::json& config);
+render::RadianceQueryOptions volume_query_options(const nlohmann::json& config);
 // The insertion renderer's options in stage 3 (the `insertion` section): sample counts, I_a,
 // and importance_sampling (cosine + sky MIS for light and shadow rays, as at inference; false:
 // the paper's cosine samples), with Eq. 1 from model.volume. seed draws every sample.
-InsertionOptions training_insertion_options(const nlohmann::json& config, uint64_t seed);
+render::InsertionOptions training_insertion_options(const nlohmann::json& config, uint64_t seed);
 
 }  // namespace sl::train

@@ -5,6 +5,9 @@
 #include <cmath>
 #include <vector>
 
+using sl::render::Camera;
+using sl::render::VsgGrid;
+
 namespace sl::train {
 
 Tensor unproject_rgba(const Tensor& image, const Tensor& depth, const Camera& camera, const VsgGrid& grid) {

@@ -14,6 +14,7 @@
 
 namespace sl::train {
 
-Tensor unproject_rgba(const Tensor& image, const Tensor& depth, const Camera& camera, const VsgGrid& grid);
+Tensor unproject_rgba(const Tensor& image, const Tensor& depth, const render::Camera& camera,
+                      const render::VsgGrid& grid);
 
 }  // namespace sl::train

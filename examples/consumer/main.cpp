@@ -10,6 +10,12 @@
 #include "render/primitives.h"
 #include "util/math.h"
 
+using sl::render::Bounds3;
+using sl::render::make_box;
+using sl::render::Mesh;
+using sl::render::placed_mesh;
+using sl::render::Placement;
+
 int main() {
   using namespace sl;
   // Autodiff: d/dw mean(tanh(x·w)²), checked against float64 finite differences.

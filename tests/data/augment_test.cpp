@@ -8,6 +8,24 @@
 #include "support/test_files.h"
 #include "util/math.h"
 
+using sl::data::CropRanges;
+using sl::data::flip_panorama;
+using sl::data::flip_panorama_direction;
+using sl::data::flip_view;
+using sl::data::PanoramaDataset;
+using sl::data::PanoramaItem;
+using sl::data::random_exposure_factor;
+using sl::data::random_perspective_crop;
+using sl::data::RandomCrop;
+using sl::data::scale_hdr;
+using sl::data::scale_ldr;
+using sl::data::StreetView;
+using sl::data::to_ldr;
+using sl::render::Camera;
+using sl::render::intrinsics_from_fov;
+using sl::render::Projection;
+using sl::render::rotation_from_yaw_pitch_roll;
+
 namespace sl {
 namespace {
 
@@ -41,11 +59,11 @@ TEST(Augment, FlippedViewSeesTheMirroredWorld) {
 TEST(Augment, PanoramaFlipMirrorsAzimuth) {
   Tensor pano = Tensor::zeros({3, 16, 32});
   const glm::dvec3 d = glm::normalize(glm::dvec3(0.6, 0.3, -0.4));
-  const equirect::UV uv = equirect::direction_to_uv(d.x, d.y, d.z, 32, 16);
+  const render::equirect::UV uv = render::equirect::direction_to_uv(d.x, d.y, d.z, 32, 16);
   pano.data<float>()[static_cast<int>(uv.v) * 32 + static_cast<int>(uv.u)] = 1.0f;
   const Tensor f = flip_panorama(pano);
   const glm::dvec3 m = flip_panorama_direction(d);
-  const equirect::UV uv2 = equirect::direction_to_uv(m.x, m.y, m.z, 32, 16);
+  const render::equirect::UV uv2 = render::equirect::direction_to_uv(m.x, m.y, m.z, 32, 16);
   EXPECT_EQ(f.data<float>()[static_cast<int>(uv2.v) * 32 + static_cast<int>(uv2.u)], 1.0f);
 }
 
@@ -57,7 +75,7 @@ TEST(Augment, RandomCropIsSeededAndReturnsItsCamera) {
   EXPECT_NE(a.yaw_deg, c.yaw_deg);
   // The crop camera's optical axis has the sampled yaw and pitch (render/camera.h).
   const glm::dvec3 fwd = a.crop.camera.rotation()[2];
-  const equirect::UV uv = equirect::direction_to_uv(fwd.x, fwd.y, fwd.z, 360, 180);
+  const render::equirect::UV uv = render::equirect::direction_to_uv(fwd.x, fwd.y, fwd.z, 360, 180);
   EXPECT_NEAR(uv.u - 180.0, a.yaw_deg, 1e-6);
   EXPECT_NEAR(90.0 - uv.v, a.pitch_deg, 1e-6);
   EXPECT_NEAR(a.crop.camera.intrinsics().horizontal_fov_rad() * 180 / kPi, a.fov_deg, 1e-6);

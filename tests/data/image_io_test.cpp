@@ -53,14 +53,14 @@ class ScratchCleanup : public ::testing::Environment {
 }  // namespace
 
 TEST(ImageIo, SrgbCurveIsTheExactPiecewiseStandard) {
-  EXPECT_NEAR(sl::srgb_to_linear(0.5f), 0.2140411f, 1e-6);
-  EXPECT_NEAR(sl::srgb_to_linear(0.04045f), 0.04045f / 12.92f, 1e-7);
-  EXPECT_NEAR(sl::linear_to_srgb(0.0031308f), 0.0031308f * 12.92f, 1e-6);
-  EXPECT_FLOAT_EQ(sl::srgb_to_linear(1.0f), 1.0f);
-  EXPECT_FLOAT_EQ(sl::srgb_to_linear(0.0f), 0.0f);
+  EXPECT_NEAR(sl::data::srgb_to_linear(0.5f), 0.2140411f, 1e-6);
+  EXPECT_NEAR(sl::data::srgb_to_linear(0.04045f), 0.04045f / 12.92f, 1e-7);
+  EXPECT_NEAR(sl::data::linear_to_srgb(0.0031308f), 0.0031308f * 12.92f, 1e-6);
+  EXPECT_FLOAT_EQ(sl::data::srgb_to_linear(1.0f), 1.0f);
+  EXPECT_FLOAT_EQ(sl::data::srgb_to_linear(0.0f), 0.0f);
   for (int i = 0; i <= 255; ++i) {
     const float e = i / 255.0f;
-    EXPECT_NEAR(sl::linear_to_srgb(sl::srgb_to_linear(e)), e, 2e-6);
+    EXPECT_NEAR(sl::data::linear_to_srgb(sl::data::srgb_to_linear(e)), e, 2e-6);
   }
 }
 
@@ -69,12 +69,12 @@ TEST(ImageIo, ExrRoundTripIsExactForHdrValues) {
   sl::Tensor img = random_image(3, 5, 7, 0.0, 1.0, 1);
   img.data<float>()[3] = 65000.0f;  // a sun texel
   img.data<float>()[4] = 1e-6f;
-  sl::write_image(path, img);
-  const sl::Tensor back = sl::read_image(path);
+  sl::data::write_image(path, img);
+  const sl::Tensor back = sl::data::read_image(path);
   ASSERT_EQ(back.shape(), img.shape());
   const auto a = img.to_vector(), b = back.to_vector();
   for (size_t i = 0; i < a.size(); ++i) EXPECT_EQ(a[i], b[i]) << i;
-  const sl::ImageInfo info = sl::read_image_info(path);
+  const sl::data::ImageInfo info = sl::data::read_image_info(path);
   EXPECT_TRUE(info.is_float);
   EXPECT_EQ(info.channels, 3);
 }
@@ -83,8 +83,8 @@ TEST(ImageIo, RadianceHdrRoundTripIsWithinRgbePrecision) {
   const std::string path = scratch("roundtrip.hdr");
   sl::Tensor img = random_image(3, 4, 8, 0.1, 1.0, 2);
   img.data<float>()[0] = 50000.0f;
-  sl::write_image(path, img);
-  const auto a = img.to_vector(), b = sl::read_image(path, {.channels = 3}).to_vector();
+  sl::data::write_image(path, img);
+  const auto a = img.to_vector(), b = sl::data::read_image(path, {.channels = 3}).to_vector();
   // RGBE shares one exponent per pixel: every channel is accurate to ~1% of the pixel's largest.
   const size_t plane = 32;
   for (size_t i = 0; i < a.size(); ++i) {
@@ -92,7 +92,7 @@ TEST(ImageIo, RadianceHdrRoundTripIsWithinRgbePrecision) {
     const double pixel_max = std::max({a[p], a[p + plane], a[p + 2 * plane]});
     EXPECT_NEAR(b[i], a[i], 0.01 * pixel_max) << i;
   }
-  expect_error_naming([&] { sl::write_image(scratch("four.hdr"), random_image(4, 2, 2, 0, 1, 3)); },
+  expect_error_naming([&] { sl::data::write_image(scratch("four.hdr"), random_image(4, 2, 2, 0, 1, 3)); },
                       scratch("four.hdr"), "3 channels");
 }
 
@@ -101,90 +101,95 @@ TEST(ImageIo, Png8RoundTripDecodesAndEncodesSrgb) {
   // Linear values that are exactly sRGB codes k/255 survive the round trip.
   sl::Tensor img = sl::Tensor::empty({3, 16, 16});
   float* p = img.data<float>();
-  for (int i = 0; i < 3 * 256; ++i) p[i] = sl::srgb_to_linear((i % 256) / 255.0f);
-  sl::write_image(path, img);
-  const sl::Tensor back = sl::read_image(path);
-  const auto raw = sl::read_image(path, {.transfer = sl::Transfer::Linear}).to_vector();
+  for (int i = 0; i < 3 * 256; ++i) p[i] = sl::data::srgb_to_linear((i % 256) / 255.0f);
+  sl::data::write_image(path, img);
+  const sl::Tensor back = sl::data::read_image(path);
+  const auto raw = sl::data::read_image(path, {.transfer = sl::data::Transfer::Linear}).to_vector();
   const auto b = back.to_vector();
   for (int i = 0; i < 3 * 256; ++i) {
     EXPECT_NEAR(b[i], p[i], 1e-6) << i;
     EXPECT_NEAR(raw[i], (i % 256) / 255.0, 1e-7) << i;  // raw codes
   }
-  EXPECT_EQ(sl::read_image_info(path).bits, 8);
+  EXPECT_EQ(sl::data::read_image_info(path).bits, 8);
 }
 
 TEST(ImageIo, Png16AndJpegRoundTrip) {
   const std::string png = scratch("sixteen.png");
   const sl::Tensor img = random_image(4, 6, 9, 0.0, 1.0, 4);
-  sl::write_image(png, img, {.transfer = sl::Transfer::Linear, .bits = 16});
-  EXPECT_EQ(sl::read_image_info(png).bits, 16);
-  const auto a = img.to_vector(), b = sl::read_image(png, {.transfer = sl::Transfer::Linear}).to_vector();
+  sl::data::write_image(png, img, {.transfer = sl::data::Transfer::Linear, .bits = 16});
+  EXPECT_EQ(sl::data::read_image_info(png).bits, 16);
+  const auto a = img.to_vector(), b = sl::data::read_image(png, {.transfer = sl::data::Transfer::Linear}).to_vector();
   for (size_t i = 0; i < a.size(); ++i) EXPECT_NEAR(b[i], a[i], 0.51 / 65535.0) << i;
 
   const std::string jpg = scratch("smooth.jpg");
   sl::Tensor smooth = sl::Tensor::empty({3, 16, 16});
   for (int i = 0; i < 3 * 256; ++i) smooth.data<float>()[i] = 0.2f + 0.3f * ((i % 256) / 256.0f);
-  sl::write_image(jpg, smooth);
-  const auto s = smooth.to_vector(), j = sl::read_image(jpg).to_vector();
+  sl::data::write_image(jpg, smooth);
+  const auto s = smooth.to_vector(), j = sl::data::read_image(jpg).to_vector();
   for (size_t i = 0; i < s.size(); ++i) EXPECT_NEAR(j[i], s[i], 0.03) << i;
 }
 
 TEST(ImageIo, ChannelRequestsReplicateGreyDropAlphaAndRejectTheRest) {
   const std::string grey = scratch("grey.png"), rgba = scratch("rgba.png");
-  sl::write_image(grey, random_image(1, 3, 4, 0, 1, 5));
-  sl::write_image(rgba, random_image(4, 3, 4, 0, 1, 6));
-  const sl::Tensor g3 = sl::read_image(grey, {.channels = 3});
+  sl::data::write_image(grey, random_image(1, 3, 4, 0, 1, 5));
+  sl::data::write_image(rgba, random_image(4, 3, 4, 0, 1, 6));
+  const sl::Tensor g3 = sl::data::read_image(grey, {.channels = 3});
   EXPECT_EQ(g3.shape(), (sl::Shape{3, 3, 4}));
   EXPECT_EQ(g3.at({0, 1, 2}), g3.at({2, 1, 2}));
-  EXPECT_EQ(sl::read_image(rgba, {.channels = 3}).shape(), (sl::Shape{3, 3, 4}));
+  EXPECT_EQ(sl::data::read_image(rgba, {.channels = 3}).shape(), (sl::Shape{3, 3, 4}));
   // Alpha is stored unassociated and never curve-mapped.
   const sl::Tensor rgba_in = random_image(4, 3, 4, 0, 1, 6);
-  const sl::Tensor rgba_back = sl::read_image(rgba);
+  const sl::Tensor rgba_back = sl::data::read_image(rgba);
   EXPECT_NEAR(rgba_back.at({3, 2, 1}), rgba_in.at({3, 2, 1}), 0.5 / 255.0);
   EXPECT_NEAR(rgba_back.at({0, 2, 1}), rgba_in.at({0, 2, 1}), 0.01);
-  expect_error_naming([&] { sl::read_image(rgba, {.channels = 1}); }, rgba, "4 channels");
-  expect_error_naming([&] { sl::read_image(grey, {.width = 4, .height = 5}); }, grey, "3");
+  expect_error_naming([&] { sl::data::read_image(rgba, {.channels = 1}); }, rgba, "4 channels");
+  expect_error_naming([&] { sl::data::read_image(grey, {.width = 4, .height = 5}); }, grey, "3");
 }
 
 TEST(ImageIo, DamagedFilesRaiseErrorsNamingTheFile) {
   const std::string png = scratch("cut.png"), exr = scratch("cut.exr"), hdr = scratch("cut.hdr");
   const sl::Tensor img = random_image(3, 64, 64, 0, 1, 7);
-  sl::write_image(png, img);
-  sl::write_image(exr, img);
-  sl::write_image(hdr, img);
+  sl::data::write_image(png, img);
+  sl::data::write_image(exr, img);
+  sl::data::write_image(hdr, img);
   sl::test::truncate_file(png, 0.5);
   sl::test::truncate_file(exr, 0.5);
   sl::test::truncate_file(hdr, 0.5);
-  expect_error_naming([&] { sl::read_image(png); }, png);
-  expect_error_naming([&] { sl::read_image(exr); }, exr);
-  expect_error_naming([&] { sl::read_image(hdr); }, hdr);
+  expect_error_naming([&] { sl::data::read_image(png); }, png);
+  expect_error_naming([&] { sl::data::read_image(exr); }, exr);
+  expect_error_naming([&] { sl::data::read_image(hdr); }, hdr);
 
   const std::string garbage = scratch("garbage.png");
   sl::test::write_bytes(garbage, std::string("\x89PNG\r\n\x1a\n this is not a png at all", 33));
-  expect_error_naming([&] { sl::read_image(garbage); }, garbage);
+  expect_error_naming([&] { sl::data::read_image(garbage); }, garbage);
   const std::string noise = scratch("noise.exr");
   std::string bytes;
   for (int i = 0; i < 4096; ++i) bytes.push_back(static_cast<char>(sl::hash_counter(9, i) & 0xff));
   sl::test::write_bytes(noise, bytes);
-  expect_error_naming([&] { sl::read_image(noise); }, noise);
-  expect_error_naming([&] { sl::read_image(scratch("absent.exr")); }, scratch("absent.exr"),
-                      "no such file");
+  expect_error_naming([&] { sl::data::read_image(noise); }, noise);
+  expect_error_naming([&] { sl::data::read_image(scratch("absent.exr")); }, scratch("absent.exr"), "no such file");
 }
 
 TEST(ImageIo, FailedWritesLeaveNoPartialFile) {
   const std::string path = scratch("keep.png");
-  sl::write_image(path, random_image(3, 4, 4, 0, 1, 8));
+  sl::data::write_image(path, random_image(3, 4, 4, 0, 1, 8));
   const auto before = std::filesystem::file_size(path);
   // Each of these fails; the existing file stays intact and no temporary is left behind.
-  EXPECT_THROW(sl::write_image(path, random_image(3, 4, 4, 0, 1, 9), {.bits = 12}), sl::Error);
-  EXPECT_THROW(sl::write_image(path, sl::Tensor::zeros({5, 4, 4})), sl::Error);
-  EXPECT_THROW(sl::write_image(path, sl::Tensor::zeros({4, 4})), sl::Error);
-  expect_error_naming([&] { sl::write_image(scratch("nofolder/x.exr"), sl::Tensor::zeros({3, 2, 2})); },
-                      scratch("nofolder/x.exr"), "folder");
-  expect_error_naming([&] { sl::write_image(scratch("x.bmpx"), sl::Tensor::zeros({3, 2, 2})); },
-                      scratch("x.bmpx"), "extension");
+  EXPECT_THROW(sl::data::write_image(path, random_image(3, 4, 4, 0, 1, 9), {.bits = 12}), sl::Error);
+  EXPECT_THROW(sl::data::write_image(path, sl::Tensor::zeros({5, 4, 4})), sl::Error);
+  EXPECT_THROW(sl::data::write_image(path, sl::Tensor::zeros({4, 4})), sl::Error);
+  expect_error_naming(
+      [&] {
+        sl::data::write_image(scratch("nofolder/x.exr"), sl::Tensor::zeros({3, 2, 2}));
+      },
+      scratch("nofolder/x.exr"), "folder");
+  expect_error_naming(
+      [&] {
+        sl::data::write_image(scratch("x.bmpx"), sl::Tensor::zeros({3, 2, 2}));
+      },
+      scratch("x.bmpx"), "extension");
   EXPECT_EQ(std::filesystem::file_size(path), before);
-  EXPECT_EQ(sl::read_image(path).shape(), (sl::Shape{3, 4, 4}));
+  EXPECT_EQ(sl::data::read_image(path).shape(), (sl::Shape{3, 4, 4}));
   EXPECT_FALSE(has_temporary_files(sl::test::scratch_dir().string()));
 }
 
@@ -192,10 +197,10 @@ TEST(ImageIo, KittiDepthPngStoresMetresTimes256WithZeroAsMissing) {
   const std::string path = scratch("depth.png");
   sl::Tensor d = sl::Tensor::from_vector({0.0, 2.5, 76.6, std::nan(""), INFINITY, -1.0, 255.99, 1e-4},
                                          {1, 2, 4});
-  sl::write_depth(path, d);
-  EXPECT_EQ(sl::read_image_info(path).bits, 16);
-  const auto zero = sl::read_depth(path).to_vector();
-  const auto nan = sl::read_depth(path, sl::MissingDepth::NaN).to_vector();
+  sl::data::write_depth(path, d);
+  EXPECT_EQ(sl::data::read_image_info(path).bits, 16);
+  const auto zero = sl::data::read_depth(path).to_vector();
+  const auto nan = sl::data::read_depth(path, sl::data::MissingDepth::NaN).to_vector();
   const double expected[] = {0, 2.5, std::round(76.6 * 256) / 256, 0, 0, 0, std::round(255.99 * 256) / 256,
                              1.0 / 256};
   for (int i = 0; i < 8; ++i) {
@@ -203,26 +208,26 @@ TEST(ImageIo, KittiDepthPngStoresMetresTimes256WithZeroAsMissing) {
     if (expected[i] == 0) EXPECT_TRUE(std::isnan(nan[i])) << i;
     else EXPECT_EQ(nan[i], zero[i]) << i;
   }
-  expect_error_naming([&] { sl::write_depth(path, sl::Tensor::full({1, 1, 1}, 300.0)); }, path, "300");
-  expect_error_naming([&] { sl::read_depth(scratch("rgba.png")); }, scratch("rgba.png"));
+  expect_error_naming([&] { sl::data::write_depth(path, sl::Tensor::full({1, 1, 1}, 300.0)); }, path, "300");
+  expect_error_naming([&] { sl::data::read_depth(scratch("rgba.png")); }, scratch("rgba.png"));
 }
 
 TEST(ImageIo, ExrDepthKeepsMetresAndMarksHoles) {
   const std::string path = scratch("depth.exr");
-  sl::write_depth(path, sl::Tensor::from_vector({0.0, 1234.5, std::nan(""), 3.25}, {2, 2}));
-  const auto v = sl::read_depth(path, sl::MissingDepth::NaN, 2, 2).to_vector();
+  sl::data::write_depth(path, sl::Tensor::from_vector({0.0, 1234.5, std::nan(""), 3.25}, {2, 2}));
+  const auto v = sl::data::read_depth(path, sl::data::MissingDepth::NaN, 2, 2).to_vector();
   EXPECT_TRUE(std::isnan(v[0]));
   EXPECT_EQ(v[1], 1234.5);
   EXPECT_TRUE(std::isnan(v[2]));
   EXPECT_EQ(v[3], 3.25);
-  EXPECT_EQ(sl::read_depth(path).to_vector()[2], 0.0);
-  expect_error_naming([&] { sl::read_depth(path, sl::MissingDepth::Zero, 3, 2); }, path);
+  EXPECT_EQ(sl::data::read_depth(path).to_vector()[2], 0.0);
+  expect_error_naming([&] { sl::data::read_depth(path, sl::data::MissingDepth::Zero, 3, 2); }, path);
 }
 
 TEST(ImageIo, ReadsTheRealKittiPhotograph) {
   const std::string path = sl::test::shared_data("street/kitti_000008/000008.png");
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
-  const sl::Tensor img = sl::read_image(path, {.channels = 3});
+  const sl::Tensor img = sl::data::read_image(path, {.channels = 3});
   EXPECT_EQ(img.shape(), (sl::Shape{3, 375, 1242}));
   double mean = 0;
   for (double x : img.to_vector()) mean += x;

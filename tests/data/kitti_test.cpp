@@ -10,6 +10,14 @@
 #include "data/kitti.h"
 #include "support/test_files.h"
 
+using sl::data::densify_depth;
+using sl::data::GroundPlane;
+using sl::data::KittiCalibration;
+using sl::data::KittiFrame;
+using sl::data::load_kitti_frame;
+using sl::data::read_kitti_calibration;
+using sl::data::read_velodyne;
+
 namespace sl {
 namespace {
 

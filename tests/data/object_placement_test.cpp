@@ -9,6 +9,21 @@
 #include "util/error.h"
 #include "util/math.h"
 
+using sl::data::FootprintXZ;
+using sl::data::kitti_box3d;
+using sl::data::make_procedural_car;
+using sl::data::placed_footprint;
+using sl::data::scale_to_length;
+using sl::data::to_object_frame;
+using sl::render::Bounds3;
+using sl::render::Camera;
+using sl::render::intrinsics_from_fov;
+using sl::render::make_box;
+using sl::render::Mesh;
+using sl::render::placed_mesh;
+using sl::render::Placement;
+using sl::render::rotation_from_yaw_pitch_roll;
+
 namespace sl {
 namespace {
 

@@ -11,6 +11,18 @@
 #include "data/sky_model.h"
 #include "util/math.h"
 
+using sl::data::extract_sun;
+using sl::data::flip_panorama_direction;
+using sl::data::panorama_street_sample;
+using sl::data::PanoramaSampleOptions;
+using sl::data::PreethamSky;
+using sl::data::rotate_azimuth;
+using sl::data::rotate_direction_azimuth;
+using sl::data::SkyParams;
+using sl::data::StreetSample;
+using sl::data::sun_hardness;
+using sl::data::SunHardness;
+
 namespace sl {
 namespace {
 

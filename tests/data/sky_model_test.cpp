@@ -22,8 +22,8 @@ double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
   return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) / sl::kDegToRad;
 }
 
-sl::SkyParams sky(double elevation_deg, double azimuth_deg, double turbidity = 3.0) {
-  sl::SkyParams p;
+sl::data::SkyParams sky(double elevation_deg, double azimuth_deg, double turbidity = 3.0) {
+  sl::data::SkyParams p;
   p.sun_elevation_rad = elevation_deg * sl::kDegToRad;
   p.sun_azimuth_rad = azimuth_deg * sl::kDegToRad;
   p.turbidity = turbidity;
@@ -35,37 +35,37 @@ sl::SkyParams sky(double elevation_deg, double azimuth_deg, double turbidity = 3
 TEST(SkyModel, TheSunIsThePeakOfTheRenderedPanorama) {
   for (double elevation : {5.0, 30.0, 60.0, 89.0})
     for (double azimuth : {-180.0, -45.0, 100.0}) {
-      const sl::PreethamSky model(sky(elevation, azimuth));
+      const sl::data::PreethamSky model(sky(elevation, azimuth));
       const sl::Tensor pano = model.render(64, 128);
-      const sl::SunEstimate est = sl::extract_sun(pano);
+      const sl::data::SunEstimate est = sl::data::extract_sun(pano);
       EXPECT_LT(angle_deg(est.direction, model.sun_direction()), 1.5) << elevation << " " << azimuth;
       for (double x : pano.to_vector()) ASSERT_TRUE(std::isfinite(x) && x >= 0.0);
     }
 }
 
 TEST(SkyModel, SunDiskEnergyIsItsRadianceTimesItsSolidAngleAtAnyResolution) {
-  sl::SkyParams with = sky(40.0, 20.0);
+  sl::data::SkyParams with = sky(40.0, 20.0);
   with.ground_albedo = 0.0;  // the sun also lights the ground; keep only the disk's own energy
-  sl::SkyParams without = with;
+  sl::data::SkyParams without = with;
   without.sun_disk = false;
-  const sl::PreethamSky a(with), b(without);
+  const sl::data::PreethamSky a(with), b(without);
   for (int h : {16, 64, 256}) {
     const sl::Tensor pa = a.render(h, 2 * h), pb = b.render(h, 2 * h);
     for (int c = 0; c < 3; ++c) {
       const double expected = a.sun_radiance()[c] * a.sun_solid_angle();
-      EXPECT_NEAR(sl::radiant_power(pa, c) - sl::radiant_power(pb, c), expected, 1e-3 * expected) << h;
+      EXPECT_NEAR(sl::data::radiant_power(pa, c) - sl::data::radiant_power(pb, c), expected, 1e-3 * expected) << h;
     }
   }
 }
 
 TEST(SkyModel, SunIsTenThousandToOneHundredThousandTimesTheMeanSky) {
   for (double elevation : {5.0, 15.0, 30.0, 45.0, 60.0, 75.0, 89.0}) {
-    const sl::PreethamSky model(sky(elevation, 0.0));
+    const sl::data::PreethamSky model(sky(elevation, 0.0));
     double sum = 0, weight = 0;  // solid-angle mean of the clear sky over the upper hemisphere
     for (int i = 0; i < 32; ++i)
       for (int j = 0; j < 128; ++j) {
-        const auto d = sl::equirect::uv_to_direction(j + 0.5, i + 0.5, 128, 64);
-        const double omega = sl::equirect::pixel_solid_angle(i, 128, 64);
+        const auto d = sl::render::equirect::uv_to_direction(j + 0.5, i + 0.5, 128, 64);
+        const double omega = sl::render::equirect::pixel_solid_angle(i, 128, 64);
         sum += lum(model.clear_sky_radiance({d.x, d.y, d.z})) * omega;
         weight += omega;
       }
@@ -74,14 +74,14 @@ TEST(SkyModel, SunIsTenThousandToOneHundredThousandTimesTheMeanSky) {
     EXPECT_LT(ratio, 1e5) << elevation;
   }
   // A low sun is dimmer and redder (longer air mass).
-  const sl::PreethamSky low(sky(3.0, 0.0)), high(sky(60.0, 0.0));
+  const sl::data::PreethamSky low(sky(3.0, 0.0)), high(sky(60.0, 0.0));
   EXPECT_LT(lum(low.sun_radiance()), 0.1 * lum(high.sun_radiance()));
   EXPECT_GT(low.sun_radiance().x / low.sun_radiance().z, 2.0 * high.sun_radiance().x / high.sun_radiance().z);
 }
 
 TEST(SkyModel, RadianceIsSymmetricAboutTheSunsVerticalPlane) {
   const double sun_azimuth = 37.0;
-  const sl::PreethamSky model(sky(25.0, sun_azimuth));
+  const sl::data::PreethamSky model(sky(25.0, sun_azimuth));
   for (double elevation : {1.0, 20.0, 50.0, 85.0})
     for (double offset : {5.0, 60.0, 150.0}) {
       const glm::dvec3 l = model.radiance(from_angles(elevation, sun_azimuth + offset));
@@ -91,7 +91,7 @@ TEST(SkyModel, RadianceIsSymmetricAboutTheSunsVerticalPlane) {
 }
 
 TEST(SkyModel, RadianceIsContinuousAcrossTheSky) {
-  const sl::PreethamSky model(sky(30.0, 0.0, 4.0));
+  const sl::data::PreethamSky model(sky(30.0, 0.0, 4.0));
   // Neighbouring directions 0.1° apart differ by < 2% everywhere above the horizon.
   double worst = 0.0;
   for (double elevation = 0.5; elevation < 90.0; elevation += 2.0)
@@ -106,7 +106,7 @@ TEST(SkyModel, RadianceIsContinuousAcrossTheSky) {
 TEST(SkyModel, ZenithLuminanceRisesWithSunElevation) {
   double previous = 0.0;
   for (double elevation = 0.0; elevation <= 90.0; elevation += 10.0) {
-    const sl::PreethamSky model(sky(elevation, 0.0));
+    const sl::data::PreethamSky model(sky(elevation, 0.0));
     EXPECT_GT(model.zenith_luminance(), previous) << elevation;
     previous = model.zenith_luminance();
     // The rendered zenith matches the model's zenith luminance.
@@ -117,16 +117,16 @@ TEST(SkyModel, ZenithLuminanceRisesWithSunElevation) {
 TEST(SkyModel, AtEqualAngleFromTheSunTheHorizonIsBrighterThanTheZenith) {
   // Perez gradation term (1 + A·e^{B/cos θ}) with A < 0: a clear sky brightens towards the
   // horizon. Sun at 45°: the zenith and the horizon below the sun are both 45° away from it.
-  const sl::PreethamSky model(sky(45.0, 0.0));
+  const sl::data::PreethamSky model(sky(45.0, 0.0));
   EXPECT_GT(lum(model.radiance(from_angles(0.5, 0.0))), 1.5 * lum(model.radiance({0, 1, 0})));
   // High sun at 80°: (20°, towards the sun) and (40°, away from it) are both 60° from the sun;
   // the lower one is brighter.
-  const sl::PreethamSky high(sky(80.0, 0.0));
+  const sl::data::PreethamSky high(sky(80.0, 0.0));
   EXPECT_GT(lum(high.radiance(from_angles(20.0, 0.0))), 1.2 * lum(high.radiance(from_angles(40.0, 180.0))));
 }
 
 TEST(SkyModel, LowSunGivesARedderHorizonNearTheSun) {
-  const sl::PreethamSky low(sky(2.0, 0.0)), high(sky(60.0, 0.0));
+  const sl::data::PreethamSky low(sky(2.0, 0.0)), high(sky(60.0, 0.0));
   const glm::dvec3 l = low.radiance(from_angles(3.0, 10.0)), h = high.radiance(from_angles(3.0, 10.0));
   EXPECT_GT(l.x / l.z, h.x / h.z);
   // A clear high-sun sky is blue at the zenith.
@@ -135,16 +135,16 @@ TEST(SkyModel, LowSunGivesARedderHorizonNearTheSun) {
 }
 
 TEST(SkyModel, GroundIsAlbedoTimesIrradianceOverPi) {
-  sl::SkyParams p = sky(35.0, 50.0);
+  sl::data::SkyParams p = sky(35.0, 50.0);
   p.ground_albedo = 0.3;
-  const sl::PreethamSky model(p);
+  const sl::data::PreethamSky model(p);
   const sl::Tensor pano = model.render(128, 256);
   // Irradiance on the ground from the rendered upper hemisphere (sky + disk).
   glm::dvec3 e(0.0);
   for (int i = 0; i < 64; ++i)
     for (int j = 0; j < 256; ++j) {
-      const auto d = sl::equirect::uv_to_direction(j + 0.5, i + 0.5, 256, 128);
-      const double w = d.y * sl::equirect::pixel_solid_angle(i, 256, 128);
+      const auto d = sl::render::equirect::uv_to_direction(j + 0.5, i + 0.5, 256, 128);
+      const double w = d.y * sl::render::equirect::pixel_solid_angle(i, 256, 128);
       for (int c = 0; c < 3; ++c) e[c] += pano.at({c, i, j}) * w;
     }
   for (int c = 0; c < 3; ++c) {
@@ -153,39 +153,39 @@ TEST(SkyModel, GroundIsAlbedoTimesIrradianceOverPi) {
 }
 
 TEST(SkyModel, CloudsAreSeededAndDimTheSky) {
-  sl::SkyParams p = sky(40.0, 0.0);
+  sl::data::SkyParams p = sky(40.0, 0.0);
   p.cloud_cover = 0.9;
   p.cloud_seed = 5;
-  const sl::PreethamSky cloudy(p), clear(sky(40.0, 0.0));
+  const sl::data::PreethamSky cloudy(p), clear(sky(40.0, 0.0));
   const sl::Tensor a = cloudy.render(32, 64), b = cloudy.render(32, 64);
   EXPECT_EQ(a.to_vector(), b.to_vector());
   p.cloud_seed = 6;
-  EXPECT_NE(sl::PreethamSky(p).render(32, 64).to_vector(), a.to_vector());
+  EXPECT_NE(sl::data::PreethamSky(p).render(32, 64).to_vector(), a.to_vector());
   EXPECT_LE(lum(cloudy.sun_radiance()), lum(clear.sun_radiance()));
   double covered = 0;
   for (double az = -180; az < 180; az += 5)
     for (double el = 10; el < 90; el += 5) covered += cloudy.cloud_cover_at(from_angles(el, az)) > 0.5;
   EXPECT_GT(covered, 0.3 * 72 * 16);
-  EXPECT_LT(sl::radiant_power(a, 1), sl::radiant_power(clear.render(32, 64), 1));
+  EXPECT_LT(sl::data::radiant_power(a, 1), sl::data::radiant_power(clear.render(32, 64), 1));
 }
 
 TEST(SkyModel, SampledParametersAreDeterministicAndValid) {
   for (uint64_t i = 0; i < 50; ++i) {
-    const sl::SkyParams a = sl::sample_sky_params(7, i), b = sl::sample_sky_params(7, i);
+    const sl::data::SkyParams a = sl::data::sample_sky_params(7, i), b = sl::data::sample_sky_params(7, i);
     EXPECT_EQ(a.sun_azimuth_rad, b.sun_azimuth_rad);
     EXPECT_EQ(a.cloud_seed, b.cloud_seed);
-    EXPECT_NO_THROW(sl::PreethamSky{a});
+    EXPECT_NO_THROW(sl::data::PreethamSky{a});
   }
-  EXPECT_NE(sl::sample_sky_params(7, 0).sun_azimuth_rad, sl::sample_sky_params(8, 0).sun_azimuth_rad);
-  sl::SkyParams bad;
+  EXPECT_NE(sl::data::sample_sky_params(7, 0).sun_azimuth_rad, sl::data::sample_sky_params(8, 0).sun_azimuth_rad);
+  sl::data::SkyParams bad;
   bad.turbidity = 0.5;
   try {
-    sl::PreethamSky{bad};
+    sl::data::PreethamSky{bad};
     FAIL();
   } catch (const sl::Error& e) {
     EXPECT_NE(std::string(e.what()).find("turbidity"), std::string::npos);
   }
   bad = {};
   bad.sun_elevation_rad = -0.1;
-  EXPECT_THROW(sl::PreethamSky{bad}, sl::Error);
+  EXPECT_THROW(sl::data::PreethamSky{bad}, sl::Error);
 }

@@ -13,6 +13,14 @@
 #include "render/equirect.h"
 #include "support/street_fixture.h"
 
+using sl::data::compose_contact_sheet;
+using sl::data::epoch_order;
+using sl::data::SampleLoader;
+using sl::data::StreetDataset;
+using sl::data::StreetSample;
+using sl::data::StreetView;
+using sl::render::CameraRay;
+
 namespace sl {
 namespace {
 
@@ -101,7 +109,8 @@ TEST(StreetDataset, PanoramaAndView0SkyMasksAgree) {
   for (int r = 0; r < H; ++r)
     for (int c = 0; c < W; ++c) {
       const CameraRay ray = v.camera.pixel_ray(c, r);
-      const equirect::UV uv = equirect::direction_to_uv(ray.direction.x, ray.direction.y, ray.direction.z, pw, ph);
+      const render::equirect::UV uv =
+          render::equirect::direction_to_uv(ray.direction.x, ray.direction.y, ray.direction.z, pw, ph);
       const int pc = std::min(pw - 1, static_cast<int>(uv.u)), pr = std::min(ph - 1, static_cast<int>(uv.v));
       agree += v.sky_mask.data<float>()[r * W + c] == s.pano_sky_mask.data<float>()[pr * pw + pc];
     }

@@ -21,6 +21,35 @@
 #include "support/street_fixture.h"
 #include "util/math.h"
 
+using sl::data::build_street_scene;
+using sl::data::extract_sun;
+using sl::data::FootprintXZ;
+using sl::data::generate_street_sample;
+using sl::data::GeneratedSample;
+using sl::data::make_procedural_car;
+using sl::data::read_image;
+using sl::data::street_generator_config;
+using sl::data::StreetDataset;
+using sl::data::StreetGeneratorConfig;
+using sl::data::StreetSample;
+using sl::data::StreetScene;
+using sl::data::StreetSceneConfig;
+using sl::data::StreetView;
+using sl::data::SunEstimate;
+using sl::render::Bounds3;
+using sl::render::Camera;
+using sl::render::CameraRay;
+using sl::render::EnvironmentMap;
+using sl::render::intrinsics_from_fov;
+using sl::render::Mesh;
+using sl::render::PathTracer;
+using sl::render::PathTracerImage;
+using sl::render::PathTracerOptions;
+using sl::render::placed_mesh;
+using sl::render::Placement;
+using sl::render::Projection;
+using sl::render::rotation_from_yaw_pitch_roll;
+
 namespace sl {
 namespace {
 
@@ -191,7 +220,7 @@ TEST(StreetGenerator, InsertionPairIsBitwiseEqualOutsideObjectAndShadow) {
                          a.normal.data<float>()[2 * H * W + r * W + c]);
       for (int k = 0; k < 49 && !region[r * W + c]; ++k) {
         const double u = sun_col - 1.0 + 3.0 * (k % 7 + 0.5) / 7, v = sun_row - 1.0 + 3.0 * (k / 7 + 0.5) / 7;
-        const equirect::Dir d = equirect::uv_to_direction(u, v, ew, eh);
+        const render::equirect::Dir d = render::equirect::uv_to_direction(u, v, ew, eh);
         if (object_t.first_hit(glm::vec3(p + 1e-3 * n), glm::vec3(d.x, d.y, d.z)).hit) region[r * W + c] = 1;
       }
     }

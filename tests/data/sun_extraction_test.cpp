@@ -36,10 +36,10 @@ sl::Tensor synthetic_sky(int h, const glm::dvec3& sun, double radius_deg, double
     for (int j = 0; j < w; ++j) {
       double covered = 0.0;
       for (int s = 0; s < 16; ++s) {
-        const auto d = sl::equirect::uv_to_direction(j + (s % 4 + 0.5) / 4, i + (s / 4 + 0.5) / 4, w, h);
+        const auto d = sl::render::equirect::uv_to_direction(j + (s % 4 + 0.5) / 4, i + (s / 4 + 0.5) / 4, w, h);
         covered += (d.x * sun.x + d.y * sun.y + d.z * sun.z) >= cos_r ? 1.0 / 16 : 0.0;
       }
-      const auto d = sl::equirect::uv_to_direction(j + 0.5, i + 0.5, w, h);
+      const auto d = sl::render::equirect::uv_to_direction(j + 0.5, i + 0.5, w, h);
       const double sky = d.y > 0 ? 1.0 + 0.5 * d.y : 0.3;
       const int64_t idx = static_cast<int64_t>(i) * w + j;
       const double n1 = 1.0 + noise * sl::normal01(seed, idx), n2 = noise * sl::normal01(seed + 1, idx);
@@ -61,7 +61,7 @@ TEST(SunExtraction, FindsSyntheticSunsWithinOneDegreeUnderNoise) {
     for (double radius_deg : {0.3, 2.0}) {
       const glm::dvec3 sun = from_angles(c[0], c[1]);
       const sl::Tensor pano = synthetic_sky(128, sun, radius_deg, 5e4, 0.1, seed++);
-      const sl::SunEstimate est = sl::extract_sun(pano);
+      const sl::data::SunEstimate est = sl::data::extract_sun(pano);
       ASSERT_TRUE(est.found);
       EXPECT_NEAR(glm::length(est.direction), 1.0, 1e-12);
       EXPECT_LT(angle_deg(est.direction, sun), 1.0)
@@ -75,7 +75,7 @@ TEST(SunExtraction, HandlesTheAzimuthSeamAndTheZenith) {
   // the zenith covers every column of the top rows. Pixel-coordinate averages fail both.
   for (const glm::dvec3& sun : {from_angles(20.0, 180.0), from_angles(90.0, 0.0), from_angles(88.0, 180.0)}) {
     const sl::Tensor pano = synthetic_sky(64, sun, 3.0, 1e4, 0.0, 7);
-    const sl::SunEstimate est = sl::extract_sun(pano);
+    const sl::data::SunEstimate est = sl::data::extract_sun(pano);
     EXPECT_LT(angle_deg(est.direction, sun), 0.5) << sun.x << " " << sun.y << " " << sun.z;
   }
 }
@@ -85,8 +85,8 @@ TEST(SunExtraction, PowerOfASunIsIndependentOfResolution) {
   const double radius_deg = 1.5, radiance = 1e5;
   const double exact = radiance * 2 * sl::kPi * (1 - std::cos(radius_deg * sl::kDegToRad));
   for (int h : {64, 128}) {
-    const sl::SunEstimate est =
-        sl::extract_sun(synthetic_sky(h, sun, radius_deg, radiance, 0.0, 3), {.threshold_fraction = 0.01});
+    const sl::data::SunEstimate est =
+        sl::data::extract_sun(synthetic_sky(h, sun, radius_deg, radiance, 0.0, 3), {.threshold_fraction = 0.01});
     EXPECT_NEAR(est.power_rgb.y, exact, 0.05 * exact) << h;
   }
 }
@@ -95,25 +95,27 @@ TEST(SunExtraction, ASingleHotNoiseTexelDoesNotBeatAWideSun) {
   const glm::dvec3 sun = from_angles(40.0, -30.0);
   sl::Tensor pano = synthetic_sky(64, sun, 2.5, 1e3, 0.05, 9);
   for (int c = 0; c < 3; ++c) pano.data<float>()[(c * 64 + 50) * 128 + 5] = 3e3f;  // a firefly
-  EXPECT_LT(angle_deg(sl::extract_sun(pano).direction, sun), 1.0);
+  EXPECT_LT(angle_deg(sl::data::extract_sun(pano).direction, sun), 1.0);
 }
 
 TEST(SunExtraction, DegenerateInputsAreHandled) {
-  const sl::SunEstimate dark = sl::extract_sun(sl::Tensor::zeros({3, 8, 16}));
+  const sl::data::SunEstimate dark = sl::data::extract_sun(sl::Tensor::zeros({3, 8, 16}));
   EXPECT_FALSE(dark.found);
   sl::Tensor bad = sl::Tensor::full({3, 8, 16}, NAN);
   bad.data<float>()[3 * 16 + 4] = 1.0f;
   bad.data<float>()[128 + 3 * 16 + 4] = 1.0f;
   bad.data<float>()[256 + 3 * 16 + 4] = 1.0f;
-  const sl::SunEstimate one = sl::extract_sun(bad);
+  const sl::data::SunEstimate one = sl::data::extract_sun(bad);
   EXPECT_TRUE(one.found);
   EXPECT_TRUE(std::isfinite(one.direction.x));
-  EXPECT_LT(angle_deg(one.direction, [] {
-              const auto d = sl::equirect::uv_to_direction(4.5, 3.5, 16, 8);
-              return glm::dvec3(d.x, d.y, d.z);
-            }()), 1e-9);
-  EXPECT_THROW(sl::extract_sun(sl::Tensor::zeros({1, 8, 16})), sl::Error);
-  EXPECT_THROW(sl::extract_sun(sl::Tensor::zeros({3, 8, 16}), {.threshold_fraction = 1.5}), sl::Error);
+  EXPECT_LT(angle_deg(one.direction,
+                      [] {
+                        const auto d = sl::render::equirect::uv_to_direction(4.5, 3.5, 16, 8);
+                        return glm::dvec3(d.x, d.y, d.z);
+                      }()),
+            1e-9);
+  EXPECT_THROW(sl::data::extract_sun(sl::Tensor::zeros({1, 8, 16})), sl::Error);
+  EXPECT_THROW(sl::data::extract_sun(sl::Tensor::zeros({3, 8, 16}), {.threshold_fraction = 1.5}), sl::Error);
 }
 
 TEST(SunExtraction, MatchesMeasuredPeakElevationOfRealHdris) {
@@ -140,7 +142,7 @@ TEST(SunExtraction, MatchesMeasuredPeakElevationOfRealHdris) {
   std::printf("%-32s %9s %9s %7s %12s %6s\n", "file", "manifest", "extracted", "error", "radiance_Y", "texels");
   for (const Row& r : rows) {
     const std::string path = dir + "/" + r.file;
-    const sl::SunEstimate est = sl::extract_sun(sl::read_image(path, {.channels = 3}));
+    const sl::data::SunEstimate est = sl::data::extract_sun(sl::data::read_image(path, {.channels = 3}));
     const double elevation = est.elevation_rad / sl::kDegToRad, error = std::fabs(elevation - r.peak_elevation_deg);
     std::printf("%-32s %9.1f %9.2f %7.2f %12.1f %6d\n", r.file, r.peak_elevation_deg, elevation, error,
                 est.radiance_rgb.y, est.texel_count);

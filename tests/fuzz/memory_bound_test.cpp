@@ -106,70 +106,70 @@ TEST_F(MemoryBound, SafetensorsHugeHeaderLengthAllocatesNothingOfItsSize) {
 TEST_F(MemoryBound, GltfHugeAccessorCountAllocatesNothingOfItsSize) {
   const std::string bytes = triangle_glb("16777216", "12");  // 192 MiB of positions claimed
   const std::string path = write_temp("huge_count.glb", bytes);
-  EXPECT_LE(peak_of([&] { sl::load_gltf(path); }), 64 * bytes.size() + kMiB);
+  EXPECT_LE(peak_of([&] { sl::render::load_gltf(path); }), 64 * bytes.size() + kMiB);
 }
 
 TEST_F(MemoryBound, ValidGltfStaysWithinItsBound) {
   const std::string bytes = triangle_glb("3", "12");
   const std::string path = write_temp("valid.glb", bytes);
-  EXPECT_LE(peak_of([&] { sl::load_gltf(path); }, false), 64 * bytes.size() + kMiB);
+  EXPECT_LE(peak_of([&] { sl::render::load_gltf(path); }, false), 64 * bytes.size() + kMiB);
 }
 
 TEST_F(MemoryBound, PngDeclaringFourBillionPixelsAllocatesNothingOfItsSize) {
   // Warm OpenImageIO up first: its one-time plugin and attribute tables are not this file's cost.
   const std::string small = write_temp("small.png", png_declaring(2, 2));
   try {
-    sl::read_image(small);
+    sl::data::read_image(small);
   } catch (const sl::Error&) {
   }
   const std::string bytes = png_declaring(65535, 65535);  // 17 G values = 68 GB as floats
   const std::string path = write_temp("huge.png", bytes);
-  const size_t peak = peak_of([&] { sl::read_image(path); });
+  const size_t peak = peak_of([&] { sl::data::read_image(path); });
   EXPECT_LE(peak, 64 * bytes.size() + kMiB);
 }
 
 TEST_F(MemoryBound, DepthPngDeclaringFourHundredMillionPixelsAllocatesNothingOfItsSize) {
   const std::string small = write_temp("small_depth.png", png_declaring(2, 2, std::string("\x10\x00", 2)));
   try {
-    sl::read_depth(small);
+    sl::data::read_depth(small);
   } catch (const sl::Error&) {
   }
   // 16-bit grey, 4e8 values: read_depth once allocated its 1.6 GB tensor before the size check.
   const std::string bytes = png_declaring(20000, 20000, std::string("\x10\x00", 2));
   const std::string path = write_temp("huge_depth.png", bytes);
-  EXPECT_LE(peak_of([&] { sl::read_depth(path); }), 64 * bytes.size() + kMiB);
+  EXPECT_LE(peak_of([&] { sl::data::read_depth(path); }), 64 * bytes.size() + kMiB);
 }
 
 TEST_F(MemoryBound, ExrDeclaringFourBillionPixelsIsRefusedBeforeOpenExrOpensIt) {
   const std::string small = write_temp("small.exr", exr_declaring(1, 1));
   try {
-    sl::read_image_info(small);
+    sl::data::read_image_info(small);
   } catch (const sl::Error&) {
   }
   // The fuzzer's find: 398 bytes, a ZIP file whose window is 13893636 x 257 pixels. OpenEXR
   // sizes its decompression buffers by the window while opening (16 lines of 13.9 M floats).
   const std::string path = std::string(STREETLIGHT_SOURCE_DIR) + "/tests/fuzz/corpus/image/crash_exr_huge_window";
-  EXPECT_LE(peak_of([&] { sl::read_image_info(path); }), 64 * std::filesystem::file_size(path) + kMiB);
+  EXPECT_LE(peak_of([&] { sl::data::read_image_info(path); }), 64 * std::filesystem::file_size(path) + kMiB);
 }
 
 TEST_F(MemoryBound, ExrAttributeDeclaringGigabytesIsRefusedBeforeOpenExrOpensIt) {
   const std::string small = write_temp("small.exr", exr_declaring(1, 1));
   try {
-    sl::read_image_info(small);
+    sl::data::read_image_info(small);
   } catch (const sl::Error&) {
   }
   // The fuzzer's find: 412 bytes whose 'capDate' string attribute declares 1.7 GB.
   const std::string path = std::string(STREETLIGHT_SOURCE_DIR) + "/tests/fuzz/corpus/image/crash_exr_huge_attribute";
-  EXPECT_LE(peak_of([&] { sl::read_image_info(path); }), 64 * std::filesystem::file_size(path) + kMiB);
+  EXPECT_LE(peak_of([&] { sl::data::read_image_info(path); }), 64 * std::filesystem::file_size(path) + kMiB);
 }
 
 TEST_F(MemoryBound, VelodyneAndRayFilesCostAFewTimesTheirSize) {
   const std::string points(16 * 4096, '\0');  // 4096 points at the origin
   const std::string vpath = write_temp("points.bin", points);
-  EXPECT_LE(peak_of([&] { sl::read_velodyne(vpath); }, false), 2 * points.size() + kMiB);
+  EXPECT_LE(peak_of([&] { sl::data::read_velodyne(vpath); }, false), 2 * points.size() + kMiB);
   std::string rays(24 * 4096, '\0');
   const std::string rpath = write_temp("rays.bin", rays);
-  EXPECT_LE(peak_of([&] { sl::read_ray_file(rpath); }, false), 3 * rays.size() + kMiB);
+  EXPECT_LE(peak_of([&] { sl::render::read_ray_file(rpath); }, false), 3 * rays.size() + kMiB);
 }
 
 TEST_F(MemoryBound, DeeplyNestedJsonConfigCostsABoundedMultipleOfItsSize) {

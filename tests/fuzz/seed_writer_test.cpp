@@ -13,6 +13,12 @@
 #include "render/gltf_writer.h"
 #include "render/primitives.h"
 
+using sl::data::Transfer;
+using sl::data::write_depth;
+using sl::data::write_image;
+using sl::render::make_box;
+using sl::render::write_glb;
+
 namespace {
 
 std::string corpus(const std::string& target, const std::string& name) {

@@ -10,6 +10,8 @@
 #include "util/math.h"
 #include "util/random.h"
 
+using sl::render::Bvh;
+
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -22,9 +24,9 @@ glm::vec3 random_unit(sl::Rng& rng) {
 }
 
 // Random triangle soup: many small triangles, some large, some degenerate.
-sl::Mesh random_soup(int count, uint64_t seed) {
+sl::render::Mesh random_soup(int count, uint64_t seed) {
   sl::Rng rng(seed);
-  sl::Mesh m;
+  sl::render::Mesh m;
   for (int i = 0; i < count; ++i) {
     const glm::vec3 c(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
     const float size = i % 50 == 0 ? 0.8f : 0.08f;
@@ -37,14 +39,15 @@ sl::Mesh random_soup(int count, uint64_t seed) {
   return m;
 }
 
-void expect_matches_brute_force(const sl::Mesh& m, const sl::Bvh& bvh, const std::vector<sl::Ray>& rays) {
-  std::vector<sl::Hit> hits(rays.size());
+void expect_matches_brute_force(const sl::render::Mesh& m, const sl::render::Bvh& bvh,
+                                const std::vector<sl::render::Ray>& rays) {
+  std::vector<sl::render::Hit> hits(rays.size());
   std::vector<uint8_t> occ(rays.size());
   bvh.intersect(rays.data(), hits.data(), rays.size());
   bvh.occluded(rays.data(), occ.data(), rays.size());
   int hit_count = 0;
   for (size_t i = 0; i < rays.size(); ++i) {
-    const sl::Hit ref = sl::intersect_brute_force(m.positions, m.triangles, rays[i]);
+    const sl::render::Hit ref = sl::render::intersect_brute_force(m.positions, m.triangles, rays[i]);
     ASSERT_EQ(hits[i].hit(), ref.hit()) << "ray " << i;
     ASSERT_EQ(occ[i] != 0, ref.hit()) << "ray " << i;
     if (ref.hit()) {
@@ -56,9 +59,9 @@ void expect_matches_brute_force(const sl::Mesh& m, const sl::Bvh& bvh, const std
   EXPECT_LT(hit_count, static_cast<int>(rays.size()));
 }
 
-std::vector<sl::Ray> random_rays(const sl::Bounds3& b, int count, uint64_t seed) {
+std::vector<sl::render::Ray> random_rays(const sl::render::Bounds3& b, int count, uint64_t seed) {
   sl::Rng rng(seed);
-  std::vector<sl::Ray> rays(count);
+  std::vector<sl::render::Ray> rays(count);
   const glm::vec3 c = b.centre(), e = 0.75f * b.extent();
   for (auto& r : rays) {
     r.origin = c + e * glm::vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
@@ -68,16 +71,16 @@ std::vector<sl::Ray> random_rays(const sl::Bounds3& b, int count, uint64_t seed)
 }
 
 TEST(Bvh, ClosestHitMatchesBruteForceOnRandomSoup) {
-  const sl::Mesh m = random_soup(3000, 7);
-  const sl::Bvh bvh(m);
+  const sl::render::Mesh m = random_soup(3000, 7);
+  const sl::render::Bvh bvh(m);
   EXPECT_LT(bvh.triangle_count(), m.triangle_count());  // degenerate triangles were left out
   expect_matches_brute_force(m, bvh, random_rays(m.bounds(), 2000, 11));
 }
 
 TEST(Bvh, ClosestHitRespectsTminAndTmax) {
-  const sl::Mesh m = random_soup(500, 3);
-  const sl::Bvh bvh(m);
-  std::vector<sl::Ray> rays = random_rays(m.bounds(), 1000, 5);
+  const sl::render::Mesh m = random_soup(500, 3);
+  const sl::render::Bvh bvh(m);
+  std::vector<sl::render::Ray> rays = random_rays(m.bounds(), 1000, 5);
   sl::Rng rng(9);
   for (auto& r : rays) {
     r.tmin = static_cast<float>(rng.uniform(0.0, 0.5));
@@ -88,13 +91,13 @@ TEST(Bvh, ClosestHitRespectsTminAndTmax) {
 
 TEST(Bvh, SharedEdgeIsWatertight) {
   // Two triangles sharing the diagonal of the unit square; rays aimed exactly at the diagonal.
-  sl::Mesh m;
+  sl::render::Mesh m;
   m.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
   m.triangles = {{0, 1, 2}, {0, 2, 3}};
-  const sl::Bvh bvh(m);
+  const sl::render::Bvh bvh(m);
   for (int i = 1; i < 1000; ++i) {
     const float s = i / 1000.0f;
-    sl::Ray r;
+    sl::render::Ray r;
     r.origin = {s, s, 1.0f};
     r.direction = {0.0f, 0.0f, -1.0f};
     EXPECT_TRUE(bvh.intersect(r).hit()) << s;
@@ -108,47 +111,47 @@ TEST(Bvh, RaysThroughTheSharedVertexOfAFanAlwaysHit) {
   // 40 triangles around one vertex: leaves are full, and a ray through the centre gives exact
   // zero edge functions in many lanes of one block at once; along a spoke, in two lanes.
   constexpr int kSpokes = 40;
-  sl::Mesh m;
+  sl::render::Mesh m;
   m.positions.push_back({0.25f, 0.5f, 0.0f});
   for (int i = 0; i < kSpokes; ++i) {
     const float a = (2.0f * sl::kPiF) * i / kSpokes;
     m.positions.push_back({0.25f + std::cos(a), 0.5f + std::sin(a), 0.1f * std::sin(3.0f * a)});
   }
   for (uint32_t i = 0; i < kSpokes; ++i) m.triangles.push_back({0, 1 + i, 1 + (i + 1) % kSpokes});
-  const sl::Bvh bvh(m);
+  const sl::render::Bvh bvh(m);
   sl::Rng rng(6);
   for (int k = 0; k < 500; ++k) {
     const glm::vec3 target = k % 2 == 0 ? m.positions[0]
                                         : glm::mix(m.positions[0], m.positions[1 + (k / 2) % kSpokes],
                                                    static_cast<float>(rng.uniform(0.0, 1.0)));
-    sl::Ray r;
+    sl::render::Ray r;
     r.origin = target + glm::vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), 2.0f);
     r.direction = target - r.origin;
     EXPECT_TRUE(bvh.intersect(r).hit()) << k;
     EXPECT_TRUE(bvh.occluded(r)) << k;
-    EXPECT_EQ(bvh.intersect(r).hit(), sl::intersect_brute_force(m.positions, m.triangles, r).hit()) << k;
+    EXPECT_EQ(bvh.intersect(r).hit(), sl::render::intersect_brute_force(m.positions, m.triangles, r).hit()) << k;
   }
 }
 
 TEST(Bvh, DegenerateTrianglesAreNeverHit) {
-  sl::Mesh m;
+  sl::render::Mesh m;
   m.positions = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {0, 0, 0}, {0, 0, 0}};
   m.triangles = {{0, 1, 2}, {3, 4, 3}};  // collinear, then a point
-  const sl::Bvh bvh(m);
+  const sl::render::Bvh bvh(m);
   EXPECT_TRUE(bvh.empty());
-  sl::Ray r;
+  sl::render::Ray r;
   r.origin = {1, 1, 0};
   r.direction = {0, -1, 0};
   EXPECT_FALSE(bvh.intersect(r).hit());
-  EXPECT_FALSE(sl::intersect_brute_force(m.positions, m.triangles, r).hit());
+  EXPECT_FALSE(sl::render::intersect_brute_force(m.positions, m.triangles, r).hit());
 }
 
 TEST(Bvh, RayInTheTrianglePlaneMissesIt) {
-  sl::Mesh m;
+  sl::render::Mesh m;
   m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
   m.triangles = {{0, 1, 2}};
-  const sl::Bvh bvh(m);
-  sl::Ray r;
+  const sl::render::Bvh bvh(m);
+  sl::render::Ray r;
   r.origin = {-1, 0.2f, 0};
   r.direction = {1, 0, 0};  // slides along z = 0 across the triangle
   EXPECT_FALSE(bvh.intersect(r).hit());
@@ -156,8 +159,8 @@ TEST(Bvh, RayInTheTrianglePlaneMissesIt) {
 }
 
 TEST(Bvh, RayLeavingASurfaceWithEpsilonTminDoesNotSelfHit) {
-  const sl::Mesh m = random_soup(2000, 21);
-  const sl::Bvh bvh(m);
+  const sl::render::Mesh m = random_soup(2000, 21);
+  const sl::render::Bvh bvh(m);
   sl::Rng rng(4);
   int tested = 0;
   for (size_t t = 0; t < m.triangle_count(); t += 3) {
@@ -166,11 +169,11 @@ TEST(Bvh, RayLeavingASurfaceWithEpsilonTminDoesNotSelfHit) {
     const glm::vec3 n = glm::cross(p1 - p0, p2 - p0);
     if (glm::length(n) < 1e-6f) continue;
     const float u = static_cast<float>(rng.uniform(0.05, 0.45)), v = static_cast<float>(rng.uniform(0.05, 0.45));
-    sl::Ray r;
+    sl::render::Ray r;
     r.origin = (1 - u - v) * p0 + u * p1 + v * p2;
     r.direction = random_unit(rng);
     r.tmin = 1e-4f;
-    const sl::Hit h = bvh.intersect(r);
+    const sl::render::Hit h = bvh.intersect(r);
     if (h.hit()) {
       EXPECT_NE(h.triangle, t) << "self-hit at t = " << h.t;
     }
@@ -180,26 +183,26 @@ TEST(Bvh, RayLeavingASurfaceWithEpsilonTminDoesNotSelfHit) {
 }
 
 TEST(Bvh, EmptyMeshMissesEveryRay) {
-  const sl::Bvh bvh{sl::Mesh{}};
+  const sl::render::Bvh bvh{sl::render::Mesh{}};
   EXPECT_TRUE(bvh.empty());
   EXPECT_TRUE(bvh.bounds().empty());
-  for (const auto& r : random_rays(sl::Bounds3{{-1, -1, -1}, {1, 1, 1}}, 100, 1)) {
+  for (const auto& r : random_rays(sl::render::Bounds3{{-1, -1, -1}, {1, 1, 1}}, 100, 1)) {
     EXPECT_FALSE(bvh.intersect(r).hit());
     EXPECT_FALSE(bvh.occluded(r));
   }
 }
 
 TEST(Bvh, InvalidRaysMissWithoutNaN) {
-  const sl::Mesh m = random_soup(100, 2);
-  const sl::Bvh bvh(m);
-  sl::Ray zero;
+  const sl::render::Mesh m = random_soup(100, 2);
+  const sl::render::Bvh bvh(m);
+  sl::render::Ray zero;
   zero.direction = glm::vec3(0.0f);
-  sl::Ray nan_origin;
+  sl::render::Ray nan_origin;
   nan_origin.origin = glm::vec3(std::nanf(""));
-  sl::Ray inf_dir;
+  sl::render::Ray inf_dir;
   inf_dir.direction = glm::vec3(kInf, 0, 0);
-  for (const sl::Ray& r : {zero, nan_origin, inf_dir}) {
-    const sl::Hit h = bvh.intersect(r);
+  for (const sl::render::Ray& r : {zero, nan_origin, inf_dir}) {
+    const sl::render::Hit h = bvh.intersect(r);
     EXPECT_FALSE(h.hit());
     EXPECT_FALSE(bvh.occluded(r));
   }
@@ -207,7 +210,7 @@ TEST(Bvh, InvalidRaysMissWithoutNaN) {
 
 TEST(Bvh, AxisAlignedRaysThroughBoxFacesMatchBruteForce) {
   // A grid of unit quads: rays along axes, some starting exactly on box planes.
-  sl::Mesh m;
+  sl::render::Mesh m;
   for (int i = 0; i < 20; ++i)
     for (int j = 0; j < 20; ++j) {
       const uint32_t b = static_cast<uint32_t>(m.positions.size());
@@ -218,11 +221,11 @@ TEST(Bvh, AxisAlignedRaysThroughBoxFacesMatchBruteForce) {
       m.triangles.push_back({b, b + 1, b + 2});
       m.triangles.push_back({b, b + 2, b + 3});
     }
-  const sl::Bvh bvh(m);
-  std::vector<sl::Ray> rays;
+  const sl::render::Bvh bvh(m);
+  std::vector<sl::render::Ray> rays;
   for (int i = 0; i <= 40; ++i)
     for (int j = 0; j <= 40; ++j) {
-      sl::Ray r;
+      sl::render::Ray r;
       r.origin = {i * 0.5f, 2.0f, j * 0.5f};
       r.direction = {0.0f, -1.0f, 0.0f};
       rays.push_back(r);
@@ -234,10 +237,10 @@ TEST(Bvh, AxisAlignedRaysThroughBoxFacesMatchBruteForce) {
 }
 
 TEST(Bvh, ResultsAreIdenticalWithOneAndTwoThreads) {
-  const sl::Mesh m = random_soup(5000, 8);
-  const sl::Bvh bvh(m);
+  const sl::render::Mesh m = random_soup(5000, 8);
+  const sl::render::Bvh bvh(m);
   const auto rays = random_rays(m.bounds(), 4000, 3);
-  std::vector<sl::Hit> a(rays.size()), b(rays.size());
+  std::vector<sl::render::Hit> a(rays.size()), b(rays.size());
   const int threads = omp_get_max_threads();
   omp_set_num_threads(1);
   bvh.intersect(rays.data(), a.data(), rays.size());
@@ -251,20 +254,20 @@ TEST(Bvh, ResultsAreIdenticalWithOneAndTwoThreads) {
 }
 
 TEST(Bvh, NodesAreCompactAndLeavesSmall) {
-  const sl::Mesh m = random_soup(20000, 12);
-  const sl::Bvh bvh(m);
+  const sl::render::Mesh m = random_soup(20000, 12);
+  const sl::render::Bvh bvh(m);
   size_t leaf_tris = 0, children = 0, interior_refs = 0;
   for (const auto& n : bvh.nodes()) {
-    for (int i = 0; i < sl::BvhNode::kWidth; ++i) {
+    for (int i = 0; i < sl::render::BvhNode::kWidth; ++i) {
       const uint32_t ref = n.child[i];
-      if (ref == sl::BvhNode::kEmpty) {
+      if (ref == sl::render::BvhNode::kEmpty) {
         EXPECT_GT(n.bounds[0][i], n.bounds[3][i]);  // an unused slot's box is empty
         continue;
       }
       ++children;
-      if (sl::BvhNode::is_leaf(ref)) {
-        EXPECT_LE(sl::BvhNode::leaf_count(ref), static_cast<uint32_t>(sl::Bvh::kMaxLeafSize));
-        leaf_tris += sl::BvhNode::leaf_count(ref);
+      if (sl::render::BvhNode::is_leaf(ref)) {
+        EXPECT_LE(sl::render::BvhNode::leaf_count(ref), static_cast<uint32_t>(sl::render::Bvh::kMaxLeafSize));
+        leaf_tris += sl::render::BvhNode::leaf_count(ref);
       } else {
         EXPECT_LT(ref, bvh.node_count());
         ++interior_refs;
@@ -278,16 +281,16 @@ TEST(Bvh, NodesAreCompactAndLeavesSmall) {
 }
 
 TEST(Bvh, TreeDoesNotDependOnThreadCount) {
-  const sl::Mesh m = random_soup(30000, 5);
+  const sl::render::Mesh m = random_soup(30000, 5);
   const int threads = omp_get_max_threads();
   omp_set_num_threads(1);
-  const sl::Bvh one(m);
+  const sl::render::Bvh one(m);
   omp_set_num_threads(2);
-  const sl::Bvh two(m);
+  const sl::render::Bvh two(m);
   omp_set_num_threads(threads);
   ASSERT_EQ(one.node_count(), two.node_count());
   for (size_t i = 0; i < one.node_count(); ++i) {
-    for (int c = 0; c < sl::BvhNode::kWidth; ++c) {
+    for (int c = 0; c < sl::render::BvhNode::kWidth; ++c) {
       EXPECT_EQ(one.nodes()[i].child[c], two.nodes()[i].child[c]);
       for (int a = 0; a < 6; ++a) EXPECT_EQ(one.nodes()[i].bounds[a][c], two.nodes()[i].bounds[a][c]);
     }
@@ -298,8 +301,8 @@ TEST(Bvh, RealModelsMatchBruteForce) {
   const std::string dir = std::string(STREETLIGHT_SHARED_DATA) + "/models";
   if (!std::filesystem::exists(dir + "/CesiumMilkTruck.glb")) GTEST_SKIP() << "shared models not found in " << dir;
   for (const char* name : {"CesiumMilkTruck.glb", "Shadow_Tester_4.glb"}) {
-    const sl::Mesh m = sl::load_gltf(dir + "/" + name);
-    const sl::Bvh bvh(m);
+    const sl::render::Mesh m = sl::render::load_gltf(dir + "/" + name);
+    const sl::render::Bvh bvh(m);
     SCOPED_TRACE(name);
     expect_matches_brute_force(m, bvh, random_rays(m.bounds(), 600, 17));
   }

@@ -12,7 +12,7 @@
 
 namespace {
 
-namespace disney = sl::disney;
+namespace disney = sl::render::disney;
 const glm::vec3 kUp(0.0f, 0.0f, 1.0f);
 
 glm::vec3 view_at(float theta) { return {std::sin(theta), 0.0f, std::cos(theta)}; }
@@ -24,8 +24,8 @@ glm::vec3 random_hemisphere(uint64_t seed, uint64_t i) {
   return {r * std::cos(phi), r * std::sin(phi), z};
 }
 
-disney::Params white(float metallic, float roughness, float specular, float clearcoat) {
-  disney::Params p;
+sl::render::disney::Params white(float metallic, float roughness, float specular, float clearcoat) {
+  sl::render::disney::Params p;
   p.base_color = glm::vec3(1.0f);
   p.metallic = metallic;
   p.roughness = roughness;
@@ -36,14 +36,14 @@ disney::Params white(float metallic, float roughness, float specular, float clea
 
 // Directional albedo ∫ f cos dω_i by the BRDF's own importance sampling, stratified in (u1, u2).
 // Lost samples (reflected below the horizon) contribute 0, which keeps the estimate unbiased.
-glm::dvec3 albedo(const disney::Params& p, const glm::vec3& wo, int strata = 128) {
+glm::dvec3 albedo(const sl::render::disney::Params& p, const glm::vec3& wo, int strata = 128) {
   glm::dvec3 sum(0.0);
   for (int i = 0; i < strata; ++i)
     for (int j = 0; j < strata; ++j) {
       const uint64_t k = static_cast<uint64_t>(i * strata + j);
       const float u1 = (i + sl::uniform01f(7, k, 0)) / strata;
       const float u2 = (j + sl::uniform01f(7, k, 1)) / strata;
-      const disney::Sample s = disney::sample(p, kUp, wo, u1, u2, sl::uniform01f(7, k, 2));
+      const sl::render::disney::Sample s = sl::render::disney::sample(p, kUp, wo, u1, u2, sl::uniform01f(7, k, 2));
       if (s.pdf > 0.0f) sum += glm::dvec3(s.f * (s.wi.z / s.pdf));
     }
   return sum / double(strata * strata);
@@ -52,7 +52,7 @@ glm::dvec3 albedo(const disney::Params& p, const glm::vec3& wo, int strata = 128
 // The same integral by deterministic quadrature over the hemisphere, independent of sample():
 // z = s² puts more nodes near the horizon, where grazing lobes live. Only for lobes wider than
 // the grid (roughness ≥ 0.5).
-glm::dvec3 albedo_quadrature(const disney::Params& p, const glm::vec3& wo, int n = 800) {
+glm::dvec3 albedo_quadrature(const sl::render::disney::Params& p, const glm::vec3& wo, int n = 800) {
   glm::dvec3 sum(0.0);
   for (int i = 0; i < n; ++i) {
     const double s = (i + 0.5) / n, z = s * s;  // dz = 2s ds
@@ -60,7 +60,7 @@ glm::dvec3 albedo_quadrature(const disney::Params& p, const glm::vec3& wo, int n
     for (int j = 0; j < n; ++j) {
       const double phi = 2.0 * sl::kPiF * (j + 0.5) / n;
       const glm::vec3 wi(r * std::cos(phi), r * std::sin(phi), z);
-      sum += glm::dvec3(disney::eval(p, kUp, wo, wi)) * (z * 2.0 * s);
+      sum += glm::dvec3(sl::render::disney::eval(p, kUp, wo, wi)) * (z * 2.0 * s);
     }
   }
   return sum * (2.0 * sl::kPiF / (double(n) * n));
@@ -106,8 +106,8 @@ TEST(DisneyBrdf, WhiteFurnaceAlbedoStaysWithinBurleysKnownExcess) {
 }
 
 TEST(DisneyBrdf, SampledAlbedoMatchesQuadratureOfEval) {
-  for (const disney::Params& p : {white(0.0f, 1.0f, 0.5f, 0.0f), white(1.0f, 0.5f, 0.5f, 0.0f),
-                                  white(0.3f, 0.7f, 1.0f, 1.0f)})
+  for (const sl::render::disney::Params& p :
+       {white(0.0f, 1.0f, 0.5f, 0.0f), white(1.0f, 0.5f, 0.5f, 0.0f), white(0.3f, 0.7f, 1.0f, 1.0f)})
     for (float theta : {0.0f, 0.7f, 1.3f}) {
       const glm::dvec3 mc = albedo(p, view_at(theta)), quad = albedo_quadrature(p, view_at(theta));
       EXPECT_NEAR(mc.g, quad.g, 0.01 * quad.g) << "metallic " << p.metallic << " roughness " << p.roughness
@@ -135,18 +135,18 @@ TEST(DisneyBrdf, WhiteMetalAtNormalIncidenceReflectsAllButTheMaskingLoss) {
 // Rough white dielectric with specular = 0 at normal incidence: the diffuse part integrates to
 // exactly 1 + 1/28 (F_D90 = 1.5 + n·l when v = n), plus a small Fresnel rim from the specular lobe.
 TEST(DisneyBrdf, RoughWhiteDiffuseAtNormalIncidenceIsLambertianPlusBurleyRetroReflection) {
-  disney::Params p = white(0.0f, 1.0f, 0.0f, 0.0f);
+  sl::render::disney::Params p = white(0.0f, 1.0f, 0.0f, 0.0f);
   const glm::dvec3 a = albedo(p, kUp);
   std::printf("white diffuse, roughness 1, specular 0, normal incidence: albedo %.4f\n", a.g);
   EXPECT_GE(a.g, 1.0 + 1.0 / 28.0 - 0.005);
   EXPECT_LE(a.g, 1.0 + 1.0 / 28.0 + 0.03);
   // Lambertian within the retro-reflection factor: the diffuse lobe alone is base/π at n·l = 1.
-  EXPECT_NEAR(disney::eval(p, kUp, kUp, kUp).g, 1.0f / sl::kPiF, 1e-6f);
+  EXPECT_NEAR(sl::render::disney::eval(p, kUp, kUp, kUp).g, 1.0f / sl::kPiF, 1e-6f);
 }
 
 TEST(DisneyBrdf, EvalIsReciprocal) {
   for (uint64_t i = 0; i < 2000; ++i) {
-    disney::Params p;
+    sl::render::disney::Params p;
     p.base_color = glm::vec3(sl::uniform01f(3, i, 10), sl::uniform01f(3, i, 11), sl::uniform01f(3, i, 12));
     p.metallic = sl::uniform01f(3, i, 13);
     p.roughness = sl::uniform01f(3, i, 14);
@@ -156,24 +156,24 @@ TEST(DisneyBrdf, EvalIsReciprocal) {
     p.clearcoat = sl::uniform01f(3, i, 18);
     p.clearcoat_gloss = sl::uniform01f(3, i, 19);
     const glm::vec3 a = random_hemisphere(4, i), b = random_hemisphere(5, i);
-    const glm::vec3 fab = disney::eval(p, kUp, a, b), fba = disney::eval(p, kUp, b, a);
+    const glm::vec3 fab = sl::render::disney::eval(p, kUp, a, b), fba = sl::render::disney::eval(p, kUp, b, a);
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(fab[k], fba[k], 1e-4f * std::max(1.0f, std::abs(fab[k]))) << i;
   }
 }
 
 TEST(DisneyBrdf, SampleReturnsEvalAndPdfOfItsDirection) {
-  const disney::Params p = white(0.3f, 0.4f, 0.7f, 0.6f);
+  const sl::render::disney::Params p = white(0.3f, 0.4f, 0.7f, 0.6f);
   const glm::vec3 n = glm::normalize(glm::vec3(0.2f, 0.9f, -0.3f));
   const glm::vec3 wo = glm::normalize(glm::vec3(0.5f, 0.6f, 0.1f));
   int valid = 0;
   for (uint64_t i = 0; i < 1000; ++i) {
-    const disney::Sample s =
-        disney::sample(p, n, wo, sl::uniform01f(9, i, 0), sl::uniform01f(9, i, 1), sl::uniform01f(9, i, 2));
+    const sl::render::disney::Sample s =
+        sl::render::disney::sample(p, n, wo, sl::uniform01f(9, i, 0), sl::uniform01f(9, i, 1), sl::uniform01f(9, i, 2));
     if (s.pdf == 0.0f) continue;
     ++valid;
     EXPECT_NEAR(glm::length(s.wi), 1.0f, 1e-5f);
-    EXPECT_NEAR(s.pdf, disney::pdf(p, n, wo, s.wi), 1e-4f * s.pdf);
-    const glm::vec3 f = disney::eval(p, n, wo, s.wi);
+    EXPECT_NEAR(s.pdf, sl::render::disney::pdf(p, n, wo, s.wi), 1e-4f * s.pdf);
+    const glm::vec3 f = sl::render::disney::eval(p, n, wo, s.wi);
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(s.f[k], f[k], 1e-4f * std::max(1.0f, f[k]));
   }
   EXPECT_GT(valid, 900);
@@ -181,13 +181,13 @@ TEST(DisneyBrdf, SampleReturnsEvalAndPdfOfItsDirection) {
 
 // Histogram of sampled directions over equal-solid-angle bins (uniform in cos θ and φ) against
 // ∫ pdf over each bin by midpoint quadrature; chi-square per degree of freedom on populated bins.
-void expect_histogram_matches_pdf(const disney::Params& p, const glm::vec3& wo) {
+void expect_histogram_matches_pdf(const sl::render::disney::Params& p, const glm::vec3& wo) {
   constexpr int kTheta = 16, kPhi = 32, kSub = 8;
   constexpr int kSamples = 400000;
   std::vector<double> observed(kTheta * kPhi, 0.0), expected(kTheta * kPhi, 0.0);
   for (int i = 0; i < kSamples; ++i) {
-    const disney::Sample s = disney::sample(p, kUp, wo, sl::uniform01f(11, i, 0), sl::uniform01f(11, i, 1),
-                                            sl::uniform01f(11, i, 2));
+    const sl::render::disney::Sample s = sl::render::disney::sample(p, kUp, wo, sl::uniform01f(11, i, 0),
+                                                                    sl::uniform01f(11, i, 1), sl::uniform01f(11, i, 2));
     if (s.pdf == 0.0f) continue;
     const int bt = std::min(kTheta - 1, static_cast<int>(s.wi.z * kTheta));
     float phi = std::atan2(s.wi.y, s.wi.x);
@@ -204,7 +204,7 @@ void expect_histogram_matches_pdf(const disney::Params& p, const glm::vec3& wo) 
           const float phi = 2 * sl::kPiF * (bp * kSub + b + 0.5f) / (kPhi * kSub);
           const float r = std::sqrt(1 - z * z);
           const glm::vec3 wi(r * std::cos(phi), r * std::sin(phi), z);
-          expected[bt * kPhi + bp] += kSamples * cell * disney::pdf(p, kUp, wo, wi);
+          expected[bt * kPhi + bp] += kSamples * cell * sl::render::disney::pdf(p, kUp, wo, wi);
         }
   double chi2 = 0.0;
   int dof = 0;
@@ -222,12 +222,12 @@ TEST(DisneyBrdf, SampledDirectionsFollowPdfDielectric) {
   expect_histogram_matches_pdf(white(0.0f, 0.5f, 0.5f, 0.0f), view_at(0.6f));
 }
 TEST(DisneyBrdf, SampledDirectionsFollowPdfRoughMetalWithClearcoat) {
-  disney::Params p = white(1.0f, 0.8f, 0.5f, 1.0f);
+  sl::render::disney::Params p = white(1.0f, 0.8f, 0.5f, 1.0f);
   p.clearcoat_gloss = 0.0f;
   expect_histogram_matches_pdf(p, view_at(1.2f));
 }
 TEST(DisneyBrdf, SampledDirectionsFollowPdfMixedAtNormalIncidence) {
-  disney::Params p = white(0.5f, 0.3f, 1.0f, 0.5f);
+  sl::render::disney::Params p = white(0.5f, 0.3f, 1.0f, 0.5f);
   p.base_color = glm::vec3(0.2f, 0.5f, 0.9f);
   p.sheen = 1.0f;
   expect_histogram_matches_pdf(p, kUp);
@@ -239,7 +239,7 @@ TEST(DisneyBrdf, SampledDirectionsFollowPdfMixedAtNormalIncidence) {
 TEST(DisneyBrdf, PdfIntegratesToTheFractionOfValidSamples) {
   for (float roughness : {0.3f, 0.7f, 1.0f})
     for (float theta : {0.0f, 0.8f, 1.4f}) {
-      disney::Params p = white(0.5f, roughness, 0.5f, 0.5f);
+      sl::render::disney::Params p = white(0.5f, roughness, 0.5f, 0.5f);
       p.clearcoat_gloss = 0.0f;  // α_c = 0.1: wide enough for the quadrature grid
       const glm::vec3 wo = view_at(theta);
       constexpr int kS = 600, kPhi = 600;
@@ -248,15 +248,15 @@ TEST(DisneyBrdf, PdfIntegratesToTheFractionOfValidSamples) {
         for (int j = 0; j < kPhi; ++j) {
           const float s = (i + 0.5f) / kS, z = s * s, phi = 2 * sl::kPiF * (j + 0.5f) / kPhi;
           const float r = std::sqrt(1 - z * z);
-          integral += 2.0 * s * disney::pdf(p, kUp, wo, {r * std::cos(phi), r * std::sin(phi), z});
+          integral += 2.0 * s * sl::render::disney::pdf(p, kUp, wo, {r * std::cos(phi), r * std::sin(phi), z});
         }
       integral *= (1.0 / kS) * (2 * sl::kPiF / kPhi);
       int valid = 0;
       constexpr int kSamples = 100000;
       for (int i = 0; i < kSamples; ++i)
-        valid += disney::sample(p, kUp, wo, sl::uniform01f(13, i, 0), sl::uniform01f(13, i, 1),
-                                sl::uniform01f(13, i, 2))
-                         .pdf > 0.0f;
+        valid += sl::render::disney::sample(p, kUp, wo, sl::uniform01f(13, i, 0), sl::uniform01f(13, i, 1),
+                                            sl::uniform01f(13, i, 2))
+                     .pdf > 0.0f;
       const double fraction = double(valid) / kSamples;
       EXPECT_NEAR(integral, fraction, 0.01) << "roughness " << roughness << " view " << theta;
       EXPECT_LE(integral, 1.005);
@@ -272,14 +272,14 @@ TEST(DisneyBrdf, ExtremeInputsGiveFiniteValuesAndZeroBelowTheHorizon) {
   for (float roughness : {0.0f, 1e-6f, 1.0f, std::nanf(""), -1.0f, 2.0f})
     for (float metallic : {0.0f, 1.0f})
       for (float clearcoat : {0.0f, 1.0f}) {
-        disney::Params p = white(metallic, roughness, 1.0f, clearcoat);
+        sl::render::disney::Params p = white(metallic, roughness, 1.0f, clearcoat);
         p.clearcoat_gloss = 1.0f;
         p.sheen = 1.0f;
         for (const glm::vec3& n : {kUp, zero, nan})
           for (const glm::vec3& wo : dirs)
             for (const glm::vec3& wi : dirs) {
-              const glm::vec3 f = disney::eval(p, n, wo, wi);
-              const float pd = disney::pdf(p, n, wo, wi);
+              const glm::vec3 f = sl::render::disney::eval(p, n, wo, wi);
+              const float pd = sl::render::disney::pdf(p, n, wo, wi);
               ASSERT_TRUE(finite(f)) << roughness;
               ASSERT_TRUE(std::isfinite(pd));
               ASSERT_GE(glm::min(f.x, glm::min(f.y, f.z)), 0.0f);
@@ -290,7 +290,7 @@ TEST(DisneyBrdf, ExtremeInputsGiveFiniteValuesAndZeroBelowTheHorizon) {
             }
         for (const glm::vec3& wo : dirs)
           for (float u : {0.0f, 0.5f, 0.99999994f, 1.0f}) {
-            const disney::Sample s = disney::sample(p, kUp, wo, u, 1.0f - u, u);
+            const sl::render::disney::Sample s = sl::render::disney::sample(p, kUp, wo, u, 1.0f - u, u);
             ASSERT_TRUE(finite(s.f) && std::isfinite(s.pdf));
             if (s.pdf > 0.0f) {
               EXPECT_GT(s.wi.z, 0.0f);
@@ -301,12 +301,12 @@ TEST(DisneyBrdf, ExtremeInputsGiveFiniteValuesAndZeroBelowTheHorizon) {
 }
 
 TEST(DisneyBrdf, ScalarTermsAreFiniteAtTheirLimits) {
-  for (float alpha : {disney::kMinAlpha, 0.5f, 1.0f})
+  for (float alpha : {sl::render::disney::kMinAlpha, 0.5f, 1.0f})
     for (float c : {0.0f, 1e-8f, 0.5f, 1.0f, 1.0000001f}) {
-      EXPECT_TRUE(std::isfinite(disney::ggx_d(c, alpha)));
-      EXPECT_TRUE(std::isfinite(disney::gtr1_d(c, std::min(alpha, 0.1f))));
-      EXPECT_TRUE(std::isfinite(disney::smith_v1(c, alpha)));
-      EXPECT_LE(disney::smith_g1(c, alpha), 1.0f + 1e-6f);
+      EXPECT_TRUE(std::isfinite(sl::render::disney::ggx_d(c, alpha)));
+      EXPECT_TRUE(std::isfinite(sl::render::disney::gtr1_d(c, std::min(alpha, 0.1f))));
+      EXPECT_TRUE(std::isfinite(sl::render::disney::smith_v1(c, alpha)));
+      EXPECT_LE(sl::render::disney::smith_g1(c, alpha), 1.0f + 1e-6f);
     }
   // GGX D integrates to 1 over projected solid angle: ∫ D cos θ_h dω_h = 1.
   for (float alpha : {0.05f, 0.3f, 1.0f}) {
@@ -314,7 +314,7 @@ TEST(DisneyBrdf, ScalarTermsAreFiniteAtTheirLimits) {
     constexpr int kN = 200000;
     for (int i = 0; i < kN; ++i) {
       const double z = (i + 0.5) / kN;  // dω = dz dφ, φ integrates to 2π
-      s += disney::ggx_d(static_cast<float>(z), alpha) * z;
+      s += sl::render::disney::ggx_d(static_cast<float>(z), alpha) * z;
     }
     EXPECT_NEAR(s * 2 * sl::kPiF / kN, 1.0, 2e-3) << alpha;
   }
@@ -328,21 +328,21 @@ namespace {
 // ((η − 1)/(η + 1))², at grazing incidence 1, and at 60° for η = 1.5 the mean of
 // Fresnel's s- and p-reflectances written out from Snell's law.
 TEST(DisneyBrdf, ExactFresnelMatchesFresnelsEquations) {
-  EXPECT_NEAR(disney::fresnel_dielectric(1.0f, 1.5f), 0.04f, 1e-6f);
-  EXPECT_NEAR(disney::fresnel_dielectric(0.0f, 1.5f), 1.0f, 1e-6f);
-  EXPECT_NEAR(disney::ior_from_f0(0.04f), 1.5f, 1e-5f);
+  EXPECT_NEAR(sl::render::disney::fresnel_dielectric(1.0f, 1.5f), 0.04f, 1e-6f);
+  EXPECT_NEAR(sl::render::disney::fresnel_dielectric(0.0f, 1.5f), 1.0f, 1e-6f);
+  EXPECT_NEAR(sl::render::disney::ior_from_f0(0.04f), 1.5f, 1e-5f);
   const double eta = 1.5, ci = 0.5, si = std::sqrt(1 - ci * ci), st = si / eta, ct = std::sqrt(1 - st * st);
   const double rs = (ci - eta * ct) / (ci + eta * ct), rp = (eta * ci - ct) / (eta * ci + ct);
-  EXPECT_NEAR(disney::fresnel_dielectric(0.5f, 1.5f), 0.5 * (rs * rs + rp * rp), 1e-6);
+  EXPECT_NEAR(sl::render::disney::fresnel_dielectric(0.5f, 1.5f), 0.5 * (rs * rs + rp * rp), 1e-6);
   // Total internal reflection from the dense side.
-  EXPECT_EQ(disney::fresnel_dielectric(0.1f, 1.0f / 1.5f), 1.0f);
+  EXPECT_EQ(sl::render::disney::fresnel_dielectric(0.1f, 1.0f / 1.5f), 1.0f);
   // The normalised weight runs from 0 at normal incidence to 1 at grazing, like Schlick's.
-  EXPECT_NEAR(disney::fresnel_weight(1.0f, 0.04f, true), 0.0f, 1e-6f);
-  EXPECT_NEAR(disney::fresnel_weight(0.0f, 0.04f, true), 1.0f, 1e-6f);
+  EXPECT_NEAR(sl::render::disney::fresnel_weight(1.0f, 0.04f, true), 0.0f, 1e-6f);
+  EXPECT_NEAR(sl::render::disney::fresnel_weight(0.0f, 0.04f, true), 1.0f, 1e-6f);
   for (float c = 0.0f; c <= 1.0f; c += 0.05f) {
-    const float w = disney::fresnel_weight(c, 0.04f, true);
+    const float w = sl::render::disney::fresnel_weight(c, 0.04f, true);
     EXPECT_TRUE(w >= 0.0f && w <= 1.0f) << c;
-    EXPECT_NEAR(w, disney::schlick_weight(c), 0.06f) << c;  // Schlick approximates this curve
+    EXPECT_NEAR(w, sl::render::disney::schlick_weight(c), 0.06f) << c;  // Schlick approximates this curve
   }
 }
 
@@ -350,28 +350,31 @@ TEST(DisneyBrdf, ExactFresnelMatchesFresnelsEquations) {
 // specular lobes: a pure diffuse-free, coat-free dielectric at 60° shows the closed-form ratio.
 TEST(DisneyBrdf, ExactFresnelOptionIsReciprocalAndChangesOnlyTheFresnelTerm) {
   for (uint64_t i = 0; i < 500; ++i) {
-    disney::Params p;
+    sl::render::disney::Params p;
     p.base_color = glm::vec3(sl::uniform01f(9, i, 10), sl::uniform01f(9, i, 11), sl::uniform01f(9, i, 12));
     p.metallic = sl::uniform01f(9, i, 13);
     p.roughness = sl::uniform01f(9, i, 14);
     p.clearcoat = sl::uniform01f(9, i, 18);
     p.exact_fresnel = true;
     const glm::vec3 a = random_hemisphere(10, i), b = random_hemisphere(11, i);
-    const glm::vec3 fab = disney::eval(p, kUp, a, b), fba = disney::eval(p, kUp, b, a);
+    const glm::vec3 fab = sl::render::disney::eval(p, kUp, a, b), fba = sl::render::disney::eval(p, kUp, b, a);
     for (int k = 0; k < 3; ++k) {
       EXPECT_TRUE(std::isfinite(fab[k]));
       EXPECT_NEAR(fab[k], fba[k], 1e-4f * std::max(1.0f, std::abs(fab[k]))) << i;
     }
   }
   // Black dielectric (no diffuse), mirror direction at 60°: f ∝ F(l·h) with l·h = cos 60°.
-  disney::Params p = white(0.0f, 0.3f, 0.5f, 0.0f);
+  sl::render::disney::Params p = white(0.0f, 0.3f, 0.5f, 0.0f);
   p.base_color = glm::vec3(0.0f);
   const glm::vec3 wo = view_at(sl::kPiF / 3), wi(-wo.x, -wo.y, wo.z);
-  const float schlick = disney::eval(p, kUp, wo, wi).g;
+  const float schlick = sl::render::disney::eval(p, kUp, wo, wi).g;
   p.exact_fresnel = true;
-  const float exact = disney::eval(p, kUp, wo, wi).g;
+  const float exact = sl::render::disney::eval(p, kUp, wo, wi).g;
   const float f0 = 0.04f;
-  EXPECT_NEAR(exact / schlick, disney::fresnel_dielectric(0.5f, 1.5f) / (f0 + (1.0f - f0) * disney::schlick_weight(0.5f)), 1e-4f);
+  EXPECT_NEAR(exact / schlick,
+              sl::render::disney::fresnel_dielectric(0.5f, 1.5f) /
+                  (f0 + (1.0f - f0) * sl::render::disney::schlick_weight(0.5f)),
+              1e-4f);
 }
 
 }  // namespace

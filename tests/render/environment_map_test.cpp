@@ -11,6 +11,9 @@
 #include "util/math.h"
 #include "util/random.h"
 
+using sl::render::env_lookup;
+using sl::render::EnvironmentMap;
+
 namespace sl {
 namespace {
 
@@ -26,7 +29,7 @@ TEST(EnvironmentMap, LookupAtTexelCentresReturnsTheTexel) {
   EnvironmentMap env(t);
   for (int i = 0; i < 8; ++i)
     for (int j = 0; j < 16; ++j) {
-      const auto d = equirect::uv_to_direction(j + 0.5, i + 0.5, 16, 8);
+      const auto d = render::equirect::uv_to_direction(j + 0.5, i + 0.5, 16, 8);
       const glm::vec3 v = env.lookup(glm::vec3(d.x, d.y, d.z));
       EXPECT_NEAR(v.g, t.at({1, i, j}), 1e-4) << i << "," << j;
     }
@@ -39,7 +42,7 @@ TEST(EnvironmentMap, LookupWrapsAcrossTheAzimuthSeam) {
     t.data<float>()[(c * 4 + 1) * 8 + 7] = 4.0f;  // last column
   }
   EnvironmentMap env(t);
-  const auto d = equirect::uv_to_direction(0.0, 1.5, 8, 4);  // exactly on the seam
+  const auto d = render::equirect::uv_to_direction(0.0, 1.5, 8, 4);  // exactly on the seam
   EXPECT_NEAR(env.lookup(glm::vec3(d.x, d.y, d.z)).r, 3.0, 1e-4);
 }
 
@@ -53,14 +56,14 @@ TEST(EnvironmentMap, SamplingPdfMatchesTheSampledDensity) {
     const auto smp = env.sample(uniform01f(1, s, 0), uniform01f(1, s, 1));
     ASSERT_NEAR(glm::length(smp.direction), 1.0f, 1e-4f);
     ASSERT_NEAR(smp.pdf, env.pdf(smp.direction), 1e-3f * smp.pdf);
-    const auto uv = equirect::direction_to_uv(smp.direction.x, smp.direction.y, smp.direction.z, W, H);
+    const auto uv = render::equirect::direction_to_uv(smp.direction.x, smp.direction.y, smp.direction.z, W, H);
     counts[std::min(H - 1, int(uv.v)) * W + std::min(W - 1, int(uv.u))] += 1;
   }
   double total_prob = 0;
   for (int i = 0; i < H; ++i)
     for (int j = 0; j < W; ++j) {
-      const auto c = equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
-      const double p = env.pdf(glm::vec3(c.x, c.y, c.z)) * equirect::pixel_solid_angle(i, W, H);
+      const auto c = render::equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
+      const double p = env.pdf(glm::vec3(c.x, c.y, c.z)) * render::equirect::pixel_solid_angle(i, W, H);
       total_prob += p;
       const double expected = p * n;
       // Poisson counts: 5 standard deviations.
@@ -78,8 +81,8 @@ TEST(EnvironmentMap, ImportanceSampledEstimateMatchesQuadratureWithAHugeSun) {
   const int sub = 16;
   for (int i = 0; i < H * sub; ++i)
     for (int j = 0; j < W * sub; ++j) {
-      const auto d = equirect::uv_to_direction((j + 0.5) / sub, (i + 0.5) / sub, W, H);
-      exact += env.lookup(glm::vec3(d.x, d.y, d.z)).r * equirect::pixel_solid_angle(i, W * sub, H * sub);
+      const auto d = render::equirect::uv_to_direction((j + 0.5) / sub, (i + 0.5) / sub, W, H);
+      exact += env.lookup(glm::vec3(d.x, d.y, d.z)).r * render::equirect::pixel_solid_angle(i, W * sub, H * sub);
     }
   double est = 0;
   const int n = 20000;
@@ -107,7 +110,8 @@ TEST(EnvironmentMap, BilinearSamplingPdfMatchesTheSampledDensity) {
     ASSERT_NEAR(glm::length(smp.direction), 1.0f, 1e-4f);
     ASSERT_GT(smp.pdf, 0.0f);
     ASSERT_NEAR(smp.pdf, env.pdf_bilinear(smp.direction), 1e-3f * smp.pdf);
-    const auto uv = equirect::direction_to_uv(smp.direction.x, smp.direction.y, smp.direction.z, W * sub, H * sub);
+    const auto uv =
+        render::equirect::direction_to_uv(smp.direction.x, smp.direction.y, smp.direction.z, W * sub, H * sub);
     counts[std::min(H * sub - 1, int(uv.v)) * W * sub + std::min(W * sub - 1, int(uv.u))] += 1;
   }
   double total_prob = 0;
@@ -117,7 +121,7 @@ TEST(EnvironmentMap, BilinearSamplingPdfMatchesTheSampledDensity) {
       double p = 0;
       for (int a = 0; a < q; ++a)
         for (int b = 0; b < q; ++b) {
-          const auto d = equirect::uv_to_direction(j + (b + 0.5) / q, i + (a + 0.5) / q, W * sub, H * sub);
+          const auto d = render::equirect::uv_to_direction(j + (b + 0.5) / q, i + (a + 0.5) / q, W * sub, H * sub);
           // Solid angle of the quadrature point's share: cos(elevation) du dv, exact at the point
           // (the pdf carries 1/cos, which a per-pixel solid angle would not cancel at the poles).
           const double cos_el = std::sqrt(std::max(0.0, 1.0 - d.y * d.y));
@@ -132,7 +136,8 @@ TEST(EnvironmentMap, BilinearSamplingPdfMatchesTheSampledDensity) {
   // Inside a cell the density follows the lookup: pdf / luminance(lookup) · cos(elevation) is
   // the cell's constant.
   for (double u : {5.6, 5.9, 6.3}) {
-    const auto d0 = equirect::uv_to_direction(5.7, 2.6, W, H), d1 = equirect::uv_to_direction(u, 2.9, W, H);
+    const auto d0 = render::equirect::uv_to_direction(5.7, 2.6, W, H),
+               d1 = render::equirect::uv_to_direction(u, 2.9, W, H);
     const glm::vec3 a(d0.x, d0.y, d0.z), b(d1.x, d1.y, d1.z);
     const double ra = env.pdf_bilinear(a) / env.lookup(a).g * std::sqrt(1 - a.y * a.y);
     const double rb = env.pdf_bilinear(b) / env.lookup(b).g * std::sqrt(1 - b.y * b.y);
@@ -149,8 +154,8 @@ TEST(EnvironmentMap, BilinearSamplingOfAHugeSunHasLowVariance) {
   const int sub = 16;
   for (int i = 0; i < H * sub; ++i)
     for (int j = 0; j < W * sub; ++j) {
-      const auto d = equirect::uv_to_direction((j + 0.5) / sub, (i + 0.5) / sub, W, H);
-      exact += env.lookup(glm::vec3(d.x, d.y, d.z)).r * equirect::pixel_solid_angle(i, W * sub, H * sub);
+      const auto d = render::equirect::uv_to_direction((j + 0.5) / sub, (i + 0.5) / sub, W, H);
+      exact += env.lookup(glm::vec3(d.x, d.y, d.z)).r * render::equirect::pixel_solid_angle(i, W * sub, H * sub);
     }
   double mean[2] = {0, 0}, sq[2] = {0, 0};
   const int n = 20000;

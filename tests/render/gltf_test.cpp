@@ -12,6 +12,8 @@
 #include "render/gltf_writer.h"
 #include "util/error.h"
 
+using sl::render::Texture;
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -76,7 +78,7 @@ std::string one_triangle_gltf(const std::string& node_extra, const std::string& 
 
 void expect_error_mentions(const std::string& path, const std::string& needle) {
   try {
-    sl::load_gltf(path);
+    sl::render::load_gltf(path);
     ADD_FAILURE() << "expected sl::Error for " << path;
   } catch (const sl::Error& e) {
     const std::string msg = e.what();
@@ -85,8 +87,8 @@ void expect_error_mentions(const std::string& path, const std::string& needle) {
   }
 }
 
-sl::Mesh two_material_mesh() {
-  sl::Mesh m;
+sl::render::Mesh two_material_mesh() {
+  sl::render::Mesh m;
   m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
   m.triangles = {{0, 1, 2}, {0, 2, 3}, {0, 3, 1}};
   m.material_ids = {0, 1, 0};
@@ -101,15 +103,15 @@ sl::Mesh two_material_mesh() {
 }
 
 TEST(Gltf, WrittenGlbLoadsBackWithSameGeometryAndMaterials) {
-  const sl::Mesh m = two_material_mesh();
+  const sl::render::Mesh m = two_material_mesh();
   const std::string path = temp_path("roundtrip.glb");
-  sl::write_glb(m, path);
-  const sl::Mesh r = sl::load_gltf(path);
+  sl::render::write_glb(m, path);
+  const sl::render::Mesh r = sl::render::load_gltf(path);
   ASSERT_EQ(r.triangle_count(), 3u);
   ASSERT_EQ(r.materials.size(), 2u);
   // Primitives are grouped by material: material 0's two triangles come first.
   EXPECT_EQ(r.material_ids, (std::vector<uint32_t>{0, 0, 1}));
-  auto corners = [](const sl::Mesh& mesh, size_t t) {
+  auto corners = [](const sl::render::Mesh& mesh, size_t t) {
     return std::vector<glm::vec3>{mesh.positions[mesh.triangles[t].x], mesh.positions[mesh.triangles[t].y],
                                   mesh.positions[mesh.triangles[t].z]};
   };
@@ -127,8 +129,8 @@ TEST(Gltf, WrittenGlbLoadsBackWithSameGeometryAndMaterials) {
 
 TEST(Gltf, EmptyMeshRoundTripsToEmptyMesh) {
   const std::string path = temp_path("empty.glb");
-  sl::write_glb(sl::Mesh{}, path);
-  const sl::Mesh r = sl::load_gltf(path);
+  sl::render::write_glb(sl::render::Mesh{}, path);
+  const sl::render::Mesh r = sl::render::load_gltf(path);
   EXPECT_EQ(r.triangle_count(), 0u);
   EXPECT_TRUE(r.bounds().empty());
 }
@@ -139,7 +141,7 @@ TEST(Gltf, NodeTranslationRotationScaleAreAppliedInWorldSpace) {
   const std::string path = temp_path("trs.gltf");
   write_text(path, one_triangle_gltf(R"(,"translation":[10,0,0],"rotation":[0,)" + std::to_string(s) + ",0," +
                                      std::to_string(s) + R"(],"scale":[2,2,2])"));
-  const sl::Mesh m = sl::load_gltf(path);
+  const sl::render::Mesh m = sl::render::load_gltf(path);
   ASSERT_EQ(m.triangle_count(), 1u);
   const glm::vec3 p1 = m.positions[m.triangles[0].y];
   EXPECT_NEAR(p1.x, 10.0f, 1e-5f);
@@ -151,7 +153,7 @@ TEST(Gltf, NodeMatrixIsColumnMajorAndMirroringKeepsOutwardNormals) {
   // Mirror x and translate by (0, 5, 0); the face normal of the input is +Z and must stay +Z.
   const std::string path = temp_path("matrix.gltf");
   write_text(path, one_triangle_gltf(R"(,"matrix":[-1,0,0,0, 0,1,0,0, 0,0,1,0, 0,5,0,1])"));
-  const sl::Mesh m = sl::load_gltf(path);
+  const sl::render::Mesh m = sl::render::load_gltf(path);
   const glm::uvec3 t = m.triangles[0];
   EXPECT_NEAR(m.positions[t.x].y, 5.0f, 1e-6f);
   const glm::vec3 n = glm::cross(m.positions[t.y] - m.positions[t.x], m.positions[t.z] - m.positions[t.x]);
@@ -217,7 +219,7 @@ std::string glb_of(const std::string& json) {
 
 void expect_unsupported_extension(const std::string& path, const std::string& ext) {
   try {
-    sl::load_gltf(path);
+    sl::render::load_gltf(path);
     ADD_FAILURE() << path << " loaded";
   } catch (const sl::Error& e) {
     const std::string msg = e.what();
@@ -267,18 +269,18 @@ TEST(Gltf, MissingFileAndGarbageFailCleanly) {
 
 TEST(Gltf, EveryTruncationOfAGlbFailsCleanly) {
   const std::string full_path = temp_path("full.glb");
-  sl::write_glb(two_material_mesh(), full_path);
+  sl::render::write_glb(two_material_mesh(), full_path);
   const std::string bytes = read_all(full_path);
   const std::string cut = temp_path("truncated.glb");
   for (size_t len = 0; len < bytes.size(); len += std::max<size_t>(1, bytes.size() / 97)) {
     write_text(cut, bytes.substr(0, len));
-    EXPECT_THROW(sl::load_gltf(cut), sl::Error) << "length " << len;
+    EXPECT_THROW(sl::render::load_gltf(cut), sl::Error) << "length " << len;
   }
 }
 
 TEST(Gltf, CorruptedGlbBytesNeverCrash) {
   const std::string full_path = temp_path("full2.glb");
-  sl::write_glb(two_material_mesh(), full_path);
+  sl::render::write_glb(two_material_mesh(), full_path);
   const std::string bytes = read_all(full_path);
   const std::string bad = temp_path("corrupt.glb");
   uint64_t state = 12345;
@@ -290,7 +292,7 @@ TEST(Gltf, CorruptedGlbBytesNeverCrash) {
     }
     write_text(bad, b);
     try {
-      const sl::Mesh m = sl::load_gltf(bad);
+      const sl::render::Mesh m = sl::render::load_gltf(bad);
       m.validate();  // a file that still parses must give a valid mesh
     } catch (const sl::Error&) {
     }
@@ -300,7 +302,7 @@ TEST(Gltf, CorruptedGlbBytesNeverCrash) {
 TEST(Gltf, RealModelsLoadWithTexturesAndFiniteGeometry) {
   const std::string dir = std::string(STREETLIGHT_SHARED_DATA) + "/models";
   if (!fs::exists(dir + "/CesiumMilkTruck.glb")) GTEST_SKIP() << "shared models not found in " << dir;
-  const sl::Mesh truck = sl::load_gltf(dir + "/CesiumMilkTruck.glb");
+  const sl::render::Mesh truck = sl::render::load_gltf(dir + "/CesiumMilkTruck.glb");
   EXPECT_GT(truck.triangle_count(), 3000u);
   bool textured = false;
   for (const auto& m : truck.materials)
@@ -311,17 +313,17 @@ TEST(Gltf, RealModelsLoadWithTexturesAndFiniteGeometry) {
       EXPECT_TRUE(c.r >= 0.0f && c.r <= 1.0f && c.a >= 0.0f && c.a <= 1.0f);
     }
   EXPECT_TRUE(textured);
-  const sl::Bounds3 b = truck.bounds();
+  const sl::render::Bounds3 b = truck.bounds();
   EXPECT_GT(b.extent().x, 1.0f);  // a truck a few metres long
   EXPECT_LT(b.extent().x, 20.0f);
   for (const char* name : {"Shadow_Tester.glb", "Shadow_Tester_2.glb", "Shadow_Tester_4.glb", "Wood_Tower.glb"}) {
-    const sl::Mesh m = sl::load_gltf(dir + "/" + name);
+    const sl::render::Mesh m = sl::render::load_gltf(dir + "/" + name);
     EXPECT_GT(m.triangle_count(), 0u) << name;
   }
 }
 
 TEST(Texture, SamplingIsBilinearWithRepeatWrapping) {
-  sl::Texture t;
+  sl::render::Texture t;
   t.width = 2, t.height = 1;
   t.rgba = {0, 0, 0, 1, 1, 1, 1, 1};
   EXPECT_FLOAT_EQ(t.sample({0.25f, 0.5f}).r, 0.0f);   // texel 0 centre
@@ -329,7 +331,7 @@ TEST(Texture, SamplingIsBilinearWithRepeatWrapping) {
   EXPECT_FLOAT_EQ(t.sample({0.5f, 0.5f}).r, 0.5f);    // between them
   EXPECT_FLOAT_EQ(t.sample({0.0f, 0.5f}).r, 0.5f);    // wraps to texel 1
   EXPECT_FLOAT_EQ(t.sample({1.25f, 0.5f}).r, 0.0f);
-  EXPECT_EQ(sl::Texture{}.sample({0.3f, 0.3f}), glm::vec4(1.0f));
+  EXPECT_EQ(sl::render::Texture{}.sample({0.3f, 0.3f}), glm::vec4(1.0f));
 }
 
 }  // namespace

@@ -17,6 +17,26 @@
 #include "render/primitives.h"
 #include "util/math.h"
 
+using sl::data::read_image;
+using sl::render::Camera;
+using sl::render::CameraRay;
+using sl::render::EnvironmentMap;
+using sl::render::insert_objects;
+using sl::render::InsertionOptions;
+using sl::render::InsertionResult;
+using sl::render::intrinsics_from_fov;
+using sl::render::load_gltf;
+using sl::render::make_ground_plane;
+using sl::render::Material;
+using sl::render::Mesh;
+using sl::render::PathTracer;
+using sl::render::PathTracerOptions;
+using sl::render::place_object;
+using sl::render::PlacedObject;
+using sl::render::resize_panorama;
+using sl::render::rotation_from_yaw_pitch_roll;
+using sl::render::VsgGrid;
+
 namespace sl {
 namespace {
 
@@ -32,7 +52,7 @@ Tensor ground_consistent_sky(const std::string& file, double albedo) {
   for (int c = 0; c < 3; ++c) {
     double E = 0;
     for (int i = 0; i < H / 2; ++i) {
-      const double omega = equirect::pixel_solid_angle(i, W, H);
+      const double omega = render::equirect::pixel_solid_angle(i, W, H);
       const double cos_t = std::sin((0.5 - (i + 0.5) / H) * kPi);
       for (int j = 0; j < W; ++j) E += p[(c * H + i) * W + j] * cos_t * omega;
     }

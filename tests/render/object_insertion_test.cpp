@@ -12,6 +12,28 @@
 #include "render/primitives.h"
 #include "util/math.h"
 
+using sl::render::Bvh;
+using sl::render::Camera;
+using sl::render::CameraRay;
+using sl::render::EnvironmentMap;
+using sl::render::insert_objects;
+using sl::render::InsertionInputs;
+using sl::render::InsertionOptions;
+using sl::render::InsertionResult;
+using sl::render::intrinsics_from_fov;
+using sl::render::make_box;
+using sl::render::make_ground_plane;
+using sl::render::Material;
+using sl::render::Mesh;
+using sl::render::PathTracer;
+using sl::render::PathTracerOptions;
+using sl::render::place_object;
+using sl::render::PlacedObject;
+using sl::render::Placement;
+using sl::render::rotation_from_yaw_pitch_roll;
+using sl::render::vsg_activate;
+using sl::render::VsgGrid;
+
 namespace sl {
 namespace {
 
@@ -241,7 +263,7 @@ Tensor texel_directions(int W, int H) {
   std::vector<double> dirs;
   for (int i = 0; i < H; ++i)
     for (int j = 0; j < W; ++j) {
-      const auto d = equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
+      const auto d = render::equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
       dirs.insert(dirs.end(), {d.x, d.y, d.z});
     }
   return Tensor::from_vector(dirs, {H * W, 3}, DType::F64);

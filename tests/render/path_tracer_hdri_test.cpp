@@ -16,6 +16,20 @@
 #include "render/primitives.h"
 #include "util/math.h"
 
+using sl::data::ImageReadOptions;
+using sl::data::read_image;
+using sl::render::Camera;
+using sl::render::EnvironmentMap;
+using sl::render::intrinsics_from_fov;
+using sl::render::make_ground_plane;
+using sl::render::Material;
+using sl::render::Mesh;
+using sl::render::PathEstimator;
+using sl::render::PathTracer;
+using sl::render::PathTracerImage;
+using sl::render::PathTracerOptions;
+using sl::render::rotation_from_yaw_pitch_roll;
+
 namespace sl {
 namespace {
 
@@ -27,9 +41,9 @@ double irradiance_up(const EnvironmentMap& env) {
   const int W = env.width() * 2, H = env.height() * 2;
   double e = 0.0;
   for (int i = 0; i < H / 2; ++i) {
-    const double omega = equirect::pixel_solid_angle(i, W, H);
+    const double omega = render::equirect::pixel_solid_angle(i, W, H);
     for (int j = 0; j < W; ++j) {
-      const auto d = equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
+      const auto d = render::equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
       e += env.lookup(glm::vec3(d.x, d.y, d.z)).g * d.y * omega;
     }
   }

@@ -14,41 +14,43 @@
 #include "render/primitives.h"
 #include "util/math.h"
 
+using sl::render::PathTracer;
+
 namespace {
 
-sl::EnvironmentMap constant_env(const glm::vec3& L, int width = 16) {
+sl::render::EnvironmentMap constant_env(const glm::vec3& L, int width = 16) {
   sl::Tensor t = sl::Tensor::empty({3, width / 2, width});
   float* p = t.data<float>();
   const int64_t plane = int64_t(width / 2) * width;
   for (int c = 0; c < 3; ++c)
     for (int64_t i = 0; i < plane; ++i) p[c * plane + i] = L[c];
-  return sl::EnvironmentMap(t);
+  return sl::render::EnvironmentMap(t);
 }
 
 // Black sky with a disk of radiance `sun` and angular radius `radius_rad` around `dir`.
-sl::EnvironmentMap sun_env(const glm::vec3& dir, float radius_rad, float sun, float sky = 0.0f) {
+sl::render::EnvironmentMap sun_env(const glm::vec3& dir, float radius_rad, float sun, float sky = 0.0f) {
   const int W = 512, H = 256;
   sl::Tensor t = sl::Tensor::empty({3, H, W});
   float* p = t.data<float>();
   for (int i = 0; i < H; ++i)
     for (int j = 0; j < W; ++j) {
-      const auto d = sl::equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
+      const auto d = sl::render::equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
       const double c = d.x * dir.x + d.y * dir.y + d.z * dir.z;
       const float v = c > std::cos(radius_rad) ? sun : sky;
       for (int ch = 0; ch < 3; ++ch) p[(int64_t(ch) * H + i) * W + j] = v;
     }
-  return sl::EnvironmentMap(t);
+  return sl::render::EnvironmentMap(t);
 }
 
 // Irradiance on an upward surface, ∫ L(ω) max(0, ω·y) dω, by supersampled quadrature of the
 // map's own (bilinear) lookup.
-double irradiance_up(const sl::EnvironmentMap& env) {
+double irradiance_up(const sl::render::EnvironmentMap& env) {
   const int W = env.width(), H = env.height(), sub = 4;
   double e = 0.0;
   for (int i = 0; i < H * sub; ++i) {
-    const double omega = sl::equirect::pixel_solid_angle(i, W * sub, H * sub);
+    const double omega = sl::render::equirect::pixel_solid_angle(i, W * sub, H * sub);
     for (int j = 0; j < W * sub; ++j) {
-      const auto d = sl::equirect::uv_to_direction(j + 0.5, i + 0.5, W * sub, H * sub);
+      const auto d = sl::render::equirect::uv_to_direction(j + 0.5, i + 0.5, W * sub, H * sub);
       if (d.y <= 0) continue;
       e += env.lookup(glm::vec3(d.x, d.y, d.z)).g * d.y * omega;
     }
@@ -56,15 +58,15 @@ double irradiance_up(const sl::EnvironmentMap& env) {
   return e;
 }
 
-sl::Material lambert_material(float albedo) {
-  sl::Material m;
+sl::render::Material lambert_material(float albedo) {
+  sl::render::Material m;
   m.base_color_factor = glm::vec4(albedo, albedo, albedo, 1.0f);
   return m;
 }
 
-sl::Camera camera_at(const glm::dvec3& pos, double yaw, double pitch, int w, int h, double fov_deg = 40.0) {
-  return sl::Camera(sl::intrinsics_from_fov(fov_deg * sl::kPi / 180.0, w, h),
-                    sl::rotation_from_yaw_pitch_roll(yaw, pitch, 0.0), pos);
+sl::render::Camera camera_at(const glm::dvec3& pos, double yaw, double pitch, int w, int h, double fov_deg = 40.0) {
+  return sl::render::Camera(sl::render::intrinsics_from_fov(fov_deg * sl::kPi / 180.0, w, h),
+                            sl::render::rotation_from_yaw_pitch_roll(yaw, pitch, 0.0), pos);
 }
 
 float at(const sl::Tensor& t, int c, int row, int col) {
@@ -92,13 +94,13 @@ bool all_finite(const sl::Tensor& t) {
 TEST(PathTracer, LambertianSphereUnderConstantSkyReflectsAlbedoTimesSky) {
   const glm::vec3 sky(1.0f, 2.0f, 0.5f);
   const float rho = 0.6f;
-  const sl::Mesh sphere = sl::make_icosphere({0, 0, 0}, 1.0f, 4, lambert_material(rho));
-  const sl::EnvironmentMap env = constant_env(sky);
-  const sl::PathTracer tracer(sphere, env);
-  sl::PathTracerOptions o;
+  const sl::render::Mesh sphere = sl::render::make_icosphere({0, 0, 0}, 1.0f, 4, lambert_material(rho));
+  const sl::render::EnvironmentMap env = constant_env(sky);
+  const sl::render::PathTracer tracer(sphere, env);
+  sl::render::PathTracerOptions o;
   o.spp = 32;
   o.lambertian = true;
-  const sl::PathTracerImage img = tracer.render(camera_at({0, 0, 4}, 0, 0, 24, 24), o);
+  const sl::render::PathTracerImage img = tracer.render(camera_at({0, 0, 4}, 0, 0, 24, 24), o);
   EXPECT_EQ(img.nonfinite_samples, 0);
   glm::dvec3 mean(0.0);
   int n = 0;
@@ -121,21 +123,21 @@ TEST(PathTracer, LambertianSphereUnderConstantSkyReflectsAlbedoTimesSky) {
 // E = ∫ L cos θ dω ≈ L_s·Ω·sin(elevation).
 TEST(PathTracer, SunOverLambertianPlaneFollowsTheCosineLaw) {
   const float rho = 0.5f;
-  const sl::Mesh plane = sl::make_ground_plane(200.0f, 0.0f, lambert_material(rho));
+  const sl::render::Mesh plane = sl::render::make_ground_plane(200.0f, 0.0f, lambert_material(rho));
   for (double elevation_deg : {70.0, 25.0}) {
     const double el = elevation_deg * sl::kPi / 180.0;
     const glm::vec3 sun_dir(0.0f, float(std::sin(el)), float(-std::cos(el)));
     const float sun = 1000.0f;
-    const sl::EnvironmentMap env = sun_env(sun_dir, 0.1f, sun);
+    const sl::render::EnvironmentMap env = sun_env(sun_dir, 0.1f, sun);
     // The disk's solid angle from the map itself (texels quantise it), then the cosine law.
     const double omega = env.integral().g / sun;
     const double e = irradiance_up(env);
     EXPECT_NEAR(e, sun * omega * std::sin(el), 0.01 * e) << elevation_deg;
-    const sl::PathTracer tracer(plane, env);
-    sl::PathTracerOptions o;
+    const sl::render::PathTracer tracer(plane, env);
+    sl::render::PathTracerOptions o;
     o.spp = 32;
     o.lambertian = true;
-    const sl::PathTracerImage img = tracer.render(camera_at({0, 2, 0}, 0.3, -0.8, 16, 16), o);
+    const sl::render::PathTracerImage img = tracer.render(camera_at({0, 2, 0}, 0.3, -0.8, 16, 16), o);
     double mean = 0.0;
     for (int r = 0; r < 16; ++r)
       for (int c = 0; c < 16; ++c) {
@@ -152,15 +154,15 @@ TEST(PathTracer, SunOverLambertianPlaneFollowsTheCosineLaw) {
 // equation for ANY geometry, so the concave contact between a sphere and the ground — where
 // paths bounce many times — must render 1 as well (Russian roulette keeps it unbiased).
 TEST(PathTracer, WhiteFurnaceRendersOneEverywhereDespiteInterreflection) {
-  sl::Mesh scene = sl::make_icosphere({0, 1, 0}, 1.0f, 3, lambert_material(1.0f));
-  scene.append(sl::make_ground_plane(6.0f, 0.0f, lambert_material(1.0f)));
-  const sl::EnvironmentMap env = constant_env(glm::vec3(1.0f));
-  const sl::PathTracer tracer(scene, env);
-  sl::PathTracerOptions o;
+  sl::render::Mesh scene = sl::render::make_icosphere({0, 1, 0}, 1.0f, 3, lambert_material(1.0f));
+  scene.append(sl::render::make_ground_plane(6.0f, 0.0f, lambert_material(1.0f)));
+  const sl::render::EnvironmentMap env = constant_env(glm::vec3(1.0f));
+  const sl::render::PathTracer tracer(scene, env);
+  sl::render::PathTracerOptions o;
   o.spp = 32;
   o.max_depth = 256;
   o.lambertian = true;
-  const sl::PathTracerImage img = tracer.render(camera_at({0, 1.5, 5}, 0, -0.2, 24, 24, 60), o);
+  const sl::render::PathTracerImage img = tracer.render(camera_at({0, 1.5, 5}, 0, -0.2, 24, 24, 60), o);
   // Per-pixel noise is large where paths bounce many times, so compare 4×4-pixel blocks.
   double mean = 0.0, worst_block = 0.0;
   for (int br = 0; br < 6; ++br)
@@ -177,58 +179,58 @@ TEST(PathTracer, WhiteFurnaceRendersOneEverywhereDespiteInterreflection) {
   EXPECT_EQ(img.nonfinite_samples, 0);
 }
 
-sl::Mesh disney_scene() {
-  sl::Material metal;
+sl::render::Mesh disney_scene() {
+  sl::render::Material metal;
   metal.base_color_factor = glm::vec4(0.9f, 0.6f, 0.3f, 1.0f);
   metal.metallic = 1.0f;
   metal.roughness = 0.3f;
-  sl::Material paint;
+  sl::render::Material paint;
   paint.base_color_factor = glm::vec4(0.2f, 0.4f, 0.8f, 1.0f);
   paint.metallic = 0.0f;
   paint.roughness = 0.5f;
   paint.clearcoat = 1.0f;
   paint.clearcoat_roughness = 0.1f;
-  sl::Mesh scene = sl::make_icosphere({-0.6f, 0.5f, 0}, 0.5f, 3, metal);
-  scene.append(sl::make_box({0.1f, 0, -0.4f}, {0.9f, 0.8f, 0.4f}, paint));
-  scene.append(sl::make_ground_plane(8.0f, 0.0f, lambert_material(0.4f)));
+  sl::render::Mesh scene = sl::render::make_icosphere({-0.6f, 0.5f, 0}, 0.5f, 3, metal);
+  scene.append(sl::render::make_box({0.1f, 0, -0.4f}, {0.9f, 0.8f, 0.4f}, paint));
+  scene.append(sl::render::make_ground_plane(8.0f, 0.0f, lambert_material(0.4f)));
   return scene;
 }
 
 // (d) Counter-based randomness: the same bits with one thread or two.
 TEST(PathTracer, ImageIsBitwiseIdenticalForOneAndTwoThreads) {
-  const sl::Mesh scene = disney_scene();
-  const sl::EnvironmentMap env = sun_env(glm::normalize(glm::vec3(0.3f, 0.6f, -0.5f)), 0.1f, 200.0f, 0.5f);
-  const sl::PathTracer tracer(scene, env);
-  sl::PathTracerOptions o;
+  const sl::render::Mesh scene = disney_scene();
+  const sl::render::EnvironmentMap env = sun_env(glm::normalize(glm::vec3(0.3f, 0.6f, -0.5f)), 0.1f, 200.0f, 0.5f);
+  const sl::render::PathTracer tracer(scene, env);
+  sl::render::PathTracerOptions o;
   o.spp = 4;
-  const sl::Camera cam = camera_at({0, 1.2, 3}, 0, -0.35, 20, 16);
+  const sl::render::Camera cam = camera_at({0, 1.2, 3}, 0, -0.35, 20, 16);
   const int before = omp_get_max_threads();
   omp_set_num_threads(1);
-  const sl::PathTracerImage one = tracer.render(cam, o);
+  const sl::render::PathTracerImage one = tracer.render(cam, o);
   omp_set_num_threads(2);
-  const sl::PathTracerImage two = tracer.render(cam, o);
+  const sl::render::PathTracerImage two = tracer.render(cam, o);
   omp_set_num_threads(before);
   for (const auto& [a, b] : {std::pair{one.radiance, two.radiance}, std::pair{one.depth, two.depth},
                              std::pair{one.normal, two.normal}, std::pair{one.mask, two.mask}})
     EXPECT_EQ(0, std::memcmp(a.data<float>(), b.data<float>(), a.numel() * sizeof(float)));
   // A different seed gives a different image.
   o.seed = 1;
-  const sl::PathTracerImage other = tracer.render(cam, o);
+  const sl::render::PathTracerImage other = tracer.render(cam, o);
   EXPECT_NE(0, std::memcmp(one.radiance.data<float>(), other.radiance.data<float>(), one.radiance.numel() * 4));
 }
 
 // MIS with environment sampling and plain BRDF sampling estimate the same integral.
 TEST(PathTracer, BrdfSamplingAloneConvergesToTheSameImageAsMis) {
-  const sl::Mesh scene = disney_scene();
+  const sl::render::Mesh scene = disney_scene();
   // A broad, smooth "sun" so that BRDF sampling alone converges at a test's budget.
-  const sl::EnvironmentMap env = sun_env(glm::normalize(glm::vec3(0.3f, 0.6f, -0.5f)), 0.6f, 5.0f, 0.5f);
-  const sl::PathTracer tracer(scene, env);
-  const sl::Camera cam = camera_at({0, 1.2, 3}, 0, -0.35, 16, 12);
-  sl::PathTracerOptions o;
+  const sl::render::EnvironmentMap env = sun_env(glm::normalize(glm::vec3(0.3f, 0.6f, -0.5f)), 0.6f, 5.0f, 0.5f);
+  const sl::render::PathTracer tracer(scene, env);
+  const sl::render::Camera cam = camera_at({0, 1.2, 3}, 0, -0.35, 16, 12);
+  sl::render::PathTracerOptions o;
   o.spp = 128;
-  const sl::PathTracerImage mis = tracer.render(cam, o);
+  const sl::render::PathTracerImage mis = tracer.render(cam, o);
   o.environment_sampling = false;
-  const sl::PathTracerImage brdf = tracer.render(cam, o);
+  const sl::render::PathTracerImage brdf = tracer.render(cam, o);
   double a = 0.0, b = 0.0;
   for (int64_t i = 0; i < mis.radiance.numel(); ++i) {
     a += mis.radiance.data<float>()[i];
@@ -240,17 +242,17 @@ TEST(PathTracer, BrdfSamplingAloneConvergesToTheSameImageAsMis) {
 
 // The stratified estimator (default) and the old independent one estimate the same image.
 TEST(PathTracer, StratifiedAndIndependentEstimatorsConvergeToTheSameImage) {
-  const sl::Mesh scene = disney_scene();
-  const sl::EnvironmentMap env = sun_env(glm::normalize(glm::vec3(0.3f, 0.6f, -0.5f)), 0.1f, 200.0f, 0.5f);
-  const sl::PathTracer tracer(scene, env);
-  const sl::Camera cam = camera_at({0, 1.2, 3}, 0, -0.35, 16, 12);
-  sl::PathTracerOptions o;
+  const sl::render::Mesh scene = disney_scene();
+  const sl::render::EnvironmentMap env = sun_env(glm::normalize(glm::vec3(0.3f, 0.6f, -0.5f)), 0.1f, 200.0f, 0.5f);
+  const sl::render::PathTracer tracer(scene, env);
+  const sl::render::Camera cam = camera_at({0, 1.2, 3}, 0, -0.35, 16, 12);
+  sl::render::PathTracerOptions o;
   o.spp = 128;
   double sum[2] = {0.0, 0.0};
   for (int k = 0; k < 2; ++k) {
-    o.estimator = k == 0 ? sl::PathEstimator::Stratified : sl::PathEstimator::Independent;
+    o.estimator = k == 0 ? sl::render::PathEstimator::Stratified : sl::render::PathEstimator::Independent;
     o.exact_fresnel = k == 0;  // and the Fresnel option changes the image by well under a per cent
-    const sl::PathTracerImage img = tracer.render(cam, o);
+    const sl::render::PathTracerImage img = tracer.render(cam, o);
     EXPECT_EQ(img.nonfinite_samples, 0);
     for (int64_t i = 0; i < img.radiance.numel(); ++i) sum[k] += img.radiance.data<float>()[i];
   }
@@ -260,17 +262,17 @@ TEST(PathTracer, StratifiedAndIndependentEstimatorsConvergeToTheSameImage) {
 
 // Progressive passes: samples [0, 8) and [8, 16) averaged are the 16-sample render.
 TEST(PathTracer, PassesWithSampleOffsetsContinueOneSequence) {
-  const sl::Mesh scene = disney_scene();
-  const sl::EnvironmentMap env = sun_env(glm::normalize(glm::vec3(0.3f, 0.6f, -0.5f)), 0.1f, 200.0f, 0.5f);
-  const sl::PathTracer tracer(scene, env);
-  const sl::Camera cam = camera_at({0, 1.2, 3}, 0, -0.35, 12, 8);
-  sl::PathTracerOptions o;
+  const sl::render::Mesh scene = disney_scene();
+  const sl::render::EnvironmentMap env = sun_env(glm::normalize(glm::vec3(0.3f, 0.6f, -0.5f)), 0.1f, 200.0f, 0.5f);
+  const sl::render::PathTracer tracer(scene, env);
+  const sl::render::Camera cam = camera_at({0, 1.2, 3}, 0, -0.35, 12, 8);
+  sl::render::PathTracerOptions o;
   o.spp = 16;
-  const sl::PathTracerImage whole = tracer.render(cam, o);
+  const sl::render::PathTracerImage whole = tracer.render(cam, o);
   o.spp = 8;
-  const sl::PathTracerImage first = tracer.render(cam, o);
+  const sl::render::PathTracerImage first = tracer.render(cam, o);
   o.sample_offset = 8;
-  const sl::PathTracerImage second = tracer.render(cam, o);
+  const sl::render::PathTracerImage second = tracer.render(cam, o);
   for (int64_t i = 0; i < whole.radiance.numel(); ++i) {
     const float w = whole.radiance.data<float>()[i];
     const float avg = 0.5f * (first.radiance.data<float>()[i] + second.radiance.data<float>()[i]);
@@ -281,12 +283,12 @@ TEST(PathTracer, PassesWithSampleOffsetsContinueOneSequence) {
 }
 
 TEST(PathTracer, AuxiliaryOutputsDescribeThePixelCentreHit) {
-  const sl::Mesh sphere = sl::make_icosphere({0, 0, 0}, 1.0f, 5, lambert_material(0.5f));
-  const sl::EnvironmentMap env = constant_env(glm::vec3(1.0f));
-  const sl::PathTracer tracer(sphere, env);
-  sl::PathTracerOptions o;
+  const sl::render::Mesh sphere = sl::render::make_icosphere({0, 0, 0}, 1.0f, 5, lambert_material(0.5f));
+  const sl::render::EnvironmentMap env = constant_env(glm::vec3(1.0f));
+  const sl::render::PathTracer tracer(sphere, env);
+  sl::render::PathTracerOptions o;
   o.spp = 1;
-  const sl::PathTracerImage img = tracer.render(camera_at({0, 0, 4}, 0, 0, 15, 15), o);
+  const sl::render::PathTracerImage img = tracer.render(camera_at({0, 0, 4}, 0, 0, 15, 15), o);
   // The centre pixel looks straight at the sphere's front point (0, 0, 1): depth 3, normal +z.
   EXPECT_NEAR(at(img.depth, 0, 7, 7), 3.0f, 2e-3f);
   EXPECT_NEAR(at(img.normal, 2, 7, 7), 1.0f, 1e-3f);
@@ -299,53 +301,53 @@ TEST(PathTracer, AuxiliaryOutputsDescribeThePixelCentreHit) {
 TEST(PathTracer, ExtremeScenesStayFinite) {
   sl::Tensor t = sl::Tensor::full({3, 32, 64}, 0.01);
   for (int c = 0; c < 3; ++c) t.data<float>()[(c * 32 + 5) * 64 + 20] = 1e4f;
-  const sl::EnvironmentMap env(t);
-  sl::Material mirror;
+  const sl::render::EnvironmentMap env(t);
+  sl::render::Material mirror;
   mirror.metallic = 1.0f;
   mirror.roughness = 0.0f;
-  sl::Mesh scene = sl::make_icosphere({0, 1, 0}, 1.0f, 2, mirror);
-  scene.append(sl::make_ground_plane(50.0f, 0.0f, mirror));
-  sl::Mesh degenerate = sl::make_ground_plane(1.0f, 0.5f);
+  sl::render::Mesh scene = sl::render::make_icosphere({0, 1, 0}, 1.0f, 2, mirror);
+  scene.append(sl::render::make_ground_plane(50.0f, 0.0f, mirror));
+  sl::render::Mesh degenerate = sl::render::make_ground_plane(1.0f, 0.5f);
   degenerate.positions[2] = degenerate.positions[0];  // a zero-area triangle
   scene.append(degenerate);
-  sl::PathTracerOptions o;
+  sl::render::PathTracerOptions o;
   o.spp = 4;
   o.max_depth = 16;
-  const sl::PathTracer tracer(scene, env);
+  const sl::render::PathTracer tracer(scene, env);
   for (double pitch : {-0.01, -0.5, -1.5}) {
-    const sl::PathTracerImage img = tracer.render(camera_at({0, 1, 6}, 0, pitch, 12, 8), o);
+    const sl::render::PathTracerImage img = tracer.render(camera_at({0, 1, 6}, 0, pitch, 12, 8), o);
     EXPECT_TRUE(all_finite(img.radiance) && all_finite(img.depth) && all_finite(img.normal));
     EXPECT_EQ(img.nonfinite_samples, 0);
   }
-  const sl::Mesh empty;
-  const sl::PathTracer nothing(empty, env);
-  const sl::PathTracerImage sky = nothing.render(camera_at({0, 0, 0}, 0, 0, 8, 4), o);
+  const sl::render::Mesh empty;
+  const sl::render::PathTracer nothing(empty, env);
+  const sl::render::PathTracerImage sky = nothing.render(camera_at({0, 0, 0}, 0, 0, 8, 4), o);
   EXPECT_TRUE(all_finite(sky.radiance));
-  const sl::Mesh box = sl::make_box({-1, -1, -1}, {1, 1, 1});
-  const sl::PathTracer inside(box, env);
-  const sl::PathTracerImage dark = inside.render(camera_at({0, 0, 0}, 0, 0, 8, 4), o);
+  const sl::render::Mesh box = sl::render::make_box({-1, -1, -1}, {1, 1, 1});
+  const sl::render::PathTracer inside(box, env);
+  const sl::render::PathTracerImage dark = inside.render(camera_at({0, 0, 0}, 0, 0, 8, 4), o);
   for (int64_t i = 0; i < dark.radiance.numel(); ++i) EXPECT_EQ(dark.radiance.data<float>()[i], 0.0f);
 }
 
 TEST(PathTracer, InvalidOptionsAreRejectedBeforeRendering) {
-  const sl::Mesh sphere = sl::make_icosphere({0, 0, 0}, 1.0f, 1);
-  const sl::EnvironmentMap env = constant_env(glm::vec3(1.0f));
-  const sl::PathTracer tracer(sphere, env);
-  sl::PathTracerOptions o;
+  const sl::render::Mesh sphere = sl::render::make_icosphere({0, 0, 0}, 1.0f, 1);
+  const sl::render::EnvironmentMap env = constant_env(glm::vec3(1.0f));
+  const sl::render::PathTracer tracer(sphere, env);
+  sl::render::PathTracerOptions o;
   o.spp = 0;
   EXPECT_THROW(tracer.render(camera_at({0, 0, 4}, 0, 0, 4, 4), o), sl::Error);
   o.spp = 1;
   o.max_depth = 0;
   EXPECT_THROW(tracer.render(camera_at({0, 0, 4}, 0, 0, 4, 4), o), sl::Error);
-  EXPECT_THROW(sl::PathTracer(sphere, sl::EnvironmentMap()), sl::Error);
+  EXPECT_THROW(sl::render::PathTracer(sphere, sl::render::EnvironmentMap()), sl::Error);
 }
 
 TEST(Primitives, MeshesAreClosedOutwardFacingAndValid) {
-  const sl::Mesh s = sl::make_icosphere({1, 2, 3}, 2.0f, 3);
+  const sl::render::Mesh s = sl::render::make_icosphere({1, 2, 3}, 2.0f, 3);
   EXPECT_EQ(s.triangle_count(), 20u * 64u);
-  const sl::Mesh b = sl::make_box({0, 0, 0}, {1, 2, 3});
-  const sl::Mesh p = sl::make_ground_plane(4.0f, 1.0f);
-  for (const sl::Mesh* m : {&s, &b, &p}) {
+  const sl::render::Mesh b = sl::render::make_box({0, 0, 0}, {1, 2, 3});
+  const sl::render::Mesh p = sl::render::make_ground_plane(4.0f, 1.0f);
+  for (const sl::render::Mesh* m : {&s, &b, &p}) {
     const glm::vec3 c = m->bounds().centre();
     for (const glm::uvec3& t : m->triangles) {
       const glm::vec3 p0 = m->positions[t.x], p1 = m->positions[t.y], p2 = m->positions[t.z];
@@ -359,8 +361,8 @@ TEST(Primitives, MeshesAreClosedOutwardFacingAndValid) {
       EXPECT_GT(glm::dot(n, m->normals[t.x]), 0.0f);
     }
   }
-  EXPECT_THROW(sl::make_icosphere({0, 0, 0}, -1.0f, 2), sl::Error);
-  EXPECT_THROW(sl::make_icosphere({0, 0, 0}, 1.0f, 8), sl::Error);
+  EXPECT_THROW(sl::render::make_icosphere({0, 0, 0}, -1.0f, 2), sl::Error);
+  EXPECT_THROW(sl::render::make_icosphere({0, 0, 0}, 1.0f, 8), sl::Error);
 }
 
 }  // namespace

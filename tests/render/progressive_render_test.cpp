@@ -29,9 +29,9 @@ struct FakePass {
 
 TEST(ProgressiveRender, PassesDoubleAndStopAtTheSampleBudget) {
   FakePass fake;
-  sl::ProgressiveOptions o;
+  sl::render::ProgressiveOptions o;
   o.max_spp = 100;
-  const sl::ProgressiveResult r = sl::render_progressive(std::ref(fake), o);
+  const sl::render::ProgressiveResult r = sl::render::render_progressive(std::ref(fake), o);
   EXPECT_EQ(r.status.spp, 100);
   EXPECT_EQ(r.status.noise, -1.0);
   const std::vector<int64_t> offsets{0, 1, 2, 4, 8, 16, 32, 64};
@@ -44,15 +44,14 @@ TEST(ProgressiveRender, PassesDoubleAndStopAtTheSampleBudget) {
 TEST(ProgressiveRender, TwoSeedNoiseEstimateMatchesTheTrueNoiseAndMeetsTheTarget) {
   FakePass fake;
   fake.H = fake.W = 64;
-  sl::ProgressiveOptions o;
+  sl::render::ProgressiveOptions o;
   o.max_spp = 1 << 14;
   o.two_seeds = true;
   o.exposure = 1.0;
   o.target_noise = 0.01;
-  std::vector<sl::ProgressiveStatus> seen;
-  const sl::ProgressiveResult r = sl::render_progressive(std::ref(fake), o, [&](const sl::ProgressiveStatus& s) {
-    seen.push_back(s);
-  });
+  std::vector<sl::render::ProgressiveStatus> seen;
+  const sl::render::ProgressiveResult r = sl::render::render_progressive(
+      std::ref(fake), o, [&](const sl::render::ProgressiveStatus& s) { seen.push_back(s); });
   ASSERT_GE(seen.size(), 3u);
   EXPECT_LE(r.status.noise, o.target_noise);
   EXPECT_GT(seen[seen.size() - 2].noise, o.target_noise);  // not one pass later than needed
@@ -72,30 +71,30 @@ TEST(ProgressiveRender, TwoSeedNoiseEstimateMatchesTheTrueNoiseAndMeetsTheTarget
 
 TEST(ProgressiveRender, RerunWithTheReachedSppReproducesTheImageBitwise) {
   FakePass a, b;
-  sl::ProgressiveOptions o;
+  sl::render::ProgressiveOptions o;
   o.max_spp = 1 << 12;
   o.two_seeds = true;
   o.exposure = 1.0;
   o.target_noise = 0.02;
-  const sl::ProgressiveResult first = sl::render_progressive(std::ref(a), o);
+  const sl::render::ProgressiveResult first = sl::render::render_progressive(std::ref(a), o);
   o.target_noise = 0.0;
   o.max_spp = first.status.spp;
-  const sl::ProgressiveResult again = sl::render_progressive(std::ref(b), o);
+  const sl::render::ProgressiveResult again = sl::render::render_progressive(std::ref(b), o);
   ASSERT_EQ(first.status.spp, again.status.spp);
   EXPECT_EQ(0, std::memcmp(first.radiance.data<float>(), again.radiance.data<float>(), first.radiance.numel() * 4));
 }
 
 TEST(ProgressiveRender, BadBudgetsAreRejected) {
   FakePass fake;
-  sl::ProgressiveOptions o;
+  sl::render::ProgressiveOptions o;
   o.target_noise = 0.01;  // without two seeds
-  EXPECT_THROW(sl::render_progressive(std::ref(fake), o), sl::Error);
+  EXPECT_THROW(sl::render::render_progressive(std::ref(fake), o), sl::Error);
   o.target_noise = 0.0;
   o.max_spp = 0;
-  EXPECT_THROW(sl::render_progressive(std::ref(fake), o), sl::Error);
+  EXPECT_THROW(sl::render::render_progressive(std::ref(fake), o), sl::Error);
   o.max_spp = 4;
   o.seconds = -1.0;
-  EXPECT_THROW(sl::render_progressive(std::ref(fake), o), sl::Error);
+  EXPECT_THROW(sl::render::render_progressive(std::ref(fake), o), sl::Error);
 }
 
 }  // namespace

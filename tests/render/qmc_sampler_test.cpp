@@ -28,8 +28,8 @@ TEST(QmcSampler, UnscrambledSobolPairIsA02Net) {
   for (int m : {4, 8, 10}) {
     std::vector<glm::vec2> pts;
     for (uint32_t i = 0; i < (1u << m); ++i) {
-      const sl::qmc::Pair32 p = sl::qmc::sobol_pair(i);
-      pts.push_back({sl::qmc::to_unit(p.x), sl::qmc::to_unit(p.y)});
+      const sl::render::qmc::Pair32 p = sl::render::qmc::sobol_pair(i);
+      pts.push_back({sl::render::qmc::to_unit(p.x), sl::render::qmc::to_unit(p.y)});
     }
     EXPECT_TRUE(is_02_net(pts, m)) << m;
   }
@@ -40,12 +40,12 @@ TEST(QmcSampler, ScrambledPrefixesOfEveryPairStayStratified) {
     for (uint32_t pair : {0u, 1u, 7u, 40u})
       for (int m : {2, 5, 8}) {
         std::vector<glm::vec2> pts;
-        for (uint64_t s = 0; s < (1u << m); ++s) pts.push_back(sl::qmc::owen_pair(3, pixel, s, pair));
+        for (uint64_t s = 0; s < (1u << m); ++s) pts.push_back(sl::render::qmc::owen_pair(3, pixel, s, pair));
         EXPECT_TRUE(is_02_net(pts, m)) << pixel << " " << pair << " " << m;
       }
   // The second block of 2^m samples is stratified too (progressive rendering continues it).
   std::vector<glm::vec2> pts;
-  for (uint64_t s = 64; s < 128; ++s) pts.push_back(sl::qmc::owen_pair(3, 5, s, 2));
+  for (uint64_t s = 64; s < 128; ++s) pts.push_back(sl::render::qmc::owen_pair(3, 5, s, 2));
   EXPECT_TRUE(is_02_net(pts, 6));
 }
 
@@ -56,8 +56,8 @@ TEST(QmcSampler, PointsAreUniformAndPairsAreDecorrelated) {
   double mean_x = 0, mean_y = 0, cross_pairs = 0, cross_seeds = 0;
   std::vector<int> hist(10, 0);
   for (int pixel = 0; pixel < n; ++pixel) {
-    const glm::vec2 a = sl::qmc::owen_pair(1, pixel, 3, 1), b = sl::qmc::owen_pair(1, pixel, 3, 2);
-    const glm::vec2 c = sl::qmc::owen_pair(2, pixel, 3, 1);
+    const glm::vec2 a = sl::render::qmc::owen_pair(1, pixel, 3, 1), b = sl::render::qmc::owen_pair(1, pixel, 3, 2);
+    const glm::vec2 c = sl::render::qmc::owen_pair(2, pixel, 3, 1);
     mean_x += a.x / n;
     mean_y += a.y / n;
     cross_pairs += (a.x - 0.5) * (b.x - 0.5) / n;

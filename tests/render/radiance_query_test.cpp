@@ -9,6 +9,16 @@
 #include "autodiff/ops.h"
 #include "render/environment_map.h"
 
+using sl::render::env_lookup;
+using sl::render::parse_sample_spacing;
+using sl::render::radiance_query;
+using sl::render::RadianceQueryOptions;
+using sl::render::RadianceQueryStats;
+using sl::render::sample_spacing_name;
+using sl::render::SampleSpacing;
+using sl::render::vsg_activate;
+using sl::render::VsgGrid;
+
 namespace sl {
 namespace {
 

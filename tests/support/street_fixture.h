@@ -16,7 +16,7 @@ namespace sl::test {
 
 // The generator's defaults shrunk to thumbnail size and a few samples per pixel.
 inline nlohmann::json tiny_generator_tree(int samples = 3) {
-  nlohmann::json t = street_generator_defaults();
+  nlohmann::json t = data::street_generator_defaults();
   t["samples"] = samples;
   t["seed"] = 7;
   t["render"] = {{"spp", 2}, {"max_depth", 2}, {"environment_width", 64}};
@@ -35,22 +35,22 @@ inline nlohmann::json tiny_generator_tree(int samples = 3) {
 inline std::string tiny_dataset(const std::string& name = "tiny_dataset", int samples = 3) {
   const std::string out = scratch(name);
   if (std::filesystem::exists(std::filesystem::path(out) / "index.json")) return out;
-  const StreetGeneratorConfig c = street_generator_config(tiny_generator_tree(samples));
+  const data::StreetGeneratorConfig c = data::street_generator_config(tiny_generator_tree(samples));
   std::vector<std::string> ids;
   std::filesystem::create_directories(std::filesystem::path(out) / "samples");
-  for (int64_t i = 0; i < c.samples; ++i) ids.push_back(generate_street_sample(c, i, out + "/samples").id);
-  write_dataset_index(out, c, split_ids(ids, c.seed, c.train_fraction, c.val_fraction));
+  for (int64_t i = 0; i < c.samples; ++i) ids.push_back(data::generate_street_sample(c, i, out + "/samples").id);
+  data::write_dataset_index(out, c, data::split_ids(ids, c.seed, c.train_fraction, c.val_fraction));
   return out;
 }
 
 // Camera-z depth of the ground plane y = 0 seen from height h; 0 (sky) above the horizon.
-inline Tensor ground_depth(const Camera& cam, double height) {
+inline Tensor ground_depth(const render::Camera& cam, double height) {
   const auto& k = cam.intrinsics();
   Tensor d = Tensor::zeros({k.height, k.width});
   float* p = d.data<float>();
   for (int r = 0; r < k.height; ++r)
     for (int c = 0; c < k.width; ++c) {
-      const CameraRay ray = cam.pixel_ray(c, r);
+      const render::CameraRay ray = cam.pixel_ray(c, r);
       if (ray.direction.y < -1e-3) {
         const double t = height / -ray.direction.y;
         p[r * k.width + c] = static_cast<float>(cam.world_to_camera(ray.origin + t * ray.direction).z);
@@ -59,8 +59,8 @@ inline Tensor ground_depth(const Camera& cam, double height) {
   return d;
 }
 
-inline StreetSample tiny_street_sample(uint64_t seed, int width = 32, int height = 16) {
-  StreetSample s;
+inline data::StreetSample tiny_street_sample(uint64_t seed, int width = 32, int height = 16) {
+  data::StreetSample s;
   s.id = "tiny" + std::to_string(seed);
   s.pano_ldr = Tensor::uniform({3, 16, 32}, 0.1, 0.9, seed);
   s.pano_hdr = s.pano_ldr.clone();
@@ -70,9 +70,9 @@ inline StreetSample tiny_street_sample(uint64_t seed, int width = 32, int height
   s.sun_direction = glm::normalize(glm::dvec3(0.3, 0.8, -0.5));
   s.sky_hdr = Tensor::uniform({3, 8, 32}, 0.5, 2.0, seed + 1);
   for (int v = 0; v < 2; ++v) {
-    StreetView view;
-    view.camera = Camera(intrinsics_from_fov(1.2, width, height), rotation_from_yaw_pitch_roll(0.4 * v, 0, 0),
-                         {0.3 * v, 1.6, 0.0});
+    data::StreetView view;
+    view.camera = render::Camera(render::intrinsics_from_fov(1.2, width, height),
+                                 render::rotation_from_yaw_pitch_roll(0.4 * v, 0, 0), {0.3 * v, 1.6, 0.0});
     view.ldr = Tensor::uniform({3, height, width}, 0.0, 1.0, seed * 7 + static_cast<uint64_t>(v));
     view.depth = ground_depth(view.camera, 1.6);
     view.sky_mask = Tensor::zeros({1, height, width});

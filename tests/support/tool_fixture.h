@@ -72,9 +72,9 @@ inline void tiny_photo(const std::string& dir, int width = 64, int height = 32) 
     for (int c = 0; c < width; ++c)
       for (int ch = 0; ch < 3; ++ch)
         p[(ch * height + r) * width + c] = r < height / 2 ? 0.5f + 0.15f * ch : 0.35f;
-  ImageWriteOptions lin;
-  lin.transfer = Transfer::Linear;
-  write_image(dir + "/photo.png", img, lin);
+  data::ImageWriteOptions lin;
+  lin.transfer = data::Transfer::Linear;
+  data::write_image(dir + "/photo.png", img, lin);
   std::ofstream(dir + "/intrinsics.json") << nlohmann::json{{"fx", width * 0.6}, {"fy", width * 0.6},
                                                            {"cx", width / 2.0}, {"cy", height / 2.0}}.dump();
 }

@@ -58,10 +58,10 @@ std::string tiny_panorama_folder(const std::string& dir) {
   const double suns[3][2] = {{30, 10}, {60, -100}, {20, 150}};
   const char* names[3] = {"a_1k.hdr", "b_1k.hdr", "c_1k.exr"};
   for (int i = 0; i < 3; ++i) {
-    sl::SkyParams p;
+    sl::data::SkyParams p;
     p.sun_elevation_rad = suns[i][0] * sl::kPi / 180;
     p.sun_azimuth_rad = suns[i][1] * sl::kPi / 180;
-    sl::write_image(pano_dir + "/" + names[i], sl::PreethamSky(p).render(32, 64));
+    sl::data::write_image(pano_dir + "/" + names[i], sl::data::PreethamSky(p).render(32, 64));
   }
   std::ofstream(dir + "/split.json") << R"({"comment": "test", "train": ["a_1k.hdr", "b_1k.hdr"], "test": ["c_1k.exr"]})";
   return pano_dir;
@@ -132,6 +132,6 @@ TEST(EvalTool, BadPanoramaInputIsOneLineNamingTheFileAndWritesNothing) {
   // A panorama that is not 2:1.
   const std::string odd = dir + "/odd";
   fs::create_directories(odd);
-  sl::write_image(odd + "/square_1k.hdr", sl::Tensor::uniform({3, 32, 32}, 0.1, 1.0, 3));
+  sl::data::write_image(odd + "/square_1k.hdr", sl::Tensor::uniform({3, 32, 32}, 0.1, 1.0, 3));
   expect_error("--data " + odd, "square_1k.hdr");
 }

@@ -54,7 +54,7 @@ std::string kitti_fixture(const std::string& dir) {
   for (const char* d : {"image_2", "calib", "label_2", "velodyne"}) fs::create_directories(root / d);
   fs::copy_file(src + "/000008.png", root / "image_2" / "000008.png", fs::copy_options::overwrite_existing);
   fs::copy_file(src + "/000008_velodyne.bin", root / "velodyne" / "000008.bin", fs::copy_options::overwrite_existing);
-  std::ofstream(root / "calib" / "000008.txt") << sl::kitti_calibration_text(src + "/000008_calib.json");
+  std::ofstream(root / "calib" / "000008.txt") << sl::data::kitti_calibration_text(src + "/000008_calib.json");
   std::ifstream jf(src + "/000008_calib.json");
   const json j = json::parse(jf);
   std::ofstream lf(root / "label_2" / "000008.txt");
@@ -94,8 +94,8 @@ TEST(InsertBatch, KittiFolderKeepsIdsLabelsFullCalibrationAndUsesTheLidar) {
   }
   // Every input label comes through (same box, truncation; occlusion never decreases), then
   // the inserted car.
-  const auto labels_in = sl::read_kitti_labels((fs::path(in) / "label_2" / "000008.txt").string());
-  const auto labels_out = sl::read_kitti_labels((fs::path(out) / "label_2" / "000008.txt").string());
+  const auto labels_in = sl::data::read_kitti_labels((fs::path(in) / "label_2" / "000008.txt").string());
+  const auto labels_out = sl::data::read_kitti_labels((fs::path(out) / "label_2" / "000008.txt").string());
   ASSERT_GE(labels_in.size(), 5u);
   ASSERT_EQ(labels_out.size(), labels_in.size() + 1);
   for (size_t i = 0; i < labels_in.size(); ++i) {
@@ -136,12 +136,12 @@ TEST(InsertBatch, LabelsParseBackAndTheirBoxesMatchTheInsertedObjects) {
   const auto r = run_tool("streetlight-insert", "--batch " + list + " --checkpoint " + ckpt + " --out " + out +
                                                     " --objects-per-image 2" + kBase);
   ASSERT_EQ(r.code, 0) << r.out;
-  const sl::Tensor before = sl::read_image(dir + "/photo.png");
+  const sl::Tensor before = sl::data::read_image(dir + "/photo.png");
   for (const std::string id : {"cam_front_0", "cam_front_1"}) {
-    const auto labels = sl::read_kitti_labels(out + "/label_2/" + id + ".txt");
+    const auto labels = sl::data::read_kitti_labels(out + "/label_2/" + id + ".txt");
     ASSERT_EQ(labels.size(), 2u) << id;
     const auto P2 = calib_values(read_all(out + "/calib/" + id + ".txt")).at("P2");
-    const sl::Tensor after = sl::read_image(out + "/image_2/" + id + ".png");
+    const sl::Tensor after = sl::data::read_image(out + "/image_2/" + id + ".png");
     const int W = int(after.size(2)), H = int(after.size(1));
     for (const auto& l : labels) {
       EXPECT_EQ(l.type, "Car");

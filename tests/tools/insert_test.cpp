@@ -60,7 +60,7 @@ TEST(InsertTool, WritesEveryOutputWithTheGroundPlaneFallback) {
   EXPECT_NEAR(j["box3d"]["z"].get<double>(), 8.0, 1e-6);  // 8 m ahead in the camera frame
   EXPECT_GT(j["box2d"][2].get<double>(), j["box2d"][0].get<double>());
   EXPECT_EQ(j["kitti_label"].get<std::string>().rfind("Car ", 0), 0u);
-  const sl::Tensor comp = sl::read_image(out + "/composite.png");
+  const sl::Tensor comp = sl::data::read_image(out + "/composite.png");
   EXPECT_EQ(comp.size(1), 32);
   EXPECT_EQ(comp.size(2), 64);
 }
@@ -102,9 +102,9 @@ TEST(InsertTool, TruncatedPngIsOneLine) {
   if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
   const InsertCase c = setup("insert_truncated");
   sl::Tensor noise = sl::Tensor::uniform({3, 120, 240}, 0.0, 1.0, 7);
-  sl::ImageWriteOptions lin;
-  lin.transfer = sl::Transfer::Linear;
-  sl::write_image(c.dir + "/big.png", noise, lin);
+  sl::data::ImageWriteOptions lin;
+  lin.transfer = sl::data::Transfer::Linear;
+  sl::data::write_image(c.dir + "/big.png", noise, lin);
   const auto size = fs::file_size(c.dir + "/big.png");
   fs::resize_file(c.dir + "/big.png", size / 2);
   std::ofstream(c.dir + "/k.json") << R"({"fx": 150, "fy": 150, "cx": 120, "cy": 60})";
@@ -117,7 +117,7 @@ TEST(InsertTool, TruncatedPngIsOneLine) {
 TEST(InsertTool, DepthOfAnotherSizeIsACleanError) {
   if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
   const InsertCase c = setup("insert_depth");
-  sl::write_depth(c.dir + "/depth.exr", sl::Tensor::full({1, 16, 32}, 5.0));
+  sl::data::write_depth(c.dir + "/depth.exr", sl::Tensor::full({1, 16, 32}, 5.0));
   const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
                                                     "/intrinsics.json --depth " + c.dir + "/depth.exr --at 0,8 --out " +
                                                     c.dir + "/out" + c.base);
@@ -149,7 +149,7 @@ TEST(InsertTool, ObjectOffTheGroundIsACleanError) {
   if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
   const InsertCase c = setup("insert_offground");
   // A depth map with no surface at all: nothing to stand on.
-  sl::write_depth(c.dir + "/depth.exr", sl::Tensor::zeros({1, 32, 64}));
+  sl::data::write_depth(c.dir + "/depth.exr", sl::Tensor::zeros({1, 32, 64}));
   const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
                                                     "/intrinsics.json --depth " + c.dir + "/depth.exr --at 0,8 --out " +
                                                     c.dir + "/out" + c.base);

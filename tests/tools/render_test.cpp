@@ -14,6 +14,12 @@
 #include "support/tool_fixture.h"
 #include "util/math.h"
 
+using sl::data::read_image;
+using sl::data::write_image;
+using sl::render::make_icosphere;
+using sl::render::Material;
+using sl::render::write_glb;
+
 namespace sl {
 namespace {
 
@@ -31,7 +37,7 @@ void marker_hdri(const std::string& path, const glm::dvec3 dirs[3]) {
   Tensor t = Tensor::zeros({3, H, W});
   for (int i = 0; i < H; ++i)
     for (int j = 0; j < W; ++j) {
-      const auto d = equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
+      const auto d = render::equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
       for (int c = 0; c < 3; ++c)
         if (d.x * dirs[c].x + d.y * dirs[c].y + d.z * dirs[c].z > std::cos(12 * kDegToRad))
           t.data<float>()[(c * H + i) * W + j] = 4.0f;

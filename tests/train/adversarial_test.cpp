@@ -20,6 +20,18 @@
 #include "train/train_config.h"
 #include "train/unprojection.h"
 
+using sl::data::StreetSample;
+using sl::data::StreetView;
+using sl::render::insert_objects;
+using sl::render::InsertionInputs;
+using sl::render::InsertionOptions;
+using sl::render::InsertionResult;
+using sl::render::make_box;
+using sl::render::place_object;
+using sl::render::Placement;
+using sl::render::VsgGrid;
+using sl::render::write_glb;
+
 namespace sl::train {
 namespace {
 

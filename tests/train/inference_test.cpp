@@ -9,6 +9,18 @@
 #include "train/photo_insertion.h"
 #include "util/math.h"
 
+using sl::render::Bvh;
+using sl::render::Camera;
+using sl::render::CameraRay;
+using sl::render::Intrinsics;
+using sl::render::intrinsics_from_fov;
+using sl::render::make_box;
+using sl::render::Mesh;
+using sl::render::Placement;
+using sl::render::Ray;
+using sl::render::rotation_from_yaw_pitch_roll;
+using sl::render::VsgGrid;
+
 namespace {
 
 using namespace sl;

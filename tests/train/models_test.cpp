@@ -9,6 +9,11 @@
 #include "train/sky_autoencoder.h"
 #include "train/unprojection.h"
 
+using sl::render::Camera;
+using sl::render::intrinsics_from_fov;
+using sl::render::rotation_from_yaw_pitch_roll;
+using sl::render::VsgGrid;
+
 namespace sl::train {
 namespace {
 

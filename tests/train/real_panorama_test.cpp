@@ -16,6 +16,15 @@
 #include "train/street_batch.h"
 #include "util/math.h"
 
+using sl::data::panorama_street_sample;
+using sl::data::PanoramaSampleOptions;
+using sl::data::PreethamSky;
+using sl::data::rotate_azimuth;
+using sl::data::SkyParams;
+using sl::data::StreetSample;
+using sl::render::env_lookup;
+using sl::render::VsgGrid;
+
 namespace sl::train {
 namespace {
 

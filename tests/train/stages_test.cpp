@@ -14,6 +14,9 @@
 #include "train/train_config.h"
 #include "train/trainer.h"
 
+using sl::render::InsertionOptions;
+using sl::render::SampleSpacing;
+
 namespace sl::train {
 namespace {
 

@@ -26,6 +26,14 @@
 #include "util/math.h"
 #include "util/random.h"
 
+using sl::render::env_lookup;
+using sl::render::radiance_query;
+using sl::render::RadianceQueryOptions;
+using sl::render::RadianceQueryResult;
+using sl::render::sample_spacing_name;
+using sl::render::SampleSpacing;
+using sl::render::VsgGrid;
+
 namespace sl::bench {
 namespace {
 
@@ -61,10 +69,10 @@ Reference exact_voxel_march(const Tensor& vsg, const Tensor& env, const Tensor& 
         if (idx == last) continue;
         last = idx;
         const double alpha = p[7 * vox + idx];
-        sg::Lobe<double> lobe;
+        render::sg::Lobe<double> lobe;
         for (int c = 0; c < 3; ++c) lobe.c[c] = p[c * vox + idx], lobe.mu[c] = p[(3 + c) * vox + idx];
         lobe.sharpness = p[6 * vox + idx];
-        const auto e = sg::eval(lobe, view);
+        const auto e = render::sg::eval(lobe, view);
         for (int c = 0; c < 3; ++c) out[c] += tau * alpha * e.value[c];
         tau *= 1.0 - alpha;
       }

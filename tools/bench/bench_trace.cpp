@@ -29,6 +29,15 @@
 #include "util/random.h"
 #include "util/file.h"
 
+using sl::render::Bounds3;
+using sl::render::Bvh;
+using sl::render::Hit;
+using sl::render::load_gltf;
+using sl::render::Mesh;
+using sl::render::Ray;
+using sl::render::read_ray_file;
+using sl::render::write_glb;
+
 namespace sl::bench {
 namespace {
 

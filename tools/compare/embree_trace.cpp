@@ -75,7 +75,7 @@ int run(int argc, char** argv) {
     }
   }
   SL_CHECK(!mesh_path.empty() && !rays_path.empty(), "--mesh and --rays are required");
-  const sl::Mesh mesh = sl::load_gltf(mesh_path);
+  const sl::render::Mesh mesh = sl::render::load_gltf(mesh_path);
   const std::vector<float> raw = read_rays(rays_path);
   const size_t n = raw.size() / 6;
 

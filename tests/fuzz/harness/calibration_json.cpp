@@ -7,6 +7,10 @@
 #include "tests/fuzz/harness/fuzz_harness.h"
 #include "train/photo_input.h"
 
+using sl::data::KittiCalibration;
+using sl::data::read_kitti_calibration;
+using sl::render::Intrinsics;
+
 namespace sl::fuzz {
 
 namespace {

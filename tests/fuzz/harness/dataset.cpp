@@ -12,6 +12,13 @@
 #include "data/street_dataset.h"
 #include "tests/fuzz/harness/fuzz_harness.h"
 
+using sl::data::StreetDataset;
+using sl::data::StreetSample;
+using sl::data::StreetView;
+using sl::data::write_depth;
+using sl::data::write_image;
+using sl::render::Intrinsics;
+
 namespace sl::fuzz {
 
 namespace fs = std::filesystem;

@@ -6,6 +6,9 @@
 #include "render/gltf_loader.h"
 #include "tests/fuzz/harness/fuzz_harness.h"
 
+using sl::render::load_gltf;
+using sl::render::Mesh;
+
 namespace sl::fuzz {
 
 void fuzz_gltf(const uint8_t* data, size_t size) {

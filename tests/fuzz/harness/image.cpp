@@ -6,6 +6,12 @@
 #include "data/image_io.h"
 #include "tests/fuzz/harness/fuzz_harness.h"
 
+using sl::data::ImageInfo;
+using sl::data::kMaxImageValues;
+using sl::data::read_depth;
+using sl::data::read_image;
+using sl::data::read_image_info;
+
 namespace sl::fuzz {
 
 namespace {

@@ -10,6 +10,14 @@
 #include "data/kitti.h"
 #include "tests/fuzz/harness/fuzz_harness.h"
 
+using sl::data::densify_depth;
+using sl::data::KittiCalibration;
+using sl::data::lidar_depth;
+using sl::data::read_kitti_calibration;
+using sl::data::read_velodyne;
+using sl::render::Intrinsics;
+using sl::render::kitti_projection_from_values;
+
 namespace sl::fuzz {
 
 namespace {

@@ -5,6 +5,9 @@
 #include "render/ray_file.h"
 #include "tests/fuzz/harness/fuzz_harness.h"
 
+using sl::render::Ray;
+using sl::render::read_ray_file;
+
 namespace sl::fuzz {
 
 void fuzz_rays(const uint8_t* data, size_t size) {

@@ -7,7 +7,7 @@
 
 #include "autodiff/tensor.h"
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 TEST(BufferCache, LargeBufferIsReusedAfterRelease) {
@@ -64,4 +64,4 @@ TEST(BufferCache, ReusedDirtyBufferStillGivesExactZeros) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

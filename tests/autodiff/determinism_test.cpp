@@ -5,7 +5,7 @@
 #include "autodiff/ops.h"
 #include "support/test_util.h"
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 struct Outputs {
@@ -51,4 +51,4 @@ TEST(Determinism, FullReductionMatchesAcrossThreadCountsOnHugeInput) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

@@ -5,7 +5,7 @@
 #include "autodiff/ops.h"
 #include "support/test_util.h"
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 using test::rand64;
@@ -215,4 +215,4 @@ TEST(Gradcheck, CloneContiguousAndDtypeRoundTrip) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

@@ -8,7 +8,7 @@
 #include "support/test_util.h"
 #include "util/math.h"
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 using test::all_finite;
@@ -125,4 +125,4 @@ TEST(Stability, GridSampleIgnoresNonFiniteCoordinates) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

@@ -3,7 +3,7 @@
 #include "autodiff/ops.h"
 #include "support/test_util.h"
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 using test::rand64;
@@ -160,4 +160,4 @@ TEST(Tape, BackwardOnATensorThatNeedsNoGradIsAnError) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

@@ -3,7 +3,7 @@
 #include "autodiff/ops.h"
 #include "support/test_util.h"
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 TEST(Tensor, StorageIs64ByteAlignedForEveryDtype) {
@@ -106,4 +106,4 @@ TEST(Tensor, IndexOutOfRangeIsAnError) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

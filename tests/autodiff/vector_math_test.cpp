@@ -17,7 +17,19 @@
 #include <limits>
 #include <vector>
 
-namespace sl::vm {
+namespace sl::test {
+using vm::SimdLevel;
+using vm::active_simd_level;
+using vm::cpu_simd_level;
+using vm::force_simd_level;
+using vm::kMaxUlpExp;
+using vm::kMaxUlpLog;
+using vm::kMaxUlpPow;
+using vm::kMaxUlpSigmoid;
+using vm::kMaxUlpSoftplus;
+using vm::kMaxUlpTanh;
+using vm::simd_level_name;
+
 namespace {
 
 float from_bits(uint32_t b) {
@@ -234,4 +246,4 @@ TEST(VectorMath, Float32TensorOpsAndGradientsMatchFloat64) {
 }
 
 }  // namespace
-}  // namespace sl::vm
+}  // namespace sl::test

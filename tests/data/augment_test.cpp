@@ -26,7 +26,7 @@ using sl::render::intrinsics_from_fov;
 using sl::render::Projection;
 using sl::render::rotation_from_yaw_pitch_roll;
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 TEST(Augment, FlippedViewSeesTheMirroredWorld) {
@@ -115,4 +115,4 @@ TEST(PanoramaDataset, RotatedSunMatchesTheRotatedPeak) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

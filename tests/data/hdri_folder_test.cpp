@@ -13,6 +13,8 @@
 
 using sl::data::HdriFolder;
 
+namespace sl::test {
+
 namespace {
 
 double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
@@ -92,3 +94,5 @@ TEST(HdriFolder, ReadsTheSharedHdris) {
       break;
     }
 }
+
+}  // namespace sl::test

@@ -10,9 +10,9 @@
 #include "support/test_files.h"
 #include "util/random.h"
 
-namespace {
+namespace sl::test {
 
-using sl::test::scratch;
+namespace {
 
 sl::Tensor random_image(int c, int h, int w, double lo, double hi, uint64_t seed) {
   return sl::Tensor::uniform({c, h, w}, lo, hi, seed);
@@ -235,3 +235,5 @@ TEST(ImageIo, ReadsTheRealKittiPhotograph) {
   EXPECT_GT(mean, 0.02);
   EXPECT_LT(mean, 0.8);
 }
+
+}  // namespace sl::test

@@ -18,7 +18,7 @@ using sl::data::load_kitti_frame;
 using sl::data::read_kitti_calibration;
 using sl::data::read_velodyne;
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 std::string kitti(const std::string& f) { return test::shared_data("street/kitti_000008/" + f); }
@@ -95,4 +95,4 @@ TEST(Kitti, TextProjectionAndBadVelodyne) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

@@ -24,7 +24,7 @@ using sl::render::placed_mesh;
 using sl::render::Placement;
 using sl::render::rotation_from_yaw_pitch_roll;
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 TEST(ObjectPlacement, CarDrivingAwayHasKittiRotationMinusHalfPi) {
@@ -66,4 +66,4 @@ TEST(ObjectPlacement, ObjectFrameTurnsLengthOntoXAndSitsOnTheGround) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

@@ -23,7 +23,7 @@ using sl::data::StreetSample;
 using sl::data::sun_hardness;
 using sl::data::SunHardness;
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
@@ -148,4 +148,4 @@ TEST(PanoramaSample, IsAPureFunctionOfSeedAndStreamWithFiniteValues) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

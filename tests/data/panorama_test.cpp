@@ -8,6 +8,8 @@
 #include "util/math.h"
 #include "util/random.h"
 
+namespace sl::test {
+
 namespace {
 
 glm::dvec3 from_angles(double elevation_rad, double azimuth_rad) {
@@ -154,3 +156,5 @@ TEST(Panorama, BadShapesAreRejectedWithTheShape) {
   EXPECT_THROW(sl::data::estimate_sky_mask(sl::Tensor::zeros({1, 4, 8})), sl::Error);
   EXPECT_THROW(sl::data::rotate_azimuth(sl::Tensor::zeros({1, 4, 8}), NAN), sl::Error);
 }
+
+}  // namespace sl::test

@@ -9,6 +9,8 @@
 #include "render/equirect.h"
 #include "util/math.h"
 
+namespace sl::test {
+
 namespace {
 
 glm::dvec3 from_angles(double elevation_deg, double azimuth_deg) {
@@ -189,3 +191,5 @@ TEST(SkyModel, SampledParametersAreDeterministicAndValid) {
   bad.sun_elevation_rad = -0.1;
   EXPECT_THROW(sl::data::PreethamSky{bad}, sl::Error);
 }
+
+}  // namespace sl::test

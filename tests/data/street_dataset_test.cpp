@@ -21,7 +21,7 @@ using sl::data::StreetSample;
 using sl::data::StreetView;
 using sl::render::CameraRay;
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -211,4 +211,4 @@ TEST(StreetDataset, BrokenMetaKeyIsNamed) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

@@ -50,7 +50,7 @@ using sl::render::Placement;
 using sl::render::Projection;
 using sl::render::rotation_from_yaw_pitch_roll;
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -347,4 +347,4 @@ TEST(StreetGenerator, HdriLightingUsesTheRotatedPeak) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

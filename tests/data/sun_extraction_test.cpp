@@ -13,6 +13,8 @@
 #include "util/math.h"
 #include "util/random.h"
 
+namespace sl::test {
+
 namespace {
 
 glm::dvec3 from_angles(double elevation_deg, double azimuth_deg) {
@@ -151,3 +153,5 @@ TEST(SunExtraction, MatchesMeasuredPeakElevationOfRealHdris) {
     }
   }
 }
+
+}  // namespace sl::test

@@ -24,6 +24,8 @@
 #include "nn/checkpoint.h"
 #include "nn/safetensors.h"
 
+namespace sl::test {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -422,3 +424,5 @@ TEST(DataParallel, SigtermToOneRankStopsEveryRankAfterTheSameStep) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

@@ -80,7 +80,7 @@ void* pvalloc(size_t n) { return memalign(4096, (n + 4095) & ~size_t{4095}); }
 }
 #endif
 
-namespace sl::fuzz {
+namespace sl::test {
 
 bool alloc_counter_available() {
 #ifdef STREETLIGHT_NO_ALLOC_COUNTER
@@ -101,4 +101,4 @@ size_t peak_since_reset() {
   return d > 0 ? static_cast<size_t>(d) : 0;
 }
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

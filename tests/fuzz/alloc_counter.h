@@ -8,7 +8,7 @@
 #pragma once
 #include <cstddef>
 
-namespace sl::fuzz {
+namespace sl::test {
 
 bool alloc_counter_available();
 // Starts a measurement: the peak is reset to the current live bytes.
@@ -16,4 +16,4 @@ void reset_peak();
 // Peak live heap bytes since reset_peak(), minus the live bytes at reset_peak().
 size_t peak_since_reset();
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

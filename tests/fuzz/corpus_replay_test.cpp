@@ -12,10 +12,10 @@
 
 namespace fs = std::filesystem;
 
-namespace sl::fuzz {
+namespace sl::test {
 // Names the target in gtest's messages instead of dumping the struct's bytes.
 void PrintTo(const Target& t, std::ostream* os) { *os << t.name; }
-}  // namespace sl::fuzz
+}  // namespace sl::test
 
 namespace {
 
@@ -29,10 +29,10 @@ std::vector<fs::path> corpus_files(const std::string& target) {
   return files;
 }
 
-class CorpusReplay : public ::testing::TestWithParam<sl::fuzz::Target> {};
+class CorpusReplay : public ::testing::TestWithParam<sl::test::Target> {};
 
 TEST_P(CorpusReplay, EveryCorpusFileIsRefusedCleanlyOrLoadsValid) {
-  const sl::fuzz::Target& t = GetParam();
+  const sl::test::Target& t = GetParam();
   const std::vector<fs::path> files = corpus_files(t.name);
   ASSERT_GE(files.size(), 3u) << "tests/fuzz/corpus/" << t.name << " needs seeds";
   for (const fs::path& f : files) {
@@ -43,8 +43,8 @@ TEST_P(CorpusReplay, EveryCorpusFileIsRefusedCleanlyOrLoadsValid) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Fuzz, CorpusReplay, ::testing::ValuesIn(sl::fuzz::targets()),
-                         [](const ::testing::TestParamInfo<sl::fuzz::Target>& info) {
+INSTANTIATE_TEST_SUITE_P(Fuzz, CorpusReplay, ::testing::ValuesIn(sl::test::targets()),
+                         [](const ::testing::TestParamInfo<sl::test::Target>& info) {
                            return std::string(info.param.name);
                          });
 

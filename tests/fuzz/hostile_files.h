@@ -8,7 +8,7 @@
 
 #include <unistd.h>
 
-namespace sl::fuzz::test {
+namespace sl::test {
 
 // A safetensors file: 8-byte little-endian header length, the header, `data_bytes` zero bytes.
 inline std::string safetensors_bytes(const std::string& header, size_t data_bytes) {
@@ -69,4 +69,4 @@ inline std::string write_temp(const std::string& name, const std::string& bytes)
   return path;
 }
 
-}  // namespace sl::fuzz::test
+}  // namespace sl::test

@@ -12,13 +12,9 @@
 #include "tests/fuzz/hostile_files.h"
 #include "util/error.h"
 
-namespace {
+namespace sl::test {
 
-using sl::fuzz::test::exr_declaring;
-using sl::fuzz::test::glb_bytes;
-using sl::fuzz::test::safetensors_bytes;
-using sl::fuzz::test::triangle_glb;
-using sl::fuzz::test::write_temp;
+namespace {
 
 // Runs f and returns the sl::Error message; fails the test on success or on any other exception.
 template <class F>
@@ -136,3 +132,5 @@ TEST(GltfHostileAccessor, ValidTriangleStillLoads) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

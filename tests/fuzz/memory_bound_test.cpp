@@ -28,22 +28,22 @@
 #include "tests/fuzz/hostile_files.h"
 #include "tools/common/config.h"
 
-namespace {
+namespace sl::test {
 
-using namespace sl::fuzz::test;
+namespace {
 constexpr size_t kMiB = size_t{1} << 20;
 
 // Peak heap bytes while f runs; f is expected to throw sl::Error when `must_refuse`.
 template <class F>
 size_t peak_of(F&& f, bool must_refuse = true) {
-  sl::fuzz::reset_peak();
+  sl::test::reset_peak();
   bool refused = false;
   try {
     f();
   } catch (const sl::Error&) {
     refused = true;
   }
-  const size_t peak = sl::fuzz::peak_since_reset();
+  const size_t peak = sl::test::peak_since_reset();
   EXPECT_EQ(refused, must_refuse);
   ::testing::Test::RecordProperty("peak_bytes", std::to_string(peak));  // in --gtest_output=xml
   return peak;
@@ -82,7 +82,7 @@ std::string png_declaring(uint32_t width, uint32_t height, const std::string& de
 class MemoryBound : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (!sl::fuzz::alloc_counter_available()) GTEST_SKIP() << "malloc is owned by a sanitizer in this build";
+    if (!sl::test::alloc_counter_available()) GTEST_SKIP() << "malloc is owned by a sanitizer in this build";
   }
 };
 
@@ -180,3 +180,5 @@ TEST_F(MemoryBound, DeeplyNestedJsonConfigCostsABoundedMultipleOfItsSize) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

@@ -19,6 +19,8 @@ using sl::data::write_image;
 using sl::render::make_box;
 using sl::render::write_glb;
 
+namespace sl::test {
+
 namespace {
 
 std::string corpus(const std::string& target, const std::string& name) {
@@ -28,7 +30,6 @@ std::string corpus(const std::string& target, const std::string& name) {
 }
 
 TEST(FuzzSeeds, DISABLED_WriteSeedsWithOurWriters) {
-  using namespace sl;
   nn::Linear model(2, 3);
   nn::Adam adam(model.named_parameters(), nn::AdamOptions{});
   nn::save_checkpoint(corpus("safetensors", "w_linear_checkpoint.safetensors"), model, nullptr,
@@ -55,3 +56,5 @@ TEST(FuzzSeeds, DISABLED_WriteSeedsWithOurWriters) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

@@ -7,9 +7,11 @@
 
 #include "support/test_util.h"
 
-namespace sl::nn {
+namespace sl::test {
+using nn::conv2d;
+using nn::conv3d;
+
 namespace {
-using sl::test::rand64;
 
 // Direct 2-D convolution by its definition, in double.
 std::vector<double> conv2d_reference(const Tensor& x, const Tensor& w, const Tensor& b, int64_t sh, int64_t sw,
@@ -191,4 +193,4 @@ TEST(Conv, OutputsAndGradientsFiniteForLargeFiniteInputs) {
 }
 
 }  // namespace
-}  // namespace sl::nn
+}  // namespace sl::test

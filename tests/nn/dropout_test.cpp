@@ -6,7 +6,9 @@
 
 #include "support/test_util.h"
 
-namespace sl::nn {
+namespace sl::test {
+using nn::dropout;
+
 namespace {
 
 TEST(Dropout, EvalAndZeroProbabilityReturnTheInput) {
@@ -51,4 +53,4 @@ TEST(Dropout, RejectsProbabilityOutsideZeroOne) {
 }
 
 }  // namespace
-}  // namespace sl::nn
+}  // namespace sl::test

@@ -13,7 +13,32 @@
 #include "nn/modules/resnet.h"
 #include "nn/modules/unet.h"
 
-namespace sl::nn {
+namespace sl::test {
+using nn::AvgPool2d;
+using nn::AvgPool3d;
+using nn::BasicBlock;
+using nn::BatchNorm2d;
+using nn::BatchNorm3d;
+using nn::Conv2d;
+using nn::Conv3d;
+using nn::Dropout;
+using nn::GlobalAvgPool;
+using nn::GroupNorm;
+using nn::InstanceNorm;
+using nn::MLP;
+using nn::MaxPool2d;
+using nn::MaxPool3d;
+using nn::PatchDiscriminator;
+using nn::ResNet;
+using nn::ResNetOutput;
+using nn::StateDict;
+using nn::UNet;
+using nn::UNet2D;
+using nn::UNet3D;
+using nn::Upsample;
+using nn::conv2d;
+using nn::make_norm;
+
 namespace {
 
 std::set<std::string> names_of(const StateDict& s) {
@@ -209,4 +234,4 @@ TEST(PatchDiscriminator, GivesOneLogitPerPatchWithPix2pixNames) {
 }
 
 }  // namespace
-}  // namespace sl::nn
+}  // namespace sl::test

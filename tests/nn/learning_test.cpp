@@ -14,7 +14,19 @@
 #include "util/math.h"
 #include "util/random.h"
 
-namespace sl::nn {
+namespace sl::test {
+using nn::Adam;
+using nn::Conv2d;
+using nn::ConvOptions;
+using nn::Flatten;
+using nn::Linear;
+using nn::MaxPool2d;
+using nn::Module;
+using nn::ReLU;
+using nn::ResNet;
+using nn::Sequential;
+using nn::UNet3D;
+
 namespace {
 
 // A batch of 16×16 dark images, each with one bright Gaussian blob at radius 5 px from the
@@ -114,4 +126,4 @@ TEST(Learning, UNet3DOverfitsOneSmallBatchByTenfold) {
 }
 
 }  // namespace
-}  // namespace sl::nn
+}  // namespace sl::test

@@ -5,9 +5,10 @@
 
 #include "support/test_util.h"
 
-namespace sl::nn {
+namespace sl::test {
+using nn::linear;
+
 namespace {
-using sl::test::rand64;
 
 TEST(Linear, ComputesXTimesWTransposedPlusBias) {
   const Tensor x = Tensor::from_vector({1, 2}, {1, 2}, DType::F64);
@@ -37,4 +38,4 @@ TEST(Linear, ErrorsNameShapes) {
 }
 
 }  // namespace
-}  // namespace sl::nn
+}  // namespace sl::test

@@ -12,7 +12,23 @@
 #include "nn/modules/linear.h"
 #include "nn/modules/mlp.h"
 
-namespace sl::nn {
+namespace sl::test {
+using nn::FanMode;
+using nn::LayerNorm;
+using nn::Linear;
+using nn::MLP;
+using nn::Module;
+using nn::ModuleList;
+using nn::NamedTensors;
+using nn::ReLU;
+using nn::Sequential;
+using nn::StateDict;
+using nn::kaiming_normal_init;
+using nn::kaiming_uniform_init;
+using nn::make_activation;
+using nn::xavier_normal_init;
+using nn::xavier_uniform_init;
+
 namespace {
 
 // A toy block shaped like torchvision's BasicBlock naming: conv1-like Linear, a ModuleList.
@@ -319,4 +335,4 @@ TEST(MLP, BuildsSequentialNamesAndMapsShapes) {
 }
 
 }  // namespace
-}  // namespace sl::nn
+}  // namespace sl::test

@@ -6,9 +6,12 @@
 
 #include "support/test_util.h"
 
-namespace sl::nn {
+namespace sl::test {
+using nn::batch_norm;
+using nn::group_norm;
+using nn::instance_norm;
+
 namespace {
-using sl::test::rand64;
 
 TEST(BatchNorm, GradcheckTrainingAnyRank) {
   for (const Shape& s : {Shape{4, 3}, Shape{2, 3, 4}, Shape{2, 2, 3, 2}, Shape{1, 2, 2, 3, 2}}) {
@@ -74,4 +77,4 @@ TEST(Normalization, ErrorsNameOpAndShapes) {
 }
 
 }  // namespace
-}  // namespace sl::nn
+}  // namespace sl::test

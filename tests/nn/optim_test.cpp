@@ -8,7 +8,20 @@
 #include "nn/lr_schedule.h"
 #include "nn/optim.h"
 
-namespace sl::nn {
+namespace sl::test {
+using nn::Adam;
+using nn::AdamW;
+using nn::ConstantLr;
+using nn::CosineLr;
+using nn::LrSchedule;
+using nn::NamedTensors;
+using nn::Optimizer;
+using nn::SGD;
+using nn::StateDict;
+using nn::StepLr;
+using nn::WarmupLr;
+using nn::clip_grad_norm;
+
 namespace {
 
 const std::vector<double> kP0 = {0.5, -1.25, 2.0};
@@ -186,4 +199,4 @@ TEST(LrSchedule, BadArgumentsThrow) {
 }
 
 }  // namespace
-}  // namespace sl::nn
+}  // namespace sl::test

@@ -8,9 +8,14 @@
 
 #include "support/test_util.h"
 
-namespace sl::nn {
+namespace sl::test {
+using nn::avg_pool2d;
+using nn::avg_pool3d;
+using nn::global_avg_pool;
+using nn::max_pool2d;
+using nn::max_pool3d;
+
 namespace {
-using sl::test::rand64;
 
 // Distinct values spaced far more than the gradcheck eps apart, so no window has a tie.
 Tensor distinct64(const Shape& shape, uint64_t seed) {
@@ -81,4 +86,4 @@ TEST(Pooling, ErrorsNameOpAndShapes) {
 }
 
 }  // namespace
-}  // namespace sl::nn
+}  // namespace sl::test

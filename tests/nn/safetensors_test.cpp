@@ -12,7 +12,19 @@
 #include "nn/modules/mlp.h"
 #include "nn/safetensors.h"
 
-namespace sl::nn {
+namespace sl::test {
+using nn::Adam;
+using nn::CheckpointInfo;
+using nn::Linear;
+using nn::MLP;
+using nn::SafetensorsFile;
+using nn::StateDict;
+using nn::load_checkpoint;
+using nn::read_checkpoint_info;
+using nn::read_safetensors;
+using nn::save_checkpoint;
+using nn::write_safetensors;
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -273,4 +285,4 @@ TEST(Checkpoint, ReservedExtraKeysAndBadStepAreRejected) {
 }
 
 }  // namespace
-}  // namespace sl::nn
+}  // namespace sl::test

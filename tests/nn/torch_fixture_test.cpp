@@ -14,10 +14,25 @@
 #include "nn/functional/upsample.h"
 #include "support/fixture_reader.h"
 
-namespace sl::nn {
+namespace sl::test {
+using nn::avg_pool2d;
+using nn::avg_pool3d;
+using nn::batch_norm;
+using nn::conv2d;
+using nn::conv3d;
+using nn::global_avg_pool;
+using nn::group_norm;
+using nn::instance_norm;
+using nn::linear;
+using nn::max_pool2d;
+using nn::max_pool3d;
+using nn::upsample_bilinear2d;
+using nn::upsample_nearest2d;
+using nn::upsample_nearest3d;
+using nn::upsample_trilinear3d;
+
 namespace {
 using nlohmann::json;
-using sl::test::Fixture;
 
 std::string fixture_path(const std::string& file) {
   return std::string(STREETLIGHT_SOURCE_DIR) + "/tests/fixtures/torch/" + file;
@@ -134,4 +149,4 @@ TEST(TorchFixtures, GridSampleMatchesPyTorch) {
 }
 
 }  // namespace
-}  // namespace sl::nn
+}  // namespace sl::test

@@ -5,9 +5,13 @@
 
 #include "support/test_util.h"
 
-namespace sl::nn {
+namespace sl::test {
+using nn::upsample_bilinear2d;
+using nn::upsample_nearest2d;
+using nn::upsample_nearest3d;
+using nn::upsample_trilinear3d;
+
 namespace {
-using sl::test::rand64;
 
 TEST(Upsample, NearestRepeatsEachPixel) {
   const Tensor x = reshape(Tensor::arange(4, DType::F64), {1, 1, 2, 2});
@@ -48,4 +52,4 @@ TEST(Upsample, ErrorsNameTheOp) {
 }
 
 }  // namespace
-}  // namespace sl::nn
+}  // namespace sl::test

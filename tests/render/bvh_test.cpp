@@ -12,6 +12,8 @@
 
 using sl::render::Bvh;
 
+namespace sl::test {
+
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -309,3 +311,5 @@ TEST(Bvh, RealModelsMatchBruteForce) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

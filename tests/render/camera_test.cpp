@@ -14,6 +14,8 @@
 
 using sl::render::Camera;
 
+namespace sl::test {
+
 namespace {
 
 sl::render::Camera test_camera() {
@@ -162,3 +164,5 @@ TEST(Camera, ScalingIntrinsicsKeepsRaysThroughTheSameImagePoints) {
   const glm::dvec3 b = half.ray(50.0, 100.0).direction;
   EXPECT_NEAR(glm::length(a - b), 0.0, 1e-12);
 }
+
+}  // namespace sl::test

@@ -10,6 +10,8 @@
 #include "util/math.h"
 #include "util/random.h"
 
+namespace sl::test {
+
 namespace {
 
 namespace disney = sl::render::disney;
@@ -378,3 +380,5 @@ TEST(DisneyBrdf, ExactFresnelOptionIsReciprocalAndChangesOnlyTheFresnelTerm) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

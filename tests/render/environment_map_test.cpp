@@ -14,7 +14,7 @@
 using sl::render::env_lookup;
 using sl::render::EnvironmentMap;
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 // A sky with a hard sun: 1 everywhere, `sun` in one texel.
@@ -227,4 +227,4 @@ TEST(EnvLookup, MatchesTheScalarLookupAndIgnoresZeroDirections) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

@@ -14,6 +14,8 @@
 
 using sl::render::Texture;
 
+namespace sl::test {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -335,3 +337,5 @@ TEST(Texture, SamplingIsBilinearWithRepeatWrapping) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

@@ -37,7 +37,7 @@ using sl::render::resize_panorama;
 using sl::render::rotation_from_yaw_pitch_roll;
 using sl::render::VsgGrid;
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 const std::string kData = STREETLIGHT_SHARED_DATA;
@@ -145,4 +145,4 @@ TEST(InsertionConsistency, CompositeMatchesPathTracedFullSceneOnObjectAndShadow)
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

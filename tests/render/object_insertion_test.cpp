@@ -34,7 +34,7 @@ using sl::render::rotation_from_yaw_pitch_roll;
 using sl::render::vsg_activate;
 using sl::render::VsgGrid;
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 // A camera 1.6 m above the ground plane y = 0, looking down −Z and pitched down; the depth map
@@ -323,9 +323,9 @@ TEST(ObjectInsertion, InverseRenderingRecoversSunDirectionAndIntensity) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 // A car-like object: a body raised 0.35 m on four wheels, so the ground under it sees little sky.
@@ -453,9 +453,9 @@ TEST(ObjectInsertion, RadianceCacheIsCloseToExactQueriesAndRefusesGradients) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 // A sky of 0.5 with a sun 2·10^4 brighter whose lobe is about one texel wide (the sky decoder's
@@ -522,4 +522,4 @@ TEST(ObjectInsertion, ShadowLossGradientTurnsTheSunTowardTheTruthWithSkySampling
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

@@ -30,7 +30,7 @@ using sl::render::PathTracerImage;
 using sl::render::PathTracerOptions;
 using sl::render::rotation_from_yaw_pitch_roll;
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 const std::string kData = STREETLIGHT_SHARED_DATA;
@@ -136,4 +136,4 @@ INSTANTIATE_TEST_SUITE_P(HardSunAndSoftSky, PlaneUnderHdri,
                          ::testing::Values("chinese_garden_1k.hdr", "potsdamer_platz_1k.hdr"));
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

@@ -16,6 +16,8 @@
 
 using sl::render::PathTracer;
 
+namespace sl::test {
+
 namespace {
 
 sl::render::EnvironmentMap constant_env(const glm::vec3& L, int width = 16) {
@@ -366,3 +368,5 @@ TEST(Primitives, MeshesAreClosedOutwardFacingAndValid) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

@@ -10,6 +10,8 @@
 #include "util/error.h"
 #include "util/random.h"
 
+namespace sl::test {
+
 namespace {
 
 // A fake renderer: every pixel is `truth` plus Gaussian noise of standard deviation σ/√spp
@@ -98,3 +100,5 @@ TEST(ProgressiveRender, BadBudgetsAreRejected) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

@@ -8,6 +8,8 @@
 
 #include "render/qmc_sampler.h"
 
+namespace sl::test {
+
 namespace {
 
 // The first 2^m points put one point in each 2^a × 2^(m−a) elementary interval, for all a.
@@ -73,3 +75,5 @@ TEST(QmcSampler, PointsAreUniformAndPairsAreDecorrelated) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

@@ -19,7 +19,7 @@ using sl::render::SampleSpacing;
 using sl::render::vsg_activate;
 using sl::render::VsgGrid;
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 VsgGrid small_grid() {
@@ -314,4 +314,4 @@ TEST(RadianceQuery, BadShapesAreErrorsNamingTheInput) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

@@ -1,4 +1,4 @@
-// Helpers shared by the autodiff tests.
+// Helpers shared by the tests: float64 random tensors, finiteness, |·| sums, gradcheck.
 #pragma once
 #include <gtest/gtest.h>
 
@@ -18,6 +18,12 @@ inline bool all_finite(const Tensor& t) {
   for (double v : t.to_vector())
     if (!std::isfinite(v)) return false;
   return true;
+}
+
+inline double abs_sum(const Tensor& t) {
+  double s = 0;
+  for (double v : t.to_vector()) s += std::abs(v);
+  return s;
 }
 
 #define EXPECT_GRADCHECK(fn, ...)                                       \

@@ -9,7 +9,11 @@
 
 #include "util/error.h"
 
-namespace sl::cli {
+namespace sl::test {
+using cli::Config;
+using cli::key_paths;
+using cli::nearest;
+
 namespace {
 
 using json = nlohmann::json;
@@ -132,4 +136,4 @@ TEST(Config, NearestSkipsOnlyDistancesThatCannotWin) {
 }
 
 }  // namespace
-}  // namespace sl::cli
+}  // namespace sl::test

@@ -17,6 +17,8 @@
 #include "train/real_sky_benchmark.h"
 #include "util/math.h"
 
+namespace sl::test {
+
 namespace fs = std::filesystem;
 
 TEST(EvalTool, ReportsTheMetricsOfTables1And2WithARowPerCheckpoint) {
@@ -135,3 +137,5 @@ TEST(EvalTool, BadPanoramaInputIsOneLineNamingTheFileAndWritesNothing) {
   sl::data::write_image(odd + "/square_1k.hdr", sl::Tensor::uniform({3, 32, 32}, 0.1, 1.0, 3));
   expect_error("--data " + odd, "square_1k.hdr");
 }
+
+}  // namespace sl::test

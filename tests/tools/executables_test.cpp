@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <string>
 
+namespace sl::test {
+
 namespace {
 
 struct ProcessResult {
@@ -55,3 +57,5 @@ TEST(Executables, EveryToolAnswersHelpAndRejectsBadFlagsWithExitCode2) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

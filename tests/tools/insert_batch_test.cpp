@@ -17,12 +17,12 @@
 #include "data/kitti_labels.h"
 #include "support/tool_fixture.h"
 
+namespace sl::test {
+
 namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace {
-
-using sl::test::run_tool;
 
 const std::string kBase = " --object procedural:car --aa 1 --light-samples 4 --shadow-rays 8 --shadow-width 16"
                           " --shadow-height 8 ";
@@ -239,3 +239,5 @@ TEST(InsertBatch, AnOutputFolderOfAnotherInputIsRefused) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

@@ -11,11 +11,11 @@
 #include "data/image_io.h"
 #include "support/tool_fixture.h"
 
+namespace sl::test {
+
 namespace fs = std::filesystem;
 
 namespace {
-
-using sl::test::run_tool;
 
 struct InsertCase {
   std::string dir, ckpt, base;
@@ -236,3 +236,5 @@ TEST(InsertTool, MultiViewWithoutAPosePerImageIsAnError) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

@@ -20,7 +20,7 @@ using sl::render::make_icosphere;
 using sl::render::Material;
 using sl::render::write_glb;
 
-namespace sl {
+namespace sl::test {
 namespace {
 
 namespace fs = std::filesystem;
@@ -195,4 +195,4 @@ TEST(RenderTool, BadInputGetsOneErrorLineExitTwoAndNoFile) {
 }
 
 }  // namespace
-}  // namespace sl
+}  // namespace sl::test

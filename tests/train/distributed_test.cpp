@@ -10,7 +10,22 @@
 #include "train/gradient_allreduce.h"
 #include "train/train_config.h"
 
-namespace sl::train {
+namespace sl::test {
+using train::Metrics;
+using train::allreduce_gradients;
+using train::any_rank;
+using train::average_metrics;
+using train::check_replicas;
+using train::check_train_config;
+using train::default_train_config;
+using train::global_share;
+using train::is_distributed;
+using train::is_root;
+using train::resolve_global_batch;
+using train::shard_first_index;
+using train::sum_over_ranks;
+using train::world;
+
 namespace {
 
 TEST(Distributed, OneProcessIsRankZeroOfOne) {
@@ -70,4 +85,4 @@ TEST(Distributed, GlobalBatchSetsThePerRankBatch) {
 }
 
 }  // namespace
-}  // namespace sl::train
+}  // namespace sl::test

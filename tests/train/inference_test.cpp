@@ -21,9 +21,9 @@ using sl::render::Ray;
 using sl::render::rotation_from_yaw_pitch_roll;
 using sl::render::VsgGrid;
 
-namespace {
+namespace sl::test {
 
-using namespace sl;
+namespace {
 using namespace sl::train;
 
 InferenceView view_at(double yaw_deg) {
@@ -122,3 +122,5 @@ TEST(Inference, InsertedObjectMatchesTheWorldPoseWhateverTheCameraYaw) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

@@ -9,7 +9,21 @@
 #include "train/metrics.h"
 #include "util/math.h"
 
-namespace sl::train {
+namespace sl::test {
+using train::angular_error_deg;
+using train::angular_l1;
+using train::depth_consistency;
+using train::discriminator_hinge;
+using train::generator_adversarial;
+using train::log_encoded_l2;
+using train::log_encoded_l2_from_log;
+using train::masked_l1;
+using train::median;
+using train::psnr;
+using train::radiance_l2;
+using train::si_psnr;
+using train::sky_separation_bce;
+
 namespace {
 
 TEST(Losses, LogEncodedL2MatchesHandValue) {
@@ -102,4 +116,4 @@ TEST(Metrics, PsnrAndScaleInvariantPsnr) {
 }
 
 }  // namespace
-}  // namespace sl::train
+}  // namespace sl::test

@@ -25,7 +25,18 @@ using sl::data::StreetSample;
 using sl::render::env_lookup;
 using sl::render::VsgGrid;
 
-namespace sl::train {
+namespace sl::test {
+using train::RealSkyCrop;
+using train::SampleSource;
+using train::StreetBatchOptions;
+using train::StreetItem;
+using train::SunErrorStats;
+using train::constant_baseline_direction;
+using train::make_street_item;
+using train::mixed_source;
+using train::radiance_l2;
+using train::sun_error_stats;
+
 namespace {
 
 Tensor clear_sky(double elevation_deg, double azimuth_deg) {
@@ -108,4 +119,4 @@ TEST(RealSkyBenchmark, BaselineIsTheMeanTrainingSunInTheCropFrame) {
 }
 
 }  // namespace
-}  // namespace sl::train
+}  // namespace sl::test

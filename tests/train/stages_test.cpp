@@ -17,7 +17,25 @@
 using sl::render::InsertionOptions;
 using sl::render::SampleSpacing;
 
-namespace sl::train {
+namespace sl::test {
+using train::LightingStage;
+using train::Metrics;
+using train::NonFiniteError;
+using train::RunOptions;
+using train::RunResult;
+using train::SampleSource;
+using train::SkyAutoencoder;
+using train::SkyStage;
+using train::Stage;
+using train::default_train_config;
+using train::kStageLighting;
+using train::kStageSky;
+using train::request_stop;
+using train::run_training;
+using train::sky_options;
+using train::training_insertion_options;
+using train::volume_query_options;
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -183,9 +201,9 @@ TEST(Trainer, ResumeRejectsACheckpointOfAnotherStage) {
 }
 
 }  // namespace
-}  // namespace sl::train
+}  // namespace sl::test
 
-namespace sl::train {
+namespace sl::test {
 namespace {
 
 // Stage 3 renders with the estimator family inference uses (cosine + sky MIS, the sun
@@ -216,4 +234,4 @@ TEST(TrainConfig, TrainingInsertionUsesSkySamplingAndTheModelsEq1Options) {
 }
 
 }  // namespace
-}  // namespace sl::train
+}  // namespace sl::test

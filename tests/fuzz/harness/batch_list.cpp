@@ -3,7 +3,7 @@
 #include "tests/fuzz/harness/fuzz_harness.h"
 #include "train/batch_list.h"
 
-namespace sl::fuzz {
+namespace sl::test {
 
 void fuzz_batch_list(const uint8_t* data, size_t size) {
   const std::string path = write_scratch("list.json", data, size);
@@ -17,4 +17,4 @@ void fuzz_batch_list(const uint8_t* data, size_t size) {
   });
 }
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

@@ -11,7 +11,7 @@ using sl::data::KittiCalibration;
 using sl::data::read_kitti_calibration;
 using sl::render::Intrinsics;
 
-namespace sl::fuzz {
+namespace sl::test {
 
 namespace {
 void check(const Intrinsics& k, const char* what) {
@@ -35,4 +35,4 @@ void fuzz_calibration_json(const uint8_t* data, size_t size) {
   refuses_cleanly_or_runs(target, [&] { check(train::read_intrinsics(path, 64, 32), "read_intrinsics"); });
 }
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

@@ -9,7 +9,7 @@
 #include "tools/common/config.h"
 #include "train/train_config.h"
 
-namespace sl::fuzz {
+namespace sl::test {
 
 namespace {
 using nlohmann::json;
@@ -58,4 +58,4 @@ void fuzz_config(const uint8_t* data, size_t size) {
   });
 }
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

@@ -19,7 +19,7 @@ using sl::data::write_depth;
 using sl::data::write_image;
 using sl::render::Intrinsics;
 
-namespace sl::fuzz {
+namespace sl::test {
 
 namespace fs = std::filesystem;
 
@@ -76,4 +76,4 @@ void fuzz_dataset(const uint8_t* data, size_t size) {
   });
 }
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

@@ -8,7 +8,7 @@
 
 #include "tests/fuzz/harness/fuzz_harness.h"
 
-namespace sl::fuzz {
+namespace sl::test {
 
 namespace fs = std::filesystem;
 
@@ -62,4 +62,4 @@ std::string write_scratch(const std::string& name, const uint8_t* data, size_t s
   return path.string();
 }
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-namespace sl::fuzz {
+namespace sl::test {
 
 using Harness = void (*)(const uint8_t* data, size_t size);
 
@@ -46,6 +46,6 @@ const std::string& scratch_dir();
 // Writes bytes to scratch_dir()/name (overwriting) and returns the path.
 std::string write_scratch(const std::string& name, const uint8_t* data, size_t size);
 
-}  // namespace sl::fuzz
+}  // namespace sl::test
 
 #include "tests/fuzz/harness/fuzz_harness_impl.h"

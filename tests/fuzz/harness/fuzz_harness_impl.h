@@ -4,7 +4,7 @@
 
 #include "util/error.h"
 
-namespace sl::fuzz {
+namespace sl::test {
 
 template <class F>
 bool refuses_cleanly_or_runs(const char* target, F&& f) {
@@ -20,4 +20,4 @@ bool refuses_cleanly_or_runs(const char* target, F&& f) {
   }
 }
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

@@ -9,7 +9,7 @@
 using sl::render::load_gltf;
 using sl::render::Mesh;
 
-namespace sl::fuzz {
+namespace sl::test {
 
 void fuzz_gltf(const uint8_t* data, size_t size) {
   const bool glb = size >= 4 && std::memcmp(data, "glTF", 4) == 0;
@@ -24,4 +24,4 @@ void fuzz_gltf(const uint8_t* data, size_t size) {
   });
 }
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

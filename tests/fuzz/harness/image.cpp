@@ -12,7 +12,7 @@ using sl::data::read_depth;
 using sl::data::read_image;
 using sl::data::read_image_info;
 
-namespace sl::fuzz {
+namespace sl::test {
 
 namespace {
 constexpr int64_t kFuzzMaxDecodedValues = int64_t{1} << 20;
@@ -49,4 +49,4 @@ void fuzz_image(const uint8_t* data, size_t size) {
     });
 }
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

@@ -18,7 +18,7 @@ using sl::data::read_velodyne;
 using sl::render::Intrinsics;
 using sl::render::kitti_projection_from_values;
 
-namespace sl::fuzz {
+namespace sl::test {
 
 namespace {
 
@@ -78,4 +78,4 @@ void fuzz_kitti(const uint8_t* data, size_t size) {
   }
 }
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

@@ -8,7 +8,7 @@
 using sl::render::Ray;
 using sl::render::read_ray_file;
 
-namespace sl::fuzz {
+namespace sl::test {
 
 void fuzz_rays(const uint8_t* data, size_t size) {
   const std::string path = write_scratch("rays.bin", data, size);
@@ -21,4 +21,4 @@ void fuzz_rays(const uint8_t* data, size_t size) {
   });
 }
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

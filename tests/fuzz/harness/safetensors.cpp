@@ -9,7 +9,7 @@
 #include "nn/safetensors.h"
 #include "tests/fuzz/harness/fuzz_harness.h"
 
-namespace sl::fuzz {
+namespace sl::test {
 
 void fuzz_safetensors(const uint8_t* data, size_t size) {
   const char* target = "safetensors";
@@ -36,4 +36,4 @@ void fuzz_safetensors(const uint8_t* data, size_t size) {
   });
 }
 
-}  // namespace sl::fuzz
+}  // namespace sl::test

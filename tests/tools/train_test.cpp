@@ -9,6 +9,8 @@
 #include <fstream>
 #include <sstream>
 
+namespace sl::test {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -61,3 +63,5 @@ TEST(TrainExecutable, WrongValueTypeAndBadStageAreErrors) {
 }
 
 }  // namespace
+
+}  // namespace sl::test

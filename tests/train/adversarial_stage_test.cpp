@@ -32,7 +32,22 @@ using sl::render::Placement;
 using sl::render::VsgGrid;
 using sl::render::write_glb;
 
-namespace sl::train {
+namespace sl::test {
+using train::AdversarialStage;
+using train::LightingPrediction;
+using train::LightingPredictor;
+using train::LightingPredictorOptions;
+using train::LightingStage;
+using train::Metrics;
+using train::SampleSource;
+using train::SkyAutoencoderOptions;
+using train::default_train_config;
+using train::discriminator_hinge;
+using train::generator_adversarial;
+using train::kStageAdversarial;
+using train::ldr_from_hdr;
+using train::unproject_rgba;
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -228,4 +243,4 @@ TEST(AdversarialStage, UnderTrueLightingTheDiscriminatorStaysAtChance) {
 }
 
 }  // namespace
-}  // namespace sl::train
+}  // namespace sl::test

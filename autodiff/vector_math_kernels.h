@@ -1,7 +1,7 @@
 // The algorithms behind vector_math.h, written once over a SIMD wrapper (internal).
 //
-// Each ISA translation unit (vector_math_{scalar,avx2,avx512}.cpp) defines a float wrapper V and
-// a double wrapper VD with the same static operations and includes this header; every function
+// Each ISA translation unit (vector_math_{scalar,avx2,avx512}.cpp) instantiates the one lane
+// wrapper of vector_math_lanes.h at its width (V: float lanes, VD: double lanes); every function
 // below is a fixed sequence of IEEE operations (fma where written, never contracted otherwise:
 // these units build with -ffp-contract=off), so all levels agree bit for bit.
 //

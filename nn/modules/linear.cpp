@@ -26,9 +26,4 @@ Tensor Linear::forward(const Tensor& x) {
   return linear(x, parameter("weight"), has_bias_ ? parameter("bias") : Tensor());
 }
 
-Tensor Flatten::forward(const Tensor& x) {
-  SL_CHECK(x.dim() > start_dim_, "Flatten(", start_dim_, "): input ", x.describe(), " has too few dims");
-  return flatten(x, start_dim_, -1);
-}
-
 }  // namespace sl::nn

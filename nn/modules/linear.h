@@ -1,10 +1,9 @@
-// Linear and Flatten modules.
+// The Linear module.
 //
 // Contract:
 // - Linear(in, out, bias): parameters `weight` [out, in] and (when bias) `bias` [out], PyTorch
 //   names and layout, initialised as torch.nn.Linear (U(±1/sqrt(in)) for both). forward maps
 //   x [..., in] to [..., out]; a last dim other than `in` throws naming the layer's shape.
-// - Flatten(start_dim = 1): x [N, ...] -> [N, Π...] as torch.nn.Flatten.
 #pragma once
 #include "nn/module.h"
 
@@ -23,15 +22,6 @@ class Linear : public Module {
  private:
   int64_t in_, out_;
   bool has_bias_;
-};
-
-class Flatten : public Module {
- public:
-  explicit Flatten(int64_t start_dim = 1) : Module("Flatten"), start_dim_(start_dim) {}
-  Tensor forward(const Tensor& x) override;
-
- private:
-  int64_t start_dim_;
 };
 
 }  // namespace sl::nn

@@ -133,7 +133,10 @@ TEST(AdversarialStage, StepsRunAndTheDiscriminatorLearns) {
   c["insertion"]["shadow_height"] = 8;
   c["insertion"]["shadow_rays"] = 4;
   c["train"]["batch_size"] = 1;
-  c["optim"]["discriminator_lr"] = 1e-2;
+  // 3e-3: at 1e-2 Adam's first steps throw D past the hinge margin and d_loss oscillates
+  // (2.00 -> 2.83 -> 1.99 ... 2.80 -> 1.98), so last < first held or failed by the build's
+  // rounding; from 2e-3 to 4e-3 it falls steadily (2.00 -> 1.65 at 3e-3).
+  c["optim"]["discriminator_lr"] = 3e-3;
   c["optim"]["lr"] = 1e-3;
   c["insertion"]["real"] = "path_traced";  // the fixture's truth lacks the object: a separable pair
   auto make = [&](size_t i, uint64_t) {

@@ -1,0 +1,48 @@
+// Stage 3's insertion options from a train config, and configs written before their keys existed.
+#include "train/train_config.h"
+
+#include <gtest/gtest.h>
+
+#include "render/object_insertion.h"
+#include "render/radiance_query.h"
+#include "util/error.h"
+
+using sl::render::InsertionOptions;
+using sl::render::SampleSpacing;
+
+namespace sl::test {
+using train::default_train_config;
+using train::training_insertion_options;
+using train::volume_query_options;
+
+namespace {
+
+// Stage 3 renders with the estimator family inference uses (cosine + sky MIS, the sun
+// included) and with Eq. 1 from model.volume; configs written before these keys existed keep
+// what they trained with (cosine samples, metric spacing).
+TEST(TrainConfig, TrainingInsertionUsesSkySamplingAndTheModelsEq1Options) {
+  nlohmann::json c = default_train_config();
+  const InsertionOptions o = training_insertion_options(c, 7);
+  EXPECT_TRUE(o.importance_sampling);
+  EXPECT_EQ(o.seed, 7u);
+  EXPECT_EQ(o.query.samples, c.at("model").at("volume").at("samples").get<int>());
+  EXPECT_EQ(o.query.spacing, SampleSpacing::kGrid);
+  EXPECT_EQ(o.shadow_rays, c.at("insertion").at("shadow_rays").get<int>());
+  c["insertion"].erase("importance_sampling");
+  c["model"]["volume"].erase("spacing");
+  c["model"]["volume"]["trilinear"] = true;
+  const InsertionOptions old = training_insertion_options(c, 7);
+  EXPECT_FALSE(old.importance_sampling);
+  EXPECT_EQ(old.query.spacing, SampleSpacing::kMetric);
+  EXPECT_TRUE(old.query.trilinear);
+  c["model"]["volume"]["spacing"] = "log";
+  try {
+    (void)volume_query_options(c);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("model.volume.spacing"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace sl::test

@@ -1,0 +1,114 @@
+// The training loop: bit-identical resume after a SIGINT-style stop, the non-finite guard, and a
+// checkpoint of another stage refused on resume.
+#include "train/trainer.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "support/tiny_stage.h"
+#include "train/lighting_stage.h"
+#include "train/sky_stage.h"
+#include "util/error.h"
+
+namespace sl::test {
+using train::LightingStage;
+using train::Metrics;
+using train::NonFiniteError;
+using train::RunOptions;
+using train::RunResult;
+using train::SkyStage;
+using train::Stage;
+using train::kStageLighting;
+using train::kStageSky;
+using train::request_stop;
+using train::run_training;
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<double> run_losses(Stage& stage, const nlohmann::json& c, const std::string& out, const std::string& resume,
+                               int64_t stop_at) {
+  std::vector<double> losses;
+  RunOptions o;
+  o.out_dir = out;
+  o.resume = resume;
+  o.on_step = [&](int64_t done, int64_t, const Metrics& m) {
+    losses.push_back(m.at("loss"));
+    if (done == stop_at) request_stop();
+  };
+  const RunResult r = run_training(stage, c, o);
+  EXPECT_EQ(r.interrupted, stop_at > 0);
+  return losses;
+}
+
+TEST(Trainer, SkyResumeIsBitIdentical) {
+  const nlohmann::json c = tiny_config(kStageSky);
+  const std::string a = temp_dir("resume_sky_a"), b = temp_dir("resume_sky_b");
+  SkyStage full(c);
+  const std::vector<double> all = run_losses(full, c, a, "", 0);
+  ASSERT_EQ(all.size(), 6u);
+  SkyStage first(c);
+  const std::vector<double> head = run_losses(first, c, b, "", 2);  // SIGINT-style stop after step 2
+  ASSERT_EQ(head.size(), 2u);
+  SkyStage second(c);
+  const std::vector<double> tail = run_losses(second, c, b, b + "/last.safetensors", 0);
+  ASSERT_EQ(tail.size(), 4u);
+  for (size_t i = 0; i < 2; ++i) EXPECT_EQ(head[i], all[i]) << i;
+  for (size_t i = 0; i < 4; ++i) EXPECT_EQ(tail[i], all[i + 2]) << "step " << i + 3;
+  EXPECT_TRUE(fs::exists(a + "/best.safetensors"));
+  EXPECT_TRUE(fs::exists(a + "/metrics.jsonl"));
+}
+
+TEST(Trainer, LightingResumeIsBitIdentical) {
+  const std::string dir = temp_dir("resume_light");
+  nlohmann::json c = tiny_config(kStageLighting);
+  c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  c["train"]["steps"] = 4;
+  c["train"]["batch_size"] = 1;
+  LightingStage full(c, memory_source(3), memory_source(1));
+  const std::vector<double> all = run_losses(full, c, dir + "/a", "", 0);
+  LightingStage first(c, memory_source(3), memory_source(1));
+  run_losses(first, c, dir + "/b", "", 2);
+  LightingStage second(c, memory_source(3), memory_source(1));
+  const std::vector<double> tail = run_losses(second, c, dir + "/b", dir + "/b/last.safetensors", 0);
+  ASSERT_EQ(tail.size(), 2u);
+  EXPECT_EQ(tail[0], all[2]);
+  EXPECT_EQ(tail[1], all[3]);
+}
+
+TEST(Trainer, NonFiniteLossNamesTheLossAndStepAndKeepsTheCheckpoint) {
+  nlohmann::json c = tiny_config(kStageSky);
+  c["loss"]["ae_hdr"] = std::numeric_limits<double>::infinity();  // forces an infinite total
+  const std::string out = temp_dir("nonfinite");
+  SkyStage stage(c);
+  RunOptions o;
+  o.out_dir = out;
+  try {
+    run_training(stage, c, o);
+    FAIL() << "expected NonFiniteError";
+  } catch (const NonFiniteError& e) {
+    EXPECT_NE(std::string(e.what()).find("'loss'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("step 0"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(out + "/last.safetensors"));
+}
+
+TEST(Trainer, ResumeRejectsACheckpointOfAnotherStage) {
+  const std::string dir = temp_dir("wrong_stage");
+  nlohmann::json c = tiny_config(kStageLighting);
+  const std::string sky = save_sky_checkpoint(c, dir);
+  c["init"]["sky_checkpoint"] = sky;
+  LightingStage stage(c, memory_source(1), memory_source(1));
+  RunOptions o;
+  o.out_dir = dir;
+  o.resume = sky;
+  EXPECT_THROW(run_training(stage, c, o), Error);
+}
+
+}  // namespace
+}  // namespace sl::test

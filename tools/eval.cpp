@@ -469,7 +469,7 @@ int run(int argc, char** argv) {
               "(models/streetlight.safetensors).",
               {{"--checkpoint", "CKPT", "checkpoint to evaluate (one table row each; default: the released model)", true},
                {"--name", "NAME", "row name for the matching --checkpoint (default: its file path)", true},
-               {"--data", "DIR", "street dataset (index.json) or folder of .hdr/.exr panoramas (repeatable)", true},
+               {"--data", "DIR", "street dataset (index.json) or folder of .hdr/.exr panoramas", true},
                {"--split", "NAME", "dataset split, or the split of --hdri-split (default test)"},
                {"--hdri-split", "FILE", "split file for panorama folders (e.g. configs/hdri_split.json)"},
                {"--crops", "K", "perspective crops per real panorama (default 8)"},

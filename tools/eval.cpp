@@ -225,6 +225,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   LightingEstimator est(ckpt);
   std::vector<double> sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, ms, oracle_psnr, oracle_ratio;
   std::map<std::string, std::vector<double>> budget_err, budget_ms;
+  int64_t oracle_probes = 0;  // oracle samples lit by the light probe at the object
   const bool street = fs::exists(fs::path(data) / "index.json");
   size_t count = 0;
   if (street) {
@@ -259,13 +260,16 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
           if (sc.valid) ins_psnr.push_back(sc.psnr), ins_ratio.push_back(sc.shadow_ratio_error);
           if (oracle) {
             // Oracle lighting: the same renderer and options under the generator's own HDR
-            // panorama at the camera (distant light, exposure-normalised, in the canonical
-            // frame) — what is left is the renderer's error, not the lighting's.
+            // panorama (distant light, exposure-normalised, in the canonical frame): the light
+            // probe at the object when the dataset has one (datagen insertion.light_probe), else
+            // the panorama at the camera. What is left is the renderer's error, not the lighting's.
             EstimatedLighting truth = l;
-            truth.env = l.frame.panorama(mul_scalar(s.pano_hdr.contiguous(), s.exposure)).contiguous();
+            const bool probe = s.insert_light_probe_hdr.defined();
+            truth.env = l.frame.panorama(mul_scalar((probe ? s.insert_light_probe_hdr : s.pano_hdr).contiguous(), s.exposure))
+                            .contiguous();
             truth.vsg = Tensor();
             const InsertionScore oc = score_insertion(truth, s, it->second, o);
-            if (oc.valid) oracle_psnr.push_back(oc.psnr), oracle_ratio.push_back(oc.shadow_ratio_error);
+            if (oc.valid) oracle_psnr.push_back(oc.psnr), oracle_ratio.push_back(oc.shadow_ratio_error), oracle_probes += probe;
           }
           if (plot)
             for (Budget b : budgets()) {
@@ -330,7 +334,10 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
             {"inference_ms", mean_of(ms)}};
   if (!oracle_psnr.empty())
     r["oracle"] = {{"insertion_psnr", mean_of(oracle_psnr)}, {"shadow_ratio_error", mean_of(oracle_ratio)},
-                   {"insertion_samples", oracle_psnr.size()}};
+                   {"insertion_samples", oracle_psnr.size()},
+                   {"light", oracle_probes == static_cast<int64_t>(oracle_psnr.size()) ? "probe at the object"
+                             : oracle_probes == 0                                      ? "panorama at the camera"
+                                                                                       : "mixed"}};
   if (!ins_psnr.empty()) {
     r["insertion_psnr"] = mean_of(ins_psnr);
     r["shadow_ratio_error"] = mean_of(ins_ratio);
@@ -413,7 +420,8 @@ std::string markdown(const std::vector<json>& rows, const std::vector<std::strin
     }
     for (const auto& r : rows)
       if (r.contains("oracle"))
-        md << "| oracle lighting (the generator's HDR panorama at the camera) | — | — | — | — | — | — | — | "
+        md << "| oracle lighting (the generator's HDR " << r["oracle"].value("light", "panorama at the camera")
+           << ") | — | — | — | — | — | — | — | "
            << fmt(r["oracle"], "insertion_psnr") << " | " << fmt(r["oracle"], "shadow_ratio_error", 3) << " | — |\n";
   }
   if (any_sky) {

@@ -41,26 +41,25 @@ inline PreparedRay prepare(const Ray& ray) {
             std::isfinite(r.o[0] + r.o[1] + r.o[2]) && (ad[0] > 0 || ad[1] > 0 || ad[2] > 0) &&
             !std::isnan(ray.tmin) && !std::isnan(ray.tmax);
   if (!r.valid) return r;
-  // kz: the dominant axis; swapping kx and ky when d[kz] < 0 keeps the winding (paper, Fig. 2).
-  // Written with selects rather than branches: random directions would mispredict them.
-  const int k01 = ad[0] > ad[1] ? 0 : 1;
-  r.kz = ad[k01] > ad[2] ? k01 : 2;
-  const int kx = r.kz == 2 ? 0 : r.kz + 1, ky = kx == 2 ? 0 : kx + 1;
-  const bool flip = d[r.kz] < 0.0f;
-  r.kx = flip ? ky : kx;
-  r.ky = flip ? kx : ky;
+  // 1/d first: the box tests need only it, so they need not wait for the axis choice below.
 #if defined(__AVX2__)
-  // One vector division gives 1/d (whose kz lane is sz) and the shears d[kx]/d[kz], d[ky]/d[kz].
-  alignas(32) float q[8];
-  const __m256 num = _mm256_setr_ps(1.0f, 1.0f, 1.0f, d[r.kx], d[r.ky], 1.0f, 1.0f, 1.0f);
-  const __m256 den = _mm256_setr_ps(d[0], d[1], d[2], d[r.kz], d[r.kz], 1.0f, 1.0f, 1.0f);
-  _mm256_store_ps(q, _mm256_div_ps(num, den));
-  r.inv[0] = q[0], r.inv[1] = q[1], r.inv[2] = q[2], r.sx = q[3], r.sy = q[4];
+  alignas(16) float q[4];
+  _mm_store_ps(q, _mm_div_ps(_mm_set1_ps(1.0f), _mm_setr_ps(d[0], d[1], d[2], 1.0f)));
+  r.inv[0] = q[0], r.inv[1] = q[1], r.inv[2] = q[2];
 #else
   for (int k = 0; k < 3; ++k) r.inv[k] = 1.0f / d[k];
+#endif
+  // kz: the dominant axis; swapping kx and ky when d[kz] < 0 keeps the winding (paper, Fig. 2).
+  // Integer arithmetic on comparison results and a table: random directions would mispredict
+  // branches, and compilers turn the equivalent ternaries on indexed floats into branches.
+  const int k01 = static_cast<int>(!(ad[0] > ad[1]));  // ad[k01] = max(ad[0], ad[1])
+  r.kz = k01 + static_cast<int>(!(std::max(ad[0], ad[1]) > ad[2])) * (2 - k01);
+  static constexpr int8_t kAxes[3][2][2] = {{{1, 2}, {2, 1}}, {{2, 0}, {0, 2}}, {{0, 1}, {1, 0}}};  // [kz][flip]
+  const int flip = static_cast<int>(d[r.kz] < 0.0f);
+  r.kx = kAxes[r.kz][flip][0];
+  r.ky = kAxes[r.kz][flip][1];
   r.sx = d[r.kx] / d[r.kz];
   r.sy = d[r.ky] / d[r.kz];
-#endif
   r.sz = r.inv[r.kz];
   r.ox = r.o[r.kx], r.oy = r.o[r.ky], r.oz = r.o[r.kz];
   for (int k = 0; k < 3; ++k) {

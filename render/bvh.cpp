@@ -367,8 +367,11 @@ inline Hit Bvh::traverse(const Ray& ray) const {
           const bool leaf = BvhNode::is_leaf(c);
           const char* p = leaf ? reinterpret_cast<const char*>(&blocks_[BvhNode::leaf_block(c)])
                                : reinterpret_cast<const char*>(&nodes_[c]);
-          const int bytes = leaf ? sizeof(TriangleBlock) : sizeof(BvhNode);
-          for (int line = 0; line < bytes; line += 64) __builtin_prefetch(p + line);
+          // Five lines cover a block (4.5 lines) or a node (4, then the next node's first): a fixed
+          // count, as a loop over the size would mispredict its exit (prefetches never fault).
+          static_assert(sizeof(TriangleBlock) <= 5 * 64 && sizeof(BvhNode) <= 5 * 64);
+          __builtin_prefetch(p), __builtin_prefetch(p + 64), __builtin_prefetch(p + 128);
+          __builtin_prefetch(p + 192), __builtin_prefetch(p + 256);
         }
         if (!(mask & (mask - 1))) {
           ref = n.child[__builtin_ctz(mask)];

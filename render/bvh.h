@@ -2,7 +2,9 @@
 //
 // Build (bvh_build.cpp): binned SAH (Wald 2007) over all three axes with kBins bins, grown
 // directly into an 8-wide tree: a node repeatedly splits its child of largest surface area until
-// it has kWidth children (the collapse of Wald, Benthin & Boulos 2008, done while building).
+// it has kWidth children (the collapse of Wald, Benthin & Boulos 2008, done while building). A
+// split that fills a free slot is judged by the SAH without a traversal cost, since one more box
+// in a node already being tested costs nothing, so nodes are fuller and leaves smaller.
 // Subtrees are built as OpenMP tasks; the tree does not depend on the schedule. The result is laid
 // out depth-first: nodes store their children's boxes as structure-of-arrays, so one node is
 // tested against a ray with a few 8-wide vector instructions. Leaves hold at most kMaxLeafSize

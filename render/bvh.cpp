@@ -20,9 +20,15 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 
 // ---------------------------------------------------------------- ray set-up (Woop et al. 2013)
 
+// Box exits are computed with 1/d times 1 + 2γ₄, γₙ = nε/(1 - nε), ε = 2⁻²⁴: pbrt-v3 §3.9.2
+// (Bounds3::IntersectP) scales the exit by 1 + 2γ₃ after the fact; folding the scale into 1/d takes
+// it off each node test's critical path, and γ₄ covers the one more rounding of (1/d)·scale.
+constexpr float kFarScale = 1.0f + 2.0f * (4.0f * 0x1p-24f) / (1.0f - 4.0f * 0x1p-24f);
+
 struct PreparedRay {
   float o[3];          // origin
   float inv[3];        // 1 / direction (±∞ for a zero component)
+  float inv_far[3];    // inv · kFarScale, for box exits
   int near_row[3];     // row of BvhNode::bounds holding each axis' entry plane: lo (k) or hi (3 + k)
   int far_row[3];      // and its exit plane
   float ox, oy, oz;    // origin permuted to (kx, ky, kz)
@@ -61,6 +67,7 @@ inline PreparedRay prepare(const Ray& ray) {
   r.sx = d[r.kx] / d[r.kz];
   r.sy = d[r.ky] / d[r.kz];
   r.sz = r.inv[r.kz];
+  for (int k = 0; k < 3; ++k) r.inv_far[k] = r.inv[k] * kFarScale;
   r.ox = r.o[r.kx], r.oy = r.o[r.ky], r.oz = r.o[r.kz];
   for (int k = 0; k < 3; ++k) {
     r.near_row[k] = std::signbit(r.inv[k]) ? 3 + k : k;
@@ -108,8 +115,6 @@ inline bool hit_triangle(const PreparedRay& r, const Triangle& tri, float tmax, 
   return true;
 }
 
-// 1 + 2γ₃ with γₙ = nε/(1 - nε), ε = 2⁻²⁴ (pbrt-v3 §3.9.2, used in Bounds3::IntersectP).
-constexpr float kFarScale = 1.0f + 2.0f * (3.0f * 0x1p-24f) / (1.0f - 3.0f * 0x1p-24f);
 constexpr int kW = BvhNode::kWidth;
 constexpr int kB = Bvh::kBlockWidth;
 
@@ -124,13 +129,15 @@ struct BlockHits {
 static_assert(kW == 8 && kB == 8, "the vector tests below are written for 8 lanes");
 
 struct SimdRay {
-  __m256 o[3], inv[3], tmin;
+  __m256 o[3], inv[3], inv_far[3], tmin;
   __m256 sx, sy, sz;
 };
 
 inline SimdRay simd_ray(const PreparedRay& r) {
   SimdRay s;
-  for (int k = 0; k < 3; ++k) s.o[k] = _mm256_set1_ps(r.o[k]), s.inv[k] = _mm256_set1_ps(r.inv[k]);
+  for (int k = 0; k < 3; ++k) {
+    s.o[k] = _mm256_set1_ps(r.o[k]), s.inv[k] = _mm256_set1_ps(r.inv[k]), s.inv_far[k] = _mm256_set1_ps(r.inv_far[k]);
+  }
   s.tmin = _mm256_set1_ps(r.tmin);
   s.sx = _mm256_set1_ps(r.sx), s.sy = _mm256_set1_ps(r.sy), s.sz = _mm256_set1_ps(r.sz);
   return s;
@@ -144,11 +151,11 @@ inline unsigned hit_children(const BvhNode& n, const PreparedRay& r, const SimdR
   __m256 near = s.tmin, far = _mm256_set1_ps(kInf);
   for (int k = 0; k < 3; ++k) {
     const __m256 tn = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.bounds[r.near_row[k]]), s.o[k]), s.inv[k]);
-    const __m256 tf = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.bounds[r.far_row[k]]), s.o[k]), s.inv[k]);
+    const __m256 tf = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.bounds[r.far_row[k]]), s.o[k]), s.inv_far[k]);
     near = _mm256_max_ps(tn, near);
     far = _mm256_min_ps(tf, far);
   }
-  far = _mm256_min_ps(_mm256_mul_ps(far, _mm256_set1_ps(kFarScale)), _mm256_set1_ps(tmax));
+  far = _mm256_min_ps(far, _mm256_set1_ps(tmax));
   _mm256_store_ps(tnear, near);
   return static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(near, far, _CMP_LE_OQ)));
 }
@@ -226,14 +233,14 @@ inline unsigned hit_children(const BvhNode& n, const PreparedRay& r, const SimdR
     const float* lo = n.bounds[r.near_row[k]];
     const float* hi = n.bounds[r.far_row[k]];
     for (int i = 0; i < kW; ++i) {
-      const float tn = (lo[i] - r.o[k]) * r.inv[k], tf = (hi[i] - r.o[k]) * r.inv[k];
+      const float tn = (lo[i] - r.o[k]) * r.inv[k], tf = (hi[i] - r.o[k]) * r.inv_far[k];
       tnear[i] = tnear[i] < tn ? tn : tnear[i];  // NaN entry: keeps tnear
       far[i] = tf < far[i] ? tf : far[i];        // NaN exit: keeps far
     }
   }
   unsigned mask = 0;
   for (int i = 0; i < kW; ++i) {
-    const float limit = far[i] * kFarScale < tmax ? far[i] * kFarScale : tmax;
+    const float limit = far[i] < tmax ? far[i] : tmax;
     mask |= static_cast<unsigned>(tnear[i] <= limit) << i;
   }
   return mask;

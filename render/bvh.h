@@ -14,7 +14,7 @@
 // through an edge or vertex shared by two triangles hits at least one of them, never slips
 // between. Every lane of the vector test performs the same IEEE operations, in the same order,
 // as the scalar test of intersect_brute_force. Child boxes are tested with a precomputed inverse
-// direction and far distances widened by 1 + 2γ₃ (pbrt §6.8.2), so a triangle hit is never
+// direction and far distances widened by 1 + 2γ₄ (pbrt §6.8.2), so a triangle hit is never
 // culled by box rounding. Closest-hit visits children nearest first and skips deferred subtrees
 // that start beyond the nearest hit so far; occlusion stops at the first hit it finds.
 // Guarantees:

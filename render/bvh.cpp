@@ -123,25 +123,28 @@ struct BlockHits {
   alignas(32) float t[kB], e1[kB], e2[kB], inv_det[kB];
 };
 
+// Two sets of box and triangle tests, each in its namespace with its own SimdRay, so the
+// traversal below picks a set by the SimdRay type it is instantiated with (overloads found
+// through the argument's namespace): AVX2 intrinsics when compiled for AVX2, and portable lane
+// loops, always compiled, which Bvh::use_portable_kernels selects at run time.
 #if defined(__AVX2__)
 // ---------------------------------------------------------------- vector tests
+namespace avx2 {
 
 static_assert(kW == 8 && kB == 8, "the vector tests below are written for 8 lanes");
 
 struct SimdRay {
   __m256 o[3], inv[3], inv_far[3], tmin;
   __m256 sx, sy, sz;
-};
 
-inline SimdRay simd_ray(const PreparedRay& r) {
-  SimdRay s;
-  for (int k = 0; k < 3; ++k) {
-    s.o[k] = _mm256_set1_ps(r.o[k]), s.inv[k] = _mm256_set1_ps(r.inv[k]), s.inv_far[k] = _mm256_set1_ps(r.inv_far[k]);
+  explicit SimdRay(const PreparedRay& r) {
+    for (int k = 0; k < 3; ++k) {
+      o[k] = _mm256_set1_ps(r.o[k]), inv[k] = _mm256_set1_ps(r.inv[k]), inv_far[k] = _mm256_set1_ps(r.inv_far[k]);
+    }
+    tmin = _mm256_set1_ps(r.tmin);
+    sx = _mm256_set1_ps(r.sx), sy = _mm256_set1_ps(r.sy), sz = _mm256_set1_ps(r.sz);
   }
-  s.tmin = _mm256_set1_ps(r.tmin);
-  s.sx = _mm256_set1_ps(r.sx), s.sy = _mm256_set1_ps(r.sy), s.sz = _mm256_set1_ps(r.sz);
-  return s;
-}
+};
 
 // Slab test of all children. Returns the mask of children whose [tnear, tfar] meets
 // [tmin, tmax] and stores their entry distances. A zero direction component gives 0·∞ = NaN
@@ -219,11 +222,15 @@ inline unsigned hit_block(const Bvh::TriangleBlock& b, const PreparedRay& r, con
   return mask;
 }
 
-#else
-// ---------------------------------------------------------------- portable fallback
+}  // namespace avx2
+#endif
 
-struct SimdRay {};
-inline SimdRay simd_ray(const PreparedRay&) { return {}; }
+// ---------------------------------------------------------------- portable fallback
+namespace portable {
+
+struct SimdRay {
+  explicit SimdRay(const PreparedRay&) {}
+};
 
 // The same tests as lane loops without branches, which compilers vectorise for SSE.
 inline unsigned hit_children(const BvhNode& n, const PreparedRay& r, const SimdRay&, float tmax, float* tnear) {
@@ -279,6 +286,13 @@ inline unsigned hit_block(const Bvh::TriangleBlock& b, const PreparedRay& r, con
   }
   return mask & lanes;
 }
+
+}  // namespace portable
+
+#if defined(__AVX2__)
+using BestSimdRay = avx2::SimdRay;
+#else
+using BestSimdRay = portable::SimdRay;
 #endif
 
 struct StackEntry {
@@ -320,7 +334,7 @@ inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const flo
 
 // Tests the triangles of leaf `ref`. Closest-hit narrows tmax to each closer hit and records
 // it in `hit` and `slot` (block * kBlockWidth + lane); any-hit returns true at the first hit.
-template <bool kAnyHit>
+template <bool kAnyHit, class SimdRay>
 inline bool hit_leaf(const Bvh::TriangleBlock* blocks, uint32_t ref, const PreparedRay& r, const SimdRay& s,
                      float& tmax, Hit& hit, uint32_t& slot) {
   const uint32_t block = BvhNode::leaf_block(ref), count = BvhNode::leaf_count(ref);
@@ -350,13 +364,13 @@ inline bool hit_leaf(const Bvh::TriangleBlock* blocks, uint32_t ref, const Prepa
 
 }  // namespace
 
-template <bool kAnyHit>
+template <bool kAnyHit, class SimdRay>
 inline Hit Bvh::traverse(const Ray& ray) const {
   Hit hit;
   if (nodes_.empty()) return hit;
   const PreparedRay r = prepare(ray);
   if (!r.valid) return hit;
-  const SimdRay s = simd_ray(r);
+  const SimdRay s(r);
   float tmax = ray.tmax;
   uint32_t slot = Hit::kNone;  // block * kBlockWidth + lane of the closest hit so far
   StackEntry stack[(kW - 1) * kMaxDepth + 1];  // each level defers at most kWidth − 1 children
@@ -412,19 +426,23 @@ inline Hit Bvh::traverse(const Ray& ray) const {
   }
 }
 
-Hit Bvh::intersect(const Ray& ray) const { return traverse<false>(ray); }
-bool Bvh::occluded(const Ray& ray) const { return traverse<true>(ray).hit(); }
+Hit Bvh::intersect(const Ray& ray) const {
+  return portable_kernels_ ? traverse<false, portable::SimdRay>(ray) : traverse<false, BestSimdRay>(ray);
+}
+bool Bvh::occluded(const Ray& ray) const {
+  return (portable_kernels_ ? traverse<true, portable::SimdRay>(ray) : traverse<true, BestSimdRay>(ray)).hit();
+}
 
 void Bvh::intersect(const Ray* rays, Hit* hits, size_t count) const {
   const int64_t n = static_cast<int64_t>(count);
 #pragma omp parallel for schedule(dynamic, 64)
-  for (int64_t i = 0; i < n; ++i) hits[i] = traverse<false>(rays[i]);
+  for (int64_t i = 0; i < n; ++i) hits[i] = intersect(rays[i]);
 }
 
 void Bvh::occluded(const Ray* rays, uint8_t* occluded, size_t count) const {
   const int64_t n = static_cast<int64_t>(count);
 #pragma omp parallel for schedule(dynamic, 64)
-  for (int64_t i = 0; i < n; ++i) occluded[i] = traverse<true>(rays[i]).hit() ? 1 : 0;
+  for (int64_t i = 0; i < n; ++i) occluded[i] = this->occluded(rays[i]) ? 1 : 0;
 }
 
 Hit intersect_brute_force(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>& triangles,

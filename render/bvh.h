@@ -26,7 +26,9 @@
 //   - a ray with a zero or non-finite direction, or a NaN origin, misses;
 //   - an empty mesh gives an empty BVH in which every ray misses;
 //   - results do not depend on the thread count (queries are independent per ray, and the
-//     tree does not depend on how the build was scheduled).
+//     tree does not depend on how the build was scheduled);
+//   - the 8-wide AVX2 tests (when compiled for AVX2) and the portable lane loops, forced with
+//     use_portable_kernels(true), give bit-identical hits.
 // Throws: sl::Error when a triangle's vertex index is out of range.
 #pragma once
 #include <cstddef>
@@ -112,6 +114,11 @@ class Bvh {
   void intersect(const Ray* rays, Hit* hits, size_t count) const;
   void occluded(const Ray* rays, uint8_t* occluded, size_t count) const;
 
+  // Queries use the AVX2 box and triangle tests when the library was compiled for AVX2, else
+  // portable lane loops; `true` forces the portable ones (for tests and comparisons).
+  void use_portable_kernels(bool on) { portable_kernels_ = on; }
+  bool uses_portable_kernels() const { return portable_kernels_; }
+
   bool empty() const { return nodes_.empty(); }
   size_t node_count() const { return nodes_.size(); }
   size_t triangle_count() const { return triangle_count_; }  // triangles kept (non-degenerate)
@@ -121,7 +128,7 @@ class Bvh {
   int depth() const { return depth_; }  // nodes on the longest root-to-leaf path, the leaf included
 
  private:
-  template <bool kAnyHit>
+  template <bool kAnyHit, class SimdRay>  // SimdRay: which set of box and triangle tests
   Hit traverse(const Ray& ray) const;
 
   std::vector<BvhNode, BvhAllocator<BvhNode>> nodes_;
@@ -130,6 +137,7 @@ class Bvh {
   size_t triangle_count_ = 0;
   Bounds3 bounds_;
   int depth_ = 0;
+  bool portable_kernels_ = false;
 };
 
 // Reference: tests every triangle with the same watertight test (for tests and validation).

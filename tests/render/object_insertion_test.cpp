@@ -196,7 +196,9 @@ TEST(ObjectInsertion, ExtremeCasesKeepOutputsAndGradientsFinite) {
     EXPECT_TRUE(finite(r.composite)) << c.name;
     EXPECT_TRUE(finite(r.shadow_map)) << c.name;
     EXPECT_TRUE(finite(env.grad())) << c.name;
-    if (vsg.defined()) EXPECT_TRUE(finite(vsg.grad())) << c.name;
+    if (vsg.defined()) {
+      EXPECT_TRUE(finite(vsg.grad())) << c.name;
+    }
     for (double v : r.shadow_map.to_vector()) EXPECT_GE(v, 0.0) << c.name;
   }
 }

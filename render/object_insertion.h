@@ -32,8 +32,8 @@
 // independent cosine samples of the paper.
 // Radiance cache (radiance_cache, inference): Eq. 1 splits into the volume's own radiance
 // V(x, l) = Σ τ α G and its transmittance τ_K(x, l), with L = V + τ_K L_env(l). V and τ_K are
-// queried once per probe (two grids of at most 4×3×4 points (x, y, z), one over the origins of
-// the light rays, one over those of the shadow rays, cache_spacing_m apart or sparser) and
+// queried once per probe (two grids, cache_spacing_m apart or sparser: at most 4×3×4 points
+// (x, y, z) over the origins of the light rays, 2×2×2 over those of the shadow rays) and
 // direction (cache_height × cache_width texel centres); a ray
 // reads them trilinearly in position and bilinearly in direction, and L_env(l) exactly, so a
 // sun in the sky keeps its full sharpness. Error against exact queries: streetlight-bench insert.

@@ -124,15 +124,17 @@ void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
           if (uniform01f(choice_seed, g.stream, k) < 0.5f)
             l = disney::sample(g.material, g.n, g.wo, u1, u2, uniform01f(choice_seed, g.stream, k + N)).wi;
           else
-            l = env_map.sample(u1, u2).direction;
-          pdf = 0.5f * disney::pdf(g.material, g.n, g.wo, l) + 0.5f * env_map.pdf(l);
+            l = env_sample(env_map, opt, u1, u2);
+          pdf = 0.5f * disney::pdf(g.material, g.n, g.wo, l) + 0.5f * env_pdf(env_map, opt, l);
         } else {  // inference: stratified multi-sample MIS of BRDF and environment sampling
-          const SplitSample sp = split_sample(rot_seed, g.stream, k, N, n_brdf);
+          // One stratified set per pixel, interleaved over its anti-aliasing samples.
+          const int aa = opt.stratify_per_pixel ? opt.aa_samples : 1;
+          const SplitSample sp = split_sample(rot_seed, g.stream / uint64_t(aa), k, N, n_brdf, int(g.stream % uint64_t(aa)), aa);
           if (sp.technique == 0)
             l = disney::sample(g.material, g.n, g.wo, sp.u.x, sp.u.y, uniform01f(choice_seed, g.stream, k + N)).wi;
           else
-            l = env_map.sample(sp.u.x, sp.u.y).direction;
-          pdf = c_brdf * disney::pdf(g.material, g.n, g.wo, l) + c_env * env_map.pdf(l);
+            l = env_sample(env_map, opt, sp.u.x, sp.u.y);
+          pdf = c_brdf * disney::pdf(g.material, g.n, g.wo, l) + c_env * env_pdf(env_map, opt, l);
         }
         const float cos_l = glm::dot(l, g.n);
         glm::vec3 w(0.0f);

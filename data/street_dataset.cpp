@@ -204,6 +204,10 @@ StreetSample StreetDataset::load(size_t index) const {
     s.insert_with_object_hdr = read_float(d, file_name(f, "with_object_hdr", meta_path), 3);
     s.insert_without_object_hdr = read_float(d, file_name(f, "without_object_hdr", meta_path), 3);
     s.insert_object_mask = read_stored(d, file_name(f, "object_mask", meta_path), 1);
+    if (f.contains("light_probe_hdr")) {
+      s.insert_light_probe_hdr = read_float(d, file_name(f, "light_probe_hdr", meta_path), 3);
+      s.light_probe_position = vec3(obj, "light_probe_position", meta_path);
+    }
     s.object_glb = (d / file_name(obj, "file", meta_path)).string();
     SL_CHECK(fs::is_regular_file(s.object_glb), "StreetDataset: sample '", d.string(), "', file '",
              file_name(obj, "file", meta_path), "' is missing");

@@ -51,6 +51,10 @@ struct StreetSample {
   bool has_insertion = false;
   // [3,H,W], [3,H,W], [1,H,W]; the mask is the object's sub-pixel coverage in [0, 1] (8-bit steps)
   Tensor insert_with_object_hdr, insert_without_object_hdr, insert_object_mask;
+  // Optional (datagen insertion.light_probe): [3, Hp, Wp] HDR panorama from the object's centre,
+  // in the scene without the object: the light the object receives. Undefined when absent.
+  Tensor insert_light_probe_hdr;
+  glm::dvec3 light_probe_position{0.0};
   std::string object_glb;  // absolute path of the object's .glb (object frame)
   double object_x = 0.0, object_z = 0.0, object_yaw_deg = 0.0, object_scale = 1.0;
   std::array<double, 4> box2d{};  // x1 y1 x2 y2 (pixels of view 0)

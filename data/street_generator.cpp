@@ -59,7 +59,8 @@ namespace {
 
 // Independent random streams per (sample, purpose): adding a view or a config knob never
 // shifts the random choices of another part of the sample.
-enum Purpose : uint64_t { kLight = 1, kViews = 2, kObject = 3, kScene = 4, kPanoSeed = 100, kViewSeed = 200 };
+enum Purpose : uint64_t { kLight = 1, kViews = 2, kObject = 3, kScene = 4, kPanoSeed = 100, kViewSeed = 200,
+                        kProbeSeed = 300 };
 
 Rng purpose_rng(const StreetGeneratorConfig& c, int64_t index, Purpose p) {
   return Rng(hash_counter(c.seed, static_cast<uint64_t>(index), p), p);
@@ -435,7 +436,8 @@ GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t i
       const Insertion ins = find_insertion(c, index, scene, tracer, env, views);
       if (ins.found) {
         Mesh with = scene.mesh;
-        with.append(placed_mesh(ins.object, ins.placement));
+        const Mesh placed = placed_mesh(ins.object, ins.placement);
+        with.append(placed);
         const PathTracer with_tracer(with, env);
         // The same per-pixel streams and samples as view 0 (see header).
         ProgressiveOptions same = prog;
@@ -443,11 +445,20 @@ GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t i
         same.max_spp = view_spp[0];
         same.target_noise = 0.0;
         same.single_pass_without_budget = !prog.two_seeds;  // view 0's pass sizes: bitwise the same streams
+        Tensor without_radiance = renders[0].radiance;
+        if (c.insertion_spp > 0) {
+          // A cleaner pair: both images again at insertion.spp, one pass each, the same streams.
+          same.max_spp = c.insertion_spp;
+          same.single_pass_without_budget = true;
+          auto [clean, clean_st] = render_view(tracer, views[0], same);
+          note("insert_without_object", clean_st);
+          without_radiance = clean.radiance;
+        }
         auto [img, st] = render_view(with_tracer, views[0], same);
         note("insert_with_object", st);
         write_image(file("insert_with_object_hdr.exr"), img.radiance);
         write_ldr(file("insert_with_object_ldr.png"), img.radiance, exposure);
-        write_image(file("insert_without_object_hdr.exr"), renders[0].radiance);
+        write_image(file("insert_without_object_hdr.exr"), without_radiance);
         write_mask(file("insert_object_mask.png"), ins.coverage);
         write_glb(ins.object, file("object.glb"));
         const Placement& p = ins.placement;
@@ -462,6 +473,17 @@ GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t i
                          {"with_object_ldr", "insert_with_object_ldr.png"},
                          {"without_object_hdr", "insert_without_object_hdr.exr"},
                          {"object_mask", "insert_object_mask.png"}}}};
+        if (c.light_probe) {
+          // The light at the object: a panorama from its bounding box's centre, without it.
+          const Bounds3 b = placed.bounds();
+          const glm::dvec3 centre = 0.5 * (glm::dvec3(b.lo) + glm::dvec3(b.hi));
+          PathTracerOptions o = opt;
+          o.seed = hash_counter(c.seed, static_cast<uint64_t>(index), kProbeSeed);
+          const PanoramaRender probe = render_panorama(tracer, centre, c.pano_height, c.pano_width, o);
+          write_image(file("insert_light_probe_hdr.exr"), probe.radiance);
+          object_meta["files"]["light_probe_hdr"] = "insert_light_probe_hdr.exr";
+          object_meta["light_probe_position"] = vec3_json(centre);
+        }
         result.has_insertion = true;
       }
     }

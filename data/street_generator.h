@@ -78,6 +78,14 @@ struct StreetGeneratorConfig {
   int object_min_visible_pixels = 30;
   int object_attempts = 60;
   int coverage_samples = 4;  // per axis: coverage mask uses n×n rays per pixel
+  // > 0: the insertion pair (view 0 with and without the object, same per-pixel streams) is
+  // rendered at this many samples per pixel instead of view 0's, so that metrics against it are
+  // not limited by the truth's own noise (16 spp caps insertion PSNR near 27 dB). 0: view 0's.
+  int insertion_spp = 0;
+  // Also render the light at the object: an HDR panorama (pano size, render.spp) from the centre
+  // of the object's bounding box, in the scene WITHOUT the object — the ground-truth lighting an
+  // "oracle" insertion needs (the panorama at the camera misses what the object itself sees).
+  bool light_probe = false;
 };
 
 // Every valid key with its default (the config schema, for tools/common/config.h).

@@ -76,7 +76,9 @@ json street_generator_defaults() {
         {"distance_max_m", 25.0},
         {"min_visible_pixels", 30},
         {"attempts", 60},
-        {"coverage_samples", 4}}},
+        {"coverage_samples", 4},
+        {"spp", 0},
+        {"light_probe", false}}},
   };
 }
 
@@ -237,6 +239,8 @@ StreetGeneratorConfig street_generator_config(const json& t) {
   c.object_min_visible_pixels = static_cast<int>(integer(t, "insertion", "min_visible_pixels", 1, 1 << 24));
   c.object_attempts = static_cast<int>(integer(t, "insertion", "attempts", 1, 10000));
   c.coverage_samples = static_cast<int>(integer(t, "insertion", "coverage_samples", 1, 16));
+  c.insertion_spp = static_cast<int>(integer(t, "insertion", "spp", 0, 1 << 16));
+  c.light_probe = in.at("light_probe").get<bool>();
   return c;
 }
 

@@ -20,9 +20,15 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 
 // ---------------------------------------------------------------- ray set-up (Woop et al. 2013)
 
+// Box exits are computed with 1/d times 1 + 2γ₄, γₙ = nε/(1 - nε), ε = 2⁻²⁴: pbrt-v3 §3.9.2
+// (Bounds3::IntersectP) scales the exit by 1 + 2γ₃ after the fact; folding the scale into 1/d takes
+// it off each node test's critical path, and γ₄ covers the one more rounding of (1/d)·scale.
+constexpr float kFarScale = 1.0f + 2.0f * (4.0f * 0x1p-24f) / (1.0f - 4.0f * 0x1p-24f);
+
 struct PreparedRay {
   float o[3];          // origin
   float inv[3];        // 1 / direction (±∞ for a zero component)
+  float inv_far[3];    // inv · kFarScale, for box exits
   int near_row[3];     // row of BvhNode::bounds holding each axis' entry plane: lo (k) or hi (3 + k)
   int far_row[3];      // and its exit plane
   float ox, oy, oz;    // origin permuted to (kx, ky, kz)
@@ -41,27 +47,27 @@ inline PreparedRay prepare(const Ray& ray) {
             std::isfinite(r.o[0] + r.o[1] + r.o[2]) && (ad[0] > 0 || ad[1] > 0 || ad[2] > 0) &&
             !std::isnan(ray.tmin) && !std::isnan(ray.tmax);
   if (!r.valid) return r;
-  // kz: the dominant axis; swapping kx and ky when d[kz] < 0 keeps the winding (paper, Fig. 2).
-  // Written with selects rather than branches: random directions would mispredict them.
-  const int k01 = ad[0] > ad[1] ? 0 : 1;
-  r.kz = ad[k01] > ad[2] ? k01 : 2;
-  const int kx = r.kz == 2 ? 0 : r.kz + 1, ky = kx == 2 ? 0 : kx + 1;
-  const bool flip = d[r.kz] < 0.0f;
-  r.kx = flip ? ky : kx;
-  r.ky = flip ? kx : ky;
+  // 1/d first: the box tests need only it, so they need not wait for the axis choice below.
 #if defined(__AVX2__)
-  // One vector division gives 1/d (whose kz lane is sz) and the shears d[kx]/d[kz], d[ky]/d[kz].
-  alignas(32) float q[8];
-  const __m256 num = _mm256_setr_ps(1.0f, 1.0f, 1.0f, d[r.kx], d[r.ky], 1.0f, 1.0f, 1.0f);
-  const __m256 den = _mm256_setr_ps(d[0], d[1], d[2], d[r.kz], d[r.kz], 1.0f, 1.0f, 1.0f);
-  _mm256_store_ps(q, _mm256_div_ps(num, den));
-  r.inv[0] = q[0], r.inv[1] = q[1], r.inv[2] = q[2], r.sx = q[3], r.sy = q[4];
+  alignas(16) float q[4];
+  _mm_store_ps(q, _mm_div_ps(_mm_set1_ps(1.0f), _mm_setr_ps(d[0], d[1], d[2], 1.0f)));
+  r.inv[0] = q[0], r.inv[1] = q[1], r.inv[2] = q[2];
 #else
   for (int k = 0; k < 3; ++k) r.inv[k] = 1.0f / d[k];
+#endif
+  // kz: the dominant axis; swapping kx and ky when d[kz] < 0 keeps the winding (paper, Fig. 2).
+  // Integer arithmetic on comparison results and a table: random directions would mispredict
+  // branches, and compilers turn the equivalent ternaries on indexed floats into branches.
+  const int k01 = static_cast<int>(!(ad[0] > ad[1]));  // ad[k01] = max(ad[0], ad[1])
+  r.kz = k01 + static_cast<int>(!(std::max(ad[0], ad[1]) > ad[2])) * (2 - k01);
+  static constexpr int8_t kAxes[3][2][2] = {{{1, 2}, {2, 1}}, {{2, 0}, {0, 2}}, {{0, 1}, {1, 0}}};  // [kz][flip]
+  const int flip = static_cast<int>(d[r.kz] < 0.0f);
+  r.kx = kAxes[r.kz][flip][0];
+  r.ky = kAxes[r.kz][flip][1];
   r.sx = d[r.kx] / d[r.kz];
   r.sy = d[r.ky] / d[r.kz];
-#endif
   r.sz = r.inv[r.kz];
+  for (int k = 0; k < 3; ++k) r.inv_far[k] = r.inv[k] * kFarScale;
   r.ox = r.o[r.kx], r.oy = r.o[r.ky], r.oz = r.o[r.kz];
   for (int k = 0; k < 3; ++k) {
     r.near_row[k] = std::signbit(r.inv[k]) ? 3 + k : k;
@@ -109,8 +115,6 @@ inline bool hit_triangle(const PreparedRay& r, const Triangle& tri, float tmax, 
   return true;
 }
 
-// 1 + 2γ₃ with γₙ = nε/(1 - nε), ε = 2⁻²⁴ (pbrt-v3 §3.9.2, used in Bounds3::IntersectP).
-constexpr float kFarScale = 1.0f + 2.0f * (3.0f * 0x1p-24f) / (1.0f - 3.0f * 0x1p-24f);
 constexpr int kW = BvhNode::kWidth;
 constexpr int kB = Bvh::kBlockWidth;
 
@@ -119,23 +123,28 @@ struct BlockHits {
   alignas(32) float t[kB], e1[kB], e2[kB], inv_det[kB];
 };
 
+// Two sets of box and triangle tests, each in its namespace with its own SimdRay, so the
+// traversal below picks a set by the SimdRay type it is instantiated with (overloads found
+// through the argument's namespace): AVX2 intrinsics when compiled for AVX2, and portable lane
+// loops, always compiled, which Bvh::use_portable_kernels selects at run time.
 #if defined(__AVX2__)
 // ---------------------------------------------------------------- vector tests
+namespace avx2 {
 
 static_assert(kW == 8 && kB == 8, "the vector tests below are written for 8 lanes");
 
 struct SimdRay {
-  __m256 o[3], inv[3], tmin;
+  __m256 o[3], inv[3], inv_far[3], tmin;
   __m256 sx, sy, sz;
-};
 
-inline SimdRay simd_ray(const PreparedRay& r) {
-  SimdRay s;
-  for (int k = 0; k < 3; ++k) s.o[k] = _mm256_set1_ps(r.o[k]), s.inv[k] = _mm256_set1_ps(r.inv[k]);
-  s.tmin = _mm256_set1_ps(r.tmin);
-  s.sx = _mm256_set1_ps(r.sx), s.sy = _mm256_set1_ps(r.sy), s.sz = _mm256_set1_ps(r.sz);
-  return s;
-}
+  explicit SimdRay(const PreparedRay& r) {
+    for (int k = 0; k < 3; ++k) {
+      o[k] = _mm256_set1_ps(r.o[k]), inv[k] = _mm256_set1_ps(r.inv[k]), inv_far[k] = _mm256_set1_ps(r.inv_far[k]);
+    }
+    tmin = _mm256_set1_ps(r.tmin);
+    sx = _mm256_set1_ps(r.sx), sy = _mm256_set1_ps(r.sy), sz = _mm256_set1_ps(r.sz);
+  }
+};
 
 // Slab test of all children. Returns the mask of children whose [tnear, tfar] meets
 // [tmin, tmax] and stores their entry distances. A zero direction component gives 0·∞ = NaN
@@ -145,11 +154,11 @@ inline unsigned hit_children(const BvhNode& n, const PreparedRay& r, const SimdR
   __m256 near = s.tmin, far = _mm256_set1_ps(kInf);
   for (int k = 0; k < 3; ++k) {
     const __m256 tn = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.bounds[r.near_row[k]]), s.o[k]), s.inv[k]);
-    const __m256 tf = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.bounds[r.far_row[k]]), s.o[k]), s.inv[k]);
+    const __m256 tf = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.bounds[r.far_row[k]]), s.o[k]), s.inv_far[k]);
     near = _mm256_max_ps(tn, near);
     far = _mm256_min_ps(tf, far);
   }
-  far = _mm256_min_ps(_mm256_mul_ps(far, _mm256_set1_ps(kFarScale)), _mm256_set1_ps(tmax));
+  far = _mm256_min_ps(far, _mm256_set1_ps(tmax));
   _mm256_store_ps(tnear, near);
   return static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(near, far, _CMP_LE_OQ)));
 }
@@ -213,11 +222,15 @@ inline unsigned hit_block(const Bvh::TriangleBlock& b, const PreparedRay& r, con
   return mask;
 }
 
-#else
-// ---------------------------------------------------------------- portable fallback
+}  // namespace avx2
+#endif
 
-struct SimdRay {};
-inline SimdRay simd_ray(const PreparedRay&) { return {}; }
+// ---------------------------------------------------------------- portable fallback
+namespace portable {
+
+struct SimdRay {
+  explicit SimdRay(const PreparedRay&) {}
+};
 
 // The same tests as lane loops without branches, which compilers vectorise for SSE.
 inline unsigned hit_children(const BvhNode& n, const PreparedRay& r, const SimdRay&, float tmax, float* tnear) {
@@ -227,14 +240,14 @@ inline unsigned hit_children(const BvhNode& n, const PreparedRay& r, const SimdR
     const float* lo = n.bounds[r.near_row[k]];
     const float* hi = n.bounds[r.far_row[k]];
     for (int i = 0; i < kW; ++i) {
-      const float tn = (lo[i] - r.o[k]) * r.inv[k], tf = (hi[i] - r.o[k]) * r.inv[k];
+      const float tn = (lo[i] - r.o[k]) * r.inv[k], tf = (hi[i] - r.o[k]) * r.inv_far[k];
       tnear[i] = tnear[i] < tn ? tn : tnear[i];  // NaN entry: keeps tnear
       far[i] = tf < far[i] ? tf : far[i];        // NaN exit: keeps far
     }
   }
   unsigned mask = 0;
   for (int i = 0; i < kW; ++i) {
-    const float limit = far[i] * kFarScale < tmax ? far[i] * kFarScale : tmax;
+    const float limit = far[i] < tmax ? far[i] : tmax;
     mask |= static_cast<unsigned>(tnear[i] <= limit) << i;
   }
   return mask;
@@ -273,6 +286,13 @@ inline unsigned hit_block(const Bvh::TriangleBlock& b, const PreparedRay& r, con
   }
   return mask & lanes;
 }
+
+}  // namespace portable
+
+#if defined(__AVX2__)
+using BestSimdRay = avx2::SimdRay;
+#else
+using BestSimdRay = portable::SimdRay;
 #endif
 
 struct StackEntry {
@@ -314,7 +334,7 @@ inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const flo
 
 // Tests the triangles of leaf `ref`. Closest-hit narrows tmax to each closer hit and records
 // it in `hit` and `slot` (block * kBlockWidth + lane); any-hit returns true at the first hit.
-template <bool kAnyHit>
+template <bool kAnyHit, class SimdRay>
 inline bool hit_leaf(const Bvh::TriangleBlock* blocks, uint32_t ref, const PreparedRay& r, const SimdRay& s,
                      float& tmax, Hit& hit, uint32_t& slot) {
   const uint32_t block = BvhNode::leaf_block(ref), count = BvhNode::leaf_count(ref);
@@ -344,13 +364,13 @@ inline bool hit_leaf(const Bvh::TriangleBlock* blocks, uint32_t ref, const Prepa
 
 }  // namespace
 
-template <bool kAnyHit>
+template <bool kAnyHit, class SimdRay>
 inline Hit Bvh::traverse(const Ray& ray) const {
   Hit hit;
   if (nodes_.empty()) return hit;
   const PreparedRay r = prepare(ray);
   if (!r.valid) return hit;
-  const SimdRay s = simd_ray(r);
+  const SimdRay s(r);
   float tmax = ray.tmax;
   uint32_t slot = Hit::kNone;  // block * kBlockWidth + lane of the closest hit so far
   StackEntry stack[(kW - 1) * kMaxDepth + 1];  // each level defers at most kWidth − 1 children
@@ -368,8 +388,11 @@ inline Hit Bvh::traverse(const Ray& ray) const {
           const bool leaf = BvhNode::is_leaf(c);
           const char* p = leaf ? reinterpret_cast<const char*>(&blocks_[BvhNode::leaf_block(c)])
                                : reinterpret_cast<const char*>(&nodes_[c]);
-          const int bytes = leaf ? sizeof(TriangleBlock) : sizeof(BvhNode);
-          for (int line = 0; line < bytes; line += 64) __builtin_prefetch(p + line);
+          // Five lines cover a block (4.5 lines) or a node (4, then the next node's first): a fixed
+          // count, as a loop over the size would mispredict its exit (prefetches never fault).
+          static_assert(sizeof(TriangleBlock) <= 5 * 64 && sizeof(BvhNode) <= 5 * 64);
+          __builtin_prefetch(p), __builtin_prefetch(p + 64), __builtin_prefetch(p + 128);
+          __builtin_prefetch(p + 192), __builtin_prefetch(p + 256);
         }
         if (!(mask & (mask - 1))) {
           ref = n.child[__builtin_ctz(mask)];
@@ -403,19 +426,23 @@ inline Hit Bvh::traverse(const Ray& ray) const {
   }
 }
 
-Hit Bvh::intersect(const Ray& ray) const { return traverse<false>(ray); }
-bool Bvh::occluded(const Ray& ray) const { return traverse<true>(ray).hit(); }
+Hit Bvh::intersect(const Ray& ray) const {
+  return portable_kernels_ ? traverse<false, portable::SimdRay>(ray) : traverse<false, BestSimdRay>(ray);
+}
+bool Bvh::occluded(const Ray& ray) const {
+  return (portable_kernels_ ? traverse<true, portable::SimdRay>(ray) : traverse<true, BestSimdRay>(ray)).hit();
+}
 
 void Bvh::intersect(const Ray* rays, Hit* hits, size_t count) const {
   const int64_t n = static_cast<int64_t>(count);
 #pragma omp parallel for schedule(dynamic, 64)
-  for (int64_t i = 0; i < n; ++i) hits[i] = traverse<false>(rays[i]);
+  for (int64_t i = 0; i < n; ++i) hits[i] = intersect(rays[i]);
 }
 
 void Bvh::occluded(const Ray* rays, uint8_t* occluded, size_t count) const {
   const int64_t n = static_cast<int64_t>(count);
 #pragma omp parallel for schedule(dynamic, 64)
-  for (int64_t i = 0; i < n; ++i) occluded[i] = traverse<true>(rays[i]).hit() ? 1 : 0;
+  for (int64_t i = 0; i < n; ++i) occluded[i] = this->occluded(rays[i]) ? 1 : 0;
 }
 
 Hit intersect_brute_force(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>& triangles,

@@ -2,7 +2,9 @@
 //
 // Build (bvh_build.cpp): binned SAH (Wald 2007) over all three axes with kBins bins, grown
 // directly into an 8-wide tree: a node repeatedly splits its child of largest surface area until
-// it has kWidth children (the collapse of Wald, Benthin & Boulos 2008, done while building).
+// it has kWidth children (the collapse of Wald, Benthin & Boulos 2008, done while building). A
+// split that fills a free slot is judged by the SAH without a traversal cost, since one more box
+// in a node already being tested costs nothing, so nodes are fuller and leaves smaller.
 // Subtrees are built as OpenMP tasks; the tree does not depend on the schedule. The result is laid
 // out depth-first: nodes store their children's boxes as structure-of-arrays, so one node is
 // tested against a ray with a few 8-wide vector instructions. Leaves hold at most kMaxLeafSize
@@ -12,7 +14,7 @@
 // through an edge or vertex shared by two triangles hits at least one of them, never slips
 // between. Every lane of the vector test performs the same IEEE operations, in the same order,
 // as the scalar test of intersect_brute_force. Child boxes are tested with a precomputed inverse
-// direction and far distances widened by 1 + 2γ₃ (pbrt §6.8.2), so a triangle hit is never
+// direction and far distances widened by 1 + 2γ₄ (pbrt §6.8.2), so a triangle hit is never
 // culled by box rounding. Closest-hit visits children nearest first and skips deferred subtrees
 // that start beyond the nearest hit so far; occlusion stops at the first hit it finds.
 // Guarantees:
@@ -24,7 +26,9 @@
 //   - a ray with a zero or non-finite direction, or a NaN origin, misses;
 //   - an empty mesh gives an empty BVH in which every ray misses;
 //   - results do not depend on the thread count (queries are independent per ray, and the
-//     tree does not depend on how the build was scheduled).
+//     tree does not depend on how the build was scheduled);
+//   - the 8-wide AVX2 tests (when compiled for AVX2) and the portable lane loops, forced with
+//     use_portable_kernels(true), give bit-identical hits.
 // Throws: sl::Error when a triangle's vertex index is out of range.
 #pragma once
 #include <cstddef>
@@ -110,6 +114,11 @@ class Bvh {
   void intersect(const Ray* rays, Hit* hits, size_t count) const;
   void occluded(const Ray* rays, uint8_t* occluded, size_t count) const;
 
+  // Queries use the AVX2 box and triangle tests when the library was compiled for AVX2, else
+  // portable lane loops; `true` forces the portable ones (for tests and comparisons).
+  void use_portable_kernels(bool on) { portable_kernels_ = on; }
+  bool uses_portable_kernels() const { return portable_kernels_; }
+
   bool empty() const { return nodes_.empty(); }
   size_t node_count() const { return nodes_.size(); }
   size_t triangle_count() const { return triangle_count_; }  // triangles kept (non-degenerate)
@@ -119,7 +128,7 @@ class Bvh {
   int depth() const { return depth_; }  // nodes on the longest root-to-leaf path, the leaf included
 
  private:
-  template <bool kAnyHit>
+  template <bool kAnyHit, class SimdRay>  // SimdRay: which set of box and triangle tests
   Hit traverse(const Ray& ray) const;
 
   std::vector<BvhNode, BvhAllocator<BvhNode>> nodes_;
@@ -128,6 +137,7 @@ class Bvh {
   size_t triangle_count_ = 0;
   Bounds3 bounds_;
   int depth_ = 0;
+  bool portable_kernels_ = false;
 };
 
 // Reference: tests every triangle with the same watertight test (for tests and validation).

@@ -285,7 +285,9 @@ struct Builder {
     V4 base, scale;
   };
 
-  Plan plan(const Range& r) const {
+  // `traversal_cost` is kTraversalCost when splitting r makes a new node, and 0 when r's halves
+  // take free slots of the node being grown: testing one more child box there costs nothing.
+  Plan plan(const Range& r, float traversal_cost) const {
     Plan p;
     const uint32_t n = r.size();
     if (n <= 1) return p;
@@ -298,7 +300,7 @@ struct Builder {
     }
     const Split s = find_split(r, p.base, p.scale);
     const float area = r.box.half_area();
-    if (small && (s.axis < 0 || !(kTraversalCost * area + kBlockCost * s.cost < kBlockCost * blocks(n) * area)))
+    if (small && (s.axis < 0 || !(traversal_cost * area + kBlockCost * s.cost < kBlockCost * blocks(n) * area)))
       return p;
     p.kind = s.axis < 0 ? Plan::kMedian : Plan::kSah;
     p.axis = s.axis, p.pos = s.pos;
@@ -328,7 +330,7 @@ struct Builder {
         if (a > best) best = a, pick = i;
       }
       if (pick < 0) break;
-      if (!planned[pick]) plans[pick] = plan(kids[pick]), planned[pick] = true;
+      if (!planned[pick]) plans[pick] = plan(kids[pick], 0.0f), planned[pick] = true;
       if (plans[pick].kind == Plan::kLeaf) continue;
       Range left, right;
       apply(kids[pick], plans[pick], left, right);
@@ -341,7 +343,7 @@ struct Builder {
     for (int i = 0; i < k; ++i) {
       for (int a = 0; a < 3; ++a) node.lo[a][i] = lane(kids[i].box.lo, a), node.hi[a][i] = lane(kids[i].box.hi, a);
       // Children left unsplit because the node filled up are planned here: small ones may be leaves.
-      if (!planned[i]) plans[i] = plan(kids[i]), planned[i] = true;
+      if (!planned[i]) plans[i] = plan(kids[i], kTraversalCost), planned[i] = true;
       if (plans[i].kind == Plan::kLeaf) {
         node.ref[i] = kids[i].begin, node.count[i] = kids[i].size();
         continue;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "render/qmc_sampler.h"
 #include "render/sampling.h"
 #include "util/math.h"
 #include "util/parallel.h"
@@ -65,7 +66,11 @@ std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& 
         int visible = 0, hits = 0;
         double zsum = 0;
         for (int s = 0; s < opt.aa_samples; ++s) {
-          const double u = col + uniform01(aa_seed, uint64_t(pix), 2 * s), v = row + uniform01(aa_seed, uint64_t(pix), 2 * s + 1);
+          // Owen-scrambled Sobol positions: any 2^m primary samples of a pixel are stratified
+          // (2×2, 4×1 and 1×4 for four), which halves the coverage error of silhouette pixels
+          // against independent uniform positions, at the same cost and still unbiased.
+          const glm::vec2 j = qmc::owen_pair(aa_seed, uint64_t(pix), uint64_t(s), 0);
+          const double u = col + double(j.x), v = row + double(j.y);
           const CameraRay cr = cam.ray(u, v);
           Ray ray;
           ray.origin = glm::vec3(cr.origin);
@@ -124,15 +129,17 @@ void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
           if (uniform01f(choice_seed, g.stream, k) < 0.5f)
             l = disney::sample(g.material, g.n, g.wo, u1, u2, uniform01f(choice_seed, g.stream, k + N)).wi;
           else
-            l = env_map.sample(u1, u2).direction;
-          pdf = 0.5f * disney::pdf(g.material, g.n, g.wo, l) + 0.5f * env_map.pdf(l);
+            l = env_sample(env_map, opt, u1, u2);
+          pdf = 0.5f * disney::pdf(g.material, g.n, g.wo, l) + 0.5f * env_pdf(env_map, opt, l);
         } else {  // inference: stratified multi-sample MIS of BRDF and environment sampling
-          const SplitSample sp = split_sample(rot_seed, g.stream, k, N, n_brdf);
+          // One stratified set per pixel, interleaved over its anti-aliasing samples.
+          const int aa = opt.stratify_per_pixel ? opt.aa_samples : 1;
+          const SplitSample sp = split_sample(rot_seed, g.stream / uint64_t(aa), k, N, n_brdf, int(g.stream % uint64_t(aa)), aa);
           if (sp.technique == 0)
             l = disney::sample(g.material, g.n, g.wo, sp.u.x, sp.u.y, uniform01f(choice_seed, g.stream, k + N)).wi;
           else
-            l = env_map.sample(sp.u.x, sp.u.y).direction;
-          pdf = c_brdf * disney::pdf(g.material, g.n, g.wo, l) + c_env * env_map.pdf(l);
+            l = env_sample(env_map, opt, sp.u.x, sp.u.y);
+          pdf = c_brdf * disney::pdf(g.material, g.n, g.wo, l) + c_env * env_pdf(env_map, opt, l);
         }
         const float cos_l = glm::dot(l, g.n);
         glm::vec3 w(0.0f);

@@ -15,6 +15,7 @@
 
 #include "render/bvh.h"
 #include "render/camera.h"
+#include "render/environment_map.h"
 #include "render/object_insertion.h"
 #include "util/check.h"
 #include "util/random.h"
@@ -55,15 +56,26 @@ inline glm::vec2 rotated_hammersley(int j, int m, float r1, float r2) {
 }
 
 // Inference: sample k of n goes to technique 0 (k < n0) or 1, and is point j of its technique's
-// stratified set; the rotation is per stream and technique.
+// stratified set; the rotation is per stream and technique. With `subs` > 1, `subs` callers
+// (sub = 0 … subs − 1, e.g. the anti-aliasing samples of one pixel) share the stream and its
+// rotation and take interleaved points j·subs + sub of one set `subs` times larger: each point
+// is still uniform (unbiased), and together they are stratified `subs` times finer.
 struct SplitSample {
   int technique;
   glm::vec2 u;
 };
-inline SplitSample split_sample(uint64_t rot_seed, uint64_t stream, int k, int n, int n0) {
+inline SplitSample split_sample(uint64_t rot_seed, uint64_t stream, int k, int n, int n0, int sub = 0, int subs = 1) {
   const int technique = k < n0 ? 0 : 1, j = technique == 0 ? k : k - n0, m = technique == 0 ? n0 : n - n0;
   const float r1 = uniform01f(rot_seed, stream, 2 * technique), r2 = uniform01f(rot_seed, stream, 2 * technique + 1);
-  return {technique, rotated_hammersley(j, m, r1, r2)};
+  return {technique, rotated_hammersley(j * subs + sub, m * subs, r1, r2)};
+}
+
+// The environment technique of inference sampling (InsertionOptions::bilinear_env_sampling).
+inline glm::vec3 env_sample(const EnvironmentMap& env, const InsertionOptions& opt, float u1, float u2) {
+  return opt.bilinear_env_sampling ? env.sample_bilinear(u1, u2).direction : env.sample(u1, u2).direction;
+}
+inline float env_pdf(const EnvironmentMap& env, const InsertionOptions& opt, const glm::vec3& d) {
+  return opt.bilinear_env_sampling ? env.pdf_bilinear(d) : env.pdf(d);
 }
 
 inline float ray_epsilon(const glm::vec3& p) { return 1e-3f + 1e-4f * glm::length(p); }

@@ -33,13 +33,13 @@ struct ShadowSampler {
     if (n_cos == 0) {
       const float u1 = uniform01f(seed, uint64_t(t), 2 * k), u2 = uniform01f(seed, uint64_t(t), 2 * k + 1);
       d = uniform01f(choice_seed, uint64_t(t), k) < 0.5f ? frame.to_world(cosine_hemisphere(u1, u2))
-                                                         : env_map.sample(u1, u2).direction;
+                                                         : env_sample(env_map, opt, u1, u2);
     } else {
       const SplitSample sp = split_sample(rot_seed, uint64_t(t), k, N, n_cos);
-      d = sp.technique == 0 ? frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y)) : env_map.sample(sp.u.x, sp.u.y).direction;
+      d = sp.technique == 0 ? frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y)) : env_sample(env_map, opt, sp.u.x, sp.u.y);
       c_cos = double(n_cos) / N;
     }
-    const double cos_t = d.y, pdf = c_cos * std::max(0.0, cos_t) / kPi + (1.0 - c_cos) * env_map.pdf(d);
+    const double cos_t = d.y, pdf = c_cos * std::max(0.0, cos_t) / kPi + (1.0 - c_cos) * env_pdf(env_map, opt, d);
     return {d, (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0};
   }
 };

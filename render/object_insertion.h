@@ -32,8 +32,9 @@
 // independent cosine samples of the paper.
 // Radiance cache (radiance_cache, inference): Eq. 1 splits into the volume's own radiance
 // V(x, l) = Σ τ α G and its transmittance τ_K(x, l), with L = V + τ_K L_env(l). V and τ_K are
-// queried once per probe (a grid of at most 4×3×4 points (x, y, z) over the origins of the light
-// and shadow rays, cache_spacing_m apart or sparser) and direction (cache_height × cache_width texel centres); a ray
+// queried once per probe (two grids, cache_spacing_m apart or sparser: at most 4×3×4 points
+// (x, y, z) over the origins of the light rays, 2×2×2 over those of the shadow rays) and
+// direction (cache_height × cache_width texel centres); a ray
 // reads them trilinearly in position and bilinearly in direction, and L_env(l) exactly, so a
 // sun in the sky keeps its full sharpness. Error against exact queries: streetlight-bench insert.
 // Lean: shadows are computed only inside the screen-space region the object can shadow (its
@@ -63,6 +64,13 @@ struct InsertionOptions {
   int shadow_rays = 128;        // N_s of Eq. 4
   double ambient = 0.1;         // I_a
   bool importance_sampling = false;  // inference: BRDF + environment MIS
+  // Inference: environment samples follow the bilinear lookup itself (EnvironmentMap::
+  // sample_bilinear, L_env/pdf nearly constant: a sun over a few texels costs almost no
+  // variance) instead of piecewise-constant texels (EnvironmentMap::sample). Both unbiased.
+  bool bilinear_env_sampling = false;
+  // Inference: the aa_samples × N light samples of a pixel form one stratified set (interleaved
+  // over its primary samples) rather than aa_samples independent sets of N. Unbiased.
+  bool stratify_per_pixel = false;
   bool prune = true;            // skip pixels the object cannot affect
   uint64_t seed = 0;            // anti-aliasing jitter, and (with lighting_seed 0) every other sample
   uint64_t lighting_seed = 0;   // != 0: light and shadow samples drawn independently of `seed`

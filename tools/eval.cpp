@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -128,7 +129,27 @@ std::vector<Budget> budgets() {
 
 struct InsertionScore {
   double psnr = 0, shadow_ratio_error = 0, ms = 0;
+  // The region's parts: object interior (coverage ≥ 0.98 in the truth), object edge (0 < coverage
+  // < 0.98) and shadow (the rest of the region); NaN where a part is empty.
+  double psnr_object = 0, psnr_edge = 0, psnr_shadow = 0;
   bool valid = false;
+};
+
+// Mean PSNR of each region part over the samples where the part is not empty.
+struct PartScores {
+  std::vector<double> object, edge, shadow;
+  void add(const InsertionScore& s) {
+    if (std::isfinite(s.psnr_object)) object.push_back(s.psnr_object);
+    if (std::isfinite(s.psnr_edge)) edge.push_back(s.psnr_edge);
+    if (std::isfinite(s.psnr_shadow)) shadow.push_back(s.psnr_shadow);
+  }
+  json to_json() const {
+    json j = json::object();
+    if (!object.empty()) j["object"] = mean_of(object);
+    if (!edge.empty()) j["edge"] = mean_of(edge);
+    if (!shadow.empty()) j["shadow"] = mean_of(shadow);
+    return j;
+  }
 };
 
 // Sec 4.3 measured: PSNR over the object ∪ shadow region of the ground truth, and the mean
@@ -137,10 +158,13 @@ InsertionScore score_insertion(const EstimatedLighting& l, const StreetSample& s
                                const PhotoInsertionOptions& o) {
   const StreetView& v = s.views[0];
   Placement pose{s.object_x, s.object_z, s.object_yaw_deg, s.object_scale};
-  const PhotoInsertion ins = insert_into_photo(l, v.ldr, v.depth, v.camera, mesh, pose, o);
   const Tensor with = to_ldr(s.insert_with_object_hdr.contiguous(), s.exposure);
   const Tensor without = to_ldr(s.insert_without_object_hdr.defined() ? s.insert_without_object_hdr.contiguous()
                                                                       : v.hdr.contiguous(), s.exposure);
+  // The photo we insert into is the truth's own "without" image: the same render as view 0
+  // normally, and its cleaner re-render with datagen insertion.spp, whose noise would otherwise
+  // count as our error in every background pixel of the region.
+  const PhotoInsertion ins = insert_into_photo(l, without, v.depth, v.camera, mesh, pose, o);
   const Tensor gm = s.insert_object_mask.contiguous(), sm = ins.shadow_map.contiguous();
   const int64_t n = with.size(1) * with.size(2);
   const float *wp = with.data<float>(), *np = without.data<float>(), *mp = gm.data<float>(), *sp = sm.data<float>();
@@ -160,6 +184,17 @@ InsertionScore score_insertion(const EstimatedLighting& l, const StreetSample& s
   const PsnrScores p = masked_psnr(ins.composite_ldr, with, region);
   r.valid = p.valid;
   r.psnr = p.psnr;
+  std::vector<char> object(n, 0), edge(n, 0), shadow(n, 0);
+  for (int64_t i = 0; i < n; ++i) {
+    object[i] = mp[i] >= 0.98f;
+    edge[i] = mp[i] > 0.5f / 255.0f && mp[i] < 0.98f;
+    shadow[i] = region[i] && !object[i] && !edge[i];
+  }
+  auto part = [&](const std::vector<char>& m) {
+    const PsnrScores q = masked_psnr(ins.composite_ldr, with, m);
+    return q.valid ? q.psnr : std::nan("");
+  };
+  r.psnr_object = part(object), r.psnr_edge = part(edge), r.psnr_shadow = part(shadow);
   r.shadow_ratio_error = ratio_n ? ratio_err / ratio_n : 0.0;
   r.ms = ins.render_ms;
   return r;
@@ -250,6 +285,8 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   LightingEstimator est(ckpt);
   std::vector<double> sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, ms, oracle_psnr, oracle_ratio;
   std::map<std::string, std::vector<double>> budget_err, budget_ms;
+  int64_t oracle_probes = 0;  // oracle samples lit by the light probe at the object
+  PartScores ins_parts, oracle_parts;
   const bool street = fs::exists(fs::path(data) / "index.json");
   size_t count = 0;
   if (street) {
@@ -276,21 +313,27 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
       if (s.has_insertion && !s.object_glb.empty()) {
         auto it = meshes.find(s.object_glb);
         if (it == meshes.end()) it = meshes.emplace(s.object_glb, to_object_frame(load_gltf(s.object_glb))).first;
+        // What streetlight-insert ships: PhotoInsertionOptions' defaults (STREETLIGHT_EVAL_AA
+        // overrides the primary samples, for the part-by-part study of docs/RESULTS.md).
         PhotoInsertionOptions o;
-        o.aa_samples = 2, o.light_samples = 32, o.shadow_rays = 64, o.shadow_width = 80, o.shadow_height = 45;
+        if (const char* aa = std::getenv("STREETLIGHT_EVAL_AA")) o.aa_samples = std::max(1, std::atoi(aa));
         o.volume_query = est.volume_query();
         try {
           const InsertionScore sc = score_insertion(l, s, it->second, o);
-          if (sc.valid) ins_psnr.push_back(sc.psnr), ins_ratio.push_back(sc.shadow_ratio_error);
+          if (sc.valid) ins_psnr.push_back(sc.psnr), ins_ratio.push_back(sc.shadow_ratio_error), ins_parts.add(sc);
           if (oracle) {
             // Oracle lighting: the same renderer and options under the generator's own HDR
-            // panorama at the camera (distant light, exposure-normalised, in the canonical
-            // frame) — what is left is the renderer's error, not the lighting's.
+            // panorama (distant light, exposure-normalised, in the canonical frame): the light
+            // probe at the object when the dataset has one (datagen insertion.light_probe), else
+            // the panorama at the camera. What is left is the renderer's error, not the lighting's.
             EstimatedLighting truth = l;
-            truth.env = l.frame.panorama(mul_scalar(s.pano_hdr.contiguous(), s.exposure)).contiguous();
+            const bool probe = s.insert_light_probe_hdr.defined();
+            truth.env = l.frame.panorama(mul_scalar((probe ? s.insert_light_probe_hdr : s.pano_hdr).contiguous(), s.exposure))
+                            .contiguous();
             truth.vsg = Tensor();
             const InsertionScore oc = score_insertion(truth, s, it->second, o);
-            if (oc.valid) oracle_psnr.push_back(oc.psnr), oracle_ratio.push_back(oc.shadow_ratio_error);
+            if (oc.valid) oracle_psnr.push_back(oc.psnr), oracle_ratio.push_back(oc.shadow_ratio_error), oracle_probes += probe,
+                  oracle_parts.add(oc);
           }
           if (plot)
             for (Budget b : budgets()) {
@@ -355,11 +398,15 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
             {"inference_ms", mean_of(ms)}};
   if (!oracle_psnr.empty())
     r["oracle"] = {{"insertion_psnr", mean_of(oracle_psnr)}, {"shadow_ratio_error", mean_of(oracle_ratio)},
-                   {"insertion_samples", oracle_psnr.size()}};
+                   {"insertion_samples", oracle_psnr.size()}, {"insertion_psnr_parts", oracle_parts.to_json()},
+                   {"light", oracle_probes == static_cast<int64_t>(oracle_psnr.size()) ? "probe at the object"
+                             : oracle_probes == 0                                      ? "panorama at the camera"
+                                                                                       : "mixed"}};
   if (!ins_psnr.empty()) {
     r["insertion_psnr"] = mean_of(ins_psnr);
     r["shadow_ratio_error"] = mean_of(ins_ratio);
     r["insertion_samples"] = ins_psnr.size();
+    r["insertion_psnr_parts"] = ins_parts.to_json();
   }
   if (!budget_err.empty()) {
     json b = json::array();
@@ -438,8 +485,23 @@ std::string markdown(const std::vector<json>& rows, const std::vector<std::strin
     }
     for (const auto& r : rows)
       if (r.contains("oracle"))
-        md << "| oracle lighting (the generator's HDR panorama at the camera) | — | — | — | — | — | — | — | "
+        md << "| oracle lighting (the generator's HDR " << r["oracle"].value("light", "panorama at the camera")
+           << ") | — | — | — | — | — | — | — | "
            << fmt(r["oracle"], "insertion_psnr") << " | " << fmt(r["oracle"], "shadow_ratio_error", 3) << " | — |\n";
+  }
+  bool any_parts = false;
+  for (const auto& r : rows) any_parts = any_parts || r.contains("insertion_psnr_parts");
+  if (any_parts) {
+    md << "\nInsertion PSNR by part of the region (object interior, object edge, shadow):\n\n"
+          "| lighting | object | edge | shadow |\n|---|---|---|---|\n";
+    auto parts_row = [&](const std::string& name, const json& p) {
+      md << "| " << name << " | " << fmt(p, "object") << " | " << fmt(p, "edge") << " | " << fmt(p, "shadow") << " |\n";
+    };
+    for (size_t i = 0; i < rows.size(); ++i)
+      if (rows[i].contains("insertion_psnr_parts")) parts_row(names[i], rows[i]["insertion_psnr_parts"]);
+    for (const auto& r : rows)
+      if (r.contains("oracle") && r["oracle"].contains("insertion_psnr_parts"))
+        parts_row("oracle lighting", r["oracle"]["insertion_psnr_parts"]);
   }
   if (any_sky) {
     md << (any_light ? "\n" : "")
@@ -494,7 +556,7 @@ int run(int argc, char** argv) {
               "(models/streetlight.safetensors).",
               {{"--checkpoint", "CKPT", "checkpoint to evaluate (one table row each; default: the released model)", true},
                {"--name", "NAME", "row name for the matching --checkpoint (default: its file path)", true},
-               {"--data", "DIR", "street dataset (index.json) or folder of .hdr/.exr panoramas (repeatable)", true},
+               {"--data", "DIR", "street dataset (index.json) or folder of .hdr/.exr panoramas", true},
                {"--split", "NAME", "dataset split, or the split of --hdri-split (default test)"},
                {"--hdri-split", "FILE", "split file for panorama folders (e.g. configs/hdri_split.json)"},
                {"--crops", "K", "perspective crops per real panorama (default 8)"},

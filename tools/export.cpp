@@ -27,7 +27,7 @@ int run(int argc, char** argv) {
               {{"--checkpoint", "CKPT", "a lighting or adversarial stage checkpoint (streetlight-train)"},
                {"--out", "FILE", "output .safetensors file"},
                {"--f32", "", "keep float32 (default: float16, half the size)"},
-               {"--meta", "KEY=VALUE", "extra metadata entry (repeatable)", true},
+               {"--meta", "KEY=VALUE", "extra metadata entry", true},
                {"--info", "", "print the checkpoint's metadata as JSON on stdout and exit (no --out needed)"}});
   if (!a.parse(argc, argv)) return 0;
   if (a.has("--info")) {

@@ -520,7 +520,7 @@ int run(int argc, char** argv) {
                {"--calib", "FILE", "KITTI calibration (text or mmdetection3d JSON) for --lidar"},
                {"--camera-height", "M", "camera height above the ground (default 1.65)"},
                {"--pitch", "DEG", "camera pitch, positive up (default 0)"},
-               {"--object", "MODEL", "glTF/GLB model, or procedural:car (batch: repeatable)", true},
+               {"--object", "MODEL", "glTF/GLB model, or procedural:car (several: batch mode only)", true},
                {"--at", "X,Z", "ground position in metres (right, forward) of the first camera"},
                {"--yaw", "DEG", "object heading about +Y; 90 points its length away from the camera (default 90)"},
                {"--scale", "S", "uniform object scale (default 1)"},

@@ -96,6 +96,8 @@ InsertionOptions insertion_options(const PhotoInsertionOptions& o) {
   io.seed = o.seed;
   io.query = o.volume_query;
   io.radiance_cache = o.radiance_cache;
+  io.bilinear_env_sampling = o.bilinear_env_sampling;
+  io.stratify_per_pixel = o.stratify_per_pixel;
   return io;
 }
 

@@ -40,6 +40,7 @@ struct PhotoInsertionOptions {
   double max_ground_offset_m = 1.0;
   uint64_t seed = 0;
   bool radiance_cache = true;  // render/object_insertion.h: probes instead of per-ray volume marches
+  bool bilinear_env_sampling = true, stratify_per_pixel = true;  // render/object_insertion.h
 };
 
 // The renderer's options for a photo insertion (importance sampling, the inference path).

@@ -278,6 +278,59 @@ TEST(StreetGenerator, InsertionPairIsSameSeedRender) {
   }
 }
 
+// insertion.spp renders the pair again, cleaner, with the same streams for both images; and
+// insertion.light_probe writes the light at the object, which the loader returns.
+TEST(StreetGenerator, CleanInsertionPairAndLightProbeAtTheObject) {
+  nlohmann::json t = test::tiny_generator_tree(3);
+  t["insertion"]["spp"] = 16;
+  t["insertion"]["light_probe"] = true;
+  t["splits"] = {{"train", 0.0}, {"val", 0.0}};
+  const StreetGeneratorConfig c = street_generator_config(t);
+  const std::string out = test::scratch("clean_pair");
+  fs::remove_all(out);
+  fs::create_directories(fs::path(out) / "samples");
+  std::vector<std::string> ids;
+  for (int64_t i = 0; i < c.samples; ++i) ids.push_back(generate_street_sample(c, i, out + "/samples").id);
+  write_dataset_index(out, c, split_ids(ids, c.seed, c.train_fraction, c.val_fraction));
+  const StreetDataset ds(out, "test");
+  int checked = 0;
+  for (size_t i = 0; i < ds.size(); ++i) {
+    const StreetSample s = ds.load(i);
+    if (!s.has_insertion) continue;
+    ++checked;
+    std::ifstream mf(fs::path(out) / "samples" / s.id / "meta.json");
+    const nlohmann::json meta = nlohmann::json::parse(mf);
+    EXPECT_EQ(meta["render"]["images"]["insert_with_object"]["spp"].get<int>(), 16) << s.id;
+    EXPECT_EQ(meta["render"]["images"]["insert_without_object"]["spp"].get<int>(), 16) << s.id;
+    // The pair: same streams (most pixels bitwise equal), a new render (not view 0's 2 spp),
+    // and unbiased (its mean agrees with view 0's).
+    const int64_t n = s.insert_object_mask.numel();
+    const float *a = s.insert_without_object_hdr.data<float>(), *b = s.insert_with_object_hdr.data<float>();
+    const float* v0 = s.views[0].hdr.data<float>();
+    int64_t equal = 0, differs_from_view0 = 0;
+    double mean_clean = 0, mean_view0 = 0;
+    for (int64_t p = 0; p < 3 * n; ++p) {
+      equal += a[p] == b[p];
+      differs_from_view0 += a[p] != v0[p];
+      mean_clean += a[p], mean_view0 += v0[p];
+    }
+    EXPECT_GT(static_cast<double>(equal) / (3 * n), 0.3) << s.id;
+    EXPECT_GT(differs_from_view0, n) << s.id;
+    EXPECT_NEAR(mean_clean / mean_view0, 1.0, 0.15) << s.id;
+    // The probe: a finite panorama of the panorama's size, taken at the object's centre.
+    ASSERT_TRUE(s.insert_light_probe_hdr.defined()) << s.id;
+    EXPECT_EQ(s.insert_light_probe_hdr.size(1), s.pano_hdr.size(1));
+    EXPECT_EQ(s.insert_light_probe_hdr.size(2), s.pano_hdr.size(2));
+    const float* q = s.insert_light_probe_hdr.data<float>();
+    for (int64_t p = 0; p < s.insert_light_probe_hdr.numel(); ++p) ASSERT_TRUE(std::isfinite(q[p]) && q[p] >= 0.0f);
+    EXPECT_NEAR(s.light_probe_position.x, s.object_x, 1.0) << s.id;
+    EXPECT_NEAR(s.light_probe_position.z, s.object_z, 1.0) << s.id;
+    EXPECT_GT(s.light_probe_position.y, 0.2) << s.id;
+    EXPECT_LT(s.light_probe_position.y, 2.0) << s.id;
+  }
+  EXPECT_GT(checked, 0);
+}
+
 std::string file_bytes(const fs::path& p) {
   std::ifstream f(p, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(f), {});

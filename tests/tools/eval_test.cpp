@@ -40,6 +40,14 @@ TEST(EvalTool, ReportsTheMetricsOfTables1And2WithARowPerCheckpoint) {
   EXPECT_TRUE(fs::exists(dir + "/out/results.md"));
   EXPECT_TRUE(fs::exists(dir + "/out/error_time.png"));
   EXPECT_EQ(j["results"][0]["sun_error_median_deg"], j["results"][1]["sun_error_median_deg"]);  // deterministic
+  // Insertion error, also by part of the region, and the oracle row naming the light it used
+  // (the tiny dataset has no light probe at the object).
+  const auto& first = j["results"][0];
+  ASSERT_TRUE(first.contains("insertion_psnr")) << first.dump();
+  EXPECT_TRUE(first["insertion_psnr_parts"].contains("object")) << first.dump();
+  ASSERT_TRUE(first.contains("oracle")) << first.dump();
+  EXPECT_EQ(first["oracle"]["light"], "panorama at the camera");
+  EXPECT_TRUE(first["oracle"]["insertion_psnr_parts"].contains("object"));
 }
 
 TEST(EvalTool, MissingDataIsACleanError) {

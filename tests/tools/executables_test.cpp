@@ -49,6 +49,10 @@ TEST(Executables, EveryToolAnswersHelpAndRejectsBadFlagsWithExitCode2) {
     const ProcessResult help = run(exe + " --help");
     EXPECT_EQ(help.code, 0) << exe << "\n" << help.out;
     EXPECT_NE(help.out.find("usage"), std::string::npos) << exe;
+    // The usage line names the program once ("usage: streetlight-x streetlight-x ..." was a bug).
+    const std::string name = std::filesystem::path(exe).filename().string();
+    EXPECT_EQ(help.out.find("usage: " + name + " " + name), std::string::npos) << exe << "\n" << help.out;
+    EXPECT_EQ(help.out.find("(repeatable) (repeatable)"), std::string::npos) << exe << "\n" << help.out;
     const ProcessResult bad = run(exe + " --definitely-not-a-flag");
     EXPECT_EQ(bad.code, 2) << exe << "\n" << bad.out;
     EXPECT_EQ(bad.out.rfind("error: ", 0), 0u) << exe << " printed:\n" << bad.out;

@@ -85,7 +85,9 @@ struct MirrorScene {
   std::string dir, hdri, sphere;
   glm::dvec3 dirs[3] = {direction(90, 0), direction(0, 89), direction(180, 25)};  // +X, zenith, behind the camera
   MirrorScene() {
-    dir = test::tool_dir("render");
+    // One folder per test: ctest runs the tests of this file in parallel processes, and a
+    // shared folder let one test's set-up delete another's files.
+    dir = test::tool_dir(std::string("render_") + ::testing::UnitTest::GetInstance()->current_test_info()->name());
     hdri = dir + "/markers.exr";
     sphere = dir + "/mirror.glb";
     marker_hdri(hdri, dirs);

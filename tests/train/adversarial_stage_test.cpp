@@ -110,8 +110,9 @@ TEST(Adversarial, GeneratorLossReachesTheFirstConvThroughCompositeRendererAndFro
   EXPECT_GT(grad_abs_sum(predictor, "volume_mlp."), 0.0);
   EXPECT_EQ(grad_abs_sum(predictor, "sky_decoder."), 0.0);  // frozen: nothing accumulates
   for (const auto& [n, t] : predictor.named_parameters())
-    if (t.grad().defined())
+    if (t.grad().defined()) {
       for (double v : t.grad().to_vector()) ASSERT_TRUE(std::isfinite(v)) << n;
+    }
 }
 
 TEST(AdversarialStage, StepsRunAndTheDiscriminatorLearns) {

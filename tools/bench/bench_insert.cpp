@@ -38,6 +38,7 @@
 #include "render/path_tracer.h"
 #include "render/primitives.h"
 #include "tools/bench/bench.h"
+#include "tools/bench/reference_store.h"
 #include "tools/bench/timing.h"
 #include "tools/common/plot.h"
 #include "train/inference.h"
@@ -168,25 +169,38 @@ double process_cpu_ms() {
 struct RegionError {
   double rel_rmse = 0;
   int64_t pixels = 0;
+  // The same error split by where it lands, as sqrt(Σ e² over the part / Σ ref² over the whole
+  // region), so the three add in quadrature to rel_rmse: pixels fully covered by the object
+  // (foreground sampling, Eq. 2), partly covered (edges: both terms), and not covered (the
+  // ratio shadow map alone, Eq. 3-4).
+  double object = 0, edge = 0, shadow = 0;
+  int64_t object_pixels = 0, edge_pixels = 0, shadow_pixels = 0;
 };
 
 RegionError region_error(const InsertionResult& a, const InsertionResult& ref) {
   const auto va = a.composite.to_vector(), vr = ref.composite.to_vector();
   const auto mr = ref.object_mask.to_vector(), sr = ref.shadow_map.to_vector();
   const size_t hw = mr.size();
-  double e = 0, r2 = 0;
+  double e = 0, r2 = 0, e_part[3] = {0, 0, 0};
   RegionError out;
+  int64_t* counts[3] = {&out.object_pixels, &out.edge_pixels, &out.shadow_pixels};
   for (size_t p = 0; p < hw; ++p) {
     const double s = (sr[p] + sr[hw + p] + sr[2 * hw + p]) / 3.0;
     if (mr[p] <= 0 && std::abs(s - 1.0) <= 1e-3) continue;
     ++out.pixels;
+    const int part = mr[p] >= 1 ? 0 : mr[p] > 0 ? 1 : 2;
+    ++*counts[part];
     for (size_t c = 0; c < 3; ++c) {
       const double d = va[c * hw + p] - vr[c * hw + p];
       e += d * d;
+      e_part[part] += d * d;
       r2 += vr[c * hw + p] * vr[c * hw + p];
     }
   }
   out.rel_rmse = r2 > 0 ? std::sqrt(e / r2) : 0.0;
+  out.object = r2 > 0 ? std::sqrt(e_part[0] / r2) : 0.0;
+  out.edge = r2 > 0 ? std::sqrt(e_part[1] / r2) : 0.0;
+  out.shadow = r2 > 0 ? std::sqrt(e_part[2] / r2) : 0.0;
   return out;
 }
 
@@ -259,7 +273,7 @@ double lighting_ms(const train::Photo& photo, const std::string& dir) {
 }
 
 int run_production(const std::string& size, bool json, const std::string& data, const std::string& out, bool quick,
-                   int reference_spp, bool reference_cache) {
+                   int reference_spp, bool reference_cache, const std::string& reference_dir) {
   SL_CHECK(size == "kitti" || size == "nuscenes", "insert: --size must be kitti or nuscenes, got '", size, "'");
   std::filesystem::create_directories(out);
   const ProductionScene s = production_scene(size, data);
@@ -297,7 +311,34 @@ int run_production(const std::string& size, bool json, const std::string& data, 
   const int passes = std::max({1, reference_spp / (ref.aa_samples * ref.light_samples), reference_spp / ref.shadow_rays});
   double ref_ms = 0;
   InsertionResult reference;
-  {
+  // A stored reference (--reference-dir) is keyed by everything that determines it; the
+  // renderer's code is named by kReferenceRenderer, bumped whenever an expectation changes.
+  Fingerprint key;
+  key.text("insertion reference; renderer v1");
+  for (const Tensor& t : {in.background, in.depth, in.env, in.vsg}) key.tensor(t);
+  key.bytes(in.objects[0].mesh.positions.data(), in.objects[0].mesh.positions.size() * sizeof(glm::vec3));
+  key.value(k);
+  key.value(in.camera.rotation());
+  key.value(in.camera.position());
+  key.value(in.grid);
+  for (int v : {passes, ref.aa_samples, ref.light_samples, ref.shadow_rays, ref.shadow_width, ref.shadow_height,
+                ref.cache_height, ref.cache_width, int(ref.radiance_cache), int(ref.importance_sampling), int(ref.prune)})
+    key.value(v);
+  key.value(ref.ambient);
+  key.value(ref.cache_spacing_m);
+  key.value(ref.seed);
+  for (double v : {double(ref.query.samples), double(ref.query.spacing), double(ref.query.trilinear),
+                   double(ref.query.prune), ref.query.empty_alpha, ref.query.min_transmittance})
+    key.value(v);
+  const std::string stored = reference_dir.empty() ? "" : reference_dir + "/insert_reference_" + key.hex() + ".bin";
+  std::vector<Tensor> kept;
+  if (!stored.empty() && load_tensors(stored, kept, 4)) {
+    reference.composite = kept[0];
+    reference.shadow_map = kept[1];
+    reference.object_mask = kept[2];
+    reference.object_silhouette = kept[3];
+    std::fprintf(stderr, "reference: loaded %s (a stored reference; the final figures need a fresh one)\n", stored.c_str());
+  } else {
     const double t0 = now_ms();
     Tensor comp, shadow;
     for (int p = 0; p < passes; ++p) {
@@ -310,10 +351,15 @@ int run_production(const std::string& size, bool json, const std::string& data, 
     reference.composite = mul_scalar(comp, 1.0 / passes).contiguous();
     reference.shadow_map = mul_scalar(shadow, 1.0 / passes).contiguous();
     ref_ms = now_ms() - t0;
+    std::fprintf(stderr, "reference (%d passes: %d light samples per pixel, %d shadow rays, %s): %.1f s\n", passes,
+                 passes * ref.aa_samples * ref.light_samples, passes * ref.shadow_rays,
+                 reference_cache ? "radiance cache" : "exact queries", ref_ms / 1000);
+    if (!stored.empty()) {
+      std::filesystem::create_directories(reference_dir);
+      store_tensors(stored, {reference.composite, reference.shadow_map, reference.object_mask, reference.object_silhouette});
+      std::fprintf(stderr, "reference: stored %s\n", stored.c_str());
+    }
   }
-  std::fprintf(stderr, "reference (%d passes: %d light samples per pixel, %d shadow rays, %s): %.1f s\n", passes,
-               passes * ref.aa_samples * ref.light_samples, passes * ref.shadow_rays,
-               reference_cache ? "radiance cache" : "exact queries", ref_ms / 1000);
   struct Row {
     std::string name;
     InsertionOptions opt;
@@ -324,6 +370,12 @@ int run_production(const std::string& size, bool json, const std::string& data, 
     InsertionOptions exact = train::insertion_options(production);
     exact.radiance_cache = false;
     rows.push_back({"production_exact_queries", exact});
+    InsertionOptions texel_env = train::insertion_options(production);
+    texel_env.bilinear_env_sampling = false;
+    rows.push_back({"texel_env_sampling", texel_env});
+    InsertionOptions per_sample = train::insertion_options(production);
+    per_sample.stratify_per_pixel = false;
+    rows.push_back({"strata_per_primary_sample", per_sample});
     for (int n : {8, 16, 32}) {
       InsertionOptions o = train::insertion_options(production);
       o.light_samples = n;
@@ -353,17 +405,20 @@ int run_production(const std::string& size, bool json, const std::string& data, 
                   "\"aa\": %d, \"light_samples\": %d, \"shadow_rays\": %d, \"shadow_map\": \"%dx%d\", \"radiance_cache\": %s, "
                   "\"lighting_ms\": %.1f, \"insertion_ms\": %.1f, \"ms\": %.1f, \"rel_rmse\": %.5f, \"region_pixels\": %lld, "
                   "\"insertion_cpu_ms\": %.1f, \"object_samples\": %lld, \"query_rays\": %lld, \"shadow_texels_computed\": %lld, "
-                  "\"reference_ms\": %.0f}\n",
+                  "\"rel_rmse_object\": %.5f, \"rel_rmse_edge\": %.5f, \"rel_rmse_shadow\": %.5f, \"object_pixels\": %lld, "
+                  "\"edge_pixels\": %lld, \"shadow_pixels\": %lld, \"reference_ms\": %.0f}\n",
                   size.c_str(), row.name.c_str(), k.width, k.height, row.opt.aa_samples, row.opt.light_samples,
                   row.opt.shadow_rays, row.opt.shadow_width, row.opt.shadow_height, row.opt.radiance_cache ? "true" : "false",
                   light_ms, ms, total, err.rel_rmse, (long long)err.pixels, cpu_ms, (long long)r.stats.foreground_samples,
-                  (long long)r.stats.query_rays, (long long)r.stats.shadow_pixels_computed, ref_ms);
+                  (long long)r.stats.query_rays, (long long)r.stats.shadow_pixels_computed, err.object, err.edge, err.shadow,
+                  (long long)err.object_pixels, (long long)err.edge_pixels, (long long)err.shadow_pixels, ref_ms);
     else
       std::printf("%-26s aa %d light %4d shadow %4d (%dx%d)  lighting %6.0f ms + insertion %7.0f ms = %7.0f ms  "
-                  "rel RMSE %.4f over %lld px  (CPU %.0f ms; object samples %lld, query rays %lld, shadow texels %lld)\n",
+                  "rel RMSE %.4f over %lld px [object %.4f, edges %.4f, shadow %.4f]  (CPU %.0f ms; object samples "
+                  "%lld, query rays %lld, shadow texels %lld)\n",
                   row.name.c_str(), row.opt.aa_samples, row.opt.light_samples, row.opt.shadow_rays, row.opt.shadow_width,
-                  row.opt.shadow_height, light_ms, ms, total, err.rel_rmse, (long long)err.pixels, cpu_ms,
-                  (long long)r.stats.foreground_samples, (long long)r.stats.query_rays,
+                  row.opt.shadow_height, light_ms, ms, total, err.rel_rmse, (long long)err.pixels, err.object, err.edge,
+                  err.shadow, cpu_ms, (long long)r.stats.foreground_samples, (long long)r.stats.query_rays,
                   (long long)r.stats.shadow_pixels_computed);
     std::fflush(stdout);
   }
@@ -372,7 +427,7 @@ int run_production(const std::string& size, bool json, const std::string& data, 
 
 int run_insert(const std::vector<std::string>& args) {
   bool json = false, quick = false;
-  std::string out = "insert-bench", data = "../shared/data", size;
+  std::string out = "insert-bench", data = "../shared/data", size, reference_dir;
   int reference_spp = 4096;
   bool reference_cache = false;
   for (size_t i = 0; i < args.size(); ++i) {
@@ -389,7 +444,9 @@ int run_insert(const std::vector<std::string>& args) {
           "              size, error against a 4096-samples-per-pixel reference; --json gives ms and rel_rmse\n"
           "  --reference-spp N  light samples per pixel and shadow rays of that reference (default 4096)\n"
           "  --reference-cache  the reference reads the volume through the radiance cache too (measures sampling\n"
-          "                     error alone; the default marches the volume for every ray)\n");
+          "                     error alone; the default marches the volume for every ray)\n"
+          "  --reference-dir DIR  keep the reference in DIR keyed by everything that determines it and reuse it\n"
+          "                     (development only: the renderer's code is named by a version string, not hashed)\n");
       return 0;
     } else if (a == "--json") {
       json = true;
@@ -400,13 +457,13 @@ int run_insert(const std::vector<std::string>& args) {
     } else if (a == "--reference-spp" && i + 1 < args.size()) {
       reference_spp = std::stoi(args[++i]);
       SL_CHECK(reference_spp >= 1, "insert: --reference-spp must be >= 1");
-    } else if ((a == "--out" || a == "--data" || a == "--size") && i + 1 < args.size()) {
-      (a == "--out" ? out : a == "--data" ? data : size) = args[++i];
+    } else if ((a == "--out" || a == "--data" || a == "--size" || a == "--reference-dir") && i + 1 < args.size()) {
+      (a == "--out" ? out : a == "--data" ? data : a == "--size" ? size : reference_dir) = args[++i];
     } else {
       fail("insert: unknown option '", a, "' (try --help)");
     }
   }
-  if (!size.empty()) return run_production(size, json, data, out, quick, reference_spp, reference_cache);
+  if (!size.empty()) return run_production(size, json, data, out, quick, reference_spp, reference_cache, reference_dir);
   std::filesystem::create_directories(out);
   const Scene s = make_scene(data);
   const PlacedObject obj = place_object(s.object, {0.8, -10.0, 30.0, 1.0}, s.camera, s.depth);

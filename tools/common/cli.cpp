@@ -17,7 +17,9 @@ Args::Args(std::string program, std::string synopsis, std::vector<Flag> flags)
     : program_(std::move(program)), synopsis_(std::move(synopsis)), flags_(std::move(flags)) {}
 
 std::string Args::help_text() const {
-  std::string s = "usage: " + program_ + " " + synopsis_ + "\n\noptions:\n";
+  // A synopsis may already start with the program's name (several lines of usage do).
+  const bool named = synopsis_.rfind(program_ + " ", 0) == 0;
+  std::string s = "usage: " + (named ? synopsis_ : program_ + " " + synopsis_) + "\n\noptions:\n";
   for (const Flag& f : flags_) {
     std::string left = "  " + f.name + (f.value_name.empty() ? "" : " " + f.value_name);
     if (left.size() < 30) left.resize(30, ' ');

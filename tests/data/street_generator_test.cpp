@@ -28,6 +28,7 @@ using sl::data::generate_street_sample;
 using sl::data::GeneratedSample;
 using sl::data::make_procedural_car;
 using sl::data::read_image;
+using sl::data::split_ids;
 using sl::data::street_generator_config;
 using sl::data::StreetDataset;
 using sl::data::StreetGeneratorConfig;

@@ -83,7 +83,7 @@ TEST(Bvh, VectorTestsGiveBitIdenticalHitsToTheScalarTest) {
   // The 8-wide box and triangle tests must reproduce the scalar test of intersect_brute_force
   // operation for operation: the same t, u and v to the bit, not just close. A closed bumpy
   // surface of small triangles plus a random soup, rays from inside and outside.
-  sl::Mesh m = random_soup(4000, 31);
+  sl::render::Mesh m = random_soup(4000, 31);
   for (int i = 0; i < 60; ++i)
     for (int j = 0; j < 60; ++j) {
       const uint32_t b = static_cast<uint32_t>(m.positions.size());
@@ -95,13 +95,13 @@ TEST(Bvh, VectorTestsGiveBitIdenticalHitsToTheScalarTest) {
       m.triangles.push_back({b, b + 1, b + 2});
       m.triangles.push_back({b, b + 2, b + 3});
     }
-  const sl::Bvh bvh(m);
+  const sl::render::Bvh bvh(m);
   const auto rays = random_rays(m.bounds(), 2000, 37);
-  std::vector<sl::Hit> hits(rays.size());
+  std::vector<sl::render::Hit> hits(rays.size());
   bvh.intersect(rays.data(), hits.data(), rays.size());
   int hit_count = 0;
   for (size_t i = 0; i < rays.size(); ++i) {
-    const sl::Hit ref = sl::intersect_brute_force(m.positions, m.triangles, rays[i]);
+    const sl::render::Hit ref = sl::render::intersect_brute_force(m.positions, m.triangles, rays[i]);
     ASSERT_EQ(hits[i].hit(), ref.hit()) << "ray " << i;
     if (!ref.hit()) continue;
     ++hit_count;
@@ -117,19 +117,19 @@ TEST(Bvh, VectorTestsGiveBitIdenticalHitsToTheScalarTest) {
 TEST(Bvh, PortableAndVectorKernelsGiveBitIdenticalHits) {
   // The portable lane loops are the fallback for machines without AVX2; forced at run time here,
   // they must give what the vector tests give, to the bit, closest and any hit alike.
-  const sl::Mesh m = random_soup(6000, 51);
-  const sl::Bvh vector_bvh(m);
-  sl::Bvh portable_bvh(m);
+  const sl::render::Mesh m = random_soup(6000, 51);
+  const sl::render::Bvh vector_bvh(m);
+  sl::render::Bvh portable_bvh(m);
   portable_bvh.use_portable_kernels(true);
   ASSERT_TRUE(portable_bvh.uses_portable_kernels());
   ASSERT_FALSE(vector_bvh.uses_portable_kernels());
-  std::vector<sl::Ray> rays = random_rays(m.bounds(), 3000, 53);
+  std::vector<sl::render::Ray> rays = random_rays(m.bounds(), 3000, 53);
   sl::Rng rng(55);
   for (size_t i = 0; i < rays.size(); i += 3) {
     rays[i].tmin = static_cast<float>(rng.uniform(0.0, 0.3));
     rays[i].tmax = rays[i].tmin + static_cast<float>(rng.uniform(0.0, 1.0));
   }
-  std::vector<sl::Hit> a(rays.size()), b(rays.size());
+  std::vector<sl::render::Hit> a(rays.size()), b(rays.size());
   std::vector<uint8_t> occ_a(rays.size()), occ_b(rays.size());
   vector_bvh.intersect(rays.data(), a.data(), rays.size());
   portable_bvh.intersect(rays.data(), b.data(), rays.size());
@@ -151,26 +151,26 @@ TEST(Bvh, PortableAndVectorKernelsGiveBitIdenticalHits) {
 TEST(Bvh, RaysWithTiedDirectionComponentsMatchBruteForce) {
   // The ray set-up picks the dominant axis of |d| without branches; ties (|dx| = |dy|, diagonals,
   // zero components) and every sign must still give the scalar test's hits.
-  const sl::Mesh m = random_soup(2000, 41);
-  const sl::Bvh bvh(m);
+  const sl::render::Mesh m = random_soup(2000, 41);
+  const sl::render::Bvh bvh(m);
   sl::Rng rng(43);
-  std::vector<sl::Ray> rays;
+  std::vector<sl::render::Ray> rays;
   for (int dx = -1; dx <= 1; ++dx)
     for (int dy = -1; dy <= 1; ++dy)
       for (int dz = -1; dz <= 1; ++dz) {
         if (dx == 0 && dy == 0 && dz == 0) continue;
         for (int k = 0; k < 40; ++k) {
-          sl::Ray r;
+          sl::render::Ray r;
           r.origin = glm::vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
           r.direction = glm::vec3(dx, dy, dz) * static_cast<float>(rng.uniform(0.5, 2.0));
           rays.push_back(r);
         }
       }
   expect_matches_brute_force(m, bvh, rays);
-  std::vector<sl::Hit> hits(rays.size());
+  std::vector<sl::render::Hit> hits(rays.size());
   bvh.intersect(rays.data(), hits.data(), rays.size());
   for (size_t i = 0; i < rays.size(); ++i) {
-    const sl::Hit ref = sl::intersect_brute_force(m.positions, m.triangles, rays[i]);
+    const sl::render::Hit ref = sl::render::intersect_brute_force(m.positions, m.triangles, rays[i]);
     EXPECT_EQ(hits[i].t, ref.t) << "ray " << i;
   }
 }

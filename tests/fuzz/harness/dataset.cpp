@@ -28,7 +28,7 @@ namespace {
 // 8x4 views, 8x4 panorama and sky: enough for every reader, cheap to read.
 const std::string& dataset_dir() {
   static const std::string dir = [] {
-    const fs::path d = fs::path(scratch_dir()) / "dataset";
+    const fs::path d = fs::path(fuzz_scratch_dir()) / "dataset";
     const fs::path s = d / "samples" / "000000";
     fs::create_directories(s);
     const Tensor rgb = Tensor::full({3, 4, 8}, 0.5f), grey = Tensor::full({1, 4, 8}, 1.0f);

@@ -43,13 +43,13 @@ struct Scratch {
 };
 }  // namespace
 
-const std::string& scratch_dir() {
+const std::string& fuzz_scratch_dir() {
   static const Scratch scratch;
   return scratch.dir;
 }
 
 std::string write_scratch(const std::string& name, const uint8_t* data, size_t size) {
-  const fs::path path = fs::path(scratch_dir()) / name;
+  const fs::path path = fs::path(fuzz_scratch_dir()) / name;
   fs::create_directories(path.parent_path());
   // A new file, not a truncated one: ext4 flushes a file truncated and rewritten to disk when it
   // is closed (auto_da_alloc), which held every target at ~300 executions per second.

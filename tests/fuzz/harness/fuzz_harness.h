@@ -42,8 +42,8 @@ template <class F>
 bool refuses_cleanly_or_runs(const char* target, F&& f);
 
 // A private scratch folder for this process (created on first use, removed at exit).
-const std::string& scratch_dir();
-// Writes bytes to scratch_dir()/name (overwriting) and returns the path.
+const std::string& fuzz_scratch_dir();
+// Writes bytes to fuzz_scratch_dir()/name (overwriting) and returns the path.
 std::string write_scratch(const std::string& name, const uint8_t* data, size_t size);
 
 }  // namespace sl::test

@@ -432,11 +432,12 @@ BatchResult augment_one(const cli::Args& a, LightingEstimator& est, const std::v
   const std::string label_path = (out / "label_2" / (item.id + ".txt")).string();
   const std::string calib_path = (out / "calib" / (item.id + ".txt")).string();
   const std::string image_path = (out / "image_2" / (item.id + ".png")).string();
-  write_text(label_path + ".partial", text);
-  write_text(calib_path + ".partial", calib);
+  AtomicFile label_file(label_path), calib_file(calib_path);
+  label_file.write(text.data(), text.size());
+  calib_file.write(calib.data(), calib.size());
   if (kill_after() == done_so_far) std::raise(SIGKILL);
-  fs::rename(label_path + ".partial", label_path);
-  fs::rename(calib_path + ".partial", calib_path);
+  label_file.commit();
+  calib_file.commit();
   ImageWriteOptions lin;
   lin.transfer = Transfer::Linear;
   write_image(image_path, photo.ldr, lin);
@@ -451,7 +452,7 @@ int batch(const cli::Args& a) {
   for (const auto& s : specs) objects.push_back(load_object(s));
   // The output folder is written in place, frame by frame, so that a run can resume: batch.json
   // marks it as this tool's, a frame is finished when its image exists (written last), and
-  // leftovers of a killed run (*.partial, *.tmp-*) are removed first.
+  // leftovers of a killed run (util/file.h temporaries of a process that is gone) are removed first.
   const fs::path out(a.get("--out"));
   const json marker = {{"tool", "streetlight-insert --batch"}, {"input", fs::absolute(a.get("--batch")).string()}};
   if (fs::exists(out)) {
@@ -472,11 +473,7 @@ int batch(const cli::Args& a) {
   LightingEstimator est(a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path());
   for (const char* d : {"image_2", "label_2", "calib"}) fs::create_directories(out / d);
   write_file_atomic((out / "batch.json").string(), marker.dump(2) + "\n");
-  for (const char* d : {"image_2", "label_2", "calib"})
-    for (const auto& e : fs::directory_iterator(out / d)) {
-      const std::string name = e.path().filename().string();
-      if (name.find(".partial") != std::string::npos || name.find(".tmp.") != std::string::npos) fs::remove(e.path());
-    }
+  for (const char* d : {"image_2", "label_2", "calib"}) sweep_stale_temp_files((out / d).string());
   std::vector<size_t> todo;
   for (size_t i = 0; i < items.size(); ++i)
     if (!fs::exists(out / "image_2" / (items[i].id + ".png"))) todo.push_back(i);

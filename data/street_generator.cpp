@@ -340,14 +340,11 @@ GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t i
   const auto t0 = std::chrono::steady_clock::now();
   GeneratedSample result;
   result.id = sample_id(index);
-  const fs::path final_dir = fs::path(samples_dir) / result.id;
-  const fs::path tmp_dir = fs::path(samples_dir) / (result.id + ".tmp");
-  std::error_code ec;
-  fs::remove_all(tmp_dir, ec);
-  fs::create_directories(tmp_dir, ec);
-  SL_CHECK(!ec, "generate_street_sample: cannot create '", tmp_dir.string(), "': ", ec.message());
-  auto file = [&](const std::string& name) { return (tmp_dir / name).string(); };
-  try {
+  // Written into a temporary sibling folder, renamed to <id>/ when complete (util/file.h); a
+  // failure or a kill leaves no <id>/ behind.
+  AtomicDirectory sample_dir((fs::path(samples_dir) / result.id).string());
+  auto file = [&](const std::string& name) { return sample_dir.file(name); };
+  {
     const Lighting light = make_lighting(c, index);
     const EnvironmentMap env(light.env);
     const StreetScene scene = build_street_scene(c.scene, hash_counter(c.seed, static_cast<uint64_t>(index), kScene));
@@ -516,13 +513,7 @@ GeneratedSample generate_street_sample(const StreetGeneratorConfig& c, int64_t i
                  {"object", object_meta}};
     write_file_atomic(file("meta.json"), meta.dump(2) + "\n");
 
-    fs::remove_all(final_dir, ec);
-    fs::rename(tmp_dir, final_dir, ec);
-    SL_CHECK(!ec, "generate_street_sample: cannot rename '", tmp_dir.string(), "' to '", final_dir.string(),
-             "': ", ec.message());
-  } catch (...) {
-    fs::remove_all(tmp_dir, ec);
-    throw;
+    sample_dir.commit();
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return result;

@@ -19,7 +19,8 @@
 // Determinism: every random choice and every path-tracer seed is a pure function of
 // (config, dataset seed, sample index), so the same seed writes the same files with any
 // number of threads. Samples are independent: any subset can be (re)generated alone.
-// Atomicity: a sample is written into `<id>.tmp/` and renamed to `<id>/` only when complete;
+// Atomicity: a sample is written into a temporary sibling folder (util/file.h AtomicDirectory)
+// and renamed to `<id>/` only when complete;
 // index.json is written to a temporary file and renamed.
 // Throws: sl::Error naming the config key and value (bad config), or the file (I/O); the
 // OpenMP loops never throw.

@@ -14,6 +14,7 @@
 #include "data/contact_sheet.h"
 #include "data/street_generator.h"
 #include "tools/common/cli.h"
+#include "util/file.h"
 #include "tools/common/config.h"
 #include "util/error.h"
 
@@ -71,6 +72,7 @@ int run(int argc, char** argv) {
   try {
     const fs::path samples_dir = fs::path(out) / "samples";
     fs::create_directories(samples_dir);
+    sl::sweep_stale_temp_files(samples_dir.string());  // what a killed run left (live processes keep theirs)
     const auto t0 = std::chrono::steady_clock::now();
     sl::cli::Progress progress("datagen", c.samples);
     std::vector<std::string> ids;

@@ -242,9 +242,12 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
     if (branch == "sky_decoder") {
       add_term("sky_intensity", log_encoded_l2_from_log(f.pred.code.log_intensity, teacher.code.intensity()));
       add_term("sky_latent", l1(f.pred.code.latent, teacher.code.latent));
-      add_term("sky_direction", suns.empty() ? Tensor::scalar(0.0)
-                                             : mul_scalar(angular_l1(stack(known_dirs, 0), dvec_rows(suns)),
-                                                          static_cast<double>(suns.size()) / static_cast<double>(n)));
+      const bool split = w.at("sky_direction_form").get<std::string>() == "elevation_azimuth";
+      add_term("sky_direction",
+               suns.empty() ? Tensor::scalar(0.0)
+                            : mul_scalar(split ? elevation_azimuth_l1(stack(known_dirs, 0), dvec_rows(suns))
+                                               : angular_l1(stack(known_dirs, 0), dvec_rows(suns)),
+                                         static_cast<double>(suns.size()) / static_cast<double>(n)));
     } else {
       add_term("sky_hdr", log_encoded_l2_from_log(f.pred.log_env, teacher.sky.hdr));
     }

@@ -26,6 +26,25 @@ Tensor angular_l1(const Tensor& pred_dir, const Tensor& target_dir) {
   return mean(acos(clamp(cosine, -1.0, 1.0)));
 }
 
+Tensor elevation_azimuth_l1(const Tensor& pred_dir, const Tensor& target_dir) {
+  SL_CHECK(pred_dir.dim() == 2 && pred_dir.size(1) == 3 && pred_dir.shape() == target_dir.shape(),
+           "elevation_azimuth_l1: expected two [N, 3] direction tensors, got ", pred_dir.describe(), " and ",
+           target_dir.describe());
+  const Tensor t = target_dir.detach();
+  auto column = [](const Tensor& d, int64_t k) { return select(d, 1, k); };
+  auto elevation = [&](const Tensor& d) {
+    const Tensor x = column(d, 0), z = column(d, 2);
+    return atan2(column(d, 1), sqrt(add_scalar(add(square(x), square(z)), 1e-12)));
+  };
+  const Tensor elev_t = elevation(t);
+  const Tensor d_elev = abs(sub(elevation(pred_dir), elev_t));
+  // Wrapped azimuth difference of the horizontal parts (x, z): atan2(cross, dot), scale-free.
+  const Tensor px = column(pred_dir, 0), pz = column(pred_dir, 2), tx = column(t, 0), tz = column(t, 2);
+  const Tensor cross = sub(mul(px, tz), mul(pz, tx)), dot = add(mul(px, tx), mul(pz, tz));
+  const Tensor d_azim = mul(abs(atan2(cross, dot)), cos(elev_t));
+  return mean(add(d_elev, d_azim));
+}
+
 Tensor l1(const Tensor& pred, const Tensor& target) {
   SL_CHECK(pred.shape() == target.shape(), "l1: pred ", pred.describe(), " vs target ", target.describe());
   return mean(abs(sub(pred, target)));

@@ -20,6 +20,17 @@ Tensor log_encoded_l2_from_log(const Tensor& log_pred, const Tensor& target);
 // (unit; both are normalised with a guard first).
 Tensor angular_l1(const Tensor& pred_dir, const Tensor& target_dir);
 
+// The sun direction as elevation and azimuth: mean over rows of |θ̂ − θ| + cos θ·|φ̂ − φ| in
+// radians, θ = atan2(y, √(x² + z²)) the elevation and φ the azimuth (render/equirect.h), â and a
+// [N, 3] (any length; a zero prediction is guarded). The azimuth term is the wrapped angle between
+// the horizontal parts, weighted by the target's cos θ (the arc it spans on the sphere).
+// Why not angular_l1 for a predictor that sees a crop: when the image leaves the azimuth
+// uncertain, the direction minimising the expected angle moves up toward the zenith (for
+// azimuths spread over a ring, the zenith itself), so the predicted elevation is biased high
+// and, near the zenith, the azimuth gets almost no gradient. Here the elevation is judged on its
+// own and the azimuth keeps a full-strength gradient.
+Tensor elevation_azimuth_l1(const Tensor& pred_dir, const Tensor& target_dir);
+
 Tensor l1(const Tensor& pred, const Tensor& target);
 // Σ |p − t|·m / max(Σ m·C, 1) where mask broadcasts to pred (C = pred.numel / mask.numel
 // after broadcasting the mask's missing channel dims).

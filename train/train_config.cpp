@@ -72,6 +72,7 @@ json default_train_config() {
         {"sky_intensity", 0.1},
         {"sky_latent", 1.0},
         {"sky_direction", 1.0},
+        {"sky_direction_form", "elevation_azimuth"},
         {"sky_ldr", 1.0},
         {"sky_hdr", 1.0},
         {"radiance", 1.0},
@@ -160,6 +161,9 @@ void check_train_config(const json& c) {
     SL_CHECK(real == "renderer" || real == "path_traced",
              "insertion.real must be \"renderer\" or \"path_traced\", got \"", real, "\"");
   }
+  const std::string form = c.at("loss").at("sky_direction_form").get<std::string>();
+  SL_CHECK(form == "elevation_azimuth" || form == "angular",
+           "loss.sky_direction_form must be \"elevation_azimuth\" or \"angular\", got \"", form, "\"");
   (void)sky_options(c);
   if (stage != kStageSky) (void)predictor_options(c), (void)volume_query_options(c);
 }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "autodiff/gradcheck.h"
 #include "autodiff/ops.h"
 #include "train/losses.h"
 #include "train/metrics.h"
@@ -14,6 +15,7 @@ using train::angular_error_deg;
 using train::angular_l1;
 using train::depth_consistency;
 using train::discriminator_hinge;
+using train::elevation_azimuth_l1;
 using train::generator_adversarial;
 using train::log_encoded_l2;
 using train::log_encoded_l2_from_log;
@@ -52,6 +54,58 @@ TEST(Losses, AngularL1IsTheAngleAndFiniteAtAgreement) {
   backward(lz);
   EXPECT_TRUE(std::isfinite(lz.item()));
   for (double g : z.grad().to_vector()) EXPECT_TRUE(std::isfinite(g));
+}
+
+glm::dvec3 sun_at(double elevation_deg, double azimuth_deg) {
+  const double e = elevation_deg * kPi / 180, a = azimuth_deg * kPi / 180;
+  return {std::cos(e) * std::sin(a), std::sin(e), -std::cos(e) * std::cos(a)};  // render/equirect.h
+}
+
+TEST(Losses, ElevationAzimuthL1MatchesHandValuesAndItsGradcheck) {
+  // Same azimuth, 20° apart in elevation: 20°. Same elevation 60°, azimuths 170° and −170°
+  // (20° apart across the wrap): cos 60°·20° = 10°.
+  const glm::dvec3 a = sun_at(30, 40), b = sun_at(50, 40), c = sun_at(60, 170), d = sun_at(60, -170);
+  const Tensor p = Tensor::from_vector({a.x, a.y, a.z, 2 * c.x, 2 * c.y, 2 * c.z}, {2, 3});  // length is ignored
+  const Tensor t = Tensor::from_vector({b.x, b.y, b.z, d.x, d.y, d.z}, {2, 3});
+  EXPECT_NEAR(elevation_azimuth_l1(p, t).item(), (20.0 + 10.0) / 2 * kPi / 180, 1e-6);
+  // A zero prediction and a zenith target are guarded: finite value and gradient.
+  const Tensor z = Tensor::zeros({1, 3}).set_requires_grad(true);
+  const Tensor lz = elevation_azimuth_l1(z, Tensor::from_vector({0, 1, 0}, {1, 3}));
+  backward(lz);
+  EXPECT_TRUE(std::isfinite(lz.item()));
+  for (double g : z.grad().to_vector()) EXPECT_TRUE(std::isfinite(g));
+  // float64 finite differences, away from the kinks (|Δθ| = 0, Δφ = 0 or ±π).
+  const Tensor target = Tensor::from_vector({b.x, b.y, b.z, d.x, d.y, d.z}, {2, 3}).to(DType::F64);
+  const glm::dvec3 e = sun_at(30, 55);
+  const Tensor pred = Tensor::from_vector({e.x, e.y, e.z, 0.3, 0.5, -0.8}, {2, 3}).to(DType::F64);
+  const GradcheckResult r = gradcheck([&](const TensorList& in) { return elevation_azimuth_l1(in[0], target); }, {pred});
+  EXPECT_TRUE(r.ok) << r.message;
+}
+
+// The reason for the split form: when the azimuth is uncertain (targets spread over a ring at
+// elevation 30°), the one prediction minimising angular_l1 climbs to the zenith, while the one
+// minimising elevation_azimuth_l1 keeps the ring's elevation.
+TEST(Losses, UnderAnUncertainAzimuthTheSplitFormKeepsTheElevation) {
+  std::vector<double> ring;
+  for (int k = 0; k < 12; ++k) {
+    const glm::dvec3 s = sun_at(30, -180 + 30 * k + 7);
+    ring.insert(ring.end(), {s.x, s.y, s.z});
+  }
+  const Tensor targets = Tensor::from_vector(ring, {12, 3}).to(DType::F64);
+  auto fit = [&](bool split) {
+    Tensor w = Tensor::from_vector({0.6, 0.5, -0.6}, {1, 3}).to(DType::F64);  // start at elevation ~30°
+    for (int it = 0; it < 3000; ++it) {
+      const Tensor p = w.detach().set_requires_grad(true);
+      const Tensor pred = expand(p, {12, 3});
+      const Tensor l = split ? elevation_azimuth_l1(pred, targets) : angular_l1(pred, targets);
+      backward(l);
+      w = sub(p.detach(), mul_scalar(p.grad(), 0.01));
+      w = mul_scalar(w, 1.0 / std::sqrt(sum(square(w)).item()));
+    }
+    return std::asin(std::clamp(w.to_vector()[1], -1.0, 1.0)) * 180 / kPi;
+  };
+  EXPECT_GT(fit(false), 80.0);
+  EXPECT_NEAR(fit(true), 30.0, 3.0);
 }
 
 TEST(Losses, MaskedL1AveragesInsideTheMaskOnly) {

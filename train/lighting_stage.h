@@ -9,7 +9,7 @@
 // Supervised loss per sample (weights loss.*), averaged over the batch:
 //   sky_decoder branch: sky_intensity LogEncodedL2(f̂_int, f̃_int), sky_latent L1(f̂_lat, f̃_lat)
 //     (f̃ = teacher encoder on the full panorama), sky_direction between f̂_dir and the true sun
-//     (loss.sky_direction_form: elevation_azimuth_l1 by default, or angular_l1; train/losses.h),
+//     (loss.sky_direction_form: angular_l1 by default, or elevation_azimuth_l1; train/losses.h),
 //     sky_ldr L1 between LDR(decoded sky) and the panorama inside the sky mask;
 //   direct branch: sky_hdr LogEncodedL2(env, teacher-decoded HDR) and sky_ldr;
 //   constant branch: no sky term (the volume-only baseline learns the sky from rays);

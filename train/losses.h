@@ -28,7 +28,8 @@ Tensor angular_l1(const Tensor& pred_dir, const Tensor& target_dir);
 // uncertain, the direction minimising the expected angle moves up toward the zenith (for
 // azimuths spread over a ring, the zenith itself), so the predicted elevation is biased high
 // and, near the zenith, the azimuth gets almost no gradient. Here the elevation is judged on its
-// own and the azimuth keeps a full-strength gradient.
+// own and the azimuth keeps a full-strength gradient. Measured at the release budget it trained a
+// worse predictor than angular_l1 (docs/RESULTS.md), so it is an option, not the default.
 Tensor elevation_azimuth_l1(const Tensor& pred_dir, const Tensor& target_dir);
 
 Tensor l1(const Tensor& pred, const Tensor& target);

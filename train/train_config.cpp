@@ -72,7 +72,7 @@ json default_train_config() {
         {"sky_intensity", 0.1},
         {"sky_latent", 1.0},
         {"sky_direction", 1.0},
-        {"sky_direction_form", "elevation_azimuth"},
+        {"sky_direction_form", "angular"},
         {"sky_ldr", 1.0},
         {"sky_hdr", 1.0},
         {"radiance", 1.0},

@@ -206,21 +206,18 @@ RefinementResult refine_lighting(const EstimatedLighting& start, SkyDecoder& dec
     const Tensor loss = adversarial_loss(d, scene, env, vsg, step_io, r);
     const double value = loss.item();
     out.loss_per_step.push_back(value);
-    if (!std::isfinite(value)) {
-      ++out.skipped_steps;
-      continue;
-    }
-    backward(loss);
-    bool finite = true;
+    if (std::isfinite(value)) backward(loss);
+    bool finite = std::isfinite(value);
     for (const auto& [name, p] : params) finite = finite && (!p.grad().defined() || all_finite(p.grad()));
-    if (!finite) {
+    if (finite) {
+      adam.step();
+      NoGradGuard no_grad;
+      const double len = glm::length(row3(dir_v));
+      if (std::isfinite(len) && len > 1e-12) dir_v.copy_(mul_scalar(dir_v.detach(), 1.0 / len));
+    } else {
       ++out.skipped_steps;
-      continue;
     }
-    adam.step();
-    NoGradGuard no_grad;
-    const double len = glm::length(row3(dir_v));
-    if (std::isfinite(len) && len > 1e-12) dir_v.copy_(mul_scalar(dir_v.detach(), 1.0 / len));
+    if (r.on_step) r.on_step(step, value);
   }
   adam.zero_grad();
   NoGradGuard no_grad;

@@ -39,6 +39,7 @@
 //   `volume` is asked without a volume, or for steps < 0 or a non-positive or non-finite lr.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -65,6 +66,7 @@ struct RefinementOptions {
   bool intensity = true, direction = true, latent = true;
   bool volume = false;
   int64_t discriminator_height = 0, discriminator_width = 0;  // 0: D sees the composite as rendered
+  std::function<void(int step, double loss)> on_step;  // after each step (progress); may be empty
 };
 
 struct RefinementResult {

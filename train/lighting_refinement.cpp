@@ -163,6 +163,8 @@ RefinementResult refine_lighting(const EstimatedLighting& start, SkyDecoder& dec
   SL_CHECK(start.has_sky_code && start.sky_code.dir.defined(),
            "lighting refinement needs the sky vector of the 'sky_decoder' sky branch; this lighting has none");
   SL_CHECK(!r.volume || start.vsg.defined(), "lighting refinement: the volume was asked for, but the lighting has none");
+  SL_CHECK(r.intensity || r.direction || r.latent || r.volume,
+           "lighting refinement: no parameter chosen (intensity, direction, latent, volume)");
   const auto t0 = std::chrono::steady_clock::now();
   FrozenForScope frozen(d);
   InsertionOptions io = insertion_options(insertion);
@@ -188,7 +190,6 @@ RefinementResult refine_lighting(const EstimatedLighting& start, SkyDecoder& dec
   if (r.direction) params.emplace_back("direction", dir_v);
   if (r.latent) params.emplace_back("latent", latent);
   if (r.volume) params.emplace_back("vsg_raw", vsg_raw);
-  SL_CHECK(!params.empty(), "lighting refinement: no parameter chosen (intensity, direction, latent, volume)");
   nn::Adam adam(params, nn::AdamOptions{.lr = r.lr});
   auto code_on_tape = [&] {
     SkyCode c;

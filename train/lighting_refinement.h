@@ -1,4 +1,4 @@
-// Discriminator test-time optimisation (paper Fig. 7): after the predictor has estimated a
+// Discriminator test-time optimisation (paper Sec 4.3, Fig. 7): after the predictor has estimated a
 // photo's lighting, N gradient steps on the lighting parameters lower the adversarial loss
 // L_adv = −mean D(I_edit) of the stage-3 discriminator D (train/adversarial_stage.h) on the
 // composite of the object being inserted. The composite is rendered by the one photo-insertion
@@ -16,7 +16,8 @@
 //   kept. Two matmuls with fixed weights: differentiable, any float dtype.
 // - discriminator_input(composite_linear [3, H, W], h, w): D's input as stage 3 forms it,
 //   ldr_from_hdr(composite) as [1, 3, h, w], after area_resize to h×w (h = w = 0: as rendered).
-//   Stage 3 shows D composites at the predictor's input size, so the tool passes that size.
+//   Stage 3 shows D composites at the dataset's view size, which the shipped configs make the
+//   predictor's input size (quickstart 128×64, release 256×128), so the tool passes that size.
 // - refine_lighting(start, decoder, D, scene, insertion, options):
 //   parameters (RefinementOptions picks them): log f_intensity [1, 3] (the intensity stays in
 //   its log form); f_dir as a free v [1, 3] with f_dir = v/|v| on the tape and v set back to
@@ -30,13 +31,15 @@
 //   (nn/optim.h, lr options.lr) on the chosen parameters. A step whose loss or gradient is not
 //   finite changes nothing and is counted in skipped_steps, so the refined lighting is finite.
 //   loss_before / loss_after: the same loss under start and under the refined lighting, both
-//   rendered with insertion.seed (common random numbers: their difference is the lighting's).
+//   rendered with insertion.seed (the same seeds; the environment samples still follow each
+//   lighting, so a difference smaller than the Monte Carlo noise means nothing).
 //   scene: photo_insertion_inputs() of `start` (its env and vsg are replaced, never modified).
 //   D is frozen and in eval mode during the call (its state is restored on return); neither D
 //   nor the decoder is updated. The result's env is decoded from the refined code off the tape;
 //   with steps = 0 the result's lighting is `start` itself, bitwise.
 //   Throws sl::Error when start has no sky vector (the "sky_decoder" branch is needed), when
-//   `volume` is asked without a volume, or for steps < 0 or a non-positive or non-finite lr.
+//   `volume` is asked without a volume, when no parameter is chosen, or for steps < 0 or a
+//   non-positive or non-finite lr. on_step, when set, is called after every step with its loss.
 #pragma once
 #include <cstdint>
 #include <functional>

@@ -601,6 +601,7 @@ int run(int argc, char** argv) {
   cli::Args a("streetlight-insert",
               "streetlight-insert --image PHOTO --intrinsics FILE --object MODEL.glb --at X,Z [--yaw DEG] [--scale S]\n"
               "                   [--checkpoint CKPT] --out DIR [--depth FILE | --lidar BIN --calib FILE]\n"
+              "                   [--refine N [--discriminator FILE]]\n"
               "streetlight-insert --batch LIST.json|FOLDER [--checkpoint CKPT] --out DIR [--object M.glb ...]\n\n"
               "Estimates the photo's HDR lighting with a trained checkpoint (Wang et al. ECCV 2022, Sec 3.2) and\n"
               "inserts a glTF object with its shading and cast shadow (Sec 3.3). --at X,Z is in metres in the first\n"
@@ -637,8 +638,8 @@ int run(int argc, char** argv) {
                 "                               lower -D of the stage-3 discriminator on the composite (default 0: off)"},
                {"--refine-lr", "LR", "Adam step size of --refine (default 0.05)"},
                {"--refine-volume", "", "--refine also optimises the VSG volume"},
-               {"--refine-samples", "AA,LIGHT,SHADOW", "--refine's renders: primary rays per pixel, light samples, shadow rays\n"
-                "                               (default 1,4,16; exact volume queries, so far costlier per ray than the final render)"},
+               {"--refine-samples", "A,L,S", "--refine's renders: primary rays per pixel, light samples, shadow rays (default\n"
+                "                               1,4,16; exact volume queries, so far costlier per ray than the final render)"},
                {"--discriminator", "FILE", "the discriminator for --refine: a stage-3 checkpoint or an export made with\n"
                 "                               --with-discriminator (default: the one in --checkpoint, if any)"},
                {"--batch", "LIST", "batch mode: KITTI folder (image_2, calib, label_2, velodyne) or JSON list of\n"

@@ -222,6 +222,7 @@ TEST(LightingRefinement, ExtremeSunKeepsEveryOutputFinite) {
     r.volume = true;
     const RefinementResult out = s.refine(start, *d, r);
     EXPECT_TRUE(std::isfinite(out.loss_before) && std::isfinite(out.loss_after));
+    EXPECT_EQ(out.skipped_steps, 0) << "a non-finite loss or gradient under the extreme sun";
     EXPECT_TRUE(finite(out.lighting.env)) << sign;
     EXPECT_TRUE(finite(out.lighting.vsg)) << sign;
     EXPECT_TRUE(finite(out.lighting.sky_code.log_intensity) && finite(out.lighting.sky_code.dir) &&
@@ -232,6 +233,23 @@ TEST(LightingRefinement, ExtremeSunKeepsEveryOutputFinite) {
                                                  s.pose, s.insertion);
     EXPECT_TRUE(finite(ins.composite_linear));
   }
+}
+
+// A discriminator that scores NaN (a broken file): every step is skipped, so the lighting that
+// comes back is the start's sky vector and finite.
+TEST(LightingRefinement, NonFiniteLossesChangeNothing) {
+  Scene s("refine_nan");
+  const EstimatedLighting start = s.lighting(30.0, 30.0, 1.0);
+  auto d = linear_discriminator(1.0);
+  for (const auto& [name, t] : d->named_parameters()) Tensor(t).fill_(std::nan(""));
+  RefinementOptions r;
+  r.steps = 3;
+  const RefinementResult out = s.refine(start, *d, r);
+  EXPECT_EQ(out.skipped_steps, 3);
+  EXPECT_LT(glm::length(out.lighting.sun_direction_canonical - start.sun_direction_canonical), 1e-6);
+  EXPECT_EQ(out.lighting.sun_intensity_rgb, start.sun_intensity_rgb);
+  EXPECT_EQ(out.lighting.sky_code.latent.to_vector(), start.sky_code.latent.to_vector());
+  EXPECT_TRUE(finite(out.lighting.env));
 }
 
 TEST(LightingRefinement, RefusesALightingWithoutASkyVectorAndBadOptions) {

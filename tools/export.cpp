@@ -1,8 +1,10 @@
 // streetlight-export: turns a lighting checkpoint (stage 2 or 3) into released inference weights:
 // only the predictor's tensors (predictor.*, with its frozen sky decoder), F16 by default, with
 // the stage, step and config metadata that LightingEstimator (train/inference.h) needs, plus
-// free-form --meta key=value notes (e.g. the commit). The teacher, discriminator and optimiser
-// state are dropped. The output is written atomically and checked by loading it back.
+// free-form --meta key=value notes (e.g. the commit). The teacher and optimiser state are
+// dropped, and so is the discriminator unless --with-discriminator keeps it (discriminator.*,
+// for streetlight-insert --refine, train/lighting_refinement.h). The output is written
+// atomically and checked by loading it back.
 #include <cstdio>
 #include <filesystem>
 
@@ -12,6 +14,7 @@
 #include "nn/safetensors.h"
 #include "tools/common/cli.h"
 #include "train/inference.h"
+#include "train/lighting_refinement.h"
 #include "train/train_config.h"
 
 namespace {
@@ -20,13 +23,14 @@ using namespace sl;
 
 int run(int argc, char** argv) {
   cli::Args a("streetlight-export",
-              "streetlight-export --checkpoint CKPT --out FILE.safetensors [--f32] [--meta KEY=VALUE ...]\n"
+              "streetlight-export --checkpoint CKPT --out FILE.safetensors [--f32] [--with-discriminator] [--meta KEY=VALUE ...]\n"
               "streetlight-export --checkpoint CKPT --info\n\n"
               "Writes the released-weights form of a lighting checkpoint: predictor.* only, F16 unless --f32,\n"
               "with its stage, step and config, so streetlight-insert and streetlight-eval can load it.",
               {{"--checkpoint", "CKPT", "a lighting or adversarial stage checkpoint (streetlight-train)"},
                {"--out", "FILE", "output .safetensors file"},
                {"--f32", "", "keep float32 (default: float16, half the size)"},
+               {"--with-discriminator", "", "also keep the stage-3 discriminator (discriminator.*) for streetlight-insert --refine"},
                {"--meta", "KEY=VALUE", "extra metadata entry", true},
                {"--info", "", "print the checkpoint's metadata as JSON on stdout and exit (no --out needed)"}});
   if (!a.parse(argc, argv)) return 0;
@@ -46,6 +50,14 @@ int run(int argc, char** argv) {
   for (const auto& [name, t] : file.tensors)
     if (name.rfind("predictor.", 0) == 0) kept.emplace(name, t);
   SL_CHECK(!kept.empty(), "checkpoint '", in, "' holds no predictor.* tensors");
+  const bool with_d = a.has("--with-discriminator");
+  size_t d_tensors = 0;
+  if (with_d) {
+    for (const auto& [name, t] : file.tensors)
+      if (name.rfind("discriminator.", 0) == 0) d_tensors += kept.emplace(name, t).second;
+    SL_CHECK(d_tensors > 0, "--with-discriminator: checkpoint '", in, "' holds no discriminator.* tensors (stage '",
+             info.stage, "'; only a stage-3 checkpoint trained with loss.adversarial > 0 has one)");
+  }
   nn::Metadata meta = file.metadata;
   for (auto it = meta.begin(); it != meta.end();) it = it->first.rfind("best", 0) == 0 ? meta.erase(it) : std::next(it);
   meta["exported_from"] = std::filesystem::path(in).filename().string();
@@ -58,7 +70,9 @@ int run(int argc, char** argv) {
   if (!parent.empty()) std::filesystem::create_directories(parent);
   nn::write_safetensors(out, kept, meta, {.f32_as_f16 = !a.has("--f32")});
   train::LightingEstimator check(out);  // loads back exactly as the tools will
-  std::fprintf(stderr, "export: %zu tensors, stage %s step %lld -> %s (%.1f MB)\n", kept.size(), check.stage().c_str(),
+  SL_CHECK(!with_d || train::load_discriminator(out), "export '", out, "': the discriminator did not load back");
+  std::fprintf(stderr, "export: %zu tensors (%zu of the discriminator), stage %s step %lld -> %s (%.1f MB)\n",
+               kept.size(), d_tensors, check.stage().c_str(),
                static_cast<long long>(check.step()), out.c_str(),
                static_cast<double>(std::filesystem::file_size(out)) / 1e6);
   return 0;

@@ -6,7 +6,11 @@
 // only when everything succeeded, so bad input leaves nothing behind:
 //   composite.png (+ composite.exr with --exr), object_mask.png, shadow_map.png, sky.exr,
 //   sky.png (tone-mapped, world azimuths), depth.exr (the depth used), result.json (sun, placement,
-//   boxes, KITTI label line, timings), label.txt (the KITTI line).
+//   boxes, KITTI label line, timings; with --refine N > 0 the discriminator loss and the sun
+//   before and after refinement), label.txt (the KITTI line).
+// --refine N (paper Fig. 7): N Adam steps on the sky vector (and with --refine-volume the volume)
+// against the stage-3 discriminator, train/lighting_refinement.h; the composite then uses the
+// refined lighting. N = 0 (the default) changes nothing.
 // Batch mode writes a KITTI folder in place, frame by frame (see batch() below), and resumes.
 #include <algorithm>
 #include <csignal>
@@ -30,6 +34,7 @@
 #include "tools/common/cli.h"
 #include "train/batch_list.h"
 #include "train/inference.h"
+#include "train/lighting_refinement.h"
 #include "train/losses.h"
 #include "train/photo_input.h"
 #include "train/photo_insertion.h"
@@ -128,6 +133,53 @@ PhotoInsertionOptions insertion_options(const cli::Args& a, const RadianceQueryO
 
 json vec_json(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
 
+json sun_json(const EstimatedLighting& light) {
+  const glm::dvec3 sun = light.sun_direction_world();
+  return {{"direction_world", vec_json(sun)},
+          {"azimuth_deg", azimuth_deg_of(sun)},
+          {"elevation_deg", elevation_deg_of(sun)},
+          {"intensity_rgb", vec_json(light.sun_intensity_rgb)}};
+}
+
+// --refine N, --refine-lr, --refine-volume, --discriminator: checked before anything is estimated
+// or written. The discriminator comes from --discriminator, else from the lighting checkpoint.
+struct Refinement {
+  RefinementOptions options;
+  std::string discriminator_path;
+  std::shared_ptr<nn::PatchDiscriminator> discriminator;
+  // The refinement's own sample budget (--refine-samples AA,LIGHT,SHADOW): its steps march the
+  // volume exactly for every ray (no radiance cache under a gradient), and D sees the composite
+  // area-averaged to the predictor's input size, so fewer samples per pixel cost little noise.
+  int aa = 1, light = 4, shadow = 16;
+};
+
+Refinement refinement_from_args(const cli::Args& a, const std::string& checkpoint) {
+  Refinement r;
+  const int64_t steps = a.integer("--refine", 0);
+  SL_CHECK(steps >= 0 && steps <= 1000000, "--refine ", steps, " must be a step count >= 0");
+  r.options.steps = static_cast<int>(steps);
+  r.options.lr = a.number("--refine-lr", r.options.lr);
+  SL_CHECK(std::isfinite(r.options.lr) && r.options.lr > 0, "--refine-lr ", a.get("--refine-lr"), " must be positive");
+  r.options.volume = a.has("--refine-volume");
+  if (a.has("--refine-samples")) {
+    const std::vector<double> n = parse_list("--refine-samples", a.get("--refine-samples"), 3, 3);
+    for (double v : n)
+      SL_CHECK(v >= 1 && v <= 1e6 && v == std::floor(v), "--refine-samples expects three positive integers AA,LIGHT,SHADOW, got '",
+               a.get("--refine-samples"), "'");
+    r.aa = int(n[0]), r.light = int(n[1]), r.shadow = int(n[2]);
+  }
+  if (steps == 0) return r;
+  r.discriminator_path = a.has("--discriminator") ? a.get("--discriminator") : checkpoint;
+  SL_CHECK(a.has("--discriminator") || fs::exists(checkpoint), "checkpoint '", checkpoint, "' does not exist");
+  SL_CHECK(!a.has("--discriminator") || fs::exists(r.discriminator_path), "--discriminator '", r.discriminator_path,
+           "' does not exist");
+  r.discriminator = load_discriminator(r.discriminator_path);
+  SL_CHECK(r.discriminator, "--refine ", steps, " needs the stage-3 discriminator, but '", r.discriminator_path,
+           "' holds no discriminator.* tensors; give --discriminator FILE (a stage-3 checkpoint, or an export made"
+           " with streetlight-export --with-discriminator)");
+  return r;
+}
+
 PhotoSources sources_from_args(const cli::Args& a, size_t i) {
   const auto images = a.all("--image"), intr = a.all("--intrinsics"), poses = a.all("--pose");
   PhotoSources s;
@@ -196,18 +248,42 @@ int single(const cli::Args& a) {
   if (a.has("--sun-elevation")) edit.elevation_deg = a.number("--sun-elevation", 0);
   edit.intensity_scale = a.number("--sun-intensity", 1.0);
 
+  const std::string checkpoint = a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path();
+  Refinement refine = refinement_from_args(a, checkpoint);
   AtomicDirectory out(a.get("--out"));
-  LightingEstimator est(a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path());
+  LightingEstimator est(checkpoint);
   std::vector<InferenceView> views;
   for (const Photo& p : photos) views.push_back({p.ldr, p.depth, p.camera});
-  const EstimatedLighting light = est.estimate(views, edit);
+  const EstimatedLighting estimated = est.estimate(views, edit);
+  const PhotoInsertionOptions options = insertion_options(a, est.volume_query());
+  SL_CHECK(refine.options.steps == 0 || estimated.has_sky_code, "--refine needs a checkpoint with the 'sky_decoder' "
+           "sky branch (a sky vector to refine); '", checkpoint, "' uses '", est.predictor().options().sky_branch, "'");
+  RefinementResult refined;
+  refined.lighting = estimated;
   PhotoInsertion ins;
   try {
-    ins = insert_into_photo(light, photo.ldr, photo.depth, photo.camera, object, pose,
-                            insertion_options(a, est.volume_query()));
+    if (refine.options.steps > 0) {
+      refine.options.discriminator_height = est.predictor().options().image_height;  // stage 3's D input size
+      refine.options.discriminator_width = est.predictor().options().image_width;
+      cli::Progress progress("refine", refine.options.steps);
+      refine.options.on_step = [&](int step, double loss) {
+        progress.update(step + 1, "-D " + std::to_string(loss));
+      };
+      PhotoInsertionOptions budget = options;
+      budget.aa_samples = refine.aa;
+      budget.light_samples = refine.light;
+      budget.shadow_rays = refine.shadow;
+      refined = refine_lighting(estimated, *est.predictor().sky_decoder(), *refine.discriminator,
+                                photo_insertion_inputs(estimated, photo.ldr, photo.depth, photo.camera, object, pose,
+                                                       budget),
+                                budget, refine.options);
+      progress.finish();
+    }
+    ins = insert_into_photo(refined.lighting, photo.ldr, photo.depth, photo.camera, object, pose, options);
   } catch (const Error& e) {
     fail("--at ", ax, ",", az, " (depth: ", photo.depth_source, "): ", e.what());
   }
+  const EstimatedLighting& light = refined.lighting;
   SL_CHECK(ins.visible, "the object at --at ", ax, ",", az, " covers no pixel of the image");
 
   ImageWriteOptions lin;
@@ -246,11 +322,34 @@ int single(const cli::Args& a) {
                        {"y", ins.box3d[4]}, {"z", ins.box3d[5]}, {"rotation_y", ins.box3d[6]}}},
             {"kitti_label", label},
             {"timing_ms", {{"lighting", light.inference_ms}, {"insertion", ins.render_ms}}}};
+  if (refine.options.steps > 0) {
+    j["refinement"] = {{"steps", refine.options.steps},
+                       {"lr", refine.options.lr},
+                       {"parameters", refine.options.volume ? json::array({"intensity", "direction", "latent", "volume"})
+                                                            : json::array({"intensity", "direction", "latent"})},
+                       {"discriminator", refine.discriminator_path},
+                       {"discriminator_input", {refine.options.discriminator_height, refine.options.discriminator_width}},
+                       {"samples", {{"aa", refine.aa}, {"light", refine.light}, {"shadow", refine.shadow}}},
+                       {"loss", "-mean D(composite) at --seed and the refinement's samples, exact volume queries"},
+                       {"loss_before", refined.loss_before},
+                       {"loss_after", refined.loss_after},
+                       {"loss_per_step", refined.loss_per_step},
+                       {"skipped_steps", refined.skipped_steps},
+                       {"sun_before", sun_json(estimated)},
+                       {"sun_after", sun_json(refined.lighting)}};
+    j["timing_ms"]["refinement"] = refined.time_ms;
+  }
   write_text(out.file("result.json"), j.dump(2) + "\n");
   check_replaceable(a.get("--out"));
   out.commit();
   if (a.has("--json")) std::cout << j.dump() << "\n";
   std::fprintf(stderr, "depth: %s\n", photo.depth_source.c_str());
+  if (refine.options.steps > 0) {
+    const glm::dvec3 before = estimated.sun_direction_world();
+    std::fprintf(stderr, "refine: %d steps, -D %.4f -> %.4f, sun azimuth %.1f° -> %.1f°, elevation %.1f° -> %.1f° (%.0f ms)\n",
+                 refine.options.steps, refined.loss_before, refined.loss_after, azimuth_deg_of(before), azimuth_deg_of(sun),
+                 elevation_deg_of(before), elevation_deg_of(sun), refined.time_ms);
+  }
   std::fprintf(stderr, "wrote %s (sun azimuth %.1f°, elevation %.1f°; lighting %.0f ms, insertion %.0f ms)\n",
                a.get("--out").c_str(), azimuth_deg_of(sun), elevation_deg_of(sun), light.inference_ms, ins.render_ms);
   return 0;
@@ -502,6 +601,7 @@ int run(int argc, char** argv) {
   cli::Args a("streetlight-insert",
               "streetlight-insert --image PHOTO --intrinsics FILE --object MODEL.glb --at X,Z [--yaw DEG] [--scale S]\n"
               "                   [--checkpoint CKPT] --out DIR [--depth FILE | --lidar BIN --calib FILE]\n"
+              "                   [--refine N [--discriminator FILE]]\n"
               "streetlight-insert --batch LIST.json|FOLDER [--checkpoint CKPT] --out DIR [--object M.glb ...]\n\n"
               "Estimates the photo's HDR lighting with a trained checkpoint (Wang et al. ECCV 2022, Sec 3.2) and\n"
               "inserts a glTF object with its shading and cast shadow (Sec 3.3). --at X,Z is in metres in the first\n"
@@ -534,12 +634,21 @@ int run(int argc, char** argv) {
                {"--shadow-height", "N", "shadow-map height (default 90)"},
                {"--seed", "N", "sampling seed (default 0)"},
                {"--exact", "", "march the volume for every light/shadow ray instead of the radiance cache (slower)"},
+               {"--refine", "N", "paper Fig. 7: N Adam steps on the sky vector (intensity, direction, latent) that\n"
+                "                               lower -D of the stage-3 discriminator on the composite (default 0: off)"},
+               {"--refine-lr", "LR", "Adam step size of --refine (default 0.05)"},
+               {"--refine-volume", "", "--refine also optimises the VSG volume"},
+               {"--refine-samples", "A,L,S", "--refine's renders: primary rays per pixel, light samples, shadow rays (default\n"
+                "                               1,4,16; exact volume queries, so far costlier per ray than the final render)"},
+               {"--discriminator", "FILE", "the discriminator for --refine: a stage-3 checkpoint or an export made with\n"
+                "                               --with-discriminator (default: the one in --checkpoint, if any)"},
                {"--batch", "LIST", "batch mode: KITTI folder (image_2, calib, label_2, velodyne) or JSON list of\n"
                 "                               {image, intrinsics, depth|lidar+calib, labels, id}; writes a KITTI folder\n"
                 "                               keeping ids, labels and calibration, and resumes a killed run"},
                {"--objects-per-image", "N", "batch: objects per image (default 1)"},
                {"--json", "", "print result.json on stdout"}});
   if (!a.parse(argc, argv)) return 0;
+  SL_CHECK(!a.has("--batch") || a.integer("--refine", 0) == 0, "--refine works on one image; it is not available with --batch");
   return a.has("--batch") ? batch(a) : single(a);
 }
 

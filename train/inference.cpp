@@ -150,6 +150,7 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
     code.dir = Tensor::from_vector({dir.x, dir.y, dir.z}, {1, 3}).to(DType::F32);
     out.env = select(predictor_->sky_decoder()->decode(code).hdr, 0, 0).contiguous();
     out.has_sky_code = true;
+    out.sky_code = code;
     out.sun_direction_canonical = dir;
     out.sun_intensity_rgb = {std::exp(log_i[0]), std::exp(log_i[1]), std::exp(log_i[2])};
   } else {

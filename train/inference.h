@@ -65,6 +65,7 @@ struct EstimatedLighting {
   bool has_sky_code = false;
   glm::dvec3 sun_direction_canonical{0.0, 1.0, 0.0};
   glm::dvec3 sun_intensity_rgb{0.0};  // f_intensity (0 without a sky code: see sun_from_env)
+  SkyCode sky_code;                   // the sky vector decoded into env ([1, ·] F32; has_sky_code only)
   double inference_ms = 0.0;          // predictor forward(s) + decoding, wall clock
 
   glm::dvec3 world_direction(const glm::dvec3& canonical) const;

@@ -101,9 +101,9 @@ InsertionOptions insertion_options(const PhotoInsertionOptions& o) {
   return io;
 }
 
-PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor& ldr, const Tensor& depth,
-                                 const Camera& world_camera, const Mesh& object_frame_mesh, const Placement& pose,
-                                 const PhotoInsertionOptions& o) {
+InsertionInputs photo_insertion_inputs(const EstimatedLighting& lighting, const Tensor& ldr, const Tensor& depth,
+                                       const Camera& world_camera, const Mesh& object_frame_mesh, const Placement& pose,
+                                       const PhotoInsertionOptions& o) {
   NoGradGuard no_grad;
   const Intrinsics& k = world_camera.intrinsics();
   SL_CHECK(ldr.dim() == 3 && ldr.size(0) == 3 && ldr.size(1) == k.height && ldr.size(2) == k.width, "insertion: image ",
@@ -111,7 +111,6 @@ PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor
   SL_CHECK(depth.dim() == 2 && depth.size(0) == k.height && depth.size(1) == k.width, "insertion: depth ",
            depth.describe(), " does not match the image's ", k.width, "x", k.height);
   check_on_ground(depth, world_camera, pose, o.max_ground_offset_m);
-  const auto t0 = std::chrono::steady_clock::now();
   InsertionInputs in;
   in.background = pow_scalar(ldr.to(DType::F32).contiguous(), kLdrGamma);
   in.depth = depth.to(DType::F32).contiguous();
@@ -126,10 +125,20 @@ PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor
   p.yaw_deg = lighting.frame.object_yaw_deg(pose.yaw_deg);
   p.scale = pose.scale;
   in.objects.push_back(place_object(object_frame_mesh, p, in.camera, in.depth));
+  const double ground_y_m = in.objects.back().position.y;
+  SL_CHECK(std::abs(ground_y_m) <= o.max_ground_offset_m, "object position (x ", pose.x_m, ", z ", pose.z_m,
+           ") is not on the ground: the depth map puts the surface there at y = ", ground_y_m, " m");
+  return in;
+}
+
+PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor& ldr, const Tensor& depth,
+                                 const Camera& world_camera, const Mesh& object_frame_mesh, const Placement& pose,
+                                 const PhotoInsertionOptions& o) {
+  NoGradGuard no_grad;
+  const auto t0 = std::chrono::steady_clock::now();
+  const InsertionInputs in = photo_insertion_inputs(lighting, ldr, depth, world_camera, object_frame_mesh, pose, o);
   PhotoInsertion out;
   out.ground_y_m = in.objects.back().position.y;
-  SL_CHECK(std::abs(out.ground_y_m) <= o.max_ground_offset_m, "object position (x ", pose.x_m, ", z ", pose.z_m,
-           ") is not on the ground: the depth map puts the surface there at y = ", out.ground_y_m, " m");
   const InsertionResult r = insert_objects(in, insertion_options(o));
   out.render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   out.composite_linear = r.composite.detach().contiguous();

@@ -61,6 +61,15 @@ struct PhotoInsertion {
   double render_ms = 0.0;
 };
 
+// The renderer's inputs of that insertion, with the checks above (throws as insert_into_photo):
+// the linearised photo, its depth, the camera in the lighting's canonical frame, the lighting's
+// env, vsg and grid, and the object placed on the ground. insert_into_photo() renders exactly
+// these; test-time refinement (train/lighting_refinement.h) swaps in env/vsg that carry a tape.
+render::InsertionInputs photo_insertion_inputs(const EstimatedLighting& lighting, const Tensor& ldr,
+                                               const Tensor& depth, const render::Camera& world_camera,
+                                               const render::Mesh& object_frame_mesh, const render::Placement& pose,
+                                               const PhotoInsertionOptions& options);
+
 PhotoInsertion insert_into_photo(const EstimatedLighting& lighting, const Tensor& ldr, const Tensor& depth,
                                  const render::Camera& world_camera, const render::Mesh& object_frame_mesh,
                                  const render::Placement& pose, const PhotoInsertionOptions& options);

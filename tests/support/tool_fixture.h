@@ -1,5 +1,5 @@
-// Shared fixtures of the insert/eval tool tests: running an executable, a tiny lighting
-// checkpoint (random weights, tiny sizes) and a tiny synthetic photo with its intrinsics.
+// Shared fixtures of the insert/eval tool tests: running an executable, tiny lighting and
+// stage-3 checkpoints (random weights, tiny sizes) and a tiny synthetic photo with its intrinsics.
 #pragma once
 #include <sys/wait.h>
 
@@ -13,6 +13,7 @@
 
 #include "data/image_io.h"
 #include "nn/checkpoint.h"
+#include "nn/modules/patch_discriminator.h"
 #include "support/tiny_model.h"
 #include "train/lighting_predictor.h"
 #include "train/train_config.h"
@@ -61,6 +62,23 @@ inline std::string tiny_lighting_checkpoint(const std::string& dir) {
   nn::Module holder("LightingModel");
   holder.register_module("predictor", std::make_shared<train::LightingPredictor>(train::predictor_options(c)));
   nn::save_checkpoint(path, holder, nullptr, nn::CheckpointInfo{.stage = "lighting", .step = 1, .config_json = c.dump()});
+  return path;
+}
+
+// A stage-3 checkpoint with random weights: the tiny predictor plus a tiny discriminator
+// (discriminator.*, model.discriminator in its config), for streetlight-insert --refine.
+inline std::string tiny_adversarial_checkpoint(const std::string& dir) {
+  const std::string path = dir + "/tiny_adversarial.safetensors";
+  nlohmann::json c = tiny_lighting_config();
+  c["stage"] = "adversarial";
+  c["model"]["discriminator"] = {{"base_channels", 4}, {"layers", 2}, {"norm", "instance"}};
+  nn::Module holder("LightingModel");
+  holder.register_module("predictor", std::make_shared<train::LightingPredictor>(train::predictor_options(c)));
+  auto d = std::make_shared<nn::PatchDiscriminator>(
+      nn::PatchDiscriminatorOptions{.base_channels = 4, .layers = 2, .norm = "instance"});
+  d->init_parameters(17);
+  holder.register_module("discriminator", d);
+  nn::save_checkpoint(path, holder, nullptr, nn::CheckpointInfo{.stage = "adversarial", .step = 1, .config_json = c.dump()});
   return path;
 }
 

@@ -16,6 +16,7 @@
 #include "train/inference.h"
 #include "train/lighting_refinement.h"
 #include "train/train_config.h"
+#include "util/file.h"
 
 namespace {
 
@@ -68,9 +69,17 @@ int run(int argc, char** argv) {
   }
   const auto parent = std::filesystem::path(out).parent_path();
   if (!parent.empty()) std::filesystem::create_directories(parent);
-  nn::write_safetensors(out, kept, meta, {.f32_as_f16 = !a.has("--f32")});
-  train::LightingEstimator check(out);  // loads back exactly as the tools will
-  SL_CHECK(!with_d || train::load_discriminator(out), "export '", out, "': the discriminator did not load back");
+  // Written and checked under a temporary name, renamed over `out` only once it loads back, so a
+  // failed check leaves no file (and an existing `out` untouched).
+  const std::string tmp = temp_sibling(out, /*keep_extension=*/true);
+  struct RemoveUnlessRenamed {
+    const std::string& path;
+    ~RemoveUnlessRenamed() { std::error_code ec; std::filesystem::remove(path, ec); }
+  } guard{tmp};
+  nn::write_safetensors(tmp, kept, meta, {.f32_as_f16 = !a.has("--f32")});
+  train::LightingEstimator check(tmp);  // loads back exactly as the tools will
+  SL_CHECK(!with_d || train::load_discriminator(tmp), "export '", out, "': the discriminator did not load back");
+  std::filesystem::rename(tmp, out);
   std::fprintf(stderr, "export: %zu tensors (%zu of the discriminator), stage %s step %lld -> %s (%.1f MB)\n",
                kept.size(), d_tensors, check.stage().c_str(),
                static_cast<long long>(check.step()), out.c_str(),

@@ -151,9 +151,13 @@ Tensor clamp(const Tensor& x, double lo, double hi) {
       "clamp", x,
       [lo, hi](auto v) {
         using T = decltype(v);
-        return v < T(lo) ? T(lo) : (v > T(hi) ? T(hi) : v);
+        const T l = static_cast<T>(lo), h = static_cast<T>(hi);  // converted outside the condition
+        return v < l ? l : (v > h ? h : v);
       },
-      [lo, hi](auto g, auto v) { return (v >= SL_T(lo) && v <= SL_T(hi)) ? g : SL_T(0); });
+      [lo, hi](auto g, auto v) {
+        const SL_T l = static_cast<SL_T>(lo), h = static_cast<SL_T>(hi);
+        return (v >= l) & (v <= h) ? g : SL_T(0);
+      });
 }
 
 Tensor relu(const Tensor& x) {
@@ -163,8 +167,18 @@ Tensor relu(const Tensor& x) {
 }
 
 Tensor leaky_relu(const Tensor& x, double slope) {
-  return unary<Uses::X>("leaky_relu", x, [slope](auto v) { return v > 0 ? v : static_cast<decltype(v)>(slope) * v; },
-                        [slope](auto g, auto v) { return v > 0 ? g : static_cast<SL_T>(slope) * g; });
+  // Constants are converted before the condition: a conversion under a condition is an
+  // operation that may trap, which GCC (trapping math) will not vectorise.
+  return unary<Uses::X>(
+      "leaky_relu", x,
+      [slope](auto v) {
+        const auto s = static_cast<decltype(v)>(slope);
+        return v > 0 ? v : s * v;
+      },
+      [slope](auto g, auto v) {
+        const auto s = static_cast<SL_T>(slope);
+        return v > 0 ? g : s * g;
+      });
 }
 
 Tensor elu(const Tensor& x, double alpha) {

@@ -63,29 +63,58 @@ constexpr T tiny() {
 }
 }  // namespace
 
+// add, sub, mul and div read in backward only the operands their derivatives need: the
+// gradient of a sum passes through without a copy, and a product's factor gradient reads g and
+// the other factor (two streams, not three).
+template <class Backward>
+void record_with(const char* op, const Tensor& a, const Tensor& b, const Tensor& y, Backward backward) {
+  if (!needs_grad({a, b})) return;
+  const bool ga = a.requires_grad(), gb = b.requires_grad();
+  const Tensor ad = a.detach(), bd = b.detach();
+  record(op, {a, b}, {y}, [=](const TensorList& g) {
+    TensorList r(2);
+    if (ga) r[0] = sum_to(backward(0, g[0], ad, bd), ad.shape());
+    if (gb) r[1] = sum_to(backward(1, g[0], ad, bd), bd.shape());
+    return r;
+  });
+}
+
 Tensor add(const Tensor& a, const Tensor& b) {
   Tensor y = map_n("add", [](auto x, auto z) { return x + z; }, a, b);
-  record_binary("add", a, b, y, [](auto g, auto, auto) { return g; }, [](auto g, auto, auto) { return g; });
+  if (!needs_grad({a, b})) return y;
+  const bool ga = a.requires_grad(), gb = b.requires_grad();
+  const Shape sa = a.shape(), sb = b.shape();
+  record("add", {a, b}, {y}, [=](const TensorList& g) {
+    return TensorList{ga ? sum_to(g[0], sa) : Tensor(), gb ? sum_to(g[0], sb) : Tensor()};
+  });
   return y;
 }
 
 Tensor sub(const Tensor& a, const Tensor& b) {
   Tensor y = map_n("sub", [](auto x, auto z) { return x - z; }, a, b);
-  record_binary("sub", a, b, y, [](auto g, auto, auto) { return g; }, [](auto g, auto, auto) { return -g; });
+  if (!needs_grad({a, b})) return y;
+  const bool ga = a.requires_grad(), gb = b.requires_grad();
+  const Shape sa = a.shape(), sb = b.shape();
+  record("sub", {a, b}, {y}, [=](const TensorList& g) {
+    return TensorList{ga ? sum_to(g[0], sa) : Tensor(), gb ? sum_to(mul_scalar(g[0], -1.0), sb) : Tensor()};
+  });
   return y;
 }
 
 Tensor mul(const Tensor& a, const Tensor& b) {
   Tensor y = map_n("mul", [](auto x, auto z) { return x * z; }, a, b);
-  record_binary("mul", a, b, y, [](auto g, auto, auto z) { return g * z; },
-                [](auto g, auto x, auto) { return g * x; });
+  record_with("mul", a, b, y, [](int k, const Tensor& g, const Tensor& ad, const Tensor& bd) {
+    return map_n("mul", [](auto gv, auto other) { return gv * other; }, g, k == 0 ? bd : ad);
+  });
   return y;
 }
 
 Tensor div(const Tensor& a, const Tensor& b) {
   Tensor y = map_n("div", [](auto x, auto z) { return x / z; }, a, b);
-  record_binary("div", a, b, y, [](auto g, auto, auto z) { return g / z; },
-                [](auto g, auto x, auto z) { return -g * x / (z * z); });
+  record_with("div", a, b, y, [](int k, const Tensor& g, const Tensor& ad, const Tensor& bd) {
+    if (k == 0) return map_n("div", [](auto gv, auto z) { return gv / z; }, g, bd);
+    return map_n("div", [](auto gv, auto x, auto z) { return -gv * x / (z * z); }, g, ad, bd);
+  });
   return y;
 }
 

@@ -37,18 +37,21 @@ Tensor map_n(const char* op, F&& f, const Ts&... ins) {
     }
     T* po = out.data<T>();
     for_each_strided<K + 1>(out_shape, strides, [&](const auto& off, int64_t n, const auto& st) {
+      // A local copy: its captures (a slope, a scale) are then known not to alias the output,
+      // so they stay in registers and the loops below vectorise, branches and all.
+      const auto fn = f;
       T* o = po + off[0];
       bool unit = true;
       for (size_t k = 1; k <= K; ++k) unit = unit && st[k] == 1;
       if (unit) {
         [&]<size_t... I>(std::index_sequence<I...>) {
           const std::array<const T*, K> p{(base[I] + off[I + 1])...};
-          for (int64_t i = 0; i < n; ++i) o[i] = static_cast<T>(f(p[I][i]...));
+          for (int64_t i = 0; i < n; ++i) o[i] = static_cast<T>(fn(p[I][i]...));
         }(std::make_index_sequence<K>{});
       } else {
         [&]<size_t... I>(std::index_sequence<I...>) {
           const std::array<const T*, K> p{(base[I] + off[I + 1])...};
-          for (int64_t i = 0; i < n; ++i) o[i] = static_cast<T>(f(p[I][i * st[I + 1]]...));
+          for (int64_t i = 0; i < n; ++i) o[i] = static_cast<T>(fn(p[I][i * st[I + 1]]...));
         }(std::make_index_sequence<K>{});
       }
     });

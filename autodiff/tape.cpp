@@ -4,6 +4,7 @@
 
 #include "autodiff/ops.h"
 #include "util/check.h"
+#include "util/parallel.h"
 
 namespace sl {
 namespace {
@@ -32,32 +33,65 @@ void sweep_dead_nodes(Tape& tape) {
   tape.sweep_at = std::max<size_t>(4096, 2 * tape.nodes.size());
 }
 
-void add_into(Tensor& slot, Tensor g, bool must_own) {
+// True when `t` is the only handle to a dense buffer of its own: nothing else can observe an
+// in-place write to it.
+bool exclusively_owned(const Tensor& t) {
+  return t.impl().use_count() == 1 && t.is_contiguous() && t.storage().use_count() == 1 &&
+         t.storage()->bytes() == static_cast<size_t>(t.numel()) * dtype_size(t.dtype());
+}
+
+// dst += src elementwise in place (dst exclusively owned, src contiguous, same shape and dtype).
+// Each element is one IEEE addition, so the bits equal those of add(dst, src) and add(src, dst).
+void add_in_place(Tensor& dst, const Tensor& src) {
+  SL_DISPATCH_FLOAT(dst.dtype(), "backward", [&] {
+    using T = scalar_t;
+    T* d = dst.data<T>();
+    const T* s = src.data<T>();
+    parallel_for(dst.numel(), 32768, [&](int64_t b, int64_t e) {
+      for (int64_t i = b; i < e; ++i) d[i] += s[i];
+    });
+  });
+}
+
+// slot += g without a new buffer where one of the two may be overwritten; slot = g when empty.
+void add_into(Tensor& slot, Tensor g) {
   if (!slot.defined()) {
-    // A leaf's .grad() must own its memory: later in-place updates must not alias another
-    // tensor, and a gradient that is a view must not pin a larger buffer.
-    const bool owned = g.is_contiguous() && g.storage().use_count() == 1 &&
-                       g.storage()->bytes() == static_cast<size_t>(g.numel()) * dtype_size(g.dtype());
-    slot = (!must_own || owned) ? g : g.clone();
+    slot = std::move(g);
+  } else if (exclusively_owned(slot) && g.is_contiguous() && g.dtype() == slot.dtype()) {
+    add_in_place(slot, g);
+  } else if (exclusively_owned(g) && slot.is_contiguous() && g.dtype() == slot.dtype()) {
+    add_in_place(g, slot);
+    slot = std::move(g);
   } else {
     slot = add(slot, g);
   }
 }
 
-// Leaves collect into .grad(); op outputs into their producer's pending slot, which outlives
-// the output tensor itself (a node's inputs may be freed before their producer runs).
-void accumulate(TensorImpl& impl, Tensor g, const std::string& op) {
+// Leaves collect into .grad(), which must own its memory (exclusively_owned): later in-place
+// updates must not alias another tensor, and a gradient that is a view must not pin a larger
+// buffer. Op outputs into their producer's pending slot, which outlives
+// the output tensor itself (a node's inputs may be freed before their producer runs). A leaf
+// gradient that still shares memory is listed in `borrowed` and made to own its memory once
+// backward ends (by then its other holders are usually gone, and no copy is needed).
+void accumulate(const std::shared_ptr<TensorImpl>& target, Tensor g, const std::string& op,
+                std::vector<std::shared_ptr<TensorImpl>>* borrowed) {
+  TensorImpl& impl = *target;
   SL_ASSERT(g.shape() == impl.shape, "backward of ", op, ": gradient ", g.describe(),
             " does not match its input's shape ", shape_str(impl.shape));
   if (g.dtype() != impl.dtype) g = g.to(impl.dtype);
   if (!impl.has_producer) {
-    add_into(impl.grad, g, true);
+    const bool first = !impl.grad.defined();
+    add_into(impl.grad, std::move(g));
+    if (first && !exclusively_owned(impl.grad)) {
+      if (borrowed) borrowed->push_back(target);
+      else impl.grad = impl.grad.clone();
+    }
     return;
   }
   std::shared_ptr<Node> p = impl.producer.lock();
   if (!p) return;  // its graph was freed: nothing upstream can use it
   p->reached = true;
-  add_into(p->pending[static_cast<size_t>(impl.output_index)], g, false);
+  add_into(p->pending[static_cast<size_t>(impl.output_index)], std::move(g));
 }
 
 }  // namespace
@@ -110,10 +144,11 @@ void backward(const Tensor& loss, const Tensor& grad_output, bool retain_graph) 
   }
   SL_CHECK(seed.shape() == loss.shape(), "backward: grad_output ", seed.describe(),
            " does not match loss ", loss.describe());
-  TensorImpl& root = *loss.impl();
+  const std::shared_ptr<TensorImpl>& root_ptr = loss.impl();
+  TensorImpl& root = *root_ptr;
   NoGradGuard no_grad;
   if (!root.has_producer) {  // a leaf: d leaf / d leaf
-    accumulate(root, seed, "backward");
+    accumulate(root_ptr, seed, "backward", nullptr);
     return;
   }
   std::shared_ptr<Node> start = root.producer.lock();
@@ -126,7 +161,8 @@ void backward(const Tensor& loss, const Tensor& grad_output, bool retain_graph) 
   SL_CHECK(it != tape.nodes.end(), "backward: the loss was recorded on another thread's tape");
   const size_t start_index = static_cast<size_t>(it - tape.nodes.begin());
 
-  accumulate(root, seed, "backward");
+  std::vector<std::shared_ptr<TensorImpl>> borrowed;
+  accumulate(root_ptr, seed, "backward", &borrowed);
   for (size_t i = start_index + 1; i-- > 0;) {
     std::shared_ptr<Node> node = tape.nodes[i];
     if (!node->reached) continue;
@@ -138,14 +174,17 @@ void backward(const Tensor& loss, const Tensor& grad_output, bool retain_graph) 
       node->pending[k] = Tensor();
     }
     TensorList in_grads = node->backward(grads);
+    grads.clear();  // lets accumulation reuse a gradient buffer that no one else holds
     SL_ASSERT_EQ(in_grads.size(), node->inputs.size(), "backward of ", node->op,
                  " must return one gradient per input");
     for (size_t k = 0; k < node->inputs.size(); ++k) {
-      TensorImpl* in = node->inputs[k].get();
-      if (in && in->requires_grad && in_grads[k].defined()) accumulate(*in, in_grads[k], node->op);
+      const std::shared_ptr<TensorImpl>& in = node->inputs[k];
+      if (in && in->requires_grad && in_grads[k].defined()) accumulate(in, std::move(in_grads[k]), node->op, &borrowed);
     }
     if (!retain_graph) tape.nodes[i].reset();
   }
+  for (const auto& leaf : borrowed)
+    if (leaf->grad.defined() && !exclusively_owned(leaf->grad)) leaf->grad = leaf->grad.clone();
   if (!retain_graph)
     tape.nodes.erase(std::remove(tape.nodes.begin(), tape.nodes.end(), nullptr), tape.nodes.end());
 }

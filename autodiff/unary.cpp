@@ -11,14 +11,31 @@ namespace sl {
 namespace {
 using detail::map_n;
 
-// y = fwd(x); dx = bwd(g, x, y). Forward and backward of each op sit together below.
-template <class Fwd, class Bwd>
-Tensor unary(const char* op, const Tensor& x, Fwd fwd, Bwd bwd) {
-  Tensor y = map_n(op, fwd, x);
-  if (needs_grad({x})) {
+// What a backward formula reads besides the output gradient g: saving and streaming only that
+// halves the memory traffic of a memory-bound backward (g and y, not g, x and y).
+enum class Uses { X, Y, XY };
+
+template <Uses U, class Bwd>
+void record_unary(const char* op, const Tensor& x, const Tensor& y, Bwd bwd) {
+  if (!needs_grad({x})) return;
+  if constexpr (U == Uses::X) {
+    const Tensor xd = x.detach();
+    record(op, {x}, {y}, [=](const TensorList& g) { return TensorList{map_n(op, bwd, g[0], xd)}; });
+  } else if constexpr (U == Uses::Y) {
+    const Tensor yd = y.detach();
+    record(op, {x}, {y}, [=](const TensorList& g) { return TensorList{map_n(op, bwd, g[0], yd)}; });
+  } else {
     const Tensor xd = x.detach(), yd = y.detach();
     record(op, {x}, {y}, [=](const TensorList& g) { return TensorList{map_n(op, bwd, g[0], xd, yd)}; });
   }
+}
+
+// y = fwd(x); dx = bwd(g, x), bwd(g, y) or bwd(g, x, y) as U says. Forward and backward of each
+// op sit together below.
+template <Uses U, class Fwd, class Bwd>
+Tensor unary(const char* op, const Tensor& x, Fwd fwd, Bwd bwd) {
+  Tensor y = map_n(op, fwd, x);
+  record_unary<U>(op, x, y, bwd);
   return y;
 }
 
@@ -51,13 +68,10 @@ Tensor map_vm2(const char* op, const Tensor& g, const Tensor& x, Vec vec, Scalar
 }
 
 // unary() with a vectorised float32 forward.
-template <class Vec, class Fwd, class Bwd>
+template <Uses U, class Vec, class Fwd, class Bwd>
 Tensor unary_vm(const char* op, const Tensor& x, Vec vec, Fwd fwd, Bwd bwd) {
   Tensor y = map_vm(op, x, vec, fwd);
-  if (needs_grad({x})) {
-    const Tensor xd = x.detach(), yd = y.detach();
-    record(op, {x}, {y}, [=](const TensorList& g) { return TensorList{map_n(op, bwd, g[0], xd, yd)}; });
-  }
+  record_unary<U>(op, x, y, bwd);
   return y;
 }
 
@@ -70,41 +84,41 @@ T acos_grad_floor() {
 #define SL_T decltype(g)
 
 Tensor neg(const Tensor& x) {
-  return unary("neg", x, [](auto v) { return -v; }, [](auto g, auto, auto) { return -g; });
+  return unary<Uses::X>("neg", x, [](auto v) { return -v; }, [](auto g, auto) { return -g; });
 }
 
 Tensor exp(const Tensor& x) {
-  return unary_vm("exp", x, vm::exp, [](auto v) { return std::exp(v); },
-                  [](auto g, auto, auto y) { return g * y; });
+  return unary_vm<Uses::Y>("exp", x, vm::exp, [](auto v) { return std::exp(v); },
+                           [](auto g, auto y) { return g * y; });
 }
 
 Tensor log(const Tensor& x) {
-  return unary_vm("log", x, vm::log, [](auto v) { return std::log(v); },
-                  [](auto g, auto v, auto) { return g / v; });
+  return unary_vm<Uses::X>("log", x, vm::log, [](auto v) { return std::log(v); },
+                           [](auto g, auto v) { return g / v; });
 }
 
 Tensor log1p(const Tensor& x) {
-  return unary("log1p", x, [](auto v) { return std::log1p(v); },
-               [](auto g, auto v, auto) { return g / (SL_T(1) + v); });
+  return unary<Uses::X>("log1p", x, [](auto v) { return std::log1p(v); },
+                        [](auto g, auto v) { return g / (SL_T(1) + v); });
 }
 
 Tensor expm1(const Tensor& x) {
-  return unary("expm1", x, [](auto v) { return std::expm1(v); },
-               [](auto g, auto, auto y) { return g * (y + SL_T(1)); });
+  return unary<Uses::Y>("expm1", x, [](auto v) { return std::expm1(v); },
+                        [](auto g, auto y) { return g * (y + SL_T(1)); });
 }
 
 Tensor sqrt(const Tensor& x) {
-  return unary("sqrt", x, [](auto v) { return std::sqrt(v); },
-               [](auto g, auto, auto y) { return g / (SL_T(2) * y); });
+  return unary<Uses::Y>("sqrt", x, [](auto v) { return std::sqrt(v); },
+                        [](auto g, auto y) { return g / (SL_T(2) * y); });
 }
 
 Tensor square(const Tensor& x) {
-  return unary("square", x, [](auto v) { return v * v; }, [](auto g, auto v, auto) { return SL_T(2) * g * v; });
+  return unary<Uses::X>("square", x, [](auto v) { return v * v; }, [](auto g, auto v) { return SL_T(2) * g * v; });
 }
 
 Tensor abs(const Tensor& x) {
-  return unary("abs", x, [](auto v) { return std::abs(v); },
-               [](auto g, auto v, auto) { return v > 0 ? g : (v < 0 ? -g : SL_T(0)); });
+  return unary<Uses::X>("abs", x, [](auto v) { return std::abs(v); },
+                        [](auto g, auto v) { return v > 0 ? g : (v < 0 ? -g : SL_T(0)); });
 }
 
 // Backward: p·x^(p-1) with x^(p-1) vectorised in float32 (pow_vm), g multiplied after.
@@ -133,32 +147,47 @@ Tensor pow_scalar(const Tensor& x, double p) {
 
 Tensor clamp(const Tensor& x, double lo, double hi) {
   SL_CHECK(lo <= hi, "clamp: lo ", lo, " > hi ", hi);
-  return unary(
+  return unary<Uses::X>(
       "clamp", x,
       [lo, hi](auto v) {
         using T = decltype(v);
-        return v < T(lo) ? T(lo) : (v > T(hi) ? T(hi) : v);
+        const T l = static_cast<T>(lo), h = static_cast<T>(hi);  // converted outside the condition
+        return v < l ? l : (v > h ? h : v);
       },
-      [lo, hi](auto g, auto v, auto) { return (v >= SL_T(lo) && v <= SL_T(hi)) ? g : SL_T(0); });
+      [lo, hi](auto g, auto v) {
+        const SL_T l = static_cast<SL_T>(lo), h = static_cast<SL_T>(hi);
+        return (v >= l) & (v <= h) ? g : SL_T(0);
+      });
 }
 
 Tensor relu(const Tensor& x) {
-  return unary("relu", x, [](auto v) { return v > 0 ? v : decltype(v)(0); },
-               [](auto g, auto v, auto) { return v > 0 ? g : SL_T(0); });
+  // y > 0 exactly where x > 0 (NaN gives y = 0): backward reads y, so x may be freed.
+  return unary<Uses::Y>("relu", x, [](auto v) { return v > 0 ? v : decltype(v)(0); },
+                        [](auto g, auto y) { return y > 0 ? g : SL_T(0); });
 }
 
 Tensor leaky_relu(const Tensor& x, double slope) {
-  return unary("leaky_relu", x, [slope](auto v) { return v > 0 ? v : static_cast<decltype(v)>(slope) * v; },
-               [slope](auto g, auto v, auto) { return v > 0 ? g : static_cast<SL_T>(slope) * g; });
+  // Constants are converted before the condition: a conversion under a condition is an
+  // operation that may trap, which GCC (trapping math) will not vectorise.
+  return unary<Uses::X>(
+      "leaky_relu", x,
+      [slope](auto v) {
+        const auto s = static_cast<decltype(v)>(slope);
+        return v > 0 ? v : s * v;
+      },
+      [slope](auto g, auto v) {
+        const auto s = static_cast<SL_T>(slope);
+        return v > 0 ? g : s * g;
+      });
 }
 
 Tensor elu(const Tensor& x, double alpha) {
-  return unary("elu", x, [alpha](auto v) { return v > 0 ? v : static_cast<decltype(v)>(alpha) * std::expm1(v); },
+  return unary<Uses::XY>("elu", x, [alpha](auto v) { return v > 0 ? v : static_cast<decltype(v)>(alpha) * std::expm1(v); },
                [alpha](auto g, auto v, auto y) { return v > 0 ? g : g * (y + static_cast<SL_T>(alpha)); });
 }
 
 Tensor sigmoid(const Tensor& x) {
-  return unary_vm(
+  return unary_vm<Uses::Y>(
       "sigmoid", x, vm::sigmoid,
       [](auto v) {
         using T = decltype(v);
@@ -166,7 +195,7 @@ Tensor sigmoid(const Tensor& x) {
         const T e = std::exp(v);
         return e / (T(1) + e);
       },
-      [](auto g, auto, auto y) { return g * y * (SL_T(1) - y); });
+      [](auto g, auto y) { return g * y * (SL_T(1) - y); });
 }
 
 Tensor softplus(const Tensor& x) {
@@ -186,26 +215,26 @@ Tensor softplus(const Tensor& x) {
 }
 
 Tensor tanh(const Tensor& x) {
-  return unary_vm("tanh", x, vm::tanh, [](auto v) { return std::tanh(v); },
-                  [](auto g, auto, auto y) { return g * (SL_T(1) - y * y); });
+  return unary_vm<Uses::Y>("tanh", x, vm::tanh, [](auto v) { return std::tanh(v); },
+                           [](auto g, auto y) { return g * (SL_T(1) - y * y); });
 }
 
 Tensor sin(const Tensor& x) {
-  return unary("sin", x, [](auto v) { return std::sin(v); }, [](auto g, auto v, auto) { return g * std::cos(v); });
+  return unary<Uses::X>("sin", x, [](auto v) { return std::sin(v); }, [](auto g, auto v) { return g * std::cos(v); });
 }
 
 Tensor cos(const Tensor& x) {
-  return unary("cos", x, [](auto v) { return std::cos(v); }, [](auto g, auto v, auto) { return -g * std::sin(v); });
+  return unary<Uses::X>("cos", x, [](auto v) { return std::cos(v); }, [](auto g, auto v) { return -g * std::sin(v); });
 }
 
 Tensor acos(const Tensor& x) {
-  return unary(
+  return unary<Uses::X>(
       "acos", x,
       [](auto v) {
         using T = decltype(v);
         return std::acos(v < T(-1) ? T(-1) : (v > T(1) ? T(1) : v));
       },
-      [](auto g, auto v, auto) {
+      [](auto g, auto v) {
         using T = SL_T;
         if (v < T(-1) || v > T(1)) return T(0);  // clamped region
         const T one_minus = std::fmax(T(1) - v * v, acos_grad_floor<T>());

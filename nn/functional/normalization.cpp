@@ -36,6 +36,21 @@ struct Stats {
   std::vector<double> mean, invstd, var;
 };
 
+// Eight interleaved double accumulators, combined pairwise: a summation order fixed by the data
+// layout alone (never by threads) that the compiler vectorises, where one running sum would
+// wait on every add.
+struct LaneSum {
+  double acc[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  template <class F>
+  void add(int64_t n, F&& f) {
+    int64_t i = 0;
+    for (; i + 8 <= n; i += 8)
+      for (int k = 0; k < 8; ++k) acc[k] += f(i + k);
+    for (int k = 0; i < n; ++i, ++k) acc[k] += f(i);
+  }
+  double total() const { return ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7])); }
+};
+
 template <class T>
 Stats batch_stats(const NormLayout& L, const T* x, double eps) {
   Stats st;
@@ -45,18 +60,21 @@ Stats batch_stats(const NormLayout& L, const T* x, double eps) {
   const double count = static_cast<double>(L.set_count());
   parallel_for(L.sets, detail::grain_for(2 * L.set_count()), [&](int64_t k0, int64_t k1) {
     for (int64_t k = k0; k < k1; ++k) {
-      double s = 0;
+      LaneSum s;
       L.for_rows(k, [&](int64_t row, int64_t) {
-        for (int64_t i = 0; i < L.S; ++i) s += x[row * L.S + i];
+        const T* xr = x + row * L.S;
+        s.add(L.S, [xr](int64_t i) { return static_cast<double>(xr[i]); });
       });
-      const double mean = s / count;
-      double q = 0;  // two passes: exact for inputs with a large common offset
+      const double mean = s.total() / count;
+      LaneSum sq;  // two passes: exact for inputs with a large common offset
       L.for_rows(k, [&](int64_t row, int64_t) {
-        for (int64_t i = 0; i < L.S; ++i) {
-          const double d = x[row * L.S + i] - mean;
-          q += d * d;
-        }
+        const T* xr = x + row * L.S;
+        sq.add(L.S, [xr, mean](int64_t i) {
+          const double d = static_cast<double>(xr[i]) - mean;
+          return d * d;
+        });
       });
+      const double q = sq.total();
       st.mean[k] = mean;
       st.var[k] = q / count;
       st.invstd[k] = 1.0 / std::sqrt(q / count + eps);
@@ -99,53 +117,70 @@ Tensor normalize(const char* op, const Tensor& x_in, const NormLayout& L, Stats 
       const T* px = x.data<T>();
       const T* pdy = dy.data<T>();
       const T* pw = w.defined() ? w.data<T>() : nullptr;
-      auto xhat = [&](int64_t row, int64_t i, int64_t k) { return (px[row * L.S + i] - st.mean[k]) * st.invstd[k]; };
+      // One pass gives each (n, c) row's Σ dy and Σ dy·(x - mean); the weight, bias and input
+      // gradients are all combinations of these sums, in a fixed order.
+      const int64_t rows = L.N * L.C;
+      std::vector<double> row_dy(static_cast<size_t>(rows)), row_dyx(static_cast<size_t>(rows));
+      const bool need_sums = gw || gb || batch_statistics;  // eval mode's dx needs none
+      parallel_for(need_sums ? rows : 0, detail::grain_for(2 * L.S), [&](int64_t r0, int64_t r1) {
+        for (int64_t row = r0; row < r1; ++row) {
+          const T* xr = px + row * L.S;
+          const T* gr = pdy + row * L.S;
+          const double mean = st.mean[L.set_of(row / L.C, row % L.C)];
+          LaneSum sdy, sdyx;
+          sdy.add(L.S, [gr](int64_t i) { return static_cast<double>(gr[i]); });
+          sdyx.add(L.S, [gr, xr, mean](int64_t i) { return static_cast<double>(gr[i]) * (static_cast<double>(xr[i]) - mean); });
+          row_dy[row] = sdy.total();
+          row_dyx[row] = sdyx.total();
+        }
+      });
       if (gw || gb) {  // per channel, rows in increasing n: a fixed order
         Tensor dw = Tensor::empty({L.C}, x.dtype()), db = Tensor::empty({L.C}, x.dtype());
         T* pdw = dw.data<T>();
         T* pdb = db.data<T>();
-        parallel_for(L.C, detail::grain_for(L.N * L.S), [&](int64_t c0, int64_t c1) {
-          for (int64_t c = c0; c < c1; ++c) {
-            double sw = 0, sb = 0;
-            for (int64_t n = 0; n < L.N; ++n) {
-              const int64_t row = n * L.C + c, k = L.set_of(n, c);
-              for (int64_t i = 0; i < L.S; ++i) {
-                sw += pdy[row * L.S + i] * xhat(row, i, k);
-                sb += pdy[row * L.S + i];
-              }
-            }
-            pdw[c] = static_cast<T>(sw);
-            pdb[c] = static_cast<T>(sb);
+        for (int64_t c = 0; c < L.C; ++c) {
+          double sw = 0, sb = 0;
+          for (int64_t n = 0; n < L.N; ++n) {
+            sw += row_dyx[n * L.C + c] * st.invstd[L.set_of(n, c)];
+            sb += row_dy[n * L.C + c];
           }
-        });
+          pdw[c] = static_cast<T>(sw);
+          pdb[c] = static_cast<T>(sb);
+        }
         if (gw) r[1] = dw;
         if (gb) r[2] = db;
       }
       if (gx) {
-        Tensor dx = Tensor::empty(x.shape(), x.dtype());
-        T* pdx = dx.data<T>();
-        // With g = dy·w: dx = invstd · (g - mean(g) - xhat · mean(g · xhat)) for batch statistics.
-        parallel_for(L.sets, detail::grain_for(2 * L.set_count()), [&](int64_t k0, int64_t k1) {
-          for (int64_t k = k0; k < k1; ++k) {
+        // With g = dy·w: dx = invstd · (g - mean(g) - xhat · mean(g · xhat)) for batch statistics,
+        // in double and rounded once.
+        std::vector<double> mg(static_cast<size_t>(L.sets), 0.0), mgx(static_cast<size_t>(L.sets), 0.0);
+        if (batch_statistics) {
+          const double inv_count = 1.0 / static_cast<double>(L.set_count());
+          for (int64_t k = 0; k < L.sets; ++k) {
             double sg = 0, sgx = 0;
-            if (batch_statistics)
-              L.for_rows(k, [&](int64_t row, int64_t c) {
-                const double wc = pw ? static_cast<double>(pw[c]) : 1.0;
-                for (int64_t i = 0; i < L.S; ++i) {
-                  const double g = pdy[row * L.S + i] * wc;
-                  sg += g;
-                  sgx += g * xhat(row, i, k);
-                }
-              });
-            const double inv_count = 1.0 / static_cast<double>(L.set_count());
-            const double mg = sg * inv_count, mgx = sgx * inv_count;
             L.for_rows(k, [&](int64_t row, int64_t c) {
               const double wc = pw ? static_cast<double>(pw[c]) : 1.0;
-              for (int64_t i = 0; i < L.S; ++i) {
-                const double g = pdy[row * L.S + i] * wc;
-                pdx[row * L.S + i] = static_cast<T>(st.invstd[k] * (g - mg - xhat(row, i, k) * mgx));
-              }
+              sg += wc * row_dy[row];
+              sgx += wc * row_dyx[row];
             });
+            mg[k] = sg * inv_count;
+            mgx[k] = sgx * st.invstd[k] * inv_count;
+          }
+        }
+        Tensor dx = Tensor::empty(x.shape(), x.dtype());
+        T* pdx = dx.data<T>();
+        parallel_for(rows, detail::grain_for(L.S), [&](int64_t r0, int64_t r1) {
+          for (int64_t row = r0; row < r1; ++row) {
+            const int64_t c = row % L.C, k = L.set_of(row / L.C, c);
+            const double invstd = st.invstd[k], wc = pw ? static_cast<double>(pw[c]) : 1.0;
+            const double mean = st.mean[k], mgk = mg[k], mgxk = mgx[k];
+            const T* xr = px + row * L.S;
+            const T* gr = pdy + row * L.S;
+            T* dr = pdx + row * L.S;
+            for (int64_t i = 0; i < L.S; ++i) {
+              const double xhat = (static_cast<double>(xr[i]) - mean) * invstd;
+              dr[i] = static_cast<T>(invstd * (static_cast<double>(gr[i]) * wc - mgk - xhat * mgxk));
+            }
           }
         });
         r[0] = dx;

@@ -73,37 +73,79 @@ inline void for_outputs(const PoolGeometry& g, F&& f) {
       for (int64_t x = 0; x < g.out[2]; ++x) f(o++, z, y, x);
 }
 
+// The max-pooling rule for one more tap v at input offset i: taken when larger, or NaN (as in
+// PyTorch, so a NaN input is never dropped); a NaN maximum is kept (best == best is false for
+// NaN); ties keep the earlier tap. Selects, not branches: which tap wins is data-dependent.
+template <class T>
+inline void max_pool_take(T v, int64_t i, T& best, int64_t& at) {
+  const bool take = (best == best) & !(v <= best);
+  best = take ? v : best;
+  at = take ? i : at;
+}
+
+// One plane of max pooling: out[o] and the input offset of its winner, argmax[o]. Every output
+// visits its taps in scan order (z, y, x). The outputs of a row whose windows lie inside the
+// row's x range take each tap for the whole run of outputs at once (a loop the compiler
+// vectorises); the few outputs at the x borders go through for_window.
+template <class T>
+void max_pool_plane(const PoolGeometry& g, const T* plane, T* out, int64_t* argmax) {
+  const int64_t s = g.stride[2], pad = g.pad[2];
+  const int64_t x_lo = std::min(g.out[2], (pad + s - 1) / s);  // first x with x·s - pad >= 0
+  const int64_t span = g.in[2] - g.k[2] + pad;  // last x with x·s - pad + k <= in is span / s
+  const int64_t x_hi = span < 0 ? x_lo : std::max(x_lo, std::min(g.out[2], span / s + 1));
+  auto generic = [&](int64_t o, int64_t z, int64_t yy, int64_t xx) {
+    T best = -std::numeric_limits<T>::infinity();
+    int64_t at = -1;
+    for_window(g, z, yy, xx, [&](int64_t i) {
+      if (at < 0) best = plane[i], at = i;
+      else max_pool_take(plane[i], i, best, at);
+    });
+    out[o] = best;
+    argmax[o] = at;
+  };
+  for (int64_t z = 0; z < g.out[0]; ++z)
+    for (int64_t yy = 0; yy < g.out[1]; ++yy) {
+      const int64_t row_o = (z * g.out[1] + yy) * g.out[2];
+      for (int64_t xx = 0; xx < x_lo; ++xx) generic(row_o + xx, z, yy, xx);
+      for (int64_t xx = x_hi; xx < g.out[2]; ++xx) generic(row_o + xx, z, yy, xx);
+      if (x_hi <= x_lo) continue;
+      const int64_t z0 = z * g.stride[0] - g.pad[0], y0 = yy * g.stride[1] - g.pad[1];
+      const int64_t kz0 = std::max<int64_t>(0, -z0), kz1 = std::min(g.k[0], g.in[0] - z0);
+      const int64_t ky0 = std::max<int64_t>(0, -y0), ky1 = std::min(g.k[1], g.in[1] - y0);
+      T* best = out + row_o;
+      int64_t* at = argmax + row_o;
+      bool first = true;
+      for (int64_t kz = kz0; kz < kz1; ++kz)
+        for (int64_t ky = ky0; ky < ky1; ++ky)
+          for (int64_t kx = 0; kx < g.k[2]; ++kx) {
+            const int64_t tap = ((z0 + kz) * g.in[1] + y0 + ky) * g.in[2] - pad + kx;  // offset of x = 0
+            if (first) {
+              for (int64_t xx = x_lo; xx < x_hi; ++xx) best[xx] = plane[tap + xx * s], at[xx] = tap + xx * s;
+              first = false;
+            } else {
+              for (int64_t xx = x_lo; xx < x_hi; ++xx) max_pool_take(plane[tap + xx * s], tap + xx * s, best[xx], at[xx]);
+            }
+          }
+    }
+}
+
 template <size_t Dm>
 Tensor max_pool(const char* op, const Tensor& x_in, const std::array<int64_t, Dm>& kernel,
                 const std::array<int64_t, Dm>& stride, const std::array<int64_t, Dm>& padding) {
   const PoolGeometry g = pool_geometry<Dm>(op, x_in, kernel, stride, padding);
   const Tensor x = x_in.detach().contiguous();
   Tensor y = Tensor::empty(pooled_shape(x, g, Dm), x.dtype());
-  // argmax[o]: offset in its input plane of the element that won output o (for backward).
-  auto argmax = std::make_shared<std::vector<int64_t>>(static_cast<size_t>(y.numel()));
+  // argmax[o]: offset in its input plane of the element that won output o (for backward). A
+  // tensor, not a vector: its buffer is reused from step to step and never zero-filled.
+  const Tensor argmax = Tensor::empty(y.shape(), DType::I64);
   SL_DISPATCH_FLOAT(x.dtype(), op, [&] {
     using T = scalar_t;
     const T* px = x.data<T>();
     T* py = y.data<T>();
-    int64_t* pa = argmax->data();
+    int64_t* pa = argmax.data<int64_t>();
     parallel_for(g.planes, detail::grain_for(g.out_plane() * g.k[0] * g.k[1] * g.k[2]), [&](int64_t p0, int64_t p1) {
-      for (int64_t p = p0; p < p1; ++p) {
-        const T* plane = px + p * g.in_plane();
-        for_outputs(g, [&](int64_t o, int64_t z, int64_t yy, int64_t xx) {
-          T best = -std::numeric_limits<T>::infinity();
-          int64_t at = -1;
-          // NaN wins, as in PyTorch, so a NaN input is never silently dropped.
-          for_window(g, z, yy, xx, [&](int64_t i) {
-            // Taken when larger, or NaN; a NaN maximum is kept (best == best is false for NaN).
-            if (at < 0 || (best == best && !(plane[i] <= best))) {
-              best = plane[i];
-              at = i;
-            }
-          });
-          py[p * g.out_plane() + o] = best;
-          pa[p * g.out_plane() + o] = at;
-        });
-      }
+      for (int64_t p = p0; p < p1; ++p)
+        max_pool_plane(g, px + p * g.in_plane(), py + p * g.out_plane(), pa + p * g.out_plane());
     });
   });
   if (needs_grad({x_in})) {
@@ -116,7 +158,7 @@ Tensor max_pool(const char* op, const Tensor& x_in, const std::array<int64_t, Dm
         using T = scalar_t;
         const T* pg = gy.data<T>();
         T* pgx = gx.data<T>();
-        const int64_t* pa = argmax->data();
+        const int64_t* pa = argmax.data<int64_t>();
         parallel_for(g.planes, detail::grain_for(g.out_plane() * g.k[0] * g.k[1] * g.k[2]), [&](int64_t p0, int64_t p1) {
           for (int64_t p = p0; p < p1; ++p)
             for (int64_t o = 0; o < g.out_plane(); ++o) {

@@ -22,6 +22,31 @@ std::pair<Tensor, Tensor> value_and_grad(const std::function<Tensor(const Tensor
   return {y, x.grad()};
 }
 
+// leaky_relu and clamp convert their constants before selecting (so the loops vectorise): the
+// result must still be exactly the textbook formula, signed zeros, infinities and NaN included.
+TEST(Stability, LeakyReluAndClampGiveTheirFormulaOnSpecialValues) {
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+  const std::vector<double> v = {-inf, -3.5, -1e-40, -0.0, 0.0, 1e-40, 0.25, 7.0, inf, nan};
+  const Tensor x = Tensor::from_vector(v, {static_cast<int64_t>(v.size())}).set_requires_grad(true);
+  const Tensor y = leaky_relu(x, 0.2), c = clamp(x, -1.0, 0.25);
+  backward(add(sum(y), sum(c)));
+  const std::vector<double> yv = y.to_vector(), cv = c.to_vector(), gv = x.grad().to_vector();
+  for (size_t i = 0; i < v.size(); ++i) {
+    const float f = static_cast<float>(v[i]);
+    const float want_y = f > 0 ? f : 0.2f * f;
+    const float want_c = f < -1.0f ? -1.0f : (f > 0.25f ? 0.25f : f);
+    const float want_g = (f > 0 ? 1.0f : 0.2f) + ((f >= -1.0f && f <= 0.25f) ? 1.0f : 0.0f);
+    if (std::isnan(f)) {
+      EXPECT_TRUE(std::isnan(yv[i]) && std::isnan(cv[i]));
+    } else {
+      EXPECT_EQ(yv[i], want_y) << v[i];
+      EXPECT_EQ(std::signbit(yv[i]), std::signbit(want_y)) << v[i];
+      EXPECT_EQ(cv[i], want_c) << v[i];
+    }
+    EXPECT_EQ(gv[i], want_g) << v[i];
+  }
+}
+
 TEST(Stability, SigmoidSoftplusAndLogsumexpAtPlusMinus1e4) {
   for (DType dt : {DType::F32, DType::F64}) {
     auto [s, ds] = value_and_grad([](const Tensor& x) { return sigmoid(x); }, {-1e4, -50, 0, 50, 1e4}, dt);

@@ -159,5 +159,58 @@ TEST(Tape, BackwardOnATensorThatNeedsNoGradIsAnError) {
   EXPECT_THROW(backward(sum(x)), Error);
 }
 
+// Gradient accumulation reuses buffers in place (autodiff/tape.cpp), so these pin down that no
+// gradient a caller can see is ever written through another handle.
+TEST(Tape, GradientAHeldByTheCallerIsNotChangedByALaterBackward) {
+  Tensor x = Tensor::from_vector({1, 2, 3}, {3}, DType::F64).set_requires_grad(true);
+  backward(sum(mul(x, x)));
+  const Tensor held = x.grad();
+  backward(sum(mul(x, x)));
+  EXPECT_EQ(held.to_vector(), (std::vector<double>{2, 4, 6}));
+  EXPECT_EQ(x.grad().to_vector(), (std::vector<double>{4, 8, 12}));
+  EXPECT_FALSE(held.storage() == x.grad().storage());
+}
+
+TEST(Tape, LeavesOfOneSumGetGradientsThatDoNotAlias) {
+  // add's backward passes its output gradient through to both operands unchanged.
+  Tensor a = Tensor::from_vector({1, 2}, {2}, DType::F64).set_requires_grad(true);
+  Tensor b = Tensor::from_vector({3, 4}, {2}, DType::F64).set_requires_grad(true);
+  backward(add(a, b), Tensor::from_vector({5, 6}, {2}, DType::F64));
+  ASSERT_TRUE(a.grad().defined() && b.grad().defined());
+  EXPECT_FALSE(a.grad().storage() == b.grad().storage());
+  EXPECT_EQ(a.grad().storage().use_count(), 1);
+  a.grad().data<double>()[0] = -1;
+  EXPECT_EQ(b.grad().to_vector(), (std::vector<double>{5, 6}));
+}
+
+TEST(Tape, AGradOutputPassedThroughToALeafIsCopied) {
+  Tensor x = Tensor::from_vector({1, 2}, {2}, DType::F64).set_requires_grad(true);
+  const Tensor seed = Tensor::from_vector({7, 8}, {2}, DType::F64);
+  backward(add_scalar(x, 1.0), seed);
+  EXPECT_FALSE(x.grad().storage() == seed.storage());
+  seed.data<double>()[0] = 0;
+  EXPECT_EQ(x.grad().to_vector(), (std::vector<double>{7, 8}));
+}
+
+TEST(Tape, ALeafReachedByManyPathsSumsEveryPath) {
+  // x reaches the loss through add (shared gradient), mul, exp and a scaling: the in-place
+  // accumulation must give the same bits as adding the contributions into fresh buffers.
+  Tensor x = rand64({1000}, 3).set_requires_grad(true);
+  backward(sum(tanh(add(mul(exp(mul_scalar(x, 0.5)), sigmoid(x)), x))));
+  Tensor expected;
+  {
+    NoGradGuard no_grad;
+    const Tensor e = exp(mul_scalar(x, 0.5)), s = sigmoid(x), y = tanh(add(mul(e, s), x));
+    const Tensor gu = rsub_scalar(1.0, mul(y, y));            // d tanh
+    const Tensor gm = gu;                                      // through add
+    const Tensor ge = mul(gm, s), gs = mul(gm, e);             // through mul
+    const Tensor gx_exp = mul_scalar(mul(ge, e), 0.5);         // exp, then x/2
+    const Tensor gx_sig = mul(gs, mul(s, rsub_scalar(1.0, s)));
+    expected = add(add(gu, gx_sig), gx_exp);
+  }
+  const std::vector<double> got = x.grad().to_vector(), want = expected.to_vector();
+  for (size_t i = 0; i < got.size(); ++i) EXPECT_NEAR(got[i], want[i], 1e-12) << i;
+}
+
 }  // namespace
 }  // namespace sl::test

@@ -3,12 +3,14 @@
 #pragma once
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
 
+#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include "data/image_io.h"
@@ -35,6 +37,18 @@ inline ToolRun run_tool(const std::string& name, const std::string& args) {
   const int status = pclose(p);
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+// A bad-input run of a tool: exit 2, one line "error: ..." naming `needle`, and no output
+// folder or temporary file left beside it (docs/DESIGN.md, "Errors").
+inline void expect_clean_error(const ToolRun& r, const std::string& out_dir, const std::string& needle) {
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
+  EXPECT_NE(r.out.find(needle), std::string::npos) << "expected '" << needle << "' in: " << r.out;
+  EXPECT_FALSE(std::filesystem::exists(out_dir)) << "partial output left in " << out_dir;
+  for (const auto& e : std::filesystem::directory_iterator(std::filesystem::path(out_dir).parent_path()))
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
 }
 
 inline bool tool_built(const std::string& name) {

@@ -46,16 +46,6 @@ nlohmann::json result(const std::string& out) {
   return nlohmann::json::parse(f);
 }
 
-void expect_clean_error(const ToolRun& r, const std::string& out_dir, const std::string& needle) {
-  EXPECT_EQ(r.code, 2) << r.out;
-  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
-  EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
-  EXPECT_NE(r.out.find(needle), std::string::npos) << "expected '" << needle << "' in: " << r.out;
-  EXPECT_FALSE(fs::exists(out_dir)) << "partial output left in " << out_dir;
-  for (const auto& e : fs::directory_iterator(fs::path(out_dir).parent_path()))
-    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
-}
-
 void expect_sun_consistent(const nlohmann::json& sun) {
   const glm::dvec3 d(sun["direction_world"][0], sun["direction_world"][1], sun["direction_world"][2]);
   EXPECT_NEAR(glm::length(d), 1.0, 1e-6);

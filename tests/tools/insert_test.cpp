@@ -31,16 +31,6 @@ InsertCase setup(const std::string& name) {
   return c;
 }
 
-void expect_clean_error(const sl::test::ToolRun& r, const std::string& out_dir, const std::string& needle) {
-  EXPECT_EQ(r.code, 2) << r.out;
-  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
-  EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
-  EXPECT_NE(r.out.find(needle), std::string::npos) << "expected '" << needle << "' in: " << r.out;
-  EXPECT_FALSE(fs::exists(out_dir)) << "partial output left in " << out_dir;
-  for (const auto& e : fs::directory_iterator(fs::path(out_dir).parent_path()))
-    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
-}
-
 TEST(InsertTool, WritesEveryOutputWithTheGroundPlaneFallback) {
   if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP() << "streetlight-insert not built";
   const InsertCase c = setup("insert_ok");

@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
@@ -153,22 +154,50 @@ StreetDataset::StreetDataset(const std::string& dir, const std::string& split) :
   }
 }
 
-StreetSample StreetDataset::load(size_t index) const {
-  SL_CHECK(index < ids_.size(), "StreetDataset('", dir_, "', '", split_, "'): index ", index, " out of range for ",
-           ids_.size(), " samples");
-  StreetSample s;
-  s.id = ids_[index];
-  const fs::path d = fs::path(dir_) / "samples" / s.id;
+namespace {
+
+// A sample's folder and its parsed meta.json.
+std::pair<fs::path, json> sample_meta(const std::string& dir, const std::string& split,
+                                      const std::vector<std::string>& ids, size_t index) {
+  SL_CHECK(index < ids.size(), "StreetDataset('", dir, "', '", split, "'): index ", index, " out of range for ",
+           ids.size(), " samples");
+  const fs::path d = fs::path(dir) / "samples" / ids[index];
   SL_CHECK(fs::is_directory(d), "StreetDataset: sample folder '", d.string(), "' is missing");
   const fs::path meta_path = d / "meta.json";
   SL_CHECK(fs::is_regular_file(meta_path), "StreetDataset: sample '", d.string(), "', file 'meta.json' is missing");
-  const json meta = read_json(meta_path, "StreetDataset");
+  return {d, read_json(meta_path, "StreetDataset")};
+}
 
-  s.sun_direction = vec3(meta, "sun_direction", meta_path);
-  // Streets lit by a real HDRI whose sun is soft carry no usable direction label.
+// Streets lit by a real HDRI whose sun is soft carry no usable direction label.
+bool sun_hard(const json& meta) {
   if (meta.contains("lighting") && meta["lighting"].is_object() && meta["lighting"].contains("sun_hard") &&
       meta["lighting"]["sun_hard"].is_boolean())
-    s.sun_known = meta["lighting"]["sun_hard"].get<bool>();
+    return meta["lighting"]["sun_hard"].get<bool>();
+  return true;
+}
+
+}  // namespace
+
+SunLabel StreetDataset::load_sun_label(size_t index) const {
+  const auto [d, meta] = sample_meta(dir_, split_, ids_, index);
+  const fs::path meta_path = d / "meta.json";
+  SunLabel l;
+  l.sun_direction = vec3(meta, "sun_direction", meta_path);
+  l.sun_known = sun_hard(meta);
+  const json& views = key(meta, "views", meta_path);
+  SL_CHECK(views.is_array() && !views.empty(), "StreetDataset: '", meta_path.string(), "': 'views' must be a non-empty list");
+  l.camera = read_camera(views[0], meta_path);
+  return l;
+}
+
+StreetSample StreetDataset::load(size_t index) const {
+  StreetSample s;
+  const auto [d, meta] = sample_meta(dir_, split_, ids_, index);
+  s.id = ids_[index];
+  const fs::path meta_path = d / "meta.json";
+
+  s.sun_direction = vec3(meta, "sun_direction", meta_path);
+  s.sun_known = sun_hard(meta);
   s.exposure = number(meta, "exposure", meta_path);
   const json& pano = key(meta, "panorama", meta_path);
   s.pano_position = vec3(pano, "position", meta_path);

@@ -61,6 +61,14 @@ struct StreetSample {
   std::array<double, 7> box3d{};  // h w l x y z ry (KITTI, view 0's camera frame)
 };
 
+// What a sample says of its sun, read from meta.json alone (no image is decoded): the label,
+// whether it is usable, and view 0's camera (the input view of training and evaluation).
+struct SunLabel {
+  glm::dvec3 sun_direction{0.0, 1.0, 0.0};
+  bool sun_known = true;
+  render::Camera camera;
+};
+
 class StreetDataset {
  public:
   StreetDataset(const std::string& dir, const std::string& split);  // throws naming dir/split
@@ -68,6 +76,7 @@ class StreetDataset {
   const std::vector<std::string>& ids() const { return ids_; }
   const std::string& dir() const { return dir_; }
   StreetSample load(size_t index) const;  // throws naming the sample folder and file
+  SunLabel load_sun_label(size_t index) const;  // meta.json only; throws like load()
 
  private:
   std::string dir_, split_;

@@ -41,11 +41,13 @@
 #include "render/radiance_query.h"
 #include "tools/common/cli.h"
 #include "tools/common/plot.h"
+#include "train/bootstrap.h"
 #include "train/inference.h"
 #include "train/losses.h"
 #include "train/metrics.h"
 #include "train/photo_insertion.h"
 #include "train/real_sky_benchmark.h"
+#include "train/street_batch.h"
 #include "train/sky_autoencoder.h"
 #include "train/train_config.h"
 #include "util/file.h"
@@ -233,31 +235,97 @@ RealSkyData load_real_sky(const std::string& folder, const std::string& split_fi
   return r;
 }
 
-json stats_json(const std::vector<double>& e) {
-  const SunErrorStats s = sun_error_stats(e);
+// The 95% bootstrap interval (train/bootstrap.h) as [lo, hi], or null without values. Values of one
+// group (the crops of one panorama, the views of one street) are resampled together.
+json ci_json(const std::vector<double>& v, const std::vector<std::string>& groups, Statistic statistic) {
+  const Interval i = bootstrap_ci95(v, groups, statistic);
+  return i.valid ? json::array({i.lo, i.hi}) : json();
+}
+
+// Values with their group labels.
+struct Grouped {
+  std::vector<double> v;
+  std::vector<std::string> g;
+  void add(double value, const std::string& group) { v.push_back(value), g.push_back(group); }
+};
+
+json stats_json(const Grouped& e) {
+  const SunErrorStats s = sun_error_stats(e.v);
   return {{"count", s.count}, {"median_deg", s.median_deg}, {"mean_deg", s.mean_deg},
+          {"ci95", {{"median_deg", ci_json(e.v, e.g, Statistic::Median)}, {"mean_deg", ci_json(e.v, e.g, Statistic::Mean)}}},
           {"within_15", s.within_15}, {"within_30", s.within_30}, {"within_45", s.within_45}};
 }
 
-json sun_stats_json(const std::vector<double>& all, const std::vector<double>& in, const std::vector<double>& out,
-                    bool split_by_crop) {
+json sun_stats_json(const Grouped& all, const Grouped& in, const Grouped& out, bool split_by_crop) {
   json j = {{"all", stats_json(all)}};
   if (split_by_crop) j["sun_in_crop"] = stats_json(in), j["sun_outside_crop"] = stats_json(out);
   return j;
 }
 
+// The constant baseline of a generated street dataset: the normalised mean of the canonical sun
+// directions (view 0's frame) of its TRAIN split's samples whose sun is hard. Read from meta.json
+// alone. has = false when the split is missing or holds no such sample.
+struct StreetBaseline {
+  bool has = false;
+  glm::dvec3 direction{0.0, 1.0, 0.0};
+  std::string from;  // the dataset folder
+  size_t samples = 0;
+};
+
+StreetBaseline street_baseline(const std::string& dir) {
+  StreetBaseline b;
+  b.from = dir;
+  std::unique_ptr<StreetDataset> ds;
+  try {
+    ds = std::make_unique<StreetDataset>(dir, "train");
+  } catch (const Error&) {
+    return b;  // no train split: no baseline row
+  }
+  glm::dvec3 sum(0.0);
+  for (size_t i = 0; i < ds->size(); ++i) {
+    const data::SunLabel l = ds->load_sun_label(i);
+    if (!l.sun_known) continue;
+    sum += canonical_frame(l.camera).direction(l.sun_direction);
+    ++b.samples;
+  }
+  if (b.samples == 0 || glm::length(sum) < 1e-12) return b;
+  b.direction = glm::normalize(sum);
+  b.has = true;
+  return b;
+}
+
+// The baseline row on a street dataset's evaluated split (the same samples as the checkpoints').
+json street_baseline_json(const StreetBaseline& b, const std::string& data, const std::string& split, int64_t limit) {
+  const StreetDataset ds(data, split);
+  const size_t count = limit > 0 ? std::min<size_t>(ds.size(), static_cast<size_t>(limit)) : ds.size();
+  Grouped e;
+  for (size_t i = 0; i < count; ++i) {
+    const data::SunLabel l = ds.load_sun_label(i);
+    if (l.sun_known) e.add(angular_error_deg(b.direction, canonical_frame(l.camera).direction(l.sun_direction)), ds.ids()[i]);
+  }
+  return {{"name", "constant baseline (mean training sun)"}, {"direction", {b.direction.x, b.direction.y, b.direction.z}},
+          {"from", b.from}, {"from_samples", b.samples}, {"sun_error_median_deg", median(e.v)},
+          {"sun_error_mean_deg", mean_of(e.v)},
+          {"ci95", {{"sun_error_median_deg", ci_json(e.v, e.g, Statistic::Median)},
+                    {"sun_error_mean_deg", ci_json(e.v, e.g, Statistic::Mean)}}},
+          {"sun", sun_stats_json(e, {}, {}, false)}};
+}
+
 // The baseline row: the constant direction scored on the same test crops.
 json baseline_json(const RealSkyData& r) {
-  std::vector<double> all, in, out;
+  Grouped all, in, out;
   for (const auto& c : r.test) {
     if (!c.sun_known) continue;
     const double e = angular_error_deg(r.baseline, c.sun_canonical);
-    all.push_back(e);
-    (c.sun_in_crop ? in : out).push_back(e);
+    all.add(e, c.panorama);
+    (c.sun_in_crop ? in : out).add(e, c.panorama);
   }
   return {{"name", "constant baseline (mean training sun)"}, {"direction", {r.baseline.x, r.baseline.y, r.baseline.z}},
-          {"from_panoramas", r.baseline_from}, {"sun_error_median_deg", median(all)},
-          {"sun_error_mean_deg", mean_of(all)}, {"sun", sun_stats_json(all, in, out, true)}};
+          {"from_panoramas", r.baseline_from}, {"sun_error_median_deg", median(all.v)},
+          {"sun_error_mean_deg", mean_of(all.v)},
+          {"ci95", {{"sun_error_median_deg", ci_json(all.v, all.g, Statistic::Median)},
+                    {"sun_error_mean_deg", ci_json(all.v, all.g, Statistic::Mean)}}},
+          {"sun", sun_stats_json(all, in, out, true)}};
 }
 
 // The LDR a camera at the panorama's centre sees (bilinear, render/equirect.h convention).
@@ -283,7 +351,10 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
                    int view_rows, std::vector<cli::PlotPoint>* plot, const std::string& label, const RealSkyData* real,
                    bool oracle) {
   LightingEstimator est(ckpt);
-  std::vector<double> sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, ms, oracle_psnr, oracle_ratio;
+  // Every score carries its group for the bootstrap: the street's id, or the real crop's panorama.
+  Grouped sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, oracle_psnr, oracle_ratio;
+  std::vector<double> ms;
+  size_t sun_unknown = 0;  // samples whose sun label is not usable (soft sun): no sun error
   std::map<std::string, std::vector<double>> budget_err, budget_ms;
   int64_t oracle_probes = 0;  // oracle samples lit by the light probe at the object
   PartScores ins_parts, oracle_parts;
@@ -301,14 +372,16 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
       if (i > 0 || count == 1) ms.push_back(l.inference_ms);  // the first call also pays warm-up
       glm::dvec3 dir = l.sun_direction_canonical;
       if (!l.has_sky_code) dir = extract_sun(l.env.contiguous()).direction;
-      sun_err.push_back(angular_error_deg(dir, l.frame.direction(s.sun_direction)));
+      // As on real skies (and in training), a soft sun's direction is no label.
+      if (s.sun_known) sun_err.add(angular_error_deg(dir, l.frame.direction(s.sun_direction)), s.id);
+      else ++sun_unknown;
       for (size_t k = 1; k < s.views.size(); ++k) {
         NoGradGuard ng;
         const auto [pred, upper] = render_view(l, s.views[k].camera, view_rows, est.volume_query());
         const Tensor truth = resize_bilinear(s.views[k].ldr, pred.size(1), pred.size(2));
         const PsnrScores all = masked_psnr(pred, truth, {}), up = masked_psnr(pred, truth, upper);
-        ps.push_back(all.psnr), sps.push_back(all.si_psnr);
-        if (up.valid) ups.push_back(up.psnr), usps.push_back(up.si_psnr);
+        ps.add(all.psnr, s.id), sps.add(all.si_psnr, s.id);
+        if (up.valid) ups.add(up.psnr, s.id), usps.add(up.si_psnr, s.id);
       }
       if (s.has_insertion && !s.object_glb.empty()) {
         auto it = meshes.find(s.object_glb);
@@ -320,7 +393,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         o.volume_query = est.volume_query();
         try {
           const InsertionScore sc = score_insertion(l, s, it->second, o);
-          if (sc.valid) ins_psnr.push_back(sc.psnr), ins_ratio.push_back(sc.shadow_ratio_error), ins_parts.add(sc);
+          if (sc.valid) ins_psnr.add(sc.psnr, s.id), ins_ratio.add(sc.shadow_ratio_error, s.id), ins_parts.add(sc);
           if (oracle) {
             // Oracle lighting: the same renderer and options under the generator's own HDR
             // panorama (distant light, exposure-normalised, in the canonical frame): the light
@@ -332,8 +405,8 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
                             .contiguous();
             truth.vsg = Tensor();
             const InsertionScore oc = score_insertion(truth, s, it->second, o);
-            if (oc.valid) oracle_psnr.push_back(oc.psnr), oracle_ratio.push_back(oc.shadow_ratio_error), oracle_probes += probe,
-                  oracle_parts.add(oc);
+            if (oc.valid) oracle_psnr.add(oc.psnr, s.id), oracle_ratio.add(oc.shadow_ratio_error, s.id),
+                  oracle_probes += probe, oracle_parts.add(oc);
           }
           if (plot)
             for (Budget b : budgets()) {
@@ -362,8 +435,10 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
       const glm::dvec3 dir = l.has_sky_code ? l.sun_direction_canonical : extract_sun(l.env.contiguous()).direction;
       if (c.sun_known) {
         const double e = angular_error_deg(dir, c.sun_canonical);
-        sun_err.push_back(e);
-        (c.sun_in_crop ? sun_in : sun_out).push_back(e);
+        sun_err.add(e, c.panorama);
+        (c.sun_in_crop ? sun_in : sun_out).add(e, c.panorama);
+      } else {
+        ++sun_unknown;
       }
       // A novel view: the same panorama seen 90° to the right of the input crop.
       NoGradGuard ng;
@@ -375,8 +450,8 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
       const Tensor truth_full = render_truth(c.sample.pano_hdr, novel, c.sample.exposure);
       const Tensor truth = resize_bilinear(truth_full, pred.size(1), pred.size(2));
       const PsnrScores all = masked_psnr(pred, truth, {}), up = masked_psnr(pred, truth, upper);
-      ps.push_back(all.psnr), sps.push_back(all.si_psnr);
-      if (up.valid) ups.push_back(up.psnr), usps.push_back(up.si_psnr);
+      ps.add(all.psnr, c.panorama), sps.add(all.si_psnr, c.panorama);
+      if (up.valid) ups.add(up.psnr, c.panorama), usps.add(up.si_psnr, c.panorama);
       progress.update(static_cast<int64_t>(i + 1));
     }
     progress.finish();
@@ -390,24 +465,34 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   json r = {{"checkpoint", ckpt}, {"stage", est.stage()}, {"step", est.step()},
             {"sky_branch", est.predictor().options().sky_branch},
             {"volume_branch", est.predictor().options().volume_branch},
-            {"images", count},
-            {"sun_error_median_deg", median(sun_err)}, {"sun_error_mean_deg", mean_of(sun_err)},
+            {"images", count}, {"sun_unknown", sun_unknown},
+            {"sun_error_median_deg", median(sun_err.v)}, {"sun_error_mean_deg", mean_of(sun_err.v)},
             {"sun", sun_stats_json(sun_err, sun_in, sun_out, real != nullptr)},
-            {"psnr", mean_of(ps)}, {"si_psnr", mean_of(sps)},
-            {"psnr_upper", mean_of(ups)}, {"si_psnr_upper", mean_of(usps)},
+            {"psnr", mean_of(ps.v)}, {"si_psnr", mean_of(sps.v)},
+            {"psnr_upper", mean_of(ups.v)}, {"si_psnr_upper", mean_of(usps.v)},
             {"inference_ms", mean_of(ms)}};
-  if (!oracle_psnr.empty())
-    r["oracle"] = {{"insertion_psnr", mean_of(oracle_psnr)}, {"shadow_ratio_error", mean_of(oracle_ratio)},
-                   {"insertion_samples", oracle_psnr.size()}, {"insertion_psnr_parts", oracle_parts.to_json()},
-                   {"light", oracle_probes == static_cast<int64_t>(oracle_psnr.size()) ? "probe at the object"
+  json ci = {{"sun_error_median_deg", ci_json(sun_err.v, sun_err.g, Statistic::Median)},
+             {"sun_error_mean_deg", ci_json(sun_err.v, sun_err.g, Statistic::Mean)},
+             {"psnr", ci_json(ps.v, ps.g, Statistic::Mean)}, {"si_psnr", ci_json(sps.v, sps.g, Statistic::Mean)},
+             {"psnr_upper", ci_json(ups.v, ups.g, Statistic::Mean)},
+             {"si_psnr_upper", ci_json(usps.v, usps.g, Statistic::Mean)}};
+  if (!oracle_psnr.v.empty())
+    r["oracle"] = {{"insertion_psnr", mean_of(oracle_psnr.v)}, {"shadow_ratio_error", mean_of(oracle_ratio.v)},
+                   {"ci95", {{"insertion_psnr", ci_json(oracle_psnr.v, oracle_psnr.g, Statistic::Mean)},
+                             {"shadow_ratio_error", ci_json(oracle_ratio.v, oracle_ratio.g, Statistic::Mean)}}},
+                   {"insertion_samples", oracle_psnr.v.size()}, {"insertion_psnr_parts", oracle_parts.to_json()},
+                   {"light", oracle_probes == static_cast<int64_t>(oracle_psnr.v.size()) ? "probe at the object"
                              : oracle_probes == 0                                      ? "panorama at the camera"
                                                                                        : "mixed"}};
-  if (!ins_psnr.empty()) {
-    r["insertion_psnr"] = mean_of(ins_psnr);
-    r["shadow_ratio_error"] = mean_of(ins_ratio);
-    r["insertion_samples"] = ins_psnr.size();
+  if (!ins_psnr.v.empty()) {
+    r["insertion_psnr"] = mean_of(ins_psnr.v);
+    r["shadow_ratio_error"] = mean_of(ins_ratio.v);
+    r["insertion_samples"] = ins_psnr.v.size();
     r["insertion_psnr_parts"] = ins_parts.to_json();
+    ci["insertion_psnr"] = ci_json(ins_psnr.v, ins_psnr.g, Statistic::Mean);
+    ci["shadow_ratio_error"] = ci_json(ins_ratio.v, ins_ratio.g, Statistic::Mean);
   }
+  r["ci95"] = ci;
   if (!budget_err.empty()) {
     json b = json::array();
     for (const auto& [name, errs] : budget_err)
@@ -467,7 +552,16 @@ std::string fmt(const json& r, const char* key, int prec = 2) {
   return b;
 }
 
-std::string markdown(const std::vector<json>& rows, const std::vector<std::string>& names) {
+// "v [lo, hi]" when the row has a 95% interval for the key (train/bootstrap.h), else fmt's "v".
+std::string fmt_ci(const json& r, const char* key, int prec = 2) {
+  std::string v = fmt(r, key, prec);
+  if (!r.contains("ci95") || !r["ci95"].contains(key) || !r["ci95"][key].is_array()) return v;
+  char b[96];
+  std::snprintf(b, sizeof b, " [%.*f, %.*f]", prec, r["ci95"][key][0].get<double>(), prec, r["ci95"][key][1].get<double>());
+  return v + b;
+}
+
+std::string markdown(const std::vector<json>& rows, const std::vector<std::string>& names, const json& baseline) {
   std::ostringstream md;
   bool any_light = false, any_sky = false;
   for (const auto& r : rows) (r.contains("sky_log_l2") ? any_sky : any_light) = true;
@@ -478,16 +572,19 @@ std::string markdown(const std::vector<json>& rows, const std::vector<std::strin
       const json& r = rows[i];
       if (r.contains("sky_log_l2")) continue;
       md << "| " << names[i] << " | " << r["stage"].get<std::string>() << " (" << r["step"].get<int64_t>() << ") | "
-         << fmt(r, "sun_error_median_deg", 1) << " | " << fmt(r, "sun_error_mean_deg", 1) << " | " << fmt(r, "psnr")
-         << " | " << fmt(r, "si_psnr") << " | " << fmt(r, "psnr_upper") << " | " << fmt(r, "si_psnr_upper") << " | "
-         << fmt(r, "insertion_psnr") << " | " << fmt(r, "shadow_ratio_error", 3) << " | " << fmt(r, "inference_ms", 0)
-         << " |\n";
+         << fmt_ci(r, "sun_error_median_deg", 1) << " | " << fmt_ci(r, "sun_error_mean_deg", 1) << " | "
+         << fmt_ci(r, "psnr") << " | " << fmt_ci(r, "si_psnr") << " | " << fmt_ci(r, "psnr_upper") << " | "
+         << fmt_ci(r, "si_psnr_upper") << " | " << fmt_ci(r, "insertion_psnr") << " | "
+         << fmt_ci(r, "shadow_ratio_error", 3) << " | " << fmt(r, "inference_ms", 0) << " |\n";
     }
     for (const auto& r : rows)
       if (r.contains("oracle"))
         md << "| oracle lighting (the generator's HDR " << r["oracle"].value("light", "panorama at the camera")
            << ") | — | — | — | — | — | — | — | "
-           << fmt(r["oracle"], "insertion_psnr") << " | " << fmt(r["oracle"], "shadow_ratio_error", 3) << " | — |\n";
+           << fmt_ci(r["oracle"], "insertion_psnr") << " | " << fmt_ci(r["oracle"], "shadow_ratio_error", 3) << " | — |\n";
+    if (!baseline.is_null())
+      md << "| " << baseline["name"].get<std::string>() << " | — | " << fmt_ci(baseline, "sun_error_median_deg", 1)
+         << " | " << fmt_ci(baseline, "sun_error_mean_deg", 1) << " | — | — | — | — | — | — | — |\n";
   }
   bool any_parts = false;
   for (const auto& r : rows) any_parts = any_parts || r.contains("insertion_psnr_parts");
@@ -520,13 +617,13 @@ std::string markdown(const std::vector<json>& rows, const std::vector<std::strin
 // Table 1 on real skies: one row per lighting checkpoint and the constant baseline.
 std::string real_sky_markdown(const std::vector<json>& rows, const json& baseline) {
   std::ostringstream md;
-  md << "| model | crops with a hard sun | median ° | mean ° | ≤15° | ≤30° | ≤45° | sun in crop: median ° (n) | "
-        "sun outside: median ° (n) |\n|---|---|---|---|---|---|---|---|---|\n";
+  md << "| model | crops with a hard sun | median ° [95% CI] | mean ° [95% CI] | ≤15° | ≤30° | ≤45° | "
+        "sun in crop: median ° (n) | sun outside: median ° (n) |\n|---|---|---|---|---|---|---|---|---|\n";
   auto row = [&](const std::string& name, const json& sun) {
     const json& a = sun.at("all");
-    char b[512];
-    std::snprintf(b, sizeof b, "| %s | %zu | %.1f | %.1f | %.2f | %.2f | %.2f | %.1f (%zu) | %.1f (%zu) |\n", name.c_str(),
-                  a.at("count").get<size_t>(), a.at("median_deg").get<double>(), a.at("mean_deg").get<double>(),
+    char b[640];
+    std::snprintf(b, sizeof b, "| %s | %zu | %s | %s | %.2f | %.2f | %.2f | %.1f (%zu) | %.1f (%zu) |\n", name.c_str(),
+                  a.at("count").get<size_t>(), fmt_ci(a, "median_deg", 1).c_str(), fmt_ci(a, "mean_deg", 1).c_str(),
                   a.at("within_15").get<double>(), a.at("within_30").get<double>(), a.at("within_45").get<double>(),
                   sun.at("sun_in_crop").at("median_deg").get<double>(), sun.at("sun_in_crop").at("count").get<size_t>(),
                   sun.at("sun_outside_crop").at("median_deg").get<double>(),
@@ -542,7 +639,7 @@ std::string real_sky_markdown(const std::vector<json>& rows, const json& baselin
 int run(int argc, char** argv) {
   cli::Args a("streetlight-eval",
               "streetlight-eval [--checkpoint CKPT ...] --data DIR [--data DIR2 ...] [--split test] [--hdri-split FILE]\n"
-              "                 [--crops K] [--out DIR] [--json]\n\n"
+              "                 [--crops K] [--baseline-data DIR] [--out DIR] [--json]\n\n"
               "Evaluates checkpoints with the metrics of Wang et al. ECCV 2022 (Tables 1-2): sun direction angular\n"
               "error, novel-view LDR PSNR / si-PSNR (also upper hemisphere only), sky log-L2 (sky autoencoder),\n"
               "insertion error against the generator's path-traced ground truth (also under oracle lighting: the\n"
@@ -552,7 +649,10 @@ int run(int argc, char** argv) {
               "Real panoramas (the real-sky benchmark): K seeded perspective crops per panorama of the split's\n"
               "--split list (default: every file), sun errors over the crops whose sun is hard, also split by\n"
               "whether the sun is inside the crop, beside the constant baseline (the mean sun direction of the\n"
-              "split file's training panoramas). Without --checkpoint: the released model\n"
+              "split file's training panoramas). On generated streets the constant baseline is the mean sun of\n"
+              "the train split of --baseline-data (default: of the same DIR, when it has one). Samples whose sun\n"
+              "is soft carry no sun error. Every metric has a 95% bootstrap interval ([lo, hi]; 2000 resamples,\n"
+              "a real panorama's crops resampled together). Without --checkpoint: the released model\n"
               "(models/streetlight.safetensors).",
               {{"--checkpoint", "CKPT", "checkpoint to evaluate (one table row each; default: the released model)", true},
                {"--name", "NAME", "row name for the matching --checkpoint (default: its file path)", true},
@@ -562,6 +662,7 @@ int run(int argc, char** argv) {
                {"--crops", "K", "perspective crops per real panorama (default 8)"},
                {"--limit", "N", "evaluate at most N images (panorama folders: N panoramas)"},
                {"--view-rows", "N", "rows at which novel views are rendered (default 32)"},
+               {"--baseline-data", "DIR", "street dataset whose train split gives the constant baseline of street --data"},
                {"--no-budgets", "", "skip the error-against-time sweep"},
                {"--out", "DIR", "write results.json, results.md and error_time.png here"},
                {"--json", "", "print the results as one JSON object on stdout"}});
@@ -586,6 +687,13 @@ int run(int argc, char** argv) {
   SL_CHECK(crops > 0, "--crops must be positive, got ", crops);
   if (!hdri_split.empty()) (void)read_hdri_split(hdri_split);  // fail early on a bad file
   for (const auto& c : ckpts) nn::read_checkpoint_info(c);     // fail early on a bad file
+  const std::string baseline_data = a.get("--baseline-data", "");
+  if (!baseline_data.empty()) {
+    SL_CHECK(fs::exists(fs::path(baseline_data) / "index.json"), "--baseline-data '", baseline_data,
+             "' is not a street dataset (no index.json)");
+    SL_CHECK(street_baseline(baseline_data).has, "--baseline-data '", baseline_data,
+             "' has no train sample with a hard sun to average");
+  }
   json datasets = json::array();
   std::string md;
   std::vector<cli::PlotPoint> plot;
@@ -613,6 +721,10 @@ int run(int argc, char** argv) {
     }
     json entry = {{"data", data}, {"kind", street ? "street" : "real_panoramas"}, {"split", split}, {"results", results}};
     json baseline;
+    if (street) {
+      const StreetBaseline b = street_baseline(baseline_data.empty() ? data : baseline_data);
+      if (b.has) baseline = entry["baseline"] = street_baseline_json(b, data, split, limit);
+    }
     if (real) {
       entry["hdri_split"] = hdri_split;
       entry["crops_per_panorama"] = crops;
@@ -621,7 +733,8 @@ int run(int argc, char** argv) {
     md += "## " + data + (street ? " (generated streets, split " + split + ")\n\n"
                                  : " (real panoramas" + (hdri_split.empty() ? std::string() : ", " + hdri_split + " split " + split) +
                                        ", " + std::to_string(crops) + " crops each)\n\n");
-    md += markdown(results, names);
+    md += markdown(results, names, street ? baseline : json());
+    if (street && baseline.is_null()) md += "\n(no baseline row: the data has no train split; give --baseline-data)\n";
     if (real) {
       md += "\nSun direction on real skies (crops whose sun is hard):\n\n" + real_sky_markdown(results, baseline);
       if (baseline.is_null()) md += "\n(no baseline row: give --hdri-split with a \"train\" list)\n";

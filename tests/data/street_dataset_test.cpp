@@ -117,6 +117,21 @@ TEST(StreetDataset, PanoramaAndView0SkyMasksAgree) {
   EXPECT_GT(static_cast<double>(agree) / (W * H), 0.85);  // the panorama is coarser: edges differ
 }
 
+// The meta-only reader (used for the evaluation's constant baseline) says what load() says.
+TEST(StreetDataset, SunLabelMatchesTheFullLoad) {
+  const StreetDataset ds(test::tiny_dataset(), "train");
+  ASSERT_GT(ds.size(), 0u);
+  for (size_t i = 0; i < ds.size(); ++i) {
+    const StreetSample s = ds.load(i);
+    const data::SunLabel l = ds.load_sun_label(i);
+    EXPECT_EQ(l.sun_direction, s.sun_direction);
+    EXPECT_EQ(l.sun_known, s.sun_known);
+    EXPECT_EQ(l.camera.position(), s.views[0].camera.position());
+    EXPECT_EQ(l.camera.rotation(), s.views[0].camera.rotation());
+    EXPECT_EQ(l.camera.intrinsics().fx, s.views[0].camera.intrinsics().fx);
+  }
+}
+
 TEST(ContactSheet, ComposesRowsOfTiles) {
   const Tensor sheet = compose_contact_sheet(test::tiny_dataset(), 2, 16);
   EXPECT_EQ(sheet.size(0), 3);

@@ -14,7 +14,9 @@
 #include "data/sky_model.h"
 #include "support/street_fixture.h"
 #include "support/tool_fixture.h"
+#include "data/street_dataset.h"
 #include "train/real_sky_benchmark.h"
+#include "train/street_batch.h"
 #include "util/math.h"
 
 namespace sl::test {
@@ -48,6 +50,51 @@ TEST(EvalTool, ReportsTheMetricsOfTables1And2WithARowPerCheckpoint) {
   ASSERT_TRUE(first.contains("oracle")) << first.dump();
   EXPECT_EQ(first["oracle"]["light"], "panorama at the camera");
   EXPECT_TRUE(first["oracle"]["insertion_psnr_parts"].contains("object"));
+}
+
+// Issue 13's table needs intervals to tell rows apart, and a constant baseline on streets too.
+TEST(EvalTool, EveryMetricHasABootstrapIntervalAndStreetsHaveTheBaselineOfTheirTrainSplit) {
+  if (!sl::test::tool_built("streetlight-eval")) GTEST_SKIP() << "streetlight-eval not built";
+  const std::string dir = sl::test::tool_dir("eval_ci");
+  const std::string data = sl::test::tiny_dataset("eval_tiny_dataset", 3);
+  const std::string ckpt = sl::test::tiny_lighting_checkpoint(dir);
+  const auto r = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --data " + data +
+                                                          " --split train --view-rows 8 --no-budgets --baseline-data " +
+                                                          data + " --out " + dir + "/out");
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream jf(dir + "/out/results.json");
+  const auto j = nlohmann::json::parse(jf);
+  const auto& row = j["results"][0];
+  for (const char* k : {"sun_error_median_deg", "sun_error_mean_deg", "psnr", "si_psnr", "psnr_upper", "si_psnr_upper",
+                        "insertion_psnr", "shadow_ratio_error"}) {
+    ASSERT_TRUE(row["ci95"][k].is_array()) << k << ": " << row.dump();
+    const double lo = row["ci95"][k][0].get<double>(), hi = row["ci95"][k][1].get<double>(), v = row[k].get<double>();
+    EXPECT_LE(lo, hi) << k;
+    if (std::string(k) != "sun_error_median_deg") {  // a mean lies inside its own interval
+      EXPECT_TRUE(lo <= v + 1e-9 && v <= hi + 1e-9) << k;
+    }
+  }
+  EXPECT_TRUE(row["oracle"]["ci95"]["insertion_psnr"].is_array());
+  // The baseline: the normalised mean canonical sun of the train split, from meta.json.
+  const auto& b = j["datasets"][0]["baseline"];
+  const sl::data::StreetDataset ds(data, "train");
+  glm::dvec3 sum(0.0);
+  for (size_t i = 0; i < ds.size(); ++i) {
+    const sl::data::SunLabel l = ds.load_sun_label(i);
+    if (l.sun_known) sum += sl::train::canonical_frame(l.camera).direction(l.sun_direction);
+  }
+  const glm::dvec3 expect = glm::normalize(sum);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(b["direction"][k].get<double>(), expect[k], 1e-9);
+  EXPECT_TRUE(b["ci95"]["sun_error_median_deg"].is_array());
+  std::ifstream mf(dir + "/out/results.md");
+  const std::string md((std::istreambuf_iterator<char>(mf)), std::istreambuf_iterator<char>());
+  EXPECT_NE(md.find("constant baseline (mean training sun)"), std::string::npos) << md;
+  EXPECT_NE(md.find(" ["), std::string::npos) << md;
+  // A --baseline-data that is not a street dataset is one line, exit 2.
+  const auto bad = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --data " + data +
+                                                            " --baseline-data " + dir + "/nothing");
+  EXPECT_EQ(bad.code, 2) << bad.out;
+  EXPECT_NE(bad.out.find("--baseline-data"), std::string::npos) << bad.out;
 }
 
 TEST(EvalTool, MissingDataIsACleanError) {

@@ -1,19 +1,32 @@
 #!/usr/bin/env bash
-# Reproduces Tables 1-2 of the paper on the synthetic benchmark: trains the method and its four
-# ablations, evaluates them with streetlight-eval on the held-out test split, and writes
-# docs/RESULTS.md (one row per model, the exact commands, seeds and training budget).
+# Reproduces Tables 1-2 of the paper: trains the method and its ablations, evaluates them with
+# streetlight-eval (95% bootstrap intervals on every metric, the constant baseline beside them) and
+# writes the table into docs/RESULTS.md, between its reproduce_tables markers, with the commit,
+# the wall time and every command. The rest of RESULTS.md is left as it is.
 #
-# Usage: scripts/reproduce_tables.sh [--scale default|quickstart] [--steps-factor F] [--out DIR]
-#                                    [--build-dir DIR] [--results FILE]
-#   --scale default     the configs/default_*.json and configs/ablation_*.json models and dataset
-#                       (days of CPU time at the configs' step counts)
-#   --scale quickstart  the quickstart model sizes and dataset with the same ablation switches
-#                       (minutes); for a smoke test of the whole table
+# Usage: scripts/reproduce_tables.sh [--scale release|quickstart|default] [--steps-factor F] [--out DIR]
+#                                    [--build-dir DIR] [--results FILE] [--test-samples N]
+#                                    [--train-samples N]
+#   --scale release     (default) the release recipe (configs/release_*.json: 3000 stage-2 steps,
+#                       300 stage-3 steps) with the adversarial-signal fixes on (log-spaced Eq. 1
+#                       samples, sky MIS in training, renderer-made "real" composites), every
+#                       ablation trained at the same budget; synthetic test set: --test-samples
+#                       streets of configs/datagen_eval_insertion.json (lit by the TEST panoramas
+#                       or the sky model, insertion truth at 128 spp); real test set: the real-sky
+#                       benchmark (configs/hdri_split.json test split, 8 crops per panorama).
+#                       Needs ../shared/data/hdri. Resumable: a killed run continues where it stopped.
+#   --scale quickstart  the quickstart model sizes and dataset (minutes); a smoke test of the table
+#   --scale default     the configs/default_*.json models (days of CPU time at their step counts)
 #   --steps-factor F    multiplies every stage's train.steps (e.g. 0.01 for a short budget)
-# Every run uses seed 0 (the configs' "seed"); the dataset uses its config's seed (0).
+#   --test-samples N    release scale: streets in the synthetic test set (default 200)
+#   --train-samples N   release scale: override the training streets' count (default: the config's)
+# Rows: ours (stage 3), w/o adversarial supervision (stage 3's steps with loss.adversarial = 0),
+# w/o sky modeling, sky only, volume only, the stage-1 sky autoencoder, the oracle lighting row of
+# the insertion and the constant baseline (the mean training sun).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scale=default; factor=1; out=runs/tables; build_dir=build; results=docs/RESULTS.md
+scale=release; factor=1; out=../streetlight-runs/tables; build_dir=build; results=docs/RESULTS.md
+test_samples=200; train_samples=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --scale) scale="$2"; shift ;;
@@ -21,85 +34,174 @@ while [ $# -gt 0 ]; do
     --out) out="$2"; shift ;;
     --build-dir) build_dir="$2"; shift ;;
     --results) results="$2"; shift ;;
-    -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
+    --test-samples) test_samples="$2"; shift ;;
+    --train-samples) train_samples="$2"; shift ;;
+    -h|--help) sed -n '2,27p' "$0"; exit 0 ;;
     *) echo "error: unknown option '$1' (try --help)" >&2; exit 2 ;;
   esac
   shift
 done
-case "$scale" in default|quickstart) ;; *) echo "error: --scale must be default or quickstart, got '$scale'" >&2; exit 2 ;; esac
+case "$scale" in release|default|quickstart) ;;
+  *) echo "error: --scale must be release, quickstart or default, got '$scale'" >&2; exit 2 ;; esac
+[[ "$test_samples" =~ ^[1-9][0-9]*$ ]] || { echo "error: --test-samples must be a positive integer, got '$test_samples'" >&2; exit 2; }
+[ -z "$train_samples" ] || [[ "$train_samples" =~ ^[1-9][0-9]*$ ]] ||
+  { echo "error: --train-samples must be a positive integer, got '$train_samples'" >&2; exit 2; }
+hdri=""
+[ -d ../shared/data/hdri ] && hdri=$(cd ../shared/data/hdri && pwd)
+if [ "$scale" = release ] && [ -z "$hdri" ]; then
+  echo "error: ../shared/data/hdri is missing: the release scale trains and tests on the real panoramas there" >&2
+  exit 2
+fi
 bin="$build_dir/tools"
 [ -x "$bin/streetlight-train" ] || build_dir=$(bash scripts/build.sh --dir "$build_dir" | tail -n 1)
 bin="$build_dir/tools"
 mkdir -p "$out"
-log="$out/commands.txt"; : > "$log"
-run() { echo "$*" >> "$log"; echo "tables: $*" >&2; "$@"; }
+out=$(cd "$out" && pwd)
+log="$out/commands.txt"
+start=$(date +%s)
+prev=0; [ -f "$out/elapsed" ] && prev=$(cat "$out/elapsed")  # wall time of earlier (killed) invocations
+trap 'echo $(( $(date +%s) - start + prev )) > "$out/elapsed"' EXIT
+run() { echo "$*" >> "$log"; echo "tables: [$(( $(date +%s) - start )) s] $*" >&2; "$@"; }
+# done_or_run NAME CMD...: runs CMD unless NAME finished in an earlier invocation.
+done_or_run() {
+  local name=$1; shift
+  [ -f "$out/$name.done" ] && { echo "tables: $name: done before" >&2; return 0; }
+  "$@"
+  touch "$out/$name.done"
+}
 steps() {  # steps <config> : the config's train.steps times the factor (at least 2)
   local s
   s=$(grep -o '"steps"[^,}]*' "$1" | head -n 1 | tr -dc '0-9')
   awk -v s="${s:-2000}" -v f="$factor" 'BEGIN { n = int(s * f + 0.5); if (n < 2) n = 2; print n }'
 }
-hdri=""
-[ -d ../shared/data/hdri ] && hdri=$(cd ../shared/data/hdri && pwd)
-start=$(date +%s)
-
-if [ "$scale" = quickstart ]; then
-  datagen_cfg=configs/datagen_quickstart.json
-  sky_cfg=configs/quickstart_sky.json; light_cfg=configs/quickstart_lighting.json
-  adv_cfg=configs/quickstart_adversarial.json
-else
-  datagen_cfg=configs/datagen_quickstart.json
-  sky_cfg=configs/default_sky.json; light_cfg=configs/default_lighting.json
-  adv_cfg=configs/default_adversarial.json
-fi
-common=(--set "data.dataset=$out/street")
-run "$bin/streetlight-datagen" --config "$datagen_cfg" --out "$out/street" > /dev/null
-run "$bin/streetlight-train" --config "$sky_cfg" --set "data.hdri_dir=$hdri" \
-  --set "train.steps=$(steps "$sky_cfg")" --out "$out/sky" > /dev/null
-light() {  # light <name> [--set ...]: a stage-2 run of the lighting config with extra switches
-  local name="$1"; shift
-  run "$bin/streetlight-train" --config "$light_cfg" "${common[@]}" \
-    --set "init.sky_checkpoint=$out/sky/last.safetensors" --set "train.steps=$(steps "$light_cfg")" "$@" \
-    --out "$out/$name" > /dev/null
+# train NAME CONFIG [--set ...]: one training run, resumed from its last checkpoint when one exists.
+train() {
+  local name=$1 config=$2; shift 2
+  local resume=()
+  [ -f "$out/$name/last.safetensors" ] && resume=(--resume "$out/$name/last.safetensors")
+  run "$bin/streetlight-train" --config "$config" --set "train.steps=$(steps "$config")" "$@" "${resume[@]}" \
+    --out "$out/$name" > "$out/$name.log" 2>&1
 }
-adv() {  # adv <name> <init> [--set ...]
-  local name="$1" init="$2"; shift 2
-  run "$bin/streetlight-train" --config "$adv_cfg" "${common[@]}" --set "init.checkpoint=$init" \
-    --set "train.steps=$(steps "$adv_cfg")" "$@" --out "$out/$name" > /dev/null
+
+if [ "$scale" = release ]; then
+  datagen_cfg=configs/release_datagen.json; test_cfg=configs/datagen_eval_insertion.json
+  sky_cfg=configs/release_sky.json; light_cfg=configs/release_lighting.json; adv_cfg=configs/release_adversarial.json
+  # The release configs pin what the released model was trained with; the table measures the
+  # method with the adversarial-signal fixes (issue 13), which are the defaults since.
+  fixes=(--set model.volume.spacing=grid)
+  adv_fixes=(--set insertion.importance_sampling=true --set insertion.real=renderer)
+  real=(--set "data.hdri_dir=$hdri")
+  count=(); [ -n "$train_samples" ] && count=(--set "samples=$train_samples")
+  gen() {  # gen NAME CONFIG [--set ...]: a street dataset rendered by two processes
+    local name=$1 config=$2; shift 2
+    local pids=()
+    for k in 0 1; do
+      (export OMP_NUM_THREADS=1
+       run "$bin/streetlight-datagen" --config "$config" "$@" --set "sky.hdri_folder=$hdri" \
+         --set sky.hdri_split=configs/hdri_split.json --out "$out/$name" --shard "$k/2" --skip-existing \
+         > "$out/${name}_$k.log" 2>&1) &
+      pids+=($!)
+    done
+    for p in "${pids[@]}"; do wait "$p"; done
+  }
+  done_or_run street gen street "$datagen_cfg" "${count[@]}"
+  done_or_run test_street gen test_street "$test_cfg" --set "samples=$test_samples"
+  data=(--set "data.dataset=$out/street")
+  sky_ckpt="$out/sky/best.safetensors"
+  best=best.safetensors
+else
+  if [ "$scale" = quickstart ]; then
+    sky_cfg=configs/quickstart_sky.json; light_cfg=configs/quickstart_lighting.json
+    adv_cfg=configs/quickstart_adversarial.json
+  else
+    sky_cfg=configs/default_sky.json; light_cfg=configs/default_lighting.json; adv_cfg=configs/default_adversarial.json
+  fi
+  datagen_cfg=configs/datagen_quickstart.json
+  fixes=(); adv_fixes=(); real=(--set "data.hdri_dir=$hdri")
+  done_or_run street run "$bin/streetlight-datagen" --config "$datagen_cfg" --out "$out/street" > /dev/null
+  data=(--set "data.dataset=$out/street")
+  sky_ckpt="$out/sky/last.safetensors"
+  best=last.safetensors
+fi
+
+done_or_run sky train sky "$sky_cfg" "${real[@]}"
+light() {  # light NAME [--set ...]: a stage-2 run of the lighting config with extra switches
+  local name=$1; shift
+  done_or_run "$name" train "$name" "$light_cfg" "${real[@]}" "${data[@]}" "${fixes[@]}" \
+    --set "init.sky_checkpoint=$sky_ckpt" "$@"
+}
+adv() {  # adv NAME [--set ...]: stage 3 from the stage-2 run "lighting"
+  local name=$1; shift
+  done_or_run "$name" train "$name" "$adv_cfg" "${real[@]}" "${data[@]}" "${fixes[@]}" "${adv_fixes[@]}" \
+    --set "init.checkpoint=$out/lighting/$best" "$@"
 }
 light lighting
-adv ours "$out/lighting/last.safetensors"
-adv no_adversarial "$out/lighting/last.safetensors" --set loss.adversarial=0
+adv ours
+adv no_adversarial --set loss.adversarial=0
 light no_sky_model --set model.sky_branch=direct
 light sky_only --set model.volume_branch=false
 light volume_only --set model.sky_branch=constant --set init.sky_checkpoint=
 
-run "$bin/streetlight-eval" --data "$out/street" --split test --out "$out/eval" \
-  --checkpoint "$out/ours/last.safetensors" --name "Ours" \
-  --checkpoint "$out/no_adversarial/last.safetensors" --name "w/o adv. supervision" \
-  --checkpoint "$out/no_sky_model/last.safetensors" --name "w/o sky modeling" \
-  --checkpoint "$out/sky_only/last.safetensors" --name "sky only (Hold-Geoffroy-like)" \
-  --checkpoint "$out/volume_only/last.safetensors" --name "volume only (Wang-like)" \
-  --checkpoint "$out/sky/last.safetensors" --name "stage-1 sky autoencoder" > /dev/null
-elapsed=$(( $(date +%s) - start ))
+rows=(--checkpoint "$out/ours/$best" --name "Ours"
+      --checkpoint "$out/no_adversarial/$best" --name "w/o adv. supervision"
+      --checkpoint "$out/lighting/$best" --name "stage 2 (before stage 3)"
+      --checkpoint "$out/no_sky_model/$best" --name "w/o sky modeling"
+      --checkpoint "$out/sky_only/$best" --name "sky only (Hold-Geoffroy-like)"
+      --checkpoint "$out/volume_only/$best" --name "volume only (Wang-like)"
+      --checkpoint "$sky_ckpt" --name "stage-1 sky autoencoder")
+if [ "$scale" = release ]; then
+  evaldata=(--data "$out/test_street" --baseline-data "$out/street" --data "$hdri" --hdri-split configs/hdri_split.json
+            --crops 8)
+else
+  evaldata=(--data "$out/street")
+fi
+done_or_run eval run "$bin/streetlight-eval" "${evaldata[@]}" --split test --no-budgets --out "$out/eval" "${rows[@]}" \
+  > /dev/null
+elapsed=$(( $(date +%s) - start + prev ))
+commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
+block=$(mktemp)
 {
-  echo "# Results on the synthetic street benchmark (Tables 1-2 style)"
+  echo "<!-- reproduce_tables:begin (written by scripts/reproduce_tables.sh; edits inside are overwritten) -->"
+  echo "# Tables 1-2 reproduced (\`--scale $scale\`)"
   echo
-  echo "Measured by \`scripts/reproduce_tables.sh --scale $scale --steps-factor $factor\` in ${elapsed} s on"
-  echo "$(nproc) cores ($(uname -m)). Models: \`--scale $scale\` ($sky_cfg, $light_cfg, $adv_cfg with the"
-  echo "ablation switches of configs/ablation_*.json); training steps = the configs' steps × $factor."
-  echo "Dataset: \`$datagen_cfg\` (seed 0), test split. Seeds: every run uses seed 0."
+  echo "Written by \`scripts/reproduce_tables.sh --scale $scale --steps-factor $factor$( [ "$scale" = release ] && echo " --test-samples $test_samples")\`"
+  echo "at commit \`$commit\` on $(date -u +%Y-%m-%d), $(nproc) cores ($(uname -m)); wall time of the whole run,"
+  echo "data generation, training and evaluation: **${elapsed} s** (sum over invocations if it was resumed)."
+  echo "Configs: $sky_cfg, $light_cfg, $adv_cfg (train.steps × $factor)$( [ "$scale" = release ] && echo ", with ${fixes[*]} ${adv_fixes[*]}")."
+  if [ "$scale" = release ]; then
+    echo "Training data: \`$datagen_cfg\` and the train split of configs/hdri_split.json. Synthetic test set:"
+    echo "\`$test_cfg\` with $test_samples streets (lit by the TEST panoramas or the sky model). Checkpoints:"
+    echo "each run's validation-selected best. Every metric has a 95% bootstrap interval in brackets (2000"
+    echo "resamples; on real skies a panorama's crops are resampled together, so 5 hard-sun skies give wide"
+    echo "intervals). Two rows differ only where their intervals do not overlap."
+  else
+    echo "Dataset: \`$datagen_cfg\` (seed 0), test split. Checkpoints: each run's last."
+  fi
   echo
   cat "$out/eval/results.md"
+  echo "Sun: angular error of the predicted sun direction (degrees), over samples whose sun is hard."
+  echo "PSNR / si-PSNR: LDR novel views through the radiance query (Eq. 1), all pixels and the upper"
+  echo "hemisphere. Insertion PSNR: the object and its shadow against the generator's path-traced"
+  echo "insertion; shadow-ratio error: mean |S - S_true| on the shadow region. The oracle row renders the"
+  echo "same insertion under the generator's own light, so it measures the renderer, not the lighting."
   echo
-  echo "Sun: angular error of the predicted sun direction (degrees). PSNR / si-PSNR: LDR novel views"
-  echo "rendered through the radiance query (Eq. 1), all pixels and the upper hemisphere only."
-  echo "Insertion PSNR: over the object and its shadow against the generator's path-traced insertion;"
-  echo "shadow-ratio error: mean |S - S_true| on the shadow region."
-  echo
-  echo "## Commands"
+  echo "Commands (run folder $out):"
   echo
   echo '```'
   cat "$log"
   echo '```'
-} > "$results"
-echo "tables: wrote $results in ${elapsed} s" >&2
+  echo "<!-- reproduce_tables:end -->"
+} > "$block"
+# Replace the marked block of the results file (or put it first when the file has none).
+tmp="$results.tmp.$$"
+if [ -f "$results" ] && grep -q '^<!-- reproduce_tables:begin' "$results"; then
+  awk -v blockfile="$block" '
+    /^<!-- reproduce_tables:begin/ { while ((getline line < blockfile) > 0) print line; skip = 1; next }
+    /^<!-- reproduce_tables:end/ { skip = 0; next }
+    !skip { print }' "$results" > "$tmp"
+else
+  { cat "$block"; [ -f "$results" ] && { echo; cat "$results"; }; } > "$tmp"
+fi
+mv "$tmp" "$results"
+rm -f "$block"
+echo "tables: wrote $results (whole run ${elapsed} s)" >&2

@@ -86,7 +86,8 @@ class RadianceCache {
       i0[a] = std::min(int(x), n_[a] - 2);
       f[a] = x - float(i0[a]);
     }
-    const EnvTaps taps = env_bilinear_taps(l.x, l.y, l.z, W_, H_);
+    const equirect::UV unit = equirect::direction_to_uv(l.x, l.y, l.z, 1, 1);  // one atan2/asin for both maps
+    const EnvTaps taps = env_bilinear_taps_unit(unit, W_, H_);
     const int64_t D = int64_t(H_) * W_;
     glm::vec4 acc(0.0f);
     for (int c = 0; c < 8; ++c) {
@@ -100,7 +101,7 @@ class RadianceCache {
         acc += w * glm::vec4(e[0], e[1], e[2], e[3]);
       }
     }
-    return glm::vec3(acc) + acc.w * env_map_.lookup(glm::normalize(l));
+    return glm::vec3(acc) + acc.w * env_map_.lookup_unit(unit);
   }
 
  private:

@@ -391,6 +391,35 @@ int run_production(const std::string& size, bool json, const std::string& data, 
       o.cache_spacing_m = sp;
       rows.push_back({"cache" + std::to_string(w) + "x" + std::to_string(h) + "_" + std::to_string(int(sp)) + "m", o});
     }
+    // A finer probe grid over the object only (the light rays'), up to 8×4×8 probes 1 m apart.
+    for (const auto& [sp, xz, y] : std::vector<std::tuple<double, int, int>>{{1.0, 8, 4}, {0.5, 12, 6}}) {
+      InsertionOptions o = train::insertion_options(production);
+      o.cache_spacing_m = sp;
+      o.cache_max_xz = xz;
+      o.cache_max_y = y;
+      rows.push_back({"cache_object_" + std::to_string(xz) + "x" + std::to_string(y) + "x" + std::to_string(xz), o});
+    }
+    for (int n : {128, 256}) {  // shadow rays alone (the shadow term is mostly noise)
+      InsertionOptions o = train::insertion_options(production);
+      o.shadow_rays = n;
+      rows.push_back({"shadow" + std::to_string(n), o});
+    }
+    for (int xz : {4, 8}) {  // the shadow rays' probe grid (default 2×2×2), with 256 shadow rays
+      InsertionOptions o = train::insertion_options(production);
+      o.shadow_rays = 256;
+      o.cache_shadow_max_xz = xz;
+      o.cache_spacing_m = 1.0;
+      rows.push_back({"shadow256_grid" + std::to_string(xz) + "x2x" + std::to_string(xz), o});
+    }
+    {  // the measured knobs together: object probes 8×4×8, 256 shadow rays over a 4×2×4 grid
+      InsertionOptions o = train::insertion_options(production);
+      o.cache_spacing_m = 1.0;
+      o.cache_max_xz = 8;
+      o.cache_max_y = 4;
+      o.shadow_rays = 256;
+      o.cache_shadow_max_xz = 4;
+      rows.push_back({"object8x4x8_shadow256_grid4x2x4", o});
+    }
   }
   for (const Row& row : rows) {
     if (!only.empty() && ("," + only + ",").find("," + row.name + ",") == std::string::npos) continue;

@@ -19,7 +19,12 @@ double row_top_sin(int i, int height) { return std::sin((0.5 - static_cast<doubl
 }  // namespace
 
 EnvTaps env_bilinear_taps(double x, double y, double z, int width, int height) {
-  const auto uv = equirect::direction_to_uv(x, y, z, width, height);
+  return env_bilinear_taps_unit(equirect::direction_to_uv(x, y, z, 1, 1), width, height);
+}
+
+// width · (φ/2π + ½) is the same product whether direction_to_uv forms it or this does.
+EnvTaps env_bilinear_taps_unit(const equirect::UV& unit, int width, int height) {
+  const equirect::UV uv{width * unit.u, height * unit.v};
   const double fu = uv.u - 0.5, fv = uv.v - 0.5;
   const double jf = std::floor(fu), iff = std::floor(fv);
   const double fx = fu - jf, fy = fv - iff;
@@ -60,7 +65,11 @@ glm::vec3 EnvironmentMap::texel(int row, int col) const {
 glm::vec3 EnvironmentMap::lookup(const glm::vec3& d) const {
   if (!(std::isfinite(d.x) && std::isfinite(d.y) && std::isfinite(d.z)) || glm::dot(d, d) <= 0.0f)
     return glm::vec3(0.0f);
-  const EnvTaps t = env_bilinear_taps(d.x, d.y, d.z, width_, height_);
+  return lookup_unit(equirect::direction_to_uv(d.x, d.y, d.z, 1, 1));
+}
+
+glm::vec3 EnvironmentMap::lookup_unit(const equirect::UV& unit) const {
+  const EnvTaps t = env_bilinear_taps_unit(unit, width_, height_);
   glm::vec3 v(0.0f);
   for (int k = 0; k < 4; ++k) {
     const size_t o = static_cast<size_t>(t.index[k]) * 3;
@@ -135,6 +144,15 @@ void EnvironmentMap::build_bilinear_sampling() {
 
 EnvironmentMap::Sample EnvironmentMap::sample_bilinear(float u1, float u2) const {
   if (cell_prob_.empty()) return sample(u1, u2);  // black map: the uniform sphere (as pdf_bilinear)
+  Sample s;
+  s.direction = sample_bilinear_direction(u1, u2);
+  s.radiance = lookup(s.direction);
+  s.pdf = pdf_bilinear(s.direction);
+  return s;
+}
+
+glm::vec3 EnvironmentMap::sample_bilinear_direction(float u1, float u2) const {
+  if (cell_prob_.empty()) return sample(u1, u2).direction;
   const int H = height_, W = width_;
   auto pick = [](const double* cdf, int n, double u, double& frac) {
     int k = static_cast<int>(std::upper_bound(cdf, cdf + n + 1, u) - cdf) - 1;
@@ -159,11 +177,7 @@ EnvironmentMap::Sample EnvironmentMap::sample_bilinear(float u1, float u2) const
   double u = c + 0.5 + x;
   if (u >= W) u -= W;
   const equirect::Dir dir = equirect::uv_to_direction(u, v, W, H);
-  Sample s;
-  s.direction = glm::vec3(float(dir.x), float(dir.y), float(dir.z));
-  s.radiance = lookup(s.direction);
-  s.pdf = pdf_bilinear(s.direction);
-  return s;
+  return glm::vec3(float(dir.x), float(dir.y), float(dir.z));
 }
 
 float EnvironmentMap::pdf_bilinear(const glm::vec3& d) const {

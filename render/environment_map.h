@@ -27,10 +27,12 @@
 // - resized(W', H'): area-weighted (solid-angle) averaging, so the integral of radiance over
 //   the sphere is preserved; never point-samples a sun.
 #pragma once
-#include <glm/glm.hpp>
 #include <vector>
 
+#include <glm/glm.hpp>
+
 #include "autodiff/tensor.h"
+#include "render/equirect.h"
 
 namespace sl::render {
 
@@ -44,6 +46,8 @@ class EnvironmentMap {
   const Tensor& radiance() const { return radiance_; }  // [3, H, W] f32
 
   glm::vec3 lookup(const glm::vec3& direction) const;
+  // lookup() at unit panorama coordinates (see env_bilinear_taps_unit).
+  glm::vec3 lookup_unit(const equirect::UV& unit) const;
   glm::vec3 texel(int row, int col) const;
 
   struct Sample {
@@ -54,6 +58,9 @@ class EnvironmentMap {
   Sample sample(float u1, float u2) const;
   float pdf(const glm::vec3& direction) const;
   Sample sample_bilinear(float u1, float u2) const;
+  // sample_bilinear(u1, u2).direction alone (no radiance lookup, no density: callers that mix
+  // techniques evaluate the mixture's density themselves).
+  glm::vec3 sample_bilinear_direction(float u1, float u2) const;
   float pdf_bilinear(const glm::vec3& direction) const;
 
   // Integral of radiance over the sphere, per channel (W/m²/sr × sr).
@@ -88,6 +95,9 @@ struct EnvTaps {
   double weight[4];
 };
 EnvTaps env_bilinear_taps(double x, double y, double z, int width, int height);
+// The same from unit panorama coordinates (equirect::direction_to_uv(x, y, z, 1, 1)), so one
+// atan2/asin serves maps of several sizes; identical bits to the form above.
+EnvTaps env_bilinear_taps_unit(const equirect::UV& unit, int width, int height);
 
 // Differentiable batched lookup (one tape node): env [3, H, W], directions [N, 3] -> [N, 3].
 Tensor env_lookup(const Tensor& env, const Tensor& directions);

@@ -72,7 +72,7 @@ inline SplitSample split_sample(uint64_t rot_seed, uint64_t stream, int k, int n
 
 // The environment technique of inference sampling (InsertionOptions::bilinear_env_sampling).
 inline glm::vec3 env_sample(const EnvironmentMap& env, const InsertionOptions& opt, float u1, float u2) {
-  return opt.bilinear_env_sampling ? env.sample_bilinear(u1, u2).direction : env.sample(u1, u2).direction;
+  return opt.bilinear_env_sampling ? env.sample_bilinear_direction(u1, u2) : env.sample(u1, u2).direction;
 }
 inline float env_pdf(const EnvironmentMap& env, const InsertionOptions& opt, const glm::vec3& d) {
   return opt.bilinear_env_sampling ? env.pdf_bilinear(d) : env.pdf(d);

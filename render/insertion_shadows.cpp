@@ -20,25 +20,28 @@ struct ShadowSampler {
   const EnvironmentMap& env_map;
   uint64_t seed, choice_seed, rot_seed;
   Frame frame{glm::vec3(0, 1, 0)};
-  std::pair<glm::vec3, double> operator()(int64_t t, int k) const {
+  // The direction alone (what the texel pruning needs: no density).
+  glm::vec3 direction(int64_t t, int k) const {
     if (!opt.importance_sampling) {
       const float u1 = uniform01f(seed, uint64_t(t), 2 * k), u2 = uniform01f(seed, uint64_t(t), 2 * k + 1);
-      return {frame.to_world(cosine_hemisphere(u1, u2)), 1.0};  // w = π cancels
+      return frame.to_world(cosine_hemisphere(u1, u2));
     }
     // Inference: cosine + environment samples, so a hard sun is found; split and stratified
     // (a single ray: one-sample mixture).
     const int N = opt.shadow_rays, n_cos = N / 2;
-    glm::vec3 d;
-    double c_cos = 0.5;
     if (n_cos == 0) {
       const float u1 = uniform01f(seed, uint64_t(t), 2 * k), u2 = uniform01f(seed, uint64_t(t), 2 * k + 1);
-      d = uniform01f(choice_seed, uint64_t(t), k) < 0.5f ? frame.to_world(cosine_hemisphere(u1, u2))
-                                                         : env_sample(env_map, opt, u1, u2);
-    } else {
-      const SplitSample sp = split_sample(rot_seed, uint64_t(t), k, N, n_cos);
-      d = sp.technique == 0 ? frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y)) : env_sample(env_map, opt, sp.u.x, sp.u.y);
-      c_cos = double(n_cos) / N;
+      return uniform01f(choice_seed, uint64_t(t), k) < 0.5f ? frame.to_world(cosine_hemisphere(u1, u2))
+                                                           : env_sample(env_map, opt, u1, u2);
     }
+    const SplitSample sp = split_sample(rot_seed, uint64_t(t), k, N, n_cos);
+    return sp.technique == 0 ? frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y)) : env_sample(env_map, opt, sp.u.x, sp.u.y);
+  }
+  std::pair<glm::vec3, double> operator()(int64_t t, int k) const {
+    const glm::vec3 d = direction(t, k);
+    if (!opt.importance_sampling) return {d, 1.0};  // w = π cancels
+    const int N = opt.shadow_rays, n_cos = N / 2;
+    const double c_cos = n_cos == 0 ? 0.5 : double(n_cos) / N;
     const double cos_t = d.y, pdf = c_cos * std::max(0.0, cos_t) / kPi + (1.0 - c_cos) * env_pdf(env_map, opt, d);
     return {d, (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0};
   }
@@ -72,7 +75,7 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
       // Only rays with d.y > 0 carry weight; a box wholly below the origin meets none of them.
       if (opt.prune && box.hi.y <= origin[size_t(t)].y) continue;
       bool any = !opt.prune;
-      for (int k = 0; k < N && !any; ++k) any = ray_hits_box(origin[size_t(t)], sampler(t, k).first, box);
+      for (int k = 0; k < N && !any; ++k) any = ray_hits_box(origin[size_t(t)], sampler.direction(t, k), box);
       needed[size_t(t)] = any ? 1 : 0;  // none can meet the object: S = 1 exactly
     }
   });

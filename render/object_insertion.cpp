@@ -86,7 +86,8 @@ class RadianceCache {
       i0[a] = std::min(int(x), n_[a] - 2);
       f[a] = x - float(i0[a]);
     }
-    const EnvTaps taps = env_bilinear_taps(l.x, l.y, l.z, W_, H_);
+    const equirect::UV unit = equirect::direction_to_uv(l.x, l.y, l.z, 1, 1);  // one atan2/asin for both maps
+    const EnvTaps taps = env_bilinear_taps_unit(unit, W_, H_);
     const int64_t D = int64_t(H_) * W_;
     glm::vec4 acc(0.0f);
     for (int c = 0; c < 8; ++c) {
@@ -100,7 +101,7 @@ class RadianceCache {
         acc += w * glm::vec4(e[0], e[1], e[2], e[3]);
       }
     }
-    return glm::vec3(acc) + acc.w * env_map_.lookup(glm::normalize(l));
+    return glm::vec3(acc) + acc.w * env_map_.lookup_unit(unit);
   }
 
  private:
@@ -131,9 +132,11 @@ void validate(const InsertionInputs& in, const InsertionOptions& opt) {
   SL_CHECK(opt.shadow_width >= 1 && opt.shadow_height >= 1, "insert_objects: shadow map ", opt.shadow_width, "x",
            opt.shadow_height, " is empty");
   SL_CHECK(opt.ambient >= 0 && opt.ambient <= 1, "insert_objects: ambient I_a = ", opt.ambient, " must be in [0, 1]");
-  SL_CHECK(!opt.radiance_cache || (opt.cache_height >= 2 && opt.cache_width >= 2 && opt.cache_spacing_m > 0),
+  SL_CHECK(!opt.radiance_cache || (opt.cache_height >= 2 && opt.cache_width >= 2 && opt.cache_spacing_m > 0 &&
+                                    opt.cache_max_xz >= 2 && opt.cache_max_y >= 2 && opt.cache_shadow_max_xz >= 2 &&
+                                    opt.cache_shadow_max_y >= 2),
            "insert_objects: radiance cache ", opt.cache_width, "x", opt.cache_height, " with spacing ",
-           opt.cache_spacing_m, " m is invalid");
+           opt.cache_spacing_m, " m (at most ", opt.cache_max_xz, "x", opt.cache_max_y, " probes) is invalid");
   SL_CHECK(!opt.radiance_cache || !grad_enabled() ||
                !(in.env.requires_grad() || (in.vsg.defined() && in.vsg.requires_grad())),
            "insert_objects: radiance_cache is for inference; gradients into env/vsg need exact queries");
@@ -212,8 +215,9 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
     // shadow region and blur the volume's light at the object. The shadow grid is 2×2×2: the
     // volume's light enters S of Eq. 4 in numerator and denominator alike, so a coarse grid
     // moves S little (measured: streetlight-bench insert --size kitti, shadow term).
-    const RadianceCache fg_cache(in, opt, env_map, rays, 0, fg_rays, 4, 3);
-    const RadianceCache sh_cache(in, opt, env_map, rays, fg_rays, rays.size(), 2, 2);
+    const RadianceCache fg_cache(in, opt, env_map, rays, 0, fg_rays, opt.cache_max_xz, opt.cache_max_y);
+    const RadianceCache sh_cache(in, opt, env_map, rays, fg_rays, rays.size(), opt.cache_shadow_max_xz,
+                                 opt.cache_shadow_max_y);
     std::vector<float> l(size_t(3 * rays.size()));
     parallel_for(rays.size(), 256, [&](int64_t b, int64_t e) {
       for (int64_t r = b; r < e; ++r) {

@@ -32,8 +32,9 @@
 // independent cosine samples of the paper.
 // Radiance cache (radiance_cache, inference): Eq. 1 splits into the volume's own radiance
 // V(x, l) = Σ τ α G and its transmittance τ_K(x, l), with L = V + τ_K L_env(l). V and τ_K are
-// queried once per probe (two grids, cache_spacing_m apart or sparser: at most 4×3×4 points
-// (x, y, z) over the origins of the light rays, 2×2×2 over those of the shadow rays) and
+// queried once per probe (two grids, cache_spacing_m apart or sparser: at most cache_max_xz ×
+// cache_max_y × cache_max_xz points (default 4×3×4) over the origins of the light rays, by default
+// 2×2×2 over those of the shadow rays) and
 // direction (cache_height × cache_width texel centres); a ray
 // reads them trilinearly in position and bilinearly in direction, and L_env(l) exactly, so a
 // sun in the sky keeps its full sharpness. Error against exact queries: streetlight-bench insert.
@@ -79,7 +80,9 @@ struct InsertionOptions {
   // volume through probes instead of each marching it (see "Radiance cache" above).
   bool radiance_cache = false;
   int cache_height = 32, cache_width = 64;  // probe directions (equirect texel centres)
-  double cache_spacing_m = 2.0;             // probe spacing over the rays' origins (≤ 4 per axis, 3 vertically)
+  double cache_spacing_m = 2.0;             // probe spacing over the rays' origins...
+  int cache_max_xz = 4, cache_max_y = 3;    // ...with at most this many probes per horizontal axis / vertically (light rays)
+  int cache_shadow_max_xz = 2, cache_shadow_max_y = 2;  // the same for the shadow rays' grid
 };
 
 struct InsertionStats {

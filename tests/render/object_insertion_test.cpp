@@ -498,6 +498,24 @@ TEST(ObjectInsertion, RadianceCacheIsCloseToExactQueriesAndRefusesGradients) {
   double e = 0, r2 = 0;
   for (size_t i = 0; i < va.size(); ++i) e += (va[i] - vb[i]) * (va[i] - vb[i]), r2 += va[i] * va[i];
   EXPECT_LT(std::sqrt(e / r2), 0.03);
+  // Denser probe grids (InsertionOptions::cache_max_*) read the volume closer to the exact
+  // queries: the cache's error against them shrinks (same samples: the difference is the cache's
+  // interpolation alone). The coarsest grid allowed (2 probes per axis) is the reference point.
+  auto cache_error = [&](int xz, int y, int shadow_xz) {
+    InsertionOptions o = cached;
+    o.cache_spacing_m = 0.1;
+    o.cache_max_xz = xz;
+    o.cache_max_y = y;
+    o.cache_shadow_max_xz = shadow_xz;
+    const auto v = insert_objects(in, o).composite.to_vector();
+    double err = 0;
+    for (size_t i = 0; i < va.size(); ++i) err += (va[i] - v[i]) * (va[i] - v[i]);
+    return std::sqrt(err / r2);
+  };
+  const double coarse = cache_error(2, 2, 2), fine = cache_error(12, 6, 6);
+  EXPECT_GT(coarse, 0.0);
+  EXPECT_LT(fine, 0.8 * coarse) << "coarse " << coarse;
+  EXPECT_THROW(cache_error(1, 3, 2), Error);
   Tensor env = in.env.clone().set_requires_grad(true);
   InsertionInputs g_in = in;
   g_in.env = env;

@@ -15,7 +15,9 @@
 // --size kitti|nuscenes: the production table — lighting (default-size model,
 //   random initial weights) plus insertion at 1242×375 (KITTI 000008 with lidar depth) or
 //   1600×900 (nuScenes CAM_FRONT intrinsics, ground plane), error against a 4096-samples-per-
-//   pixel reference of the same renderer over the object and its shadow region.
+//   pixel reference of the same renderer over the object and its shadow region. Each row also
+//   reports its noise (a second run with independent light and shadow samples: RMSE between
+//   the two / √2), so the error splits into noise and bias (rel_rmse² ≈ noise² + bias²).
 #include <omp.h>
 #include <sys/resource.h>
 #include <time.h>
@@ -273,7 +275,7 @@ double lighting_ms(const train::Photo& photo, const std::string& dir) {
 }
 
 int run_production(const std::string& size, bool json, const std::string& data, const std::string& out, bool quick,
-                   int reference_spp, bool reference_cache, const std::string& reference_dir) {
+                   int reference_spp, bool reference_cache, const std::string& reference_dir, const std::string& only) {
   SL_CHECK(size == "kitti" || size == "nuscenes", "insert: --size must be kitti or nuscenes, got '", size, "'");
   std::filesystem::create_directories(out);
   const ProductionScene s = production_scene(size, data);
@@ -314,7 +316,7 @@ int run_production(const std::string& size, bool json, const std::string& data, 
   // A stored reference (--reference-dir) is keyed by everything that determines it; the
   // renderer's code is named by kReferenceRenderer, bumped whenever an expectation changes.
   Fingerprint key;
-  key.text("insertion reference; renderer v1");
+  key.text("insertion reference; renderer v2");  // v2: Owen-scrambled primary samples
   for (const Tensor& t : {in.background, in.depth, in.env, in.vsg}) key.tensor(t);
   key.bytes(in.objects[0].mesh.positions.data(), in.objects[0].mesh.positions.size() * sizeof(glm::vec3));
   key.value(k);
@@ -389,8 +391,38 @@ int run_production(const std::string& size, bool json, const std::string& data, 
       o.cache_spacing_m = sp;
       rows.push_back({"cache" + std::to_string(w) + "x" + std::to_string(h) + "_" + std::to_string(int(sp)) + "m", o});
     }
+    // A finer probe grid over the object only (the light rays'), up to 8×4×8 probes 1 m apart.
+    for (const auto& [sp, xz, y] : std::vector<std::tuple<double, int, int>>{{1.0, 8, 4}, {0.5, 12, 6}}) {
+      InsertionOptions o = train::insertion_options(production);
+      o.cache_spacing_m = sp;
+      o.cache_max_xz = xz;
+      o.cache_max_y = y;
+      rows.push_back({"cache_object_" + std::to_string(xz) + "x" + std::to_string(y) + "x" + std::to_string(xz), o});
+    }
+    for (int n : {128, 256}) {  // shadow rays alone (the shadow term is mostly noise)
+      InsertionOptions o = train::insertion_options(production);
+      o.shadow_rays = n;
+      rows.push_back({"shadow" + std::to_string(n), o});
+    }
+    for (int xz : {4, 8}) {  // the shadow rays' probe grid (default 2×2×2), with 256 shadow rays
+      InsertionOptions o = train::insertion_options(production);
+      o.shadow_rays = 256;
+      o.cache_shadow_max_xz = xz;
+      o.cache_spacing_m = 1.0;
+      rows.push_back({"shadow256_grid" + std::to_string(xz) + "x2x" + std::to_string(xz), o});
+    }
+    {  // the measured knobs together: object probes 8×4×8, 256 shadow rays over a 4×2×4 grid
+      InsertionOptions o = train::insertion_options(production);
+      o.cache_spacing_m = 1.0;
+      o.cache_max_xz = 8;
+      o.cache_max_y = 4;
+      o.shadow_rays = 256;
+      o.cache_shadow_max_xz = 4;
+      rows.push_back({"object8x4x8_shadow256_grid4x2x4", o});
+    }
   }
   for (const Row& row : rows) {
+    if (!only.empty() && ("," + only + ",").find("," + row.name + ",") == std::string::npos) continue;
     InsertionResult r;
     double cpu_ms = 1e300;
     const double ms = best_ms([&] {
@@ -399,6 +431,11 @@ int run_production(const std::string& size, bool json, const std::string& data, 
       cpu_ms = std::min(cpu_ms, process_cpu_ms() - c0);
     }, 2, 0);
     const RegionError err = region_error(r, reference);
+    // Noise alone: the same row with independent light and shadow samples; the RMSE between
+    // the two, / √2, is one run's standard deviation (the rest of rel_rmse is bias).
+    InsertionOptions other = row.opt;
+    other.lighting_seed = 77;
+    const RegionError noise = region_error(insert_objects(in, other), r);
     const double total = light_ms + ms;
     if (json)
       std::printf("{\"bench\": \"insert_production\", \"size\": \"%s\", \"row\": \"%s\", \"width\": %d, \"height\": %d, "
@@ -406,19 +443,22 @@ int run_production(const std::string& size, bool json, const std::string& data, 
                   "\"lighting_ms\": %.1f, \"insertion_ms\": %.1f, \"ms\": %.1f, \"rel_rmse\": %.5f, \"region_pixels\": %lld, "
                   "\"insertion_cpu_ms\": %.1f, \"object_samples\": %lld, \"query_rays\": %lld, \"shadow_texels_computed\": %lld, "
                   "\"rel_rmse_object\": %.5f, \"rel_rmse_edge\": %.5f, \"rel_rmse_shadow\": %.5f, \"object_pixels\": %lld, "
-                  "\"edge_pixels\": %lld, \"shadow_pixels\": %lld, \"reference_ms\": %.0f}\n",
+                  "\"edge_pixels\": %lld, \"shadow_pixels\": %lld, \"rel_noise\": %.5f, \"rel_noise_object\": %.5f, "
+                  "\"rel_noise_shadow\": %.5f, \"reference_ms\": %.0f}\n",
                   size.c_str(), row.name.c_str(), k.width, k.height, row.opt.aa_samples, row.opt.light_samples,
                   row.opt.shadow_rays, row.opt.shadow_width, row.opt.shadow_height, row.opt.radiance_cache ? "true" : "false",
                   light_ms, ms, total, err.rel_rmse, (long long)err.pixels, cpu_ms, (long long)r.stats.foreground_samples,
                   (long long)r.stats.query_rays, (long long)r.stats.shadow_pixels_computed, err.object, err.edge, err.shadow,
-                  (long long)err.object_pixels, (long long)err.edge_pixels, (long long)err.shadow_pixels, ref_ms);
+                  (long long)err.object_pixels, (long long)err.edge_pixels, (long long)err.shadow_pixels,
+                  noise.rel_rmse / std::sqrt(2.0), noise.object / std::sqrt(2.0), noise.shadow / std::sqrt(2.0), ref_ms);
     else
       std::printf("%-26s aa %d light %4d shadow %4d (%dx%d)  lighting %6.0f ms + insertion %7.0f ms = %7.0f ms  "
-                  "rel RMSE %.4f over %lld px [object %.4f, edges %.4f, shadow %.4f]  (CPU %.0f ms; object samples "
-                  "%lld, query rays %lld, shadow texels %lld)\n",
+                  "rel RMSE %.4f over %lld px [object %.4f, edges %.4f, shadow %.4f]  noise %.4f [object %.4f, shadow "
+                  "%.4f]  (CPU %.0f ms; object samples %lld, query rays %lld, shadow texels %lld)\n",
                   row.name.c_str(), row.opt.aa_samples, row.opt.light_samples, row.opt.shadow_rays, row.opt.shadow_width,
                   row.opt.shadow_height, light_ms, ms, total, err.rel_rmse, (long long)err.pixels, err.object, err.edge,
-                  err.shadow, cpu_ms, (long long)r.stats.foreground_samples, (long long)r.stats.query_rays,
+                  err.shadow, noise.rel_rmse / std::sqrt(2.0), noise.object / std::sqrt(2.0),
+                  noise.shadow / std::sqrt(2.0), cpu_ms, (long long)r.stats.foreground_samples, (long long)r.stats.query_rays,
                   (long long)r.stats.shadow_pixels_computed);
     std::fflush(stdout);
   }
@@ -427,7 +467,7 @@ int run_production(const std::string& size, bool json, const std::string& data, 
 
 int run_insert(const std::vector<std::string>& args) {
   bool json = false, quick = false;
-  std::string out = "insert-bench", data = "../shared/data", size, reference_dir;
+  std::string out = "insert-bench", data = "../shared/data", size, reference_dir, only;
   int reference_spp = 4096;
   bool reference_cache = false;
   for (size_t i = 0; i < args.size(); ++i) {
@@ -446,7 +486,8 @@ int run_insert(const std::vector<std::string>& args) {
           "  --reference-cache  the reference reads the volume through the radiance cache too (measures sampling\n"
           "                     error alone; the default marches the volume for every ray)\n"
           "  --reference-dir DIR  keep the reference in DIR keyed by everything that determines it and reuse it\n"
-          "                     (development only: the renderer's code is named by a version string, not hashed)\n");
+          "                     (development only: the renderer's code is named by a version string, not hashed)\n"
+          "  --rows A,B         with --size: only these rows (names as printed)\n");
       return 0;
     } else if (a == "--json") {
       json = true;
@@ -457,13 +498,15 @@ int run_insert(const std::vector<std::string>& args) {
     } else if (a == "--reference-spp" && i + 1 < args.size()) {
       reference_spp = std::stoi(args[++i]);
       SL_CHECK(reference_spp >= 1, "insert: --reference-spp must be >= 1");
+    } else if (a == "--rows" && i + 1 < args.size()) {
+      only = args[++i];
     } else if ((a == "--out" || a == "--data" || a == "--size" || a == "--reference-dir") && i + 1 < args.size()) {
       (a == "--out" ? out : a == "--data" ? data : a == "--size" ? size : reference_dir) = args[++i];
     } else {
       fail("insert: unknown option '", a, "' (try --help)");
     }
   }
-  if (!size.empty()) return run_production(size, json, data, out, quick, reference_spp, reference_cache, reference_dir);
+  if (!size.empty()) return run_production(size, json, data, out, quick, reference_spp, reference_cache, reference_dir, only);
   std::filesystem::create_directories(out);
   const Scene s = make_scene(data);
   const PlacedObject obj = place_object(s.object, {0.8, -10.0, 30.0, 1.0}, s.camera, s.depth);

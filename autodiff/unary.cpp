@@ -42,28 +42,50 @@ Tensor unary(const char* op, const Tensor& x, Fwd fwd, Bwd bwd) {
 // Elements per parallel chunk of the vectorised paths (fixed: results never depend on threads).
 constexpr int64_t kVectorGrain = 32768;
 
-// Float32 contiguous operands go through the vectorised kernels of vector_math.h (one chunk per
-// kVectorGrain elements); other dtypes and layouts through map_n with libm.
+// Float32 operands go through the vectorised kernels of vector_math.h: contiguous ones in chunks
+// of kVectorGrain elements, strided views (a channel slice) row by row wherever their innermost
+// stride is 1. Other dtypes and rows through map_n / the scalar function with libm. Each element's
+// result depends only on that element and on which of the two paths its row took, never on threads.
 template <class Vec, class Scalar>
 Tensor map_vm(const char* op, const Tensor& x, Vec vec, Scalar scalar) {
-  if (x.dtype() != DType::F32 || !x.is_contiguous()) return map_n(op, scalar, x);
+  if (x.dtype() != DType::F32) return map_n(op, scalar, x);
   Tensor y = Tensor::empty(x.shape(), DType::F32);
   const float* px = x.data<float>();
   float* py = y.data<float>();
-  parallel_for(x.numel(), kVectorGrain, [&](int64_t b, int64_t e) { vec(px + b, py + b, e - b); });
+  if (x.is_contiguous()) {
+    parallel_for(x.numel(), kVectorGrain, [&](int64_t b, int64_t e) { vec(px + b, py + b, e - b); });
+    return y;
+  }
+  detail::for_each_strided<2>(x.shape(), {y.strides(), x.strides()}, [&](const auto& off, int64_t n, const auto& st) {
+    if (st[1] == 1) {
+      vec(px + off[1], py + off[0], n);
+    } else {
+      for (int64_t i = 0; i < n; ++i) py[off[0] + i] = scalar(px[off[1] + i * st[1]]);
+    }
+  });
   return y;
 }
 
 // Same for a binary kernel dx = vec(g, x).
 template <class Vec, class Scalar>
 Tensor map_vm2(const char* op, const Tensor& g, const Tensor& x, Vec vec, Scalar scalar) {
-  if (g.dtype() != DType::F32 || x.dtype() != DType::F32 || !g.is_contiguous() || !x.is_contiguous() ||
-      g.shape() != x.shape())
-    return map_n(op, scalar, g, x);
+  if (g.dtype() != DType::F32 || x.dtype() != DType::F32 || g.shape() != x.shape()) return map_n(op, scalar, g, x);
   Tensor y = Tensor::empty(x.shape(), DType::F32);
   const float *pg = g.data<float>(), *px = x.data<float>();
   float* py = y.data<float>();
-  parallel_for(x.numel(), kVectorGrain, [&](int64_t b, int64_t e) { vec(pg + b, px + b, py + b, e - b); });
+  if (g.is_contiguous() && x.is_contiguous()) {
+    parallel_for(x.numel(), kVectorGrain, [&](int64_t b, int64_t e) { vec(pg + b, px + b, py + b, e - b); });
+    return y;
+  }
+  detail::for_each_strided<3>(x.shape(), {y.strides(), g.strides(), x.strides()},
+                              [&](const auto& off, int64_t n, const auto& st) {
+                                if (st[1] == 1 && st[2] == 1) {
+                                  vec(pg + off[1], px + off[2], py + off[0], n);
+                                } else {
+                                  for (int64_t i = 0; i < n; ++i)
+                                    py[off[0] + i] = scalar(pg[off[1] + i * st[1]], px[off[2] + i * st[2]]);
+                                }
+                              });
   return y;
 }
 

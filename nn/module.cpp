@@ -235,10 +235,29 @@ Sequential::Sequential(std::vector<std::shared_ptr<Module>> modules) : ModuleLis
   for (auto& m : modules) push_back(std::move(m));
 }
 
-Tensor Sequential::forward(const Tensor& x) {
+Tensor Module::forward_absorbing(const Tensor&, const Module&) { return Tensor(); }
+
+Tensor forward_chain(const std::vector<std::shared_ptr<Module>>& modules, const Tensor& x) {
   Tensor y = x;
-  for (const auto& [name, m] : children()) y = m->forward(y);
+  for (size_t i = 0; i < modules.size(); ++i) {
+    if (i + 1 < modules.size()) {
+      Tensor fused = modules[i]->forward_absorbing(y, *modules[i + 1]);
+      if (fused.defined()) {
+        y = std::move(fused);
+        ++i;
+        continue;
+      }
+    }
+    y = modules[i]->forward(y);
+  }
   return y;
+}
+
+Tensor Sequential::forward(const Tensor& x) {
+  std::vector<std::shared_ptr<Module>> modules;
+  modules.reserve(children().size());
+  for (const auto& [name, m] : children()) modules.push_back(m);
+  return forward_chain(modules, x);
 }
 
 }  // namespace sl::nn

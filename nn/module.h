@@ -63,6 +63,11 @@ class Module {
   // signatures (ResNet, UNet) add their own methods; the default throws naming the type.
   virtual Tensor forward(const Tensor& x);
   Tensor operator()(const Tensor& x) { return forward(x); }
+  // next.forward(forward(x)) as one op when this module can absorb `next` (a normalisation
+  // absorbs a following ReLU / LeakyReLU, bitwise the same result); an undefined Tensor when
+  // it cannot (the default). Chains (Sequential, blocks) use it through forward_chain below.
+  // A subclass that changes forward must change forward_absorbing the same way.
+  virtual Tensor forward_absorbing(const Tensor& x, const Module& next);
 
   // ---- registration
   // Return the registered handle (the value, now a named leaf).
@@ -136,7 +141,10 @@ class ModuleList : public Module {
   explicit ModuleList(std::string type_name) : Module(std::move(type_name)) {}
 };
 
-// A ModuleList whose forward applies its children in order.
+// Applies modules in order, letting each absorb its successor (Module::forward_absorbing).
+Tensor forward_chain(const std::vector<std::shared_ptr<Module>>& modules, const Tensor& x);
+
+// A ModuleList whose forward applies its children in order (forward_chain).
 class Sequential : public ModuleList {
  public:
   Sequential() : ModuleList("Sequential") {}

@@ -4,6 +4,9 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
+#include "autodiff/tape.h"
+#include "autodiff/vector_math.h"
+#include "util/parallel.h"
 
 namespace sl::render {
 namespace {
@@ -77,9 +80,78 @@ bool VsgGrid::clip_ray(const glm::dvec3& origin, const glm::dvec3& dir, double& 
   return t1 > t0 && std::isfinite(t1);
 }
 
+namespace {
+
+// Which activation channel k of the 8 takes.
+enum class VsgChannel { Softplus, Identity, SoftplusFloor, Sigmoid };
+VsgChannel vsg_channel(int64_t k) {
+  return k < 3 ? VsgChannel::Softplus : k < 6 ? VsgChannel::Identity : k == 6 ? VsgChannel::SoftplusFloor : VsgChannel::Sigmoid;
+}
+
+// Float32 contiguous input: all four activations as ONE op, a pass over each channel row with
+// the vectorised kernels the separate ops use (vm::softplus, vm::sigmoid; the backward
+// vm::softplus_backward and sigmoid's g·y·(1 - y)), so values and gradients are bitwise those
+// of the composite path below, without its slices, concat and the zero-filled slice gradients.
+Tensor vsg_activate_rows(const Tensor& raw, int64_t d) {
+  int64_t outer = 1, inner = 1;
+  for (int64_t a = 0; a < d; ++a) outer *= raw.size(a);
+  for (int64_t a = d + 1; a < raw.dim(); ++a) inner *= raw.size(a);
+  const Tensor x = raw.detach();
+  Tensor y = Tensor::empty(raw.shape(), DType::F32);
+  const float floor_add = static_cast<float>(VsgGrid::kMinSharpness);
+  {
+    const float* px = x.data<float>();
+    float* py = y.data<float>();
+    parallel_for(outer * 8, std::max<int64_t>(1, 32768 / std::max<int64_t>(inner, 1)), [&](int64_t r0, int64_t r1) {
+      for (int64_t r = r0; r < r1; ++r) {
+        const float* xr = px + r * inner;
+        float* yr = py + r * inner;
+        switch (vsg_channel(r % 8)) {
+          case VsgChannel::Softplus: vm::softplus(xr, yr, inner); break;
+          case VsgChannel::Identity: std::copy(xr, xr + inner, yr); break;
+          case VsgChannel::SoftplusFloor:
+            vm::softplus(xr, yr, inner);
+            for (int64_t i = 0; i < inner; ++i) yr[i] = yr[i] + floor_add;  // add_scalar's float add
+            break;
+          case VsgChannel::Sigmoid: vm::sigmoid(xr, yr, inner); break;
+        }
+      }
+    });
+  }
+  if (!needs_grad({raw})) return y;
+  const Tensor yd = y.detach();
+  record("vsg_activate", {raw}, {y}, [x, yd, outer, inner](const TensorList& grads) {
+    const Tensor g = grads[0].contiguous();
+    Tensor dx = Tensor::empty(x.shape(), DType::F32);
+    const float *pg = g.data<float>(), *px = x.data<float>(), *py = yd.data<float>();
+    float* pdx = dx.data<float>();
+    parallel_for(outer * 8, std::max<int64_t>(1, 32768 / std::max<int64_t>(inner, 1)), [&](int64_t r0, int64_t r1) {
+      for (int64_t r = r0; r < r1; ++r) {
+        const int64_t o = r * inner;
+        switch (vsg_channel(r % 8)) {
+          case VsgChannel::Softplus:
+          case VsgChannel::SoftplusFloor: vm::softplus_backward(pg + o, px + o, pdx + o, inner); break;
+          case VsgChannel::Identity: std::copy(pg + o, pg + o + inner, pdx + o); break;
+          case VsgChannel::Sigmoid: {
+            const float *gr = pg + o, *yr = py + o;
+            float* dr = pdx + o;
+            for (int64_t i = 0; i < inner; ++i) dr[i] = gr[i] * yr[i] * (1.0f - yr[i]);
+            break;
+          }
+        }
+      }
+    });
+    return TensorList{dx};
+  });
+  return y;
+}
+
+}  // namespace
+
 Tensor vsg_activate(const Tensor& raw, int64_t channel_dim) {
   const int64_t d = normalize_dim("vsg_activate", channel_dim, raw.dim());
   SL_CHECK(raw.size(d) == 8, "vsg_activate: expected 8 channels in dim ", channel_dim, ", got ", raw.describe());
+  if (raw.dtype() == DType::F32 && raw.is_contiguous()) return vsg_activate_rows(raw, d);
   const Tensor c = softplus(slice(raw, d, 0, 3));
   const Tensor mu = slice(raw, d, 3, 6);
   const Tensor sharp = add_scalar(softplus(slice(raw, d, 6, 7)), VsgGrid::kMinSharpness);

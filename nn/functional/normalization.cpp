@@ -3,6 +3,7 @@
 #include <cmath>
 #include <vector>
 
+#include "autodiff/map.h"
 #include "autodiff/tape.h"
 #include "nn/functional/work_grain.h"
 #include "util/parallel.h"
@@ -83,10 +84,53 @@ Stats batch_stats(const NormLayout& L, const T* x, double eps) {
   return st;
 }
 
-// y = (x - mean) · invstd · w[c] + b[c], plus the backward. batch_statistics says whether mean
+// The fused activation, applied as relu / leaky_relu apply it. The kind is a template argument
+// so that the normalisation loop stays branch-free and vectorises.
+template <NormActivation::Kind K, class T>
+struct Act {
+  T s;
+  T forward(T v) const {
+    if constexpr (K == NormActivation::Kind::ReLU) return v > 0 ? v : T(0);
+    if constexpr (K == NormActivation::Kind::LeakyReLU) return v > 0 ? v : s * v;
+    return v;
+  }
+};
+
+// The gradient through the activation, from its OUTPUT y: relu's backward reads y (y > 0
+// exactly where its input v > 0, NaN included), and for LeakyReLU with slope >= 0 the same
+// holds (v <= 0 gives s·v <= 0), so the mask y > 0 equals leaky_relu's v > 0 and the bits
+// equal those of the unfused backward.
+Tensor activation_grad(const char* op, const NormActivation& act, const Tensor& g, const Tensor& y) {
+  if (act.kind == NormActivation::Kind::ReLU)
+    return sl::detail::map_n(op, [](auto gv, auto yv) { return yv > 0 ? gv : decltype(gv)(0); }, g, y);
+  const double slope = act.slope;
+  return sl::detail::map_n(
+      op,
+      [slope](auto gv, auto yv) {
+        const auto s = static_cast<decltype(gv)>(slope);  // converted before the condition (vectorises)
+        return yv > 0 ? gv : s * gv;
+      },
+      g, y);
+}
+
+// f(Act<K, T>{slope}) with K = kind as a compile-time constant.
+template <class T, class F>
+void with_act(const NormActivation& act, F&& f) {
+  const T s = static_cast<T>(act.slope);
+  switch (act.kind) {
+    case NormActivation::Kind::None: f(Act<NormActivation::Kind::None, T>{s}); break;
+    case NormActivation::Kind::ReLU: f(Act<NormActivation::Kind::ReLU, T>{s}); break;
+    case NormActivation::Kind::LeakyReLU: f(Act<NormActivation::Kind::LeakyReLU, T>{s}); break;
+  }
+}
+
+// y = act((x - mean) · invstd · w[c] + b[c]), plus the backward. batch_statistics says whether mean
 // and invstd depend on x (training / group / instance norm) or are constants (eval mode).
 Tensor normalize(const char* op, const Tensor& x_in, const NormLayout& L, Stats st, bool batch_statistics,
-                 const Tensor& w_in, const Tensor& b_in) {
+                 const Tensor& w_in, const Tensor& b_in, NormActivation act) {
+  SL_CHECK(act.kind != NormActivation::Kind::LeakyReLU || act.slope >= 0, op,
+           ": a fused LeakyReLU needs a slope >= 0, got ", act.slope);
+  const bool fused = act.kind != NormActivation::Kind::None;
   const Tensor x = x_in.detach().contiguous();
   const Tensor w = w_in.defined() ? w_in.detach().contiguous() : Tensor();
   const Tensor b = b_in.defined() ? b_in.detach().contiguous() : Tensor();
@@ -97,20 +141,28 @@ Tensor normalize(const char* op, const Tensor& x_in, const NormLayout& L, Stats 
     const T* pw = w.defined() ? w.data<T>() : nullptr;
     const T* pb = b.defined() ? b.data<T>() : nullptr;
     T* py = y.data<T>();
-    parallel_for(L.N * L.C, detail::grain_for(L.S), [&](int64_t r0, int64_t r1) {
-      for (int64_t row = r0; row < r1; ++row) {
-        const int64_t n = row / L.C, c = row % L.C, k = L.set_of(n, c);
-        const T scale = static_cast<T>(st.invstd[k] * (pw ? static_cast<double>(pw[c]) : 1.0));
-        const T shift = static_cast<T>((pb ? static_cast<double>(pb[c]) : 0.0) - st.mean[k] * static_cast<double>(scale));
-        for (int64_t i = 0; i < L.S; ++i) py[row * L.S + i] = px[row * L.S + i] * scale + shift;
-      }
+    with_act<T>(act, [&](const auto a) {
+      parallel_for(L.N * L.C, detail::grain_for(L.S), [&](int64_t r0, int64_t r1) {
+        for (int64_t row = r0; row < r1; ++row) {
+          const int64_t n = row / L.C, c = row % L.C, k = L.set_of(n, c);
+          const T scale = static_cast<T>(st.invstd[k] * (pw ? static_cast<double>(pw[c]) : 1.0));
+          const T shift = static_cast<T>((pb ? static_cast<double>(pb[c]) : 0.0) - st.mean[k] * static_cast<double>(scale));
+          const T* xr = px + row * L.S;
+          T* yr = py + row * L.S;
+          const auto f = a;  // a local copy: known not to alias yr, so the loop vectorises
+          for (int64_t i = 0; i < L.S; ++i) yr[i] = f.forward(xr[i] * scale + shift);
+        }
+      });
     });
   });
   if (!needs_grad({x_in, w_in, b_in})) return y;
   const bool gx = x_in.requires_grad(), gw = w_in.defined() && w_in.requires_grad();
   const bool gb = b_in.defined() && b_in.requires_grad();
+  const Tensor y_saved = fused ? y.detach() : Tensor();  // the activation's mask (shares y's storage)
   record(op, {x_in, w_in, b_in}, {y}, [=](const TensorList& grads) {
-    const Tensor dy = grads[0].contiguous();
+    // The gradient through the activation first, in one vectorised pass (the activation's
+    // own backward, as its unfused op computes it), then the normalisation's backward.
+    const Tensor dy = fused ? activation_grad(op, act, grads[0], y_saved) : grads[0].contiguous();
     TensorList r(3);
     SL_DISPATCH_FLOAT(x.dtype(), op, [&] {
       using T = scalar_t;
@@ -210,7 +262,7 @@ NormLayout layout_of(const Tensor& x) {
 }  // namespace
 
 Tensor batch_norm(const Tensor& x, const Tensor& running_mean, const Tensor& running_var, const Tensor& weight,
-                  const Tensor& bias, bool training, double momentum, double eps) {
+                  const Tensor& bias, bool training, double momentum, double eps, NormActivation act) {
   const char* op = "batch_norm";
   SL_CHECK(x.defined() && x.dim() >= 2, op, ": input must be [N, C, ...], got ",
            x.defined() ? x.describe() : "undefined");
@@ -247,12 +299,12 @@ Tensor batch_norm(const Tensor& x, const Tensor& running_mean, const Tensor& run
     st.invstd.resize(static_cast<size_t>(L.C));
     for (int64_t c = 0; c < L.C; ++c) st.invstd[c] = 1.0 / std::sqrt(std::max(st.var[c], 0.0) + eps);
   }
-  return normalize(op, x, L, std::move(st), training, weight, bias);
+  return normalize(op, x, L, std::move(st), training, weight, bias, act);
 }
 
 namespace {
 Tensor group_norm_as(const char* op, const Tensor& x, int64_t groups, const Tensor& weight, const Tensor& bias,
-                     double eps) {
+                     double eps, NormActivation act) {
   SL_CHECK(x.defined() && x.dim() >= 2, op, ": input must be [N, C, ...], got ",
            x.defined() ? x.describe() : "undefined");
   SL_CHECK(groups >= 1 && x.size(1) % groups == 0, op, ": ", x.size(1), " channels of input ",
@@ -265,19 +317,20 @@ Tensor group_norm_as(const char* op, const Tensor& x, int64_t groups, const Tens
   Stats st;
   const Tensor xc = x.detach().contiguous();
   SL_DISPATCH_FLOAT(x.dtype(), op, [&] { st = batch_stats<scalar_t>(L, xc.data<scalar_t>(), eps); });
-  return normalize(op, x, L, std::move(st), true, weight, bias);
+  return normalize(op, x, L, std::move(st), true, weight, bias, act);
 }
 }  // namespace
 
-Tensor group_norm(const Tensor& x, int64_t groups, const Tensor& weight, const Tensor& bias, double eps) {
-  return group_norm_as("group_norm", x, groups, weight, bias, eps);
+Tensor group_norm(const Tensor& x, int64_t groups, const Tensor& weight, const Tensor& bias, double eps,
+                  NormActivation act) {
+  return group_norm_as("group_norm", x, groups, weight, bias, eps, act);
 }
 
 // Instance norm is group norm with one channel per group.
-Tensor instance_norm(const Tensor& x, const Tensor& weight, const Tensor& bias, double eps) {
+Tensor instance_norm(const Tensor& x, const Tensor& weight, const Tensor& bias, double eps, NormActivation act) {
   SL_CHECK(x.defined() && x.dim() >= 3, "instance_norm: input must be [N, C, spatial...], got ",
            x.defined() ? x.describe() : "undefined");
-  return group_norm_as("instance_norm", x, x.size(1), weight, bias, eps);
+  return group_norm_as("instance_norm", x, x.size(1), weight, bias, eps, act);
 }
 
 }  // namespace sl::nn

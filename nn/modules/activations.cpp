@@ -36,4 +36,11 @@ std::shared_ptr<Module> make_activation(const std::string& name) {
        "' (valid: relu, leaky_relu[:slope], elu[:alpha], sigmoid, tanh, softplus, identity, none)");
 }
 
+NormActivation fusable_activation(const Module& m) {
+  if (dynamic_cast<const ReLU*>(&m)) return {NormActivation::Kind::ReLU, 0.0};
+  if (const auto* l = dynamic_cast<const LeakyReLU*>(&m); l && l->negative_slope() >= 0)
+    return {NormActivation::Kind::LeakyReLU, l->negative_slope()};
+  return {};
+}
+
 }  // namespace sl::nn

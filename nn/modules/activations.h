@@ -12,6 +12,7 @@
 #include <memory>
 #include <string>
 
+#include "nn/functional/normalization.h"
 #include "nn/module.h"
 
 namespace sl::nn {
@@ -26,6 +27,7 @@ class LeakyReLU : public Module {
  public:
   explicit LeakyReLU(double negative_slope = 0.01) : Module("LeakyReLU"), negative_slope_(negative_slope) {}
   Tensor forward(const Tensor& x) override;
+  double negative_slope() const { return negative_slope_; }
 
  private:
   double negative_slope_;
@@ -65,5 +67,8 @@ class Identity : public Module {
 };
 
 std::shared_ptr<Module> make_activation(const std::string& name);
+
+// `m` as an activation a normalisation can fuse (ReLU; LeakyReLU with slope >= 0), else Kind::None.
+NormActivation fusable_activation(const Module& m);
 
 }  // namespace sl::nn

@@ -28,15 +28,22 @@ void BatchNormNd::reset_parameters(uint64_t, const std::string&) {
   if (affine_) norm_affine_init(parameter("weight"), parameter("bias"));
 }
 
-Tensor BatchNormNd::forward(const Tensor& x) {
+Tensor BatchNormNd::forward(const Tensor& x) { return forward_activated(x, {}); }
+
+Tensor BatchNormNd::forward_absorbing(const Tensor& x, const Module& next) {
+  const NormActivation act = fusable_activation(next);
+  return act.kind == NormActivation::Kind::None ? Tensor() : forward_activated(x, act);
+}
+
+Tensor BatchNormNd::forward_activated(const Tensor& x, NormActivation act) {
   const bool rank_ok = dims_ == 1 ? (x.dim() == 2 || x.dim() == 3) : x.dim() == dims_ + 2;
   SL_CHECK(rank_ok && x.size(1) == features_, type_name(), "(", features_, "): expected input [N, ", features_,
            dims_ == 1 ? "] or [N, C, L]" : (dims_ == 2 ? ", H, W]" : ", D, H, W]"), ", got ", x.describe());
   const Tensor w = affine_ ? parameter("weight") : Tensor();
   const Tensor b = affine_ ? parameter("bias") : Tensor();
-  if (!track_) return batch_norm(x, Tensor(), Tensor(), w, b, true, momentum_, eps_);
+  if (!track_) return batch_norm(x, Tensor(), Tensor(), w, b, true, momentum_, eps_, act);
   const bool training = is_training();
-  Tensor y = batch_norm(x, buffer("running_mean"), buffer("running_var"), w, b, training, momentum_, eps_);
+  Tensor y = batch_norm(x, buffer("running_mean"), buffer("running_var"), w, b, training, momentum_, eps_, act);
   if (training) buffer("num_batches_tracked").data<int64_t>()[0] += 1;
   return y;
 }

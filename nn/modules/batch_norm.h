@@ -6,11 +6,13 @@
 //   scalar) when track_running_stats — PyTorch's names, so checkpoints map one to one.
 //   Training normalises with batch statistics and updates the running ones in place
 //   (momentum as PyTorch) and counts batches; eval uses the running statistics. Without
-//   running statistics both modes use batch statistics. Expected input ranks: 1d [N, C] or
+//   running statistics both modes use batch statistics.
+// - forward_activated / forward_absorbing fuse a following ReLU or LeakyReLU into the op. Expected input ranks: 1d [N, C] or
 //   [N, C, L]; 2d [N, C, H, W]; 3d [N, C, D, H, W]; other ranks or channel counts throw.
 #pragma once
 #include <string>
 
+#include "nn/functional/normalization.h"
 #include "nn/module.h"
 
 namespace sl::nn {
@@ -18,6 +20,9 @@ namespace sl::nn {
 class BatchNormNd : public Module {
  public:
   Tensor forward(const Tensor& x) override;
+  // act(forward(x)) as one op (nn/functional/normalization.h).
+  Tensor forward_activated(const Tensor& x, NormActivation act);
+  Tensor forward_absorbing(const Tensor& x, const Module& next) override;
 
  protected:
   BatchNormNd(const char* type_name, int spatial_dims, int64_t features, double eps, double momentum, bool affine,

@@ -21,11 +21,18 @@ void GroupNorm::reset_parameters(uint64_t, const std::string&) {
   if (affine_) norm_affine_init(parameter("weight"), parameter("bias"));
 }
 
-Tensor GroupNorm::forward(const Tensor& x) {
+Tensor GroupNorm::forward(const Tensor& x) { return forward_activated(x, {}); }
+
+Tensor GroupNorm::forward_absorbing(const Tensor& x, const Module& next) {
+  const NormActivation act = fusable_activation(next);
+  return act.kind == NormActivation::Kind::None ? Tensor() : forward_activated(x, act);
+}
+
+Tensor GroupNorm::forward_activated(const Tensor& x, NormActivation act) {
   SL_CHECK(x.dim() >= 2 && x.size(1) == channels_, "GroupNorm(", groups_, ", ", channels_, "): expected [N, ",
            channels_, ", ...], got ", x.describe());
   return group_norm(x, groups_, affine_ ? parameter("weight") : Tensor(), affine_ ? parameter("bias") : Tensor(),
-                    eps_);
+                    eps_, act);
 }
 
 // ---------------------------------------------------------------- InstanceNorm

@@ -5,6 +5,7 @@
 #pragma once
 #include <string>
 
+#include "nn/functional/normalization.h"
 #include "nn/module.h"
 
 namespace sl::nn {
@@ -13,6 +14,9 @@ class GroupNorm : public Module {
  public:
   GroupNorm(int64_t groups, int64_t channels, double eps = 1e-5, bool affine = true);
   Tensor forward(const Tensor& x) override;
+  // act(forward(x)) as one op (nn/functional/normalization.h).
+  Tensor forward_activated(const Tensor& x, NormActivation act);
+  Tensor forward_absorbing(const Tensor& x, const Module& next) override;
 
  protected:
   void reset_parameters(uint64_t seed, const std::string& prefix) override;

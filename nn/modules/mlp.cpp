@@ -21,6 +21,14 @@ class FeatureBatchNorm : public BatchNorm1d {
     Shape shape = x.shape();
     return reshape(BatchNorm1d::forward(reshape(x, {-1, shape.back()})), shape);
   }
+  // The same flattening around the fused norm + activation.
+  Tensor forward_absorbing(const Tensor& x, const Module& next) override {
+    if (x.dim() == 2) return BatchNorm1d::forward_absorbing(x, next);
+    SL_CHECK(x.dim() >= 1, "MLP batch norm: input ", x.describe(), " has no feature dim");
+    Shape shape = x.shape();
+    const Tensor y = BatchNorm1d::forward_absorbing(reshape(x, {-1, shape.back()}), next);
+    return y.defined() ? reshape(y, shape) : Tensor();
+  }
 };
 }  // namespace
 

@@ -7,6 +7,14 @@
 
 namespace sl::nn {
 
+namespace {
+// The ReLU that follows a BatchNorm, as a module so that the BatchNorm can absorb it.
+const std::shared_ptr<Module>& relu_module() {
+  static const std::shared_ptr<Module> m = std::make_shared<ReLU>();
+  return m;
+}
+}  // namespace
+
 BasicBlock::BasicBlock(int64_t in_channels, int64_t out_channels, int64_t stride) : Module("BasicBlock") {
   conv1_ = register_module("conv1", std::make_shared<Conv2d>(in_channels, out_channels, 3,
                                                               ConvOptions{.stride = stride, .padding = 1, .bias = false}));
@@ -23,7 +31,7 @@ BasicBlock::BasicBlock(int64_t in_channels, int64_t out_channels, int64_t stride
 }
 
 Tensor BasicBlock::forward(const Tensor& x) {
-  Tensor y = relu(bn1_->forward(conv1_->forward(x)));
+  Tensor y = forward_chain({bn1_, relu_module()}, conv1_->forward(x));  // relu(bn1(·)) as one op
   y = bn2_->forward(conv2_->forward(y));
   return relu(add(y, downsample_ ? downsample_->forward(x) : x));
 }
@@ -64,7 +72,7 @@ ResNetOutput ResNet::forward_features(const Tensor& x) {
   SL_CHECK(x.dim() == 4 && x.size(1) == opt_.in_channels, "ResNet: expected input [N, ", opt_.in_channels,
            ", H, W], got ", x.describe());
   ResNetOutput out;
-  Tensor y = maxpool_->forward(relu(stem_bn_->forward(stem_conv_->forward(x))));
+  Tensor y = maxpool_->forward(forward_chain({stem_bn_, relu_module()}, stem_conv_->forward(x)));
   for (auto& stage : stages_) {
     y = stage->forward(y);
     out.features.push_back(y);

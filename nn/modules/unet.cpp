@@ -17,11 +17,7 @@ ConvBlock::ConvBlock(int spatial_dims, int64_t in, int64_t out, const std::strin
   seq_.push_back(register_module("act2", make_activation(activation)));
 }
 
-Tensor ConvBlock::forward(const Tensor& x) {
-  Tensor y = x;
-  for (auto& m : seq_) y = m->forward(y);
-  return y;
-}
+Tensor ConvBlock::forward(const Tensor& x) { return forward_chain(seq_, x); }
 
 namespace {
 

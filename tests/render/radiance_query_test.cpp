@@ -86,6 +86,30 @@ TEST(VsgActivate, MapsAnyRawValueToValidParameters) {
   for (double gv : raw.grad().to_vector()) EXPECT_TRUE(std::isfinite(gv));
 }
 
+// The one-op float32 path equals the composite path (softplus / sigmoid of channel slices,
+// add_scalar, concat: what a non-contiguous input takes) in values and gradients, for the
+// predictor's layout (channels in dim 1), channels first, odd spatial sizes and extreme raw values.
+TEST(VsgActivate, Float32OneOpEqualsTheCompositePath) {
+  for (const auto& [shape, dim] : {std::pair<Shape, int64_t>{{2, 8, 5, 7, 3}, 1}, {{8, 3, 1, 33}, 0},
+                                   {{1, 8, 64}, 1}, {{3, 8, 2, 2, 2}, -4}}) {
+    Tensor raw = Tensor::uniform(shape, -30, 30, 61, DType::F32);
+    raw.data<float>()[0] = 0.0f;
+    raw.data<float>()[1] = -0.0f;
+    const Tensor upstream = Tensor::uniform(shape, -1, 1, 62, DType::F32);
+    Tensor a = raw.clone().set_requires_grad(true);
+    // The same values as a view into a wider tensor: non-contiguous rows, so the composite path.
+    const int64_t last = static_cast<int64_t>(shape.size()) - 1;
+    Tensor wide = concat({raw, Tensor::uniform(shape, -1, 1, 63, DType::F32)}, last).set_requires_grad(true);
+    const Tensor b = slice(wide, last, 0, shape[last]);
+    ASSERT_FALSE(b.is_contiguous());
+    const Tensor ya = vsg_activate(a, dim), yb = vsg_activate(b, dim);
+    backward(sum(mul(ya, upstream)));
+    backward(sum(mul(yb, upstream)));
+    EXPECT_EQ(ya.to_vector(), yb.to_vector());
+    EXPECT_EQ(a.grad().to_vector(), slice(wide.grad(), last, 0, shape[last]).contiguous().to_vector());
+  }
+}
+
 TEST(RadianceQuery, EmptyVolumeReturnsTheSkyWithUnitTransmittance) {
   const VsgGrid g = small_grid();
   Tensor vsg = Tensor::zeros({8, 4, 4, 2}, DType::F64);  // alpha = 0 everywhere

@@ -113,7 +113,7 @@ constexpr int64_t kMinDirectPositions = 96;
 void conv_forward_panels(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y) {
   const int64_t P = g.out_plane(), R = g.rows();
   const int64_t tile = 8 * detail::kPanelCols, tiles = (P + tile - 1) / tile;
-  const std::vector<float> packed = detail::pack_weights(w, g.O, R);
+  const detail::PackedWeights packed = detail::pack_weights(w, g.O, R);
   const PhasedInput<float> phased = phase_input(g, x);
   const detail::PhasedRows& ph = phased.rows;
   parallel_for(g.N * tiles, detail::grain_for(g.O * R * tile), [&](int64_t t0, int64_t t1) {
@@ -135,6 +135,56 @@ void conv_forward_panels(const ConvGeometry& g, const float* x, const float* w, 
   });
 }
 
+// Float on AVX-512, fewer than kMinDirectPositions positions per image (a ResNet's deep stages:
+// 4×8 positions, 512 channels, 4608 taps): the batch-folded GEMM on the micro-kernel. Columns are
+// the positions of all items in order (column n·P + p), cut into 48-column panels that may hold
+// the end of one item and the start of the next. All panels are built first (R·48 floats each,
+// a few MB at most here), then tasks of (block of output rows, panel) run the micro-kernel: the
+// rows are split because there are only a few panels, and each task's weight rows stay in cache
+// across its panels. Each output element is the micro-kernel's fixed FMA sequence over R.
+void conv_forward_folded(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y) {
+  constexpr int64_t kCols = detail::kPanelCols, kRows = detail::kBlockRows;
+  const int64_t P = g.out_plane(), R = g.rows(), cols = g.N * P, panels = (cols + kCols - 1) / kCols;
+  const detail::PackedWeights packed = detail::pack_weights(w, g.O, R);
+  const PhasedInput<float> phased = phase_input(g, x);
+  const detail::PhasedRows& ph = phased.rows;
+  std::vector<float> col(static_cast<size_t>(panels * R * kCols));
+  parallel_for(panels, detail::grain_for(R * kCols), [&](int64_t p0, int64_t p1) {
+    for (int64_t p = p0; p < p1; ++p) {
+      float* panel = col.data() + p * R * kCols;
+      const int64_t c1 = std::min(cols, (p + 1) * kCols);
+      for (int64_t c = p * kCols; c < c1;) {  // one run of positions of item n per step
+        const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
+        if (ph.stride > 1) {
+          detail::im2col_tile_phased(phased.data.data() + n * phased.rows_per_item * ph.row_pitch(), g, ph, q, cnt,
+                                     panel + (c - p * kCols), kCols);
+        } else {
+          detail::im2col_tile(x + n * g.C * g.in_plane(), g, q, cnt, panel + (c - p * kCols), kCols);
+        }
+        c += cnt;
+      }
+    }
+  });
+  const int64_t row_blocks = (g.O + kRows - 1) / kRows;
+  const int64_t parts = std::min(row_blocks, (16 + panels - 1) / panels);  // >= 16 tasks: even over 2-4 threads
+  parallel_for(parts * panels, detail::grain_for(g.O * R * kCols / parts), [&](int64_t t0, int64_t t1) {
+    std::vector<float> tile(static_cast<size_t>(g.O * kCols));
+    for (int64_t t = t0; t < t1; ++t) {
+      const int64_t part = t / panels, p = t % panels;
+      const int64_t o0 = part * row_blocks / parts * kRows, o1 = std::min(g.O, (part + 1) * row_blocks / parts * kRows);
+      const int64_t c0 = p * kCols, c1 = std::min(cols, c0 + kCols);
+      detail::conv_gemm_panel(packed.data() + o0 * R, o1 - o0, R, col.data() + p * R * kCols, c1 - c0,
+                              b ? b + o0 : nullptr, tile.data(), kCols);
+      for (int64_t c = c0; c < c1;) {
+        const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
+        for (int64_t o = o0; o < o1; ++o)
+          std::copy_n(tile.data() + (o - o0) * kCols + (c - c0), cnt, y + (n * g.O + o) * P + q);
+        c += cnt;
+      }
+    }
+  });
+}
+
 bool unit_stride(const ConvGeometry& g) { return g.stride[0] == 1 && g.stride[1] == 1 && g.stride[2] == 1; }
 
 // y[n] = W · im2col(x[n]) + b, one GEMM per (batch item, spatial tile).
@@ -146,6 +196,7 @@ void conv_forward(const ConvGeometry& g, const T* x, const T* w, const T* b, T* 
         if (unit_stride(g)) return detail::direct_forward(g, x, w, b, y);
         return conv_forward_panels(g, x, w, b, y);
       }
+      if (!is_pointwise(g)) return conv_forward_folded(g, x, w, b, y);
     }
   }
   const int64_t P = g.out_plane(), R = g.rows();
@@ -203,7 +254,10 @@ void conv_backward_weight(const ConvGeometry& g, const T* x, const T* dy, T* dw)
   const int64_t tasks = cb.count;
   const int64_t memory_cap = std::max<int64_t>(1, (int64_t{16} << 20) / (per * static_cast<int64_t>(sizeof(T))));
   const int64_t groups = std::min({tasks, int64_t{8}, memory_cap});
-  std::vector<T> partial(static_cast<size_t>(groups * per), T(0));
+  // One group (deep layers: all items in one block) sums straight into dw, which its first task
+  // overwrites: no partial to zero and copy (megabytes here). The sums are the same.
+  std::vector<T> partial(groups > 1 ? static_cast<size_t>(groups * per) : 0, T(0));
+  T* const sums = groups > 1 ? partial.data() : dw;
   const bool pointwise = is_pointwise(g);
   const PhasedInput<T> phased = phase_input(g, x);
   const bool use_kernel = detail::conv_gemm_available() && P >= kMinDirectPositions;
@@ -230,17 +284,20 @@ void conv_backward_weight(const ConvGeometry& g, const T* x, const T* dy, T* dw)
           A = dyb.data();
           lda = cols;
         }
+        const bool first = groups == 1 && t == 0;
         if constexpr (std::is_same_v<T, float>) {
           if (use_kernel) {  // dy rows · col rows, the weight-gradient micro-kernel of conv_gemm.h
             row_offset.resize(static_cast<size_t>(R));
             for (int64_t k = 0; k < R; ++k) row_offset[k] = k * ldb;
-            detail::conv_weight_grad_window(A, lda, g.O, B, row_offset.data(), R, cols, partial.data() + grp * per);
+            if (first) std::fill(dw, dw + per, 0.0f);
+            detail::conv_weight_grad_window(A, lda, g.O, B, row_offset.data(), R, cols, sums + grp * per);
             continue;
           }
         }
-        sl::detail::gemm<T>(false, true, g.O, R, cols, T(1), A, lda, B, ldb, T(1), partial.data() + grp * per, R);
+        sl::detail::gemm<T>(false, true, g.O, R, cols, T(1), A, lda, B, ldb, first ? T(0) : T(1), sums + grp * per, R);
       }
   });
+  if (groups == 1) return;
   for (int64_t i = 0; i < per; ++i) {
     T acc = 0;
     for (int64_t grp = 0; grp < groups; ++grp) acc += partial[grp * per + i];
@@ -280,14 +337,17 @@ bool input_grad_is_conv(const ConvGeometry& g) {
   return as_conv;
 }
 
-// wt[c][o][flipped tap] = w[o][c][tap]
+// wt[c][o][flipped tap] = w[o][c][tap], one input channel per task (deep layers have megabytes
+// of weights).
 template <class T>
 std::vector<T> flipped_transposed(const ConvGeometry& g, const T* w) {
   const int64_t taps = g.taps();
   std::vector<T> wt(static_cast<size_t>(g.O * g.rows()));
-  for (int64_t o = 0; o < g.O; ++o)
-    for (int64_t c = 0; c < g.C; ++c)
-      for (int64_t k = 0; k < taps; ++k) wt[(c * g.O + o) * taps + (taps - 1 - k)] = w[(o * g.C + c) * taps + k];
+  parallel_for(g.C, detail::grain_for(g.O * taps), [&](int64_t c0, int64_t c1) {
+    for (int64_t c = c0; c < c1; ++c)
+      for (int64_t o = 0; o < g.O; ++o)
+        for (int64_t k = 0; k < taps; ++k) wt[(c * g.O + o) * taps + (taps - 1 - k)] = w[(o * g.C + c) * taps + k];
+  });
   return wt;
 }
 
@@ -299,7 +359,7 @@ void input_grad_panels(const ConvGeometry& g, const float* w, const float* dy, f
   std::vector<float> wt(static_cast<size_t>(R * g.O));  // Wᵀ: [R, O]
   for (int64_t o = 0; o < g.O; ++o)
     for (int64_t r = 0; r < R; ++r) wt[r * g.O + o] = w[o * R + r];
-  const std::vector<float> packed = detail::pack_weights(wt.data(), R, g.O);
+  const detail::PackedWeights packed = detail::pack_weights(wt.data(), R, g.O);
   std::vector<int64_t> in_place(static_cast<size_t>(g.O)), padded(static_cast<size_t>(g.O));
   for (int64_t k = 0; k < g.O; ++k) in_place[k] = k * P, padded[k] = k * detail::kPanelCols;
   parallel_for(g.N, detail::grain_for(R * P * g.O), [&](int64_t n0, int64_t n1) {

@@ -11,6 +11,7 @@
 #endif
 
 #include "nn/functional/conv_microkernel.h"
+#include "nn/functional/transpose16.h"
 #include "nn/functional/work_grain.h"
 #include "util/error.h"
 #include "util/parallel.h"
@@ -73,31 +74,6 @@ struct Padded {
 };
 
 #if defined(__AVX512F__)
-// In-register transpose of a 16 × 16 block: r[a][b] -> r[b][a].
-inline void transpose16(__m512 r[16]) {
-  __m512 t[16], u[16];
-  for (int k = 0; k < 8; ++k) {
-    t[2 * k] = _mm512_unpacklo_ps(r[2 * k], r[2 * k + 1]);
-    t[2 * k + 1] = _mm512_unpackhi_ps(r[2 * k], r[2 * k + 1]);
-  }
-  for (int k = 0; k < 4; ++k) {  // u[4k + e], 128-bit lane L: rows 4k..4k+3 at column 4L + e
-    u[4 * k] = _mm512_shuffle_ps(t[4 * k], t[4 * k + 2], _MM_SHUFFLE(1, 0, 1, 0));
-    u[4 * k + 1] = _mm512_shuffle_ps(t[4 * k], t[4 * k + 2], _MM_SHUFFLE(3, 2, 3, 2));
-    u[4 * k + 2] = _mm512_shuffle_ps(t[4 * k + 1], t[4 * k + 3], _MM_SHUFFLE(1, 0, 1, 0));
-    u[4 * k + 3] = _mm512_shuffle_ps(t[4 * k + 1], t[4 * k + 3], _MM_SHUFFLE(3, 2, 3, 2));
-  }
-  for (int e = 0; e < 4; ++e) {
-    const __m512 v0 = _mm512_shuffle_f32x4(u[e], u[4 + e], _MM_SHUFFLE(2, 0, 2, 0));
-    const __m512 v1 = _mm512_shuffle_f32x4(u[e], u[4 + e], _MM_SHUFFLE(3, 1, 3, 1));
-    const __m512 v2 = _mm512_shuffle_f32x4(u[8 + e], u[12 + e], _MM_SHUFFLE(2, 0, 2, 0));
-    const __m512 v3 = _mm512_shuffle_f32x4(u[8 + e], u[12 + e], _MM_SHUFFLE(3, 1, 3, 1));
-    r[e] = _mm512_shuffle_f32x4(v0, v2, _MM_SHUFFLE(2, 0, 2, 0));
-    r[8 + e] = _mm512_shuffle_f32x4(v0, v2, _MM_SHUFFLE(3, 1, 3, 1));
-    r[4 + e] = _mm512_shuffle_f32x4(v1, v3, _MM_SHUFFLE(2, 0, 2, 0));
-    r[12 + e] = _mm512_shuffle_f32x4(v1, v3, _MM_SHUFFLE(3, 1, 3, 1));
-  }
-}
-
 // dst[j·dst_step + i] = src[i·src_step + j] for i < ni, j < nj, in 16 × 16 register blocks: the
 // reordered copy of a volume whose original innermost axis is stored outermost. Element-wise, it
 // is one store per element to a different row and was 10% of a 3-D convolution's time.
@@ -204,7 +180,7 @@ void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp,
                     const float* w, const float* b, float* y) {
   const int64_t R = g.rows(), P = g.out_plane(), Hp = xp.ext[1], Wp = xp.ext[2];
   const Axes out = permute(g.out, order), ys = permute(out_strides(g), order);
-  const std::vector<float> packed = pack_weights(w, g.O, R);
+  const PackedWeights packed = pack_weights(w, g.O, R);
   const int64_t span = (out[1] - 1) * Wp + out[2];  // one output plane on the padded pitch
   const int64_t chunk = 8 * kPanelCols, chunks = (span + chunk - 1) / chunk;
   const int64_t tile_floats = (g.O + kBlockRows) * kPanelCols;

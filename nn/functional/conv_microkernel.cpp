@@ -6,14 +6,44 @@
 #include <immintrin.h>
 #endif
 
+#include "nn/functional/transpose16.h"
+#include "nn/functional/work_grain.h"
+#include "util/parallel.h"
+
 namespace sl::nn::detail {
 
-std::vector<float> pack_weights(const float* a, int64_t M, int64_t K) {
+PackedWeights pack_weights(const float* a, int64_t M, int64_t K) {
   const int64_t blocks = (M + kBlockRows - 1) / kBlockRows;
-  std::vector<float> packed(static_cast<size_t>(blocks * K * kBlockRows), 0.0f);
-  for (int64_t m = 0; m < M; ++m)
-    for (int64_t k = 0; k < K; ++k)
-      packed[((m / kBlockRows) * K + k) * kBlockRows + m % kBlockRows] = a[m * K + k];
+  PackedWeights packed{std::make_unique_for_overwrite<float[]>(static_cast<size_t>(blocks * K * kBlockRows))};
+  parallel_for(blocks, grain_for(K * kBlockRows), [&](int64_t b0, int64_t b1) {
+    for (int64_t blk = b0; blk < b1; ++blk) {
+      float* dst = packed.buffer.get() + blk * K * kBlockRows;
+      const float* src = a + blk * kBlockRows * K;
+      const int64_t rows = std::min(kBlockRows, M - blk * kBlockRows);
+      int64_t k0 = 0;
+#if defined(__AVX512F__)
+      static_assert(kBlockRows == 8);
+      // 8 rows × 32 columns per step: r[i] holds columns k0..k0+15 of row i, r[8 + i] columns
+      // k0+16..k0+31; after the transpose r[j] = {rows 0-7 at column k0 + j, rows 0-7 at k0 + 16 + j}.
+      if (rows == kBlockRows)
+        for (; k0 + 32 <= K; k0 += 32) {
+          __m512 r[16];
+          for (int i = 0; i < 8; ++i) {
+            r[i] = _mm512_loadu_ps(src + i * K + k0);
+            r[8 + i] = _mm512_loadu_ps(src + i * K + k0 + 16);
+          }
+          transpose16(r);
+          for (int j = 0; j < 16; ++j) {
+            _mm256_storeu_ps(dst + (k0 + j) * kBlockRows, _mm512_castps512_ps256(r[j]));
+            _mm256_storeu_ps(dst + (k0 + 16 + j) * kBlockRows,
+                             _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(r[j]), 1)));
+          }
+        }
+#endif
+      for (int64_t k = k0; k < K; ++k)
+        for (int64_t i = 0; i < kBlockRows; ++i) dst[k * kBlockRows + i] = i < rows ? src[i * K + k] : 0.0f;
+    }
+  });
   return packed;
 }
 

@@ -11,6 +11,7 @@
 // available() is false without AVX-512; conv.cpp then uses autodiff's Eigen GEMM.
 #pragma once
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace sl::nn::detail {
@@ -20,8 +21,14 @@ constexpr int64_t kPanelCols = 48;
 
 bool conv_gemm_available();
 
-// Zero-padded row blocks of A [M, K] (row-major, leading dim K).
-std::vector<float> pack_weights(const float* a, int64_t M, int64_t K);
+// Zero-padded row blocks of A [M, K] (row-major, leading dim K). The storage is written once,
+// block by block in parallel, without a zero fill first: deep layers have megabytes of weights
+// and only a few dozen positions per weight to amortise the packing over.
+struct PackedWeights {
+  std::unique_ptr<float[]> buffer;
+  const float* data() const { return buffer.get(); }
+};
+PackedWeights pack_weights(const float* a, int64_t M, int64_t K);
 
 void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
                      const float* bias, float* c, int64_t ldc);

@@ -115,6 +115,11 @@ TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
       // Few positions per image: batch items folded side by side into one GEMM.
       {{3, 16, 4, 8}, {24, 16, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
       {{3, 8, 8, 8}, {16, 8, 3, 3}, {1, 2, 2}, {0, 1, 1}, {1, 1, 1}},
+      // Folded panels holding the end of one item and the start of the next; odd channel counts.
+      {{5, 7, 5, 7}, {13, 7, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
+      {{1, 9, 9, 11}, {20, 9, 3, 3}, {1, 2, 2}, {0, 1, 1}, {1, 1, 1}},
+      {{4, 6, 7, 9}, {33, 6, 3, 3}, {1, 2, 2}, {0, 0, 1}, {1, 1, 1}},
+      {{2, 3, 3, 4, 5}, {11, 3, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}, {1, 1, 1}},
   };
 
   for (const Case& c : cases) {

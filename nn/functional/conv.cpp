@@ -81,18 +81,21 @@ PhasedInput<T> phase_input(const ConvGeometry& g, const T* x) {
 }
 
 // col[r][(n - n0)·cnt + i] for the items and positions of block b (leading dim blk.cols()).
+// Items in parallel when called outside a parallel region (a block holding all items).
 template <class T>
 void im2col_block(const ConvGeometry& g, const ColumnBlocks::Block& blk, const T* x, const PhasedInput<T>& ph,
                   T* col) {
-  for (int64_t n = blk.n0; n < blk.n1; ++n) {
-    T* dst = col + (n - blk.n0) * blk.cnt;
-    if (ph.data.empty()) {
-      detail::im2col_tile(x + n * g.C * g.in_plane(), g, blk.p0, blk.cnt, dst, blk.cols());
-    } else {
-      detail::im2col_tile_phased(ph.data.data() + n * ph.rows_per_item * ph.rows.row_pitch(), g, ph.rows, blk.p0,
-                                 blk.cnt, dst, blk.cols());
+  parallel_for(blk.n1 - blk.n0, detail::grain_for(g.rows() * blk.cnt), [&](int64_t i0, int64_t i1) {
+    for (int64_t n = blk.n0 + i0; n < blk.n0 + i1; ++n) {
+      T* dst = col + (n - blk.n0) * blk.cnt;
+      if (ph.data.empty()) {
+        detail::im2col_tile(x + n * g.C * g.in_plane(), g, blk.p0, blk.cnt, dst, blk.cols());
+      } else {
+        detail::im2col_tile_phased(ph.data.data() + n * ph.rows_per_item * ph.rows.row_pitch(), g, ph.rows, blk.p0,
+                                   blk.cnt, dst, blk.cols());
+      }
     }
-  }
+  });
 }
 
 // dst[o][(n - n0)·cnt + i] = src[n][o][p0 + i]: a [rows, cols] view of a per-item tensor.
@@ -290,7 +293,18 @@ void conv_backward_weight(const ConvGeometry& g, const T* x, const T* dy, T* dw)
             row_offset.resize(static_cast<size_t>(R));
             for (int64_t k = 0; k < R; ++k) row_offset[k] = k * ldb;
             if (first) std::fill(dw, dw + per, 0.0f);
-            detail::conv_weight_grad_window(A, lda, g.O, B, row_offset.data(), R, cols, sums + grp * per);
+            // A single group (all items in one block) splits its 8-row blocks over the threads;
+            // each block's sums are the same whichever call computes them.
+            const int64_t row_blocks = (g.O + detail::kBlockRows - 1) / detail::kBlockRows;
+            const int64_t parts = groups == 1 ? std::min<int64_t>(row_blocks, 16) : 1;
+            parallel_for(parts, 1, [&](int64_t q0, int64_t q1) {
+              for (int64_t part = q0; part < q1; ++part) {
+                const int64_t o0 = part * row_blocks / parts * detail::kBlockRows;
+                const int64_t o1 = std::min(g.O, (part + 1) * row_blocks / parts * detail::kBlockRows);
+                detail::conv_weight_grad_window(A + o0 * lda, lda, o1 - o0, B, row_offset.data(), R, cols,
+                                                sums + grp * per + o0 * R);
+              }
+            });
             continue;
           }
         }
@@ -352,20 +366,25 @@ std::vector<T> flipped_transposed(const ConvGeometry& g, const T* w) {
 }
 
 // Float, strided, >= kMinDirectPositions positions: dcol = Wᵀ · dy one 48-column panel at a time
-// on the micro-kernel (dy rows are read in place as its B windows), then col2im of the panel.
-// One batch item per task keeps the scatter race-free; dx must be zeroed by the caller.
+// on the micro-kernel (dy rows are read in place as its B windows), then col2im of the panel into
+// a phased copy of the item's gradient (contiguous adds, see col2im_tile_phased), whose phases are
+// merged into dx at the end. One batch item per task keeps the scatter race-free; writes all of dx.
 void input_grad_panels(const ConvGeometry& g, const float* w, const float* dy, float* dx) {
   const int64_t P = g.out_plane(), R = g.rows();
   std::vector<float> wt(static_cast<size_t>(R * g.O));  // Wᵀ: [R, O]
   for (int64_t o = 0; o < g.O; ++o)
     for (int64_t r = 0; r < R; ++r) wt[r * g.O + o] = w[o * R + r];
   const detail::PackedWeights packed = detail::pack_weights(wt.data(), R, g.O);
+  const detail::PhasedRows ph = detail::phased_rows(g);
+  const int64_t rows = g.C * g.in[0] * g.in[1];  // input rows per item
   std::vector<int64_t> in_place(static_cast<size_t>(g.O)), padded(static_cast<size_t>(g.O));
   for (int64_t k = 0; k < g.O; ++k) in_place[k] = k * P, padded[k] = k * detail::kPanelCols;
   parallel_for(g.N, detail::grain_for(R * P * g.O), [&](int64_t n0, int64_t n1) {
     std::vector<float> tile(static_cast<size_t>((R + detail::kBlockRows) * detail::kPanelCols));
     std::vector<float> last(static_cast<size_t>(g.O * detail::kPanelCols), 0.0f);
-    for (int64_t n = n0; n < n1; ++n)
+    std::vector<float> dxp(static_cast<size_t>(rows * ph.row_pitch()));
+    for (int64_t n = n0; n < n1; ++n) {
+      std::fill(dxp.begin(), dxp.end(), 0.0f);
       for (int64_t q = 0; q < P; q += detail::kPanelCols) {
         const int64_t cnt = std::min(detail::kPanelCols, P - q);
         const float* base = dy + n * g.O * P + q;
@@ -376,8 +395,10 @@ void input_grad_panels(const ConvGeometry& g, const float* w, const float* dy, f
           offsets = padded.data();
         }
         detail::conv_gemm_window(packed.data(), R, g.O, base, offsets, tile.data());
-        detail::col2im_tile(tile.data(), g, q, cnt, dx + n * g.C * g.in_plane(), detail::kPanelCols);
+        detail::col2im_tile_phased(tile.data(), g, ph, q, cnt, dxp.data(), detail::kPanelCols);
       }
+      detail::merge_phases(dxp.data(), rows, g.in[2], ph, dx + n * g.C * g.in_plane());
+    }
   });
 }
 
@@ -392,13 +413,13 @@ void conv_backward_input(const ConvGeometry& g, const T* w, const T* dy, T* dx) 
   // Column gradients are scattered by col2im, so all blocks of one batch item go to one task.
   const int64_t P = g.out_plane();
   const ColumnBlocks cb = column_blocks<T>(g);
-  std::fill(dx, dx + g.N * g.C * g.in_plane(), T(0));
-  const int64_t owners = cb.items_per_block == 1 ? g.N : cb.count;
-  const int64_t per_owner = cb.items_per_block == 1 ? cb.tiles_per_item : 1;
   if constexpr (std::is_same_v<T, float>) {
     if (detail::conv_gemm_available() && P >= kMinDirectPositions)
       return input_grad_panels(g, w, dy, dx);  // every block holds a single item here
   }
+  std::fill(dx, dx + g.N * g.C * g.in_plane(), T(0));
+  const int64_t owners = cb.items_per_block == 1 ? g.N : cb.count;
+  const int64_t per_owner = cb.items_per_block == 1 ? cb.tiles_per_item : 1;
   parallel_for(owners, detail::grain_for(R * P * g.O * cb.items_per_block), [&](int64_t w0, int64_t w1) {
     std::vector<T> col, dyb;
     for (int64_t owner = w0; owner < w1; ++owner)
@@ -415,9 +436,18 @@ void conv_backward_input(const ConvGeometry& g, const T* w, const T* dy, T* dx) 
         }
         col.resize(static_cast<size_t>(R * cols));
         sl::detail::gemm<T>(true, false, R, cols, g.O, T(1), w, R, A, lda, T(0), col.data(), cols);
-        for (int64_t n = blk.n0; n < blk.n1; ++n)
-          detail::col2im_tile(col.data() + (n - blk.n0) * blk.cnt, g, blk.p0, blk.cnt, dx + n * g.C * g.in_plane(),
-                              cols);
+        // One (item, channel) plane per call: each dx element still gets its additions in tap
+        // order. When all items share one block (deep layers) this runs on all threads.
+        ConvGeometry one = g;
+        one.C = 1;
+        const int64_t taps = g.taps();
+        parallel_for((blk.n1 - blk.n0) * g.C, detail::grain_for(taps * blk.cnt), [&](int64_t i0, int64_t i1) {
+          for (int64_t i = i0; i < i1; ++i) {
+            const int64_t n = blk.n0 + i / g.C, c = i % g.C;
+            detail::col2im_tile(col.data() + c * taps * cols + (n - blk.n0) * blk.cnt, one, blk.p0, blk.cnt,
+                                dx + (n * g.C + c) * g.in_plane(), cols);
+          }
+        });
       }
   });
 }

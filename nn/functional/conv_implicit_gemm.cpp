@@ -269,23 +269,33 @@ void weight_grad(const ConvGeometry& g, const Order& order, const float* x, cons
   // comes from splitting the output channels (8-row blocks) of each group across tasks, which
   // keeps every dw element summed by one task in a fixed order.
   const int64_t memory_cap = std::max<int64_t>(1, (int64_t{16} << 20) / (g.O * R * 4));
-  const int64_t groups = std::min({tasks, int64_t{16}, memory_cap});  // 16: even split over 2-4 threads
+  // Items shorter than a chunk (a ResNet's 8×16 stage: 142 positions on the padded pitch) are
+  // grouped, up to two chunks' worth, into one kernel call that sums them on the same
+  // accumulators: one reduction per group instead of one per item.
+  const int64_t items_per_call = chunks == 1 ? std::max<int64_t>(1, 2 * kChunk / len_total) : 1;
+  const int64_t calls = (tasks + items_per_call - 1) / items_per_call;
+  const int64_t groups = std::min({calls, int64_t{16}, memory_cap});  // 16: even split over 2-4 threads
   const int64_t row_blocks = (g.O + kBlockRows - 1) / kBlockRows;
   const int64_t parts = groups >= 8 ? 1 : std::min(row_blocks, (16 + groups - 1) / groups);
-  std::vector<float> partial(static_cast<size_t>(groups * g.O * R), 0.0f);
+  // One group sums straight into dw (zeroed first): no partials to zero and add.
+  std::vector<float> partial(groups > 1 ? static_cast<size_t>(groups * g.O * R) : 0, 0.0f);
+  float* const sums = groups > 1 ? partial.data() : dw;
+  if (groups == 1) std::fill(dw, dw + g.O * R, 0.0f);
   parallel_for(groups * parts, grain_for(g.O * R * len_total * g.N / (groups * parts)), [&](int64_t t0, int64_t t1) {
     for (int64_t task = t0; task < t1; ++task) {
       const int64_t grp = task / parts, part = task % parts;
       const int64_t o0 = part * row_blocks / parts * kBlockRows;
       const int64_t o1 = std::min(g.O, (part + 1) * row_blocks / parts * kBlockRows);
-      for (int64_t t = grp * tasks / groups; t < (grp + 1) * tasks / groups; ++t) {
+      for (int64_t call = grp * calls / groups; call < (grp + 1) * calls / groups; ++call) {
+        const int64_t t = call * items_per_call, items = std::min(items_per_call, tasks - t);
         const int64_t n = t / chunks, i0 = (t % chunks) * kChunk, len = std::min(kChunk, len_total - i0);
         conv_weight_grad_window(dy_base + (n * g.O + o0) * dy_pitch + i0, dy_pitch, o1 - o0,
                                 xp.data.get() + n * g.C * xp.volume + i0, taps.data(), R, len,
-                                partial.data() + (grp * g.O + o0) * R);
+                                sums + (grp * g.O + o0) * R, items, g.O * dy_pitch, g.C * xp.volume);
       }
     }
   });
+  if (groups == 1) return;
   for (int64_t i = 0; i < g.O * R; ++i) {
     float acc = 0;
     for (int64_t grp = 0; grp < groups; ++grp) acc += partial[grp * g.O * R + i];

@@ -139,18 +139,15 @@ inline __m256 reduce8(__m512 v0, __m512 v1, __m512 v2, __m512 v3, __m512 v4, __m
 // dw[o][k] += Σ_i dy[o][i] · base[row_offset[k] + i]: 8 rows of dy against 3 windows of the padded
 // input, 16 positions per step, 24 vector accumulators reduced once at the end of the range.
 void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
-                             int64_t K, int64_t len, float* dw) {
+                             int64_t K, int64_t len, float* dw, int64_t items, int64_t dy_item, int64_t base_item) {
   const int64_t full = len / 16 * 16;
   const __mmask16 tail = static_cast<__mmask16>((1u << (len - full)) - 1u);
   for (int64_t o0 = 0; o0 < M; o0 += kBlockRows) {
     const int64_t rows = std::min(kBlockRows, M - o0);
-    const float* d[kBlockRows];
-    for (int64_t i = 0; i < kBlockRows; ++i) d[i] = dy + (o0 + std::min(i, rows - 1)) * ldy;  // extra rows dropped
+    const float* d0[kBlockRows];
+    for (int64_t i = 0; i < kBlockRows; ++i) d0[i] = dy + (o0 + std::min(i, rows - 1)) * ldy;  // extra rows dropped
     for (int64_t k0 = 0; k0 < K; k0 += 3) {
       const int64_t cols = std::min<int64_t>(3, K - k0);
-      const float* x0 = base + row_offset[k0];
-      const float* x1 = base + row_offset[k0 + std::min<int64_t>(1, cols - 1)];
-      const float* x2 = base + row_offset[k0 + std::min<int64_t>(2, cols - 1)];
 #define SL_ROW(i) __m512 a##i##0 = _mm512_setzero_ps(), a##i##1 = a##i##0, a##i##2 = a##i##0;
       SL_ROW(0) SL_ROW(1) SL_ROW(2) SL_ROW(3) SL_ROW(4) SL_ROW(5) SL_ROW(6) SL_ROW(7)
 #undef SL_ROW
@@ -173,9 +170,16 @@ void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const floa
       unsigned all_lanes = 0xffffu;
       asm("" : "+r"(all_lanes));
       const __mmask16 all = static_cast<__mmask16>(all_lanes);
-      int64_t i = 0;
-      for (; i < full; i += 16) SL_STEP(all)
-      if (tail) SL_STEP(tail)
+      for (int64_t t = 0; t < items; ++t) {
+        const float* d[kBlockRows];
+        for (int64_t r = 0; r < kBlockRows; ++r) d[r] = d0[r] + t * dy_item;
+        const float* x0 = base + t * base_item + row_offset[k0];
+        const float* x1 = base + t * base_item + row_offset[k0 + std::min<int64_t>(1, cols - 1)];
+        const float* x2 = base + t * base_item + row_offset[k0 + std::min<int64_t>(2, cols - 1)];
+        int64_t i = 0;
+        for (; i < full; i += 16) SL_STEP(all)
+        if (tail) SL_STEP(tail)
+      }
 #undef SL_STEP
 #undef SL_FMA
       alignas(32) float sums[3][8];
@@ -215,11 +219,12 @@ void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* 
 }
 
 void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
-                             int64_t K, int64_t len, float* dw) {
+                             int64_t K, int64_t len, float* dw, int64_t items, int64_t dy_item, int64_t base_item) {
   for (int64_t o = 0; o < M; ++o)
     for (int64_t k = 0; k < K; ++k) {
       float acc = 0.0f;
-      for (int64_t i = 0; i < len; ++i) acc += dy[o * ldy + i] * base[row_offset[k] + i];
+      for (int64_t t = 0; t < items; ++t)
+        for (int64_t i = 0; i < len; ++i) acc += dy[t * dy_item + o * ldy + i] * base[t * base_item + row_offset[k] + i];
       dw[o * K + k] += acc;
     }
 }

@@ -40,10 +40,13 @@ void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* 
                       float* tile);
 
 // Weight gradient of a stride-1 convolution on the same windows: for o < M and k < K,
-// dw[o·K + k] += Σ_{i < len} dy[o·ldy + i] · base[row_offset[k] + i], where dy is the output
-// gradient laid out on the padded pitch (zeros at dropped positions). Reads nothing past
-// base[row_offset[k] + len - 1].
+// dw[o·K + k] += Σ_{t < items} Σ_{i < len} dy[t·dy_item + o·ldy + i] · base[t·base_item + row_offset[k] + i],
+// where dy is the output gradient laid out on the padded pitch (zeros at dropped positions).
+// Several items (batch items of a layer with few positions each) share one set of accumulators,
+// reduced once: per item the sums would be a few vector steps long. Reads nothing past
+// base[t·base_item + row_offset[k] + len - 1].
 void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
-                             int64_t K, int64_t len, float* dw);
+                             int64_t K, int64_t len, float* dw, int64_t items = 1, int64_t dy_item = 0,
+                             int64_t base_item = 0);
 
 }  // namespace sl::nn::detail

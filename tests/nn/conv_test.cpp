@@ -120,6 +120,10 @@ TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
       {{1, 9, 9, 11}, {20, 9, 3, 3}, {1, 2, 2}, {0, 1, 1}, {1, 1, 1}},
       {{4, 6, 7, 9}, {33, 6, 3, 3}, {1, 2, 2}, {0, 0, 1}, {1, 1, 1}},
       {{2, 3, 3, 4, 5}, {11, 3, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}, {1, 1, 1}},
+      // Strided, >= 96 positions but all items in one weight-gradient block (rows split over threads).
+      {{3, 5, 24, 20}, {12, 5, 3, 3}, {1, 2, 2}, {0, 1, 1}, {1, 1, 1}},
+      // Stride-1 items shorter than a weight-gradient chunk, summed on shared accumulators.
+      {{5, 6, 10, 12}, {9, 6, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
   };
 
   for (const Case& c : cases) {
@@ -143,8 +147,9 @@ TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
 }
 
 // Forward and all three gradients with 1 and with 2 threads, compared bit for bit, on every
-// kernel path: implicit GEMM (2-D, reordered 3-D), panels and reference (stride 2), and the
-// batch-folded GEMM (few positions per image).
+// kernel path: implicit GEMM (2-D, reordered 3-D; short items summed together in the weight
+// gradient), panels and reference (stride 2; one weight-gradient block split by rows), and the
+// batch-folded panels (few positions per image).
 TEST(Conv, ForwardBackwardBitwiseIdenticalWithOneAndTwoThreads) {
   struct Run { std::vector<double> y, gx, gw, gb; };
   auto run = [](int threads, const Shape& xs, int64_t stride) {
@@ -162,7 +167,8 @@ TEST(Conv, ForwardBackwardBitwiseIdenticalWithOneAndTwoThreads) {
     omp_set_num_threads(saved);
     return r;
   };
-  for (const Shape& xs : {Shape{3, 8, 40, 33}, Shape{2, 8, 34, 12, 4}, Shape{6, 8, 6, 7}})
+  for (const Shape& xs : {Shape{3, 8, 40, 33}, Shape{2, 8, 34, 12, 4}, Shape{6, 8, 6, 7}, Shape{5, 8, 24, 20},
+                          Shape{3, 8, 10, 12}})
     for (int64_t stride : {1, 2}) {
       const Run a = run(1, xs, stride), c = run(2, xs, stride);
       EXPECT_EQ(a.y, c.y) << shape_str(xs) << " stride " << stride;

@@ -113,10 +113,9 @@ constexpr int64_t kMinDirectPositions = 96;
 
 // Float on AVX-512: im2col writes each 48-column panel straight into the micro-kernel's
 // layout (one L1/L2-resident panel per thread), and the packed weights are shared by all tasks.
-void conv_forward_panels(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y) {
+void conv_forward_panels(const ConvGeometry& g, const float* x, const float* packed, const float* b, float* y) {
   const int64_t P = g.out_plane(), R = g.rows();
   const int64_t tile = 8 * detail::kPanelCols, tiles = (P + tile - 1) / tile;
-  const detail::PackedWeights packed = detail::pack_weights(w, g.O, R);
   const PhasedInput<float> phased = phase_input(g, x);
   const detail::PhasedRows& ph = phased.rows;
   parallel_for(g.N * tiles, detail::grain_for(g.O * R * tile), [&](int64_t t0, int64_t t1) {
@@ -132,7 +131,7 @@ void conv_forward_panels(const ConvGeometry& g, const float* x, const float* w, 
         } else {
           detail::im2col_tile(xn, g, q, cnt, panel.data(), detail::kPanelCols);
         }
-        detail::conv_gemm_panel(packed.data(), g.O, R, panel.data(), cnt, b, y + n * g.O * P + q, P);
+        detail::conv_gemm_panel(packed, g.O, R, panel.data(), cnt, b, y + n * g.O * P + q, P);
       }
     }
   });
@@ -145,10 +144,9 @@ void conv_forward_panels(const ConvGeometry& g, const float* x, const float* w, 
 // a few MB at most here), then tasks of (block of output rows, panel) run the micro-kernel: the
 // rows are split because there are only a few panels, and each task's weight rows stay in cache
 // across its panels. Each output element is the micro-kernel's fixed FMA sequence over R.
-void conv_forward_folded(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y) {
+void conv_forward_folded(const ConvGeometry& g, const float* x, const float* packed, const float* b, float* y) {
   constexpr int64_t kCols = detail::kPanelCols, kRows = detail::kBlockRows;
   const int64_t P = g.out_plane(), R = g.rows(), cols = g.N * P, panels = (cols + kCols - 1) / kCols;
-  const detail::PackedWeights packed = detail::pack_weights(w, g.O, R);
   const PhasedInput<float> phased = phase_input(g, x);
   const detail::PhasedRows& ph = phased.rows;
   std::vector<float> col(static_cast<size_t>(panels * R * kCols));
@@ -176,7 +174,7 @@ void conv_forward_folded(const ConvGeometry& g, const float* x, const float* w, 
       const int64_t part = t / panels, p = t % panels;
       const int64_t o0 = part * row_blocks / parts * kRows, o1 = std::min(g.O, (part + 1) * row_blocks / parts * kRows);
       const int64_t c0 = p * kCols, c1 = std::min(cols, c0 + kCols);
-      detail::conv_gemm_panel(packed.data() + o0 * R, o1 - o0, R, col.data() + p * R * kCols, c1 - c0,
+      detail::conv_gemm_panel(packed + o0 * R, o1 - o0, R, col.data() + p * R * kCols, c1 - c0,
                               b ? b + o0 : nullptr, tile.data(), kCols);
       for (int64_t c = c0; c < c1;) {
         const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
@@ -190,17 +188,24 @@ void conv_forward_folded(const ConvGeometry& g, const float* x, const float* w, 
 
 bool unit_stride(const ConvGeometry& g) { return g.stride[0] == 1 && g.stride[1] == 1 && g.stride[2] == 1; }
 
+// Whether a float convolution runs on the micro-kernel (AVX-512): all but pointwise layers with
+// few positions, which stay on Eigen's GEMM.
+bool uses_kernels(const ConvGeometry& g) {
+  return detail::conv_gemm_available() && (g.out_plane() >= kMinDirectPositions || !is_pointwise(g));
+}
+
+// The micro-kernel forward passes (uses_kernels(g)) on weights packed by pack_weights.
+void conv_forward_kernels(const ConvGeometry& g, const float* x, const float* packed, const float* b, float* y) {
+  if (g.out_plane() < kMinDirectPositions) return conv_forward_folded(g, x, packed, b, y);
+  if (unit_stride(g)) return detail::direct_forward(g, x, packed, b, y);
+  conv_forward_panels(g, x, packed, b, y);
+}
+
 // y[n] = W · im2col(x[n]) + b, one GEMM per (batch item, spatial tile).
 template <class T>
 void conv_forward(const ConvGeometry& g, const T* x, const T* w, const T* b, T* y) {
   if constexpr (std::is_same_v<T, float>) {
-    if (detail::conv_gemm_available()) {
-      if (g.out_plane() >= kMinDirectPositions) {
-        if (unit_stride(g)) return detail::direct_forward(g, x, w, b, y);
-        return conv_forward_panels(g, x, w, b, y);
-      }
-      if (!is_pointwise(g)) return conv_forward_folded(g, x, w, b, y);
-    }
+    if (uses_kernels(g)) return conv_forward_kernels(g, x, detail::pack_weights(w, g.O, g.rows()).data(), b, y);
   }
   const int64_t P = g.out_plane(), R = g.rows();
   const ColumnBlocks cb = column_blocks<T>(g);
@@ -371,10 +376,7 @@ std::vector<T> flipped_transposed(const ConvGeometry& g, const T* w) {
 // merged into dx at the end. One batch item per task keeps the scatter race-free; writes all of dx.
 void input_grad_panels(const ConvGeometry& g, const float* w, const float* dy, float* dx) {
   const int64_t P = g.out_plane(), R = g.rows();
-  std::vector<float> wt(static_cast<size_t>(R * g.O));  // Wᵀ: [R, O]
-  for (int64_t o = 0; o < g.O; ++o)
-    for (int64_t r = 0; r < R; ++r) wt[r * g.O + o] = w[o * R + r];
-  const detail::PackedWeights packed = detail::pack_weights(wt.data(), R, g.O);
+  const detail::PackedWeights packed = detail::pack_weights_transposed(w, g.O, R);  // Wᵀ: [R, O]
   const detail::PhasedRows ph = detail::phased_rows(g);
   const int64_t rows = g.C * g.in[0] * g.in[1];  // input rows per item
   std::vector<int64_t> in_place(static_cast<size_t>(g.O)), padded(static_cast<size_t>(g.O));
@@ -407,6 +409,10 @@ void conv_backward_input(const ConvGeometry& g, const T* w, const T* dy, T* dx) 
   const int64_t R = g.rows();
   if (input_grad_is_conv(g)) {
     const ConvGeometry t = input_grad_geometry(g);
+    if constexpr (std::is_same_v<T, float>) {
+      if (uses_kernels(t))
+        return conv_forward_kernels(t, dy, detail::pack_weights_flipped(w, g.O, g.C, g.taps()).data(), nullptr, dx);
+    }
     conv_forward<T>(t, dy, flipped_transposed(g, w).data(), nullptr, dx);
     return;
   }

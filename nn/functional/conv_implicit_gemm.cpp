@@ -177,10 +177,9 @@ Padded pad_input(const ConvGeometry& g, const Order& order, const float* x) {
 // copy), a block of up to 16 planes is computed first and then stored with the planes
 // contiguous, so y is written in whole cache lines rather than one float per line.
 void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp, const std::vector<int64_t>& taps,
-                    const float* w, const float* b, float* y) {
+                    const float* packed, const float* b, float* y) {
   const int64_t R = g.rows(), P = g.out_plane(), Hp = xp.ext[1], Wp = xp.ext[2];
   const Axes out = permute(g.out, order), ys = permute(out_strides(g), order);
-  const PackedWeights packed = pack_weights(w, g.O, R);
   const int64_t span = (out[1] - 1) * Wp + out[2];  // one output plane on the padded pitch
   const int64_t chunk = 8 * kPanelCols, chunks = (span + chunk - 1) / chunk;
   const int64_t tile_floats = (g.O + kBlockRows) * kPanelCols;
@@ -195,7 +194,7 @@ void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp,
       float* yz = y + n * g.O * P + z0 * ys[0];
       for (int64_t q0 = c0; q0 < std::min(span, c0 + chunk); q0 += kPanelCols) {
         for (int64_t j = 0; j < nz; ++j)
-          conv_gemm_window(packed.data(), g.O, R, xn + (z0 + j) * Hp * Wp + q0, taps.data(),
+          conv_gemm_window(packed, g.O, R, xn + (z0 + j) * Hp * Wp + q0, taps.data(),
                            tiles.data() + j * tile_floats);
         const int64_t q1 = std::min(span, q0 + kPanelCols);
         for (int64_t q = q0; q < q1;) {  // copy the runs with column < out[2] into y, adding the bias
@@ -223,19 +222,10 @@ void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp,
   });
 }
 
-// wt[c][o][flipped tap] = w[o][c][tap]
-std::vector<float> flipped_transposed(const ConvGeometry& g, const float* w) {
-  const int64_t taps = g.taps();
-  std::vector<float> wt(static_cast<size_t>(g.O * g.rows()));
-  for (int64_t o = 0; o < g.O; ++o)
-    for (int64_t c = 0; c < g.C; ++c)
-      for (int64_t k = 0; k < taps; ++k) wt[(c * g.O + o) * taps + (taps - 1 - k)] = w[(o * g.C + c) * taps + k];
-  return wt;
-}
-
 void input_grad_from(const ConvGeometry& g, const Order& order, const Padded& padded_dy, const float* w, float* dx) {
   const ConvGeometry t = input_grad_geometry(g);
-  forward_padded(t, order, padded_dy, tap_offsets(t, order, padded_dy), flipped_transposed(g, w).data(), nullptr, dx);
+  forward_padded(t, order, padded_dy, tap_offsets(t, order, padded_dy),
+                 pack_weights_flipped(w, g.O, g.C, g.taps()).data(), nullptr, dx);
 }
 
 // dw[o][tap] = Σ_n Σ_q dy[n][o][q] · x_padded[n][tap offset + q] over the output positions q on
@@ -316,10 +306,10 @@ bool direct_input_grad_supported(const ConvGeometry& g) {
   return true;
 }
 
-void direct_forward(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y) {
+void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y) {
   const Order order = storage_order(g);
   const Padded xp = pad_input(g, order, x);
-  forward_padded(g, order, xp, tap_offsets(g, order, xp), w, b, y);
+  forward_padded(g, order, xp, tap_offsets(g, order, xp), packed_w, b, y);
 }
 
 void direct_backward_input(const ConvGeometry& g, const float* w, const float* dy, float* dx) {

@@ -47,6 +47,38 @@ PackedWeights pack_weights(const float* a, int64_t M, int64_t K) {
   return packed;
 }
 
+PackedWeights pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t taps) {
+  const int64_t blocks = (C + kBlockRows - 1) / kBlockRows, K = O * taps;
+  PackedWeights packed{std::make_unique_for_overwrite<float[]>(static_cast<size_t>(blocks * K * kBlockRows))};
+  parallel_for(blocks, grain_for(K * kBlockRows), [&](int64_t b0, int64_t b1) {
+    for (int64_t blk = b0; blk < b1; ++blk) {
+      const int64_t c0 = blk * kBlockRows, rows = std::min(kBlockRows, C - c0);
+      float* dst = packed.buffer.get() + blk * K * kBlockRows;
+      for (int64_t o = 0; o < O; ++o) {  // the block's kernels of output channel o: rows × taps contiguous floats
+        const float* src = w + (o * C + c0) * taps;
+        float* d = dst + o * taps * kBlockRows;
+        for (int64_t t = 0; t < taps; ++t)
+          for (int64_t i = 0; i < kBlockRows; ++i) d[t * kBlockRows + i] = i < rows ? src[i * taps + taps - 1 - t] : 0.0f;
+      }
+    }
+  });
+  return packed;
+}
+
+PackedWeights pack_weights_transposed(const float* w, int64_t O, int64_t R) {
+  const int64_t blocks = (R + kBlockRows - 1) / kBlockRows;
+  PackedWeights packed{std::make_unique_for_overwrite<float[]>(static_cast<size_t>(blocks * O * kBlockRows))};
+  parallel_for(blocks, grain_for(O * kBlockRows), [&](int64_t b0, int64_t b1) {
+    for (int64_t blk = b0; blk < b1; ++blk) {
+      const int64_t r0 = blk * kBlockRows, rows = std::min(kBlockRows, R - r0);
+      float* dst = packed.buffer.get() + blk * O * kBlockRows;
+      for (int64_t o = 0; o < O; ++o)
+        for (int64_t i = 0; i < kBlockRows; ++i) dst[o * kBlockRows + i] = i < rows ? w[o * R + r0 + i] : 0.0f;
+    }
+  });
+  return packed;
+}
+
 #if defined(__AVX512F__)
 
 bool conv_gemm_available() { return true; }

@@ -30,6 +30,14 @@ struct PackedWeights {
 };
 PackedWeights pack_weights(const float* a, int64_t M, int64_t K);
 
+// pack_weights of the flipped, transposed kernel that turns a stride-1 convolution's input
+// gradient into a forward convolution: A[c][o·taps + t] = w[o][c][taps - 1 - t] for w [O, C, taps],
+// in one pass over w (no intermediate transposed copy).
+PackedWeights pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t taps);
+
+// pack_weights of Wᵀ for w [O, R] (a strided convolution's column gradient Wᵀ·dy): A[r][o] = w[o][r].
+PackedWeights pack_weights_transposed(const float* w, int64_t O, int64_t R);
+
 void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
                      const float* bias, float* c, int64_t ldc);
 

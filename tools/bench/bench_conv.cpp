@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <ctime>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -63,10 +64,13 @@ int run_conv_command(const std::vector<std::string>& args) {
   bool json = false, resnet_layers = false;
   std::string only;
   int repeat = 5;
+  bool cpu_time = false;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     if (a == "--only" && i + 1 < args.size()) {
       only = args[++i];
+    } else if (a == "--cpu-time") {
+      cpu_time = true;
     } else if (a == "--repeat" && i + 1 < args.size()) {
       repeat = std::max(1, std::atoi(args[++i].c_str()));
     } else if (a == "--json") {
@@ -77,21 +81,39 @@ int run_conv_command(const std::vector<std::string>& args) {
       std::printf("usage: streetlight-bench conv [--json] [--resnet18-layers]\n  forward and forward+backward GFLOP/s of "
                   "conv2d/conv3d on the PyTorch comparison shapes (OMP_NUM_THREADS threads)\n"
                   "  --resnet18-layers: the distinct convolutions of the `networks` ResNet-18 instead\n"
-                  "  --only NAME: just the case NAME (for profiling)\n  --repeat N: best of N runs (default 5)\n");
+                  "  --only NAME: just the case NAME (for profiling)\n  --repeat N: best of N runs (default 5)\n"
+                  "  --cpu-time: process CPU time instead of wall time (with OMP_NUM_THREADS=1, a figure\n"
+                  "    that other processes' load on the machine disturbs less)\n");
       return 0;
     } else {
       std::fprintf(stderr, "error: conv: unknown option '%s' (try --help)\n", a.c_str());
       return 2;
     }
   }
-  return run_conv_benchmarks(json, resnet_layers, only, repeat);
+  return run_conv_benchmarks(json, resnet_layers, only, repeat, cpu_time);
 }
 
 const Registrar reg("conv", "conv2d/conv3d forward and forward+backward GFLOP/s", &run_conv_command);
 
 }  // namespace
 
-int run_conv_benchmarks(bool json, bool resnet18_layers, const std::string& only, int repeat) {
+int run_conv_benchmarks(bool json, bool resnet18_layers, const std::string& only, int repeat, bool cpu_time) {
+  auto best_ms = [cpu_time](auto&& f, int runs) {
+    if (!cpu_time) return bench::best_ms(f, runs);
+    auto cpu_ms = [] {
+      timespec ts{};
+      clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+      return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+    };
+    f();
+    double best = 1e300;
+    for (int i = 0; i < runs; ++i) {
+      const double t0 = cpu_ms();
+      f();
+      best = std::min(best, cpu_ms() - t0);
+    }
+    return best;
+  };
   for (const ConvCase& c : resnet18_layers ? resnet18_layer_cases() : conv_cases()) {
     if (!only.empty() && only != c.name) continue;
     Tensor x = Tensor::normal(c.x, 0, 1, 1);

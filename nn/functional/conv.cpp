@@ -111,27 +111,34 @@ void gather_block(const ColumnBlocks::Block& blk, const T* src, int64_t rows, in
 // each 48-column panel and of each weight-gradient reduction idle; the batch-folded GEMM wins.
 constexpr int64_t kMinDirectPositions = 96;
 
-// Float on AVX-512: im2col writes each 48-column panel straight into the micro-kernel's
-// layout (one L1/L2-resident panel per thread), and the packed weights are shared by all tasks.
+// Float on AVX-512: im2col writes a run of 48-column panels of one item (as many as keep the
+// column block near 256 KiB) in one call, the micro-kernel then streams each panel as a window of
+// that block, and the packed weights are shared by all tasks. One im2col call per run rather than
+// per panel: with few rows (a 7×7 stem on 3 channels) im2col's per-row set-up cost otherwise
+// rivals the GEMM.
 void conv_forward_panels(const ConvGeometry& g, const float* x, const float* packed, const float* b, float* y) {
+  constexpr int64_t kCols = detail::kPanelCols;
   const int64_t P = g.out_plane(), R = g.rows();
-  const int64_t tile = 8 * detail::kPanelCols, tiles = (P + tile - 1) / tile;
+  const int64_t run = std::clamp<int64_t>((int64_t{1} << 16) / std::max<int64_t>(R, 1) / kCols, 1, 8) * kCols;
+  const int64_t tile = 8 * kCols, tiles = (P + tile - 1) / tile;
   const PhasedInput<float> phased = phase_input(g, x);
   const detail::PhasedRows& ph = phased.rows;
   parallel_for(g.N * tiles, detail::grain_for(g.O * R * tile), [&](int64_t t0, int64_t t1) {
-    std::vector<float> panel(static_cast<size_t>(R * detail::kPanelCols));
+    std::vector<float> col(static_cast<size_t>(R * run), 0.0f);  // columns past a short run: stale, never stored
     for (int64_t t = t0; t < t1; ++t) {
       const int64_t n = t / tiles, end = std::min(P, (t % tiles + 1) * tile);
       const float* xn = x + n * g.C * g.in_plane();
-      for (int64_t q = (t % tiles) * tile; q < end; q += detail::kPanelCols) {
-        const int64_t cnt = std::min(detail::kPanelCols, end - q);
+      for (int64_t q0 = (t % tiles) * tile; q0 < end; q0 += run) {
+        const int64_t len = std::min(run, end - q0);
         if (ph.stride > 1) {
-          detail::im2col_tile_phased(phased.data.data() + n * phased.rows_per_item * ph.row_pitch(), g, ph, q, cnt,
-                                     panel.data(), detail::kPanelCols);
+          detail::im2col_tile_phased(phased.data.data() + n * phased.rows_per_item * ph.row_pitch(), g, ph, q0, len,
+                                     col.data(), run);
         } else {
-          detail::im2col_tile(xn, g, q, cnt, panel.data(), detail::kPanelCols);
+          detail::im2col_tile(xn, g, q0, len, col.data(), run);
         }
-        detail::conv_gemm_panel(packed, g.O, R, panel.data(), cnt, b, y + n * g.O * P + q, P);
+        for (int64_t q = q0; q < q0 + len; q += kCols)
+          detail::conv_gemm_panel(packed, g.O, R, col.data() + (q - q0), std::min(kCols, q0 + len - q), b,
+                                  y + n * g.O * P + q, P, run);
       }
     }
   });
@@ -371,22 +378,31 @@ std::vector<T> flipped_transposed(const ConvGeometry& g, const T* w) {
 }
 
 // Float, strided, >= kMinDirectPositions positions: dcol = Wᵀ · dy one 48-column panel at a time
-// on the micro-kernel (dy rows are read in place as its B windows), then col2im of the panel into
-// a phased copy of the item's gradient (contiguous adds, see col2im_tile_phased), whose phases are
-// merged into dx at the end. One batch item per task keeps the scatter race-free; writes all of dx.
+// on the micro-kernel (dy rows are read in place as its B windows), then col2im of the panel, into
+// a phased copy of the item's gradient (contiguous adds, see col2im_tile_phased) whose phases are
+// merged into dx at the end when the kernel spans the stride. One batch item per task keeps the
+// scatter race-free; writes all of dx.
 void input_grad_panels(const ConvGeometry& g, const float* w, const float* dy, float* dx) {
   const int64_t P = g.out_plane(), R = g.rows();
   const detail::PackedWeights packed = detail::pack_weights_transposed(w, g.O, R);  // Wᵀ: [R, O]
   const detail::PhasedRows ph = detail::phased_rows(g);
   const int64_t rows = g.C * g.in[0] * g.in[1];  // input rows per item
+  // Phased when the kernel covers every phase of a row; otherwise (a strided 1×1) most of the
+  // phased copy would be zeros to clear and merge, and dx is scattered into directly.
+  const bool phased = ph.stride > 1 && g.k[2] >= ph.stride;
   std::vector<int64_t> in_place(static_cast<size_t>(g.O)), padded(static_cast<size_t>(g.O));
   for (int64_t k = 0; k < g.O; ++k) in_place[k] = k * P, padded[k] = k * detail::kPanelCols;
   parallel_for(g.N, detail::grain_for(R * P * g.O), [&](int64_t n0, int64_t n1) {
     std::vector<float> tile(static_cast<size_t>((R + detail::kBlockRows) * detail::kPanelCols));
     std::vector<float> last(static_cast<size_t>(g.O * detail::kPanelCols), 0.0f);
-    std::vector<float> dxp(static_cast<size_t>(rows * ph.row_pitch()));
+    std::vector<float> dxp(phased ? static_cast<size_t>(rows * ph.row_pitch()) : 0);
     for (int64_t n = n0; n < n1; ++n) {
-      std::fill(dxp.begin(), dxp.end(), 0.0f);
+      float* const dxn = dx + n * g.C * g.in_plane();
+      if (phased) {
+        std::fill(dxp.begin(), dxp.end(), 0.0f);
+      } else {
+        std::fill(dxn, dxn + g.C * g.in_plane(), 0.0f);
+      }
       for (int64_t q = 0; q < P; q += detail::kPanelCols) {
         const int64_t cnt = std::min(detail::kPanelCols, P - q);
         const float* base = dy + n * g.O * P + q;
@@ -397,9 +413,13 @@ void input_grad_panels(const ConvGeometry& g, const float* w, const float* dy, f
           offsets = padded.data();
         }
         detail::conv_gemm_window(packed.data(), R, g.O, base, offsets, tile.data());
-        detail::col2im_tile_phased(tile.data(), g, ph, q, cnt, dxp.data(), detail::kPanelCols);
+        if (phased) {
+          detail::col2im_tile_phased(tile.data(), g, ph, q, cnt, dxp.data(), detail::kPanelCols);
+        } else {
+          detail::col2im_tile(tile.data(), g, q, cnt, dxn, detail::kPanelCols);
+        }
       }
-      detail::merge_phases(dxp.data(), rows, g.in[2], ph, dx + n * g.C * g.in_plane());
+      if (phased) detail::merge_phases(dxp.data(), rows, g.in[2], ph, dxn);
     }
   });
 }

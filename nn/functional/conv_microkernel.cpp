@@ -138,9 +138,9 @@ inline void micro_kernel(const float* a, const float* b, Row row, int64_t K, int
 }  // namespace
 
 void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                     const float* bias, float* c, int64_t ldc) {
+                     const float* bias, float* c, int64_t ldc, int64_t ldb) {
   for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
-    micro_kernel(packed_a + m0 * K, b_panel, [](int64_t k) { return k * kPanelCols; }, K, n,
+    micro_kernel(packed_a + m0 * K, b_panel, [ldb](int64_t k) { return k * ldb; }, K, n,
                  std::min(kBlockRows, M - m0), bias ? bias + m0 : nullptr, c + m0 * ldc, ldc);
 }
 
@@ -229,12 +229,12 @@ void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const floa
 bool conv_gemm_available() { return false; }
 
 void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                     const float* bias, float* c, int64_t ldc) {
+                     const float* bias, float* c, int64_t ldc, int64_t ldb) {
   for (int64_t m = 0; m < M; ++m)
     for (int64_t j = 0; j < n; ++j) {
       float acc = 0.0f;
       for (int64_t k = 0; k < K; ++k)
-        acc += packed_a[((m / kBlockRows) * K + k) * kBlockRows + m % kBlockRows] * b_panel[k * kPanelCols + j];
+        acc += packed_a[((m / kBlockRows) * K + k) * kBlockRows + m % kBlockRows] * b_panel[k * ldb + j];
       c[m * ldc + j] = acc + (bias ? bias[m] : 0.0f);
     }
 }

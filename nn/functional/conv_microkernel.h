@@ -38,8 +38,9 @@ PackedWeights pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t
 // pack_weights of Wᵀ for w [O, R] (a strided convolution's column gradient Wᵀ·dy): A[r][o] = w[o][r].
 PackedWeights pack_weights_transposed(const float* w, int64_t O, int64_t R);
 
+// ldb: the row pitch of B (a window of a wider column block; 48 columns are read per row).
 void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                     const float* bias, float* c, int64_t ldc);
+                     const float* bias, float* c, int64_t ldc, int64_t ldb = kPanelCols);
 
 // Implicit GEMM for stride-1 convolutions: B[k][j] = base[row_offset[k] + j] for j < 48, i.e.
 // every row of B is a shifted window of a zero-padded input, so no column matrix is built.

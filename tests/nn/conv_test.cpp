@@ -122,6 +122,10 @@ TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
       {{2, 3, 3, 4, 5}, {11, 3, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}, {1, 1, 1}},
       // Strided, >= 96 positions but all items in one weight-gradient block (rows split over threads).
       {{3, 5, 24, 20}, {12, 5, 3, 3}, {1, 2, 2}, {0, 1, 1}, {1, 1, 1}},
+      // Strided 1×1 (a ResNet downsample): the input gradient scattered without a phased copy.
+      {{2, 5, 24, 22}, {7, 5, 1, 1}, {1, 2, 2}, {0, 0, 0}, {1, 1, 1}},
+      // A 7×7 stride-2 stem: im2col runs of several panels read as windows by the micro-kernel.
+      {{2, 3, 40, 52}, {10, 3, 7, 7}, {1, 2, 2}, {0, 3, 3}, {1, 1, 1}},
       // Stride-1 items shorter than a weight-gradient chunk, summed on shared accumulators.
       {{5, 6, 10, 12}, {9, 6, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
   };

@@ -147,50 +147,56 @@ void conv_forward_panels(const ConvGeometry& g, const float* x, const float* pac
 // Float on AVX-512, fewer than kMinDirectPositions positions per image (a ResNet's deep stages:
 // 4×8 positions, 512 channels, 4608 taps): the batch-folded GEMM on the micro-kernel. Columns are
 // the positions of all items in order (column n·P + p), cut into 48-column panels that may hold
-// the end of one item and the start of the next. All panels are built first (R·48 floats each,
-// a few MB at most here), then tasks of (block of output rows, panel) run the micro-kernel: the
-// rows are split because there are only a few panels, and each task's weight rows stay in cache
-// across its panels. Each output element is the micro-kernel's fixed FMA sequence over R.
+// the end of one item and the start of the next. The panels of a round are built first (R·48
+// floats each), then tasks of (block of output rows, panel) run the micro-kernel: the rows are
+// split because there are only a few panels, and each task's weight rows stay in cache across
+// its panels. Each output element is the micro-kernel's fixed FMA sequence over R.
 void conv_forward_folded(const ConvGeometry& g, const float* x, const float* packed, const float* b, float* y) {
   constexpr int64_t kCols = detail::kPanelCols, kRows = detail::kBlockRows;
   const int64_t P = g.out_plane(), R = g.rows(), cols = g.N * P, panels = (cols + kCols - 1) / kCols;
   const PhasedInput<float> phased = phase_input(g, x);
   const detail::PhasedRows& ph = phased.rows;
-  std::vector<float> col(static_cast<size_t>(panels * R * kCols));
-  parallel_for(panels, detail::grain_for(R * kCols), [&](int64_t p0, int64_t p1) {
-    for (int64_t p = p0; p < p1; ++p) {
-      float* panel = col.data() + p * R * kCols;
-      const int64_t c1 = std::min(cols, (p + 1) * kCols);
-      for (int64_t c = p * kCols; c < c1;) {  // one run of positions of item n per step
-        const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
-        if (ph.stride > 1) {
-          detail::im2col_tile_phased(phased.data.data() + n * phased.rows_per_item * ph.row_pitch(), g, ph, q, cnt,
-                                     panel + (c - p * kCols), kCols);
-        } else {
-          detail::im2col_tile(x + n * g.C * g.in_plane(), g, q, cnt, panel + (c - p * kCols), kCols);
-        }
-        c += cnt;
-      }
-    }
-  });
+  // Panels are built and consumed in rounds of at most 16 MiB of columns (large batches).
+  const int64_t per_round = std::clamp<int64_t>((int64_t{4} << 20) / (R * kCols), 1, panels);
+  std::vector<float> col(static_cast<size_t>(per_round * R * kCols));
   const int64_t row_blocks = (g.O + kRows - 1) / kRows;
-  const int64_t parts = std::min(row_blocks, (16 + panels - 1) / panels);  // >= 16 tasks: even over 2-4 threads
-  parallel_for(parts * panels, detail::grain_for(g.O * R * kCols / parts), [&](int64_t t0, int64_t t1) {
-    std::vector<float> tile(static_cast<size_t>(g.O * kCols));
-    for (int64_t t = t0; t < t1; ++t) {
-      const int64_t part = t / panels, p = t % panels;
-      const int64_t o0 = part * row_blocks / parts * kRows, o1 = std::min(g.O, (part + 1) * row_blocks / parts * kRows);
-      const int64_t c0 = p * kCols, c1 = std::min(cols, c0 + kCols);
-      detail::conv_gemm_panel(packed + o0 * R, o1 - o0, R, col.data() + p * R * kCols, c1 - c0,
-                              b ? b + o0 : nullptr, tile.data(), kCols);
-      for (int64_t c = c0; c < c1;) {
-        const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
-        for (int64_t o = o0; o < o1; ++o)
-          std::copy_n(tile.data() + (o - o0) * kCols + (c - c0), cnt, y + (n * g.O + o) * P + q);
-        c += cnt;
+  for (int64_t first = 0; first < panels; first += per_round) {
+    const int64_t count = std::min(per_round, panels - first);
+    parallel_for(count, detail::grain_for(R * kCols), [&](int64_t p0, int64_t p1) {
+      for (int64_t p = first + p0; p < first + p1; ++p) {
+        float* panel = col.data() + (p - first) * R * kCols;
+        const int64_t c1 = std::min(cols, (p + 1) * kCols);
+        for (int64_t c = p * kCols; c < c1;) {  // one run of positions of item n per step
+          const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
+          if (ph.stride > 1) {
+            detail::im2col_tile_phased(phased.data.data() + n * phased.rows_per_item * ph.row_pitch(), g, ph, q, cnt,
+                                       panel + (c - p * kCols), kCols);
+          } else {
+            detail::im2col_tile(x + n * g.C * g.in_plane(), g, q, cnt, panel + (c - p * kCols), kCols);
+          }
+          c += cnt;
+        }
       }
-    }
-  });
+    });
+    const int64_t parts = std::min(row_blocks, (16 + count - 1) / count);  // >= 16 tasks: even over 2-4 threads
+    parallel_for(parts * count, detail::grain_for(g.O * R * kCols / parts), [&](int64_t t0, int64_t t1) {
+      std::vector<float> tile(static_cast<size_t>(g.O * kCols));
+      for (int64_t t = t0; t < t1; ++t) {
+        const int64_t part = t / count, p = first + t % count;
+        const int64_t o0 = part * row_blocks / parts * kRows;
+        const int64_t o1 = std::min(g.O, (part + 1) * row_blocks / parts * kRows);
+        const int64_t c0 = p * kCols, c1 = std::min(cols, c0 + kCols);
+        detail::conv_gemm_panel(packed + o0 * R, o1 - o0, R, col.data() + (p - first) * R * kCols, c1 - c0,
+                                b ? b + o0 : nullptr, tile.data(), kCols);
+        for (int64_t c = c0; c < c1;) {
+          const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
+          for (int64_t o = o0; o < o1; ++o)
+            std::copy_n(tile.data() + (o - o0) * kCols + (c - c0), cnt, y + (n * g.O + o) * P + q);
+          c += cnt;
+        }
+      }
+    });
+  }
 }
 
 bool unit_stride(const ConvGeometry& g) { return g.stride[0] == 1 && g.stride[1] == 1 && g.stride[2] == 1; }

@@ -120,6 +120,8 @@ TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
       {{1, 9, 9, 11}, {20, 9, 3, 3}, {1, 2, 2}, {0, 1, 1}, {1, 1, 1}},
       {{4, 6, 7, 9}, {33, 6, 3, 3}, {1, 2, 2}, {0, 0, 1}, {1, 1, 1}},
       {{2, 3, 3, 4, 5}, {11, 3, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}, {1, 1, 1}},
+      // More columns than one 16 MiB round of folded panels (2304 taps × 1800 positions).
+      {{20, 256, 9, 10}, {8, 256, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
       // Strided, >= 96 positions but all items in one weight-gradient block (rows split over threads).
       {{3, 5, 24, 20}, {12, 5, 3, 3}, {1, 2, 2}, {0, 1, 1}, {1, 1, 1}},
       // Strided 1×1 (a ResNet downsample): the input gradient scattered without a phased copy.

@@ -260,9 +260,9 @@ void weight_grad(const ConvGeometry& g, const Order& order, const float* x, cons
   // keeps every dw element summed by one task in a fixed order.
   const int64_t memory_cap = std::max<int64_t>(1, (int64_t{16} << 20) / (g.O * R * 4));
   // Items shorter than a chunk (a ResNet's 8×16 stage: 142 positions on the padded pitch) are
-  // grouped, up to two chunks' worth, into one kernel call that sums them on the same
-  // accumulators: one reduction per group instead of one per item.
-  const int64_t items_per_call = chunks == 1 ? std::max<int64_t>(1, 2 * kChunk / len_total) : 1;
+  // grouped, up to a chunk's worth (their dy rows stay in L1 as one chunk's do), into one kernel
+  // call that sums them on the same accumulators: one reduction per group instead of one per item.
+  const int64_t items_per_call = chunks == 1 ? std::max<int64_t>(1, kChunk / len_total) : 1;
   const int64_t calls = (tasks + items_per_call - 1) / items_per_call;
   const int64_t groups = std::min({calls, int64_t{16}, memory_cap});  // 16: even split over 2-4 threads
   const int64_t row_blocks = (g.O + kBlockRows - 1) / kBlockRows;

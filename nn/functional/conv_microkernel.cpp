@@ -170,8 +170,11 @@ inline __m256 reduce8(__m512 v0, __m512 v1, __m512 v2, __m512 v3, __m512 v4, __m
 
 // dw[o][k] += Σ_i dy[o][i] · base[row_offset[k] + i]: 8 rows of dy against 3 windows of the padded
 // input, 16 positions per step, 24 vector accumulators reduced once at the end of the range.
-void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
-                             int64_t K, int64_t len, float* dw, int64_t items, int64_t dy_item, int64_t base_item) {
+// kItems: whether several items share the accumulators (a separate instance, so that the
+// single-item loop compiles exactly as it did without the item loop).
+template <bool kItems>
+void weight_grad_kernel(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
+                        int64_t K, int64_t len, float* dw, int64_t items, int64_t dy_item, int64_t base_item) {
   const int64_t full = len / 16 * 16;
   const __mmask16 tail = static_cast<__mmask16>((1u << (len - full)) - 1u);
   for (int64_t o0 = 0; o0 < M; o0 += kBlockRows) {
@@ -202,7 +205,7 @@ void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const floa
       unsigned all_lanes = 0xffffu;
       asm("" : "+r"(all_lanes));
       const __mmask16 all = static_cast<__mmask16>(all_lanes);
-      for (int64_t t = 0; t < items; ++t) {
+      for (int64_t t = 0; t < (kItems ? items : 1); ++t) {
         const float* d[kBlockRows];
         for (int64_t r = 0; r < kBlockRows; ++r) d[r] = d0[r] + t * dy_item;
         const float* x0 = base + t * base_item + row_offset[k0];
@@ -222,6 +225,12 @@ void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const floa
         for (int64_t j = 0; j < cols; ++j) dw[(o0 + r) * K + k0 + j] += sums[j][r];
     }
   }
+}
+
+void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
+                             int64_t K, int64_t len, float* dw, int64_t items, int64_t dy_item, int64_t base_item) {
+  if (items > 1) return weight_grad_kernel<true>(dy, ldy, M, base, row_offset, K, len, dw, items, dy_item, base_item);
+  weight_grad_kernel<false>(dy, ldy, M, base, row_offset, K, len, dw, 1, 0, 0);
 }
 
 #else

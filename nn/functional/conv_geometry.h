@@ -5,7 +5,8 @@
 // item, the column matrix col[r][p - p0] (row r = (c, kz, ky, kx), leading dim `ld`) that
 // turns the convolution into the GEMM  out[:, tile] = W[O, C·k] · col. Taps outside the input
 // read 0. col2im_tile is its adjoint (same leading dim): it ADDS col back into the
-// input-shaped gradient.
+// input-shaped gradient. The *_phased variants do the same on a copy whose rows are split into
+// their stride phases (split_phases / merge_phases), so that strided taps move contiguous runs.
 #pragma once
 #include <algorithm>
 #include <array>

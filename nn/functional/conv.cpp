@@ -81,18 +81,21 @@ PhasedInput<T> phase_input(const ConvGeometry& g, const T* x) {
 }
 
 // col[r][(n - n0)·cnt + i] for the items and positions of block b (leading dim blk.cols()).
+// Items in parallel when called outside a parallel region (a block holding all items).
 template <class T>
 void im2col_block(const ConvGeometry& g, const ColumnBlocks::Block& blk, const T* x, const PhasedInput<T>& ph,
                   T* col) {
-  for (int64_t n = blk.n0; n < blk.n1; ++n) {
-    T* dst = col + (n - blk.n0) * blk.cnt;
-    if (ph.data.empty()) {
-      detail::im2col_tile(x + n * g.C * g.in_plane(), g, blk.p0, blk.cnt, dst, blk.cols());
-    } else {
-      detail::im2col_tile_phased(ph.data.data() + n * ph.rows_per_item * ph.rows.row_pitch(), g, ph.rows, blk.p0,
-                                 blk.cnt, dst, blk.cols());
+  parallel_for(blk.n1 - blk.n0, detail::grain_for(g.rows() * blk.cnt), [&](int64_t i0, int64_t i1) {
+    for (int64_t n = blk.n0 + i0; n < blk.n0 + i1; ++n) {
+      T* dst = col + (n - blk.n0) * blk.cnt;
+      if (ph.data.empty()) {
+        detail::im2col_tile(x + n * g.C * g.in_plane(), g, blk.p0, blk.cnt, dst, blk.cols());
+      } else {
+        detail::im2col_tile_phased(ph.data.data() + n * ph.rows_per_item * ph.rows.row_pitch(), g, ph.rows, blk.p0,
+                                   blk.cnt, dst, blk.cols());
+      }
     }
-  }
+  });
 }
 
 // dst[o][(n - n0)·cnt + i] = src[n][o][p0 + i]: a [rows, cols] view of a per-item tensor.
@@ -108,45 +111,114 @@ void gather_block(const ColumnBlocks::Block& blk, const T* src, int64_t rows, in
 // each 48-column panel and of each weight-gradient reduction idle; the batch-folded GEMM wins.
 constexpr int64_t kMinDirectPositions = 96;
 
-// Float on AVX-512: im2col writes each 48-column panel straight into the micro-kernel's
-// layout (one L1/L2-resident panel per thread), and the packed weights are shared by all tasks.
-void conv_forward_panels(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y) {
+// Float on AVX-512: im2col writes a run of 48-column panels of one item (as many as keep the
+// column block near 256 KiB) in one call, the micro-kernel then streams each panel as a window of
+// that block, and the packed weights are shared by all tasks. One im2col call per run rather than
+// per panel: with few rows (a 7×7 stem on 3 channels) im2col's per-row set-up cost otherwise
+// rivals the GEMM.
+void conv_forward_panels(const ConvGeometry& g, const float* x, const float* packed, const float* b, float* y) {
+  constexpr int64_t kCols = detail::kPanelCols;
   const int64_t P = g.out_plane(), R = g.rows();
-  const int64_t tile = 8 * detail::kPanelCols, tiles = (P + tile - 1) / tile;
-  const std::vector<float> packed = detail::pack_weights(w, g.O, R);
+  const int64_t run = std::clamp<int64_t>((int64_t{1} << 16) / std::max<int64_t>(R, 1) / kCols, 1, 8) * kCols;
+  const int64_t tile = 8 * kCols, tiles = (P + tile - 1) / tile;
   const PhasedInput<float> phased = phase_input(g, x);
   const detail::PhasedRows& ph = phased.rows;
   parallel_for(g.N * tiles, detail::grain_for(g.O * R * tile), [&](int64_t t0, int64_t t1) {
-    std::vector<float> panel(static_cast<size_t>(R * detail::kPanelCols));
+    std::vector<float> col(static_cast<size_t>(R * run), 0.0f);  // columns past a short run: stale, never stored
     for (int64_t t = t0; t < t1; ++t) {
       const int64_t n = t / tiles, end = std::min(P, (t % tiles + 1) * tile);
       const float* xn = x + n * g.C * g.in_plane();
-      for (int64_t q = (t % tiles) * tile; q < end; q += detail::kPanelCols) {
-        const int64_t cnt = std::min(detail::kPanelCols, end - q);
+      for (int64_t q0 = (t % tiles) * tile; q0 < end; q0 += run) {
+        const int64_t len = std::min(run, end - q0);
         if (ph.stride > 1) {
-          detail::im2col_tile_phased(phased.data.data() + n * phased.rows_per_item * ph.row_pitch(), g, ph, q, cnt,
-                                     panel.data(), detail::kPanelCols);
+          detail::im2col_tile_phased(phased.data.data() + n * phased.rows_per_item * ph.row_pitch(), g, ph, q0, len,
+                                     col.data(), run);
         } else {
-          detail::im2col_tile(xn, g, q, cnt, panel.data(), detail::kPanelCols);
+          detail::im2col_tile(xn, g, q0, len, col.data(), run);
         }
-        detail::conv_gemm_panel(packed.data(), g.O, R, panel.data(), cnt, b, y + n * g.O * P + q, P);
+        for (int64_t q = q0; q < q0 + len; q += kCols)
+          detail::conv_gemm_panel(packed, g.O, R, col.data() + (q - q0), std::min(kCols, q0 + len - q), b,
+                                  y + n * g.O * P + q, P, run);
       }
     }
   });
 }
 
+// Float on AVX-512, fewer than kMinDirectPositions positions per image (a ResNet's deep stages:
+// 4×8 positions, 512 channels, 4608 taps): the batch-folded GEMM on the micro-kernel. Columns are
+// the positions of all items in order (column n·P + p), cut into 48-column panels that may hold
+// the end of one item and the start of the next. The panels of a round are built first (R·48
+// floats each), then tasks of (block of output rows, panel) run the micro-kernel: the rows are
+// split because there are only a few panels, and each task's weight rows stay in cache across
+// its panels. Each output element is the micro-kernel's fixed FMA sequence over R.
+void conv_forward_folded(const ConvGeometry& g, const float* x, const float* packed, const float* b, float* y) {
+  constexpr int64_t kCols = detail::kPanelCols, kRows = detail::kBlockRows;
+  const int64_t P = g.out_plane(), R = g.rows(), cols = g.N * P, panels = (cols + kCols - 1) / kCols;
+  const PhasedInput<float> phased = phase_input(g, x);
+  const detail::PhasedRows& ph = phased.rows;
+  // Panels are built and consumed in rounds of at most 16 MiB of columns (large batches).
+  const int64_t per_round = std::clamp<int64_t>((int64_t{4} << 20) / (R * kCols), 1, panels);
+  std::vector<float> col(static_cast<size_t>(per_round * R * kCols));
+  const int64_t row_blocks = (g.O + kRows - 1) / kRows;
+  for (int64_t first = 0; first < panels; first += per_round) {
+    const int64_t count = std::min(per_round, panels - first);
+    parallel_for(count, detail::grain_for(R * kCols), [&](int64_t p0, int64_t p1) {
+      for (int64_t p = first + p0; p < first + p1; ++p) {
+        float* panel = col.data() + (p - first) * R * kCols;
+        const int64_t c1 = std::min(cols, (p + 1) * kCols);
+        for (int64_t c = p * kCols; c < c1;) {  // one run of positions of item n per step
+          const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
+          if (ph.stride > 1) {
+            detail::im2col_tile_phased(phased.data.data() + n * phased.rows_per_item * ph.row_pitch(), g, ph, q, cnt,
+                                       panel + (c - p * kCols), kCols);
+          } else {
+            detail::im2col_tile(x + n * g.C * g.in_plane(), g, q, cnt, panel + (c - p * kCols), kCols);
+          }
+          c += cnt;
+        }
+      }
+    });
+    const int64_t parts = std::min(row_blocks, (16 + count - 1) / count);  // >= 16 tasks: even over 2-4 threads
+    parallel_for(parts * count, detail::grain_for(g.O * R * kCols / parts), [&](int64_t t0, int64_t t1) {
+      std::vector<float> tile(static_cast<size_t>(g.O * kCols));
+      for (int64_t t = t0; t < t1; ++t) {
+        const int64_t part = t / count, p = first + t % count;
+        const int64_t o0 = part * row_blocks / parts * kRows;
+        const int64_t o1 = std::min(g.O, (part + 1) * row_blocks / parts * kRows);
+        const int64_t c0 = p * kCols, c1 = std::min(cols, c0 + kCols);
+        detail::conv_gemm_panel(packed + o0 * R, o1 - o0, R, col.data() + (p - first) * R * kCols, c1 - c0,
+                                b ? b + o0 : nullptr, tile.data(), kCols);
+        for (int64_t c = c0; c < c1;) {
+          const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
+          for (int64_t o = o0; o < o1; ++o)
+            std::copy_n(tile.data() + (o - o0) * kCols + (c - c0), cnt, y + (n * g.O + o) * P + q);
+          c += cnt;
+        }
+      }
+    });
+  }
+}
+
 bool unit_stride(const ConvGeometry& g) { return g.stride[0] == 1 && g.stride[1] == 1 && g.stride[2] == 1; }
+
+// Whether a float convolution runs on the micro-kernel (AVX-512): all but pointwise layers with
+// few positions, which stay on Eigen's GEMM.
+bool uses_kernels(const ConvGeometry& g) {
+  return detail::conv_gemm_available() && (g.out_plane() >= kMinDirectPositions || !is_pointwise(g));
+}
+
+// The micro-kernel forward passes (uses_kernels(g)) on weights packed by pack_weights.
+void conv_forward_kernels(const ConvGeometry& g, const float* x, const float* packed, const float* b, float* y) {
+  if (g.out_plane() < kMinDirectPositions) return conv_forward_folded(g, x, packed, b, y);
+  if (unit_stride(g)) return detail::direct_forward(g, x, packed, b, y);
+  conv_forward_panels(g, x, packed, b, y);
+}
 
 // y[n] = W · im2col(x[n]) + b, one GEMM per (batch item, spatial tile).
 template <class T>
 void conv_forward(const ConvGeometry& g, const T* x, const T* w, const T* b, T* y) {
   if constexpr (std::is_same_v<T, float>) {
-    if (detail::conv_gemm_available()) {
-      if (g.out_plane() >= kMinDirectPositions) {
-        if (unit_stride(g)) return detail::direct_forward(g, x, w, b, y);
-        return conv_forward_panels(g, x, w, b, y);
-      }
-    }
+    if (uses_kernels(g)) return conv_forward_kernels(g, x, detail::pack_weights(w, g.O, g.rows()).data(), b, y);
   }
   const int64_t P = g.out_plane(), R = g.rows();
   const ColumnBlocks cb = column_blocks<T>(g);
@@ -203,7 +275,10 @@ void conv_backward_weight(const ConvGeometry& g, const T* x, const T* dy, T* dw)
   const int64_t tasks = cb.count;
   const int64_t memory_cap = std::max<int64_t>(1, (int64_t{16} << 20) / (per * static_cast<int64_t>(sizeof(T))));
   const int64_t groups = std::min({tasks, int64_t{8}, memory_cap});
-  std::vector<T> partial(static_cast<size_t>(groups * per), T(0));
+  // One group (deep layers: all items in one block) sums straight into dw, which its first task
+  // overwrites: no partial to zero and copy (megabytes here). The sums are the same.
+  std::vector<T> partial(groups > 1 ? static_cast<size_t>(groups * per) : 0, T(0));
+  T* const sums = groups > 1 ? partial.data() : dw;
   const bool pointwise = is_pointwise(g);
   const PhasedInput<T> phased = phase_input(g, x);
   const bool use_kernel = detail::conv_gemm_available() && P >= kMinDirectPositions;
@@ -230,17 +305,31 @@ void conv_backward_weight(const ConvGeometry& g, const T* x, const T* dy, T* dw)
           A = dyb.data();
           lda = cols;
         }
+        const bool first = groups == 1 && t == 0;
         if constexpr (std::is_same_v<T, float>) {
           if (use_kernel) {  // dy rows · col rows, the weight-gradient micro-kernel of conv_gemm.h
             row_offset.resize(static_cast<size_t>(R));
             for (int64_t k = 0; k < R; ++k) row_offset[k] = k * ldb;
-            detail::conv_weight_grad_window(A, lda, g.O, B, row_offset.data(), R, cols, partial.data() + grp * per);
+            if (first) std::fill(dw, dw + per, 0.0f);
+            // A single group (all items in one block) splits its 8-row blocks over the threads;
+            // each block's sums are the same whichever call computes them.
+            const int64_t row_blocks = (g.O + detail::kBlockRows - 1) / detail::kBlockRows;
+            const int64_t parts = groups == 1 ? std::min<int64_t>(row_blocks, 16) : 1;
+            parallel_for(parts, 1, [&](int64_t q0, int64_t q1) {
+              for (int64_t part = q0; part < q1; ++part) {
+                const int64_t o0 = part * row_blocks / parts * detail::kBlockRows;
+                const int64_t o1 = std::min(g.O, (part + 1) * row_blocks / parts * detail::kBlockRows);
+                detail::conv_weight_grad_window(A + o0 * lda, lda, o1 - o0, B, row_offset.data(), R, cols,
+                                                sums + grp * per + o0 * R);
+              }
+            });
             continue;
           }
         }
-        sl::detail::gemm<T>(false, true, g.O, R, cols, T(1), A, lda, B, ldb, T(1), partial.data() + grp * per, R);
+        sl::detail::gemm<T>(false, true, g.O, R, cols, T(1), A, lda, B, ldb, first ? T(0) : T(1), sums + grp * per, R);
       }
   });
+  if (groups == 1) return;
   for (int64_t i = 0; i < per; ++i) {
     T acc = 0;
     for (int64_t grp = 0; grp < groups; ++grp) acc += partial[grp * per + i];
@@ -280,32 +369,46 @@ bool input_grad_is_conv(const ConvGeometry& g) {
   return as_conv;
 }
 
-// wt[c][o][flipped tap] = w[o][c][tap]
+// wt[c][o][flipped tap] = w[o][c][tap], one input channel per task (deep layers have megabytes
+// of weights).
 template <class T>
 std::vector<T> flipped_transposed(const ConvGeometry& g, const T* w) {
   const int64_t taps = g.taps();
   std::vector<T> wt(static_cast<size_t>(g.O * g.rows()));
-  for (int64_t o = 0; o < g.O; ++o)
-    for (int64_t c = 0; c < g.C; ++c)
-      for (int64_t k = 0; k < taps; ++k) wt[(c * g.O + o) * taps + (taps - 1 - k)] = w[(o * g.C + c) * taps + k];
+  parallel_for(g.C, detail::grain_for(g.O * taps), [&](int64_t c0, int64_t c1) {
+    for (int64_t c = c0; c < c1; ++c)
+      for (int64_t o = 0; o < g.O; ++o)
+        for (int64_t k = 0; k < taps; ++k) wt[(c * g.O + o) * taps + (taps - 1 - k)] = w[(o * g.C + c) * taps + k];
+  });
   return wt;
 }
 
 // Float, strided, >= kMinDirectPositions positions: dcol = Wᵀ · dy one 48-column panel at a time
-// on the micro-kernel (dy rows are read in place as its B windows), then col2im of the panel.
-// One batch item per task keeps the scatter race-free; dx must be zeroed by the caller.
+// on the micro-kernel (dy rows are read in place as its B windows), then col2im of the panel, into
+// a phased copy of the item's gradient (contiguous adds, see col2im_tile_phased) whose phases are
+// merged into dx at the end when the kernel spans the stride. One batch item per task keeps the
+// scatter race-free; writes all of dx.
 void input_grad_panels(const ConvGeometry& g, const float* w, const float* dy, float* dx) {
   const int64_t P = g.out_plane(), R = g.rows();
-  std::vector<float> wt(static_cast<size_t>(R * g.O));  // Wᵀ: [R, O]
-  for (int64_t o = 0; o < g.O; ++o)
-    for (int64_t r = 0; r < R; ++r) wt[r * g.O + o] = w[o * R + r];
-  const std::vector<float> packed = detail::pack_weights(wt.data(), R, g.O);
+  const detail::PackedWeights packed = detail::pack_weights_transposed(w, g.O, R);  // Wᵀ: [R, O]
+  const detail::PhasedRows ph = detail::phased_rows(g);
+  const int64_t rows = g.C * g.in[0] * g.in[1];  // input rows per item
+  // Phased when the kernel covers every phase of a row; otherwise (a strided 1×1) most of the
+  // phased copy would be zeros to clear and merge, and dx is scattered into directly.
+  const bool phased = ph.stride > 1 && g.k[2] >= ph.stride;
   std::vector<int64_t> in_place(static_cast<size_t>(g.O)), padded(static_cast<size_t>(g.O));
   for (int64_t k = 0; k < g.O; ++k) in_place[k] = k * P, padded[k] = k * detail::kPanelCols;
   parallel_for(g.N, detail::grain_for(R * P * g.O), [&](int64_t n0, int64_t n1) {
     std::vector<float> tile(static_cast<size_t>((R + detail::kBlockRows) * detail::kPanelCols));
     std::vector<float> last(static_cast<size_t>(g.O * detail::kPanelCols), 0.0f);
-    for (int64_t n = n0; n < n1; ++n)
+    std::vector<float> dxp(phased ? static_cast<size_t>(rows * ph.row_pitch()) : 0);
+    for (int64_t n = n0; n < n1; ++n) {
+      float* const dxn = dx + n * g.C * g.in_plane();
+      if (phased) {
+        std::fill(dxp.begin(), dxp.end(), 0.0f);
+      } else {
+        std::fill(dxn, dxn + g.C * g.in_plane(), 0.0f);
+      }
       for (int64_t q = 0; q < P; q += detail::kPanelCols) {
         const int64_t cnt = std::min(detail::kPanelCols, P - q);
         const float* base = dy + n * g.O * P + q;
@@ -316,8 +419,14 @@ void input_grad_panels(const ConvGeometry& g, const float* w, const float* dy, f
           offsets = padded.data();
         }
         detail::conv_gemm_window(packed.data(), R, g.O, base, offsets, tile.data());
-        detail::col2im_tile(tile.data(), g, q, cnt, dx + n * g.C * g.in_plane(), detail::kPanelCols);
+        if (phased) {
+          detail::col2im_tile_phased(tile.data(), g, ph, q, cnt, dxp.data(), detail::kPanelCols);
+        } else {
+          detail::col2im_tile(tile.data(), g, q, cnt, dxn, detail::kPanelCols);
+        }
       }
+      if (phased) detail::merge_phases(dxp.data(), rows, g.in[2], ph, dxn);
+    }
   });
 }
 
@@ -326,19 +435,23 @@ void conv_backward_input(const ConvGeometry& g, const T* w, const T* dy, T* dx) 
   const int64_t R = g.rows();
   if (input_grad_is_conv(g)) {
     const ConvGeometry t = input_grad_geometry(g);
+    if constexpr (std::is_same_v<T, float>) {
+      if (uses_kernels(t))
+        return conv_forward_kernels(t, dy, detail::pack_weights_flipped(w, g.O, g.C, g.taps()).data(), nullptr, dx);
+    }
     conv_forward<T>(t, dy, flipped_transposed(g, w).data(), nullptr, dx);
     return;
   }
   // Column gradients are scattered by col2im, so all blocks of one batch item go to one task.
   const int64_t P = g.out_plane();
   const ColumnBlocks cb = column_blocks<T>(g);
-  std::fill(dx, dx + g.N * g.C * g.in_plane(), T(0));
-  const int64_t owners = cb.items_per_block == 1 ? g.N : cb.count;
-  const int64_t per_owner = cb.items_per_block == 1 ? cb.tiles_per_item : 1;
   if constexpr (std::is_same_v<T, float>) {
     if (detail::conv_gemm_available() && P >= kMinDirectPositions)
       return input_grad_panels(g, w, dy, dx);  // every block holds a single item here
   }
+  std::fill(dx, dx + g.N * g.C * g.in_plane(), T(0));
+  const int64_t owners = cb.items_per_block == 1 ? g.N : cb.count;
+  const int64_t per_owner = cb.items_per_block == 1 ? cb.tiles_per_item : 1;
   parallel_for(owners, detail::grain_for(R * P * g.O * cb.items_per_block), [&](int64_t w0, int64_t w1) {
     std::vector<T> col, dyb;
     for (int64_t owner = w0; owner < w1; ++owner)
@@ -355,9 +468,18 @@ void conv_backward_input(const ConvGeometry& g, const T* w, const T* dy, T* dx) 
         }
         col.resize(static_cast<size_t>(R * cols));
         sl::detail::gemm<T>(true, false, R, cols, g.O, T(1), w, R, A, lda, T(0), col.data(), cols);
-        for (int64_t n = blk.n0; n < blk.n1; ++n)
-          detail::col2im_tile(col.data() + (n - blk.n0) * blk.cnt, g, blk.p0, blk.cnt, dx + n * g.C * g.in_plane(),
-                              cols);
+        // One (item, channel) plane per call: each dx element still gets its additions in tap
+        // order. When all items share one block (deep layers) this runs on all threads.
+        ConvGeometry one = g;
+        one.C = 1;
+        const int64_t taps = g.taps();
+        parallel_for((blk.n1 - blk.n0) * g.C, detail::grain_for(taps * blk.cnt), [&](int64_t i0, int64_t i1) {
+          for (int64_t i = i0; i < i1; ++i) {
+            const int64_t n = blk.n0 + i / g.C, c = i % g.C;
+            detail::col2im_tile(col.data() + c * taps * cols + (n - blk.n0) * blk.cnt, one, blk.p0, blk.cnt,
+                                dx + (n * g.C + c) * g.in_plane(), cols);
+          }
+        });
       }
   });
 }

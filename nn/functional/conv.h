@@ -14,7 +14,10 @@
 // the input (nn/functional/conv_implicit_gemm.h), strided ones as im2col panels into the same register-blocked
 // micro-kernel (nn/functional/conv_microkernel.h); the input gradient of a stride-1 convolution is the forward
 // convolution of dy with the flipped, transposed kernel. Layers with few positions per image
-// fold the batch into one im2col GEMM on autodiff's Eigen GEMM, which is also the float64 path.
+// (under 96) fold the batch into 48-column panels that span items, on the same micro-kernel for
+// the forward pass and the stride-1 input gradient; their weight gradient and strided input
+// gradient fold the batch into one im2col GEMM on autodiff's Eigen GEMM, which is also the
+// float64 path.
 #pragma once
 #include <array>
 #include <cstdint>

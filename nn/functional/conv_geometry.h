@@ -5,7 +5,8 @@
 // item, the column matrix col[r][p - p0] (row r = (c, kz, ky, kx), leading dim `ld`) that
 // turns the convolution into the GEMM  out[:, tile] = W[O, C·k] · col. Taps outside the input
 // read 0. col2im_tile is its adjoint (same leading dim): it ADDS col back into the
-// input-shaped gradient.
+// input-shaped gradient. The *_phased variants do the same on a copy whose rows are split into
+// their stride phases (split_phases / merge_phases), so that strided taps move contiguous runs.
 #pragma once
 #include <algorithm>
 #include <array>
@@ -78,6 +79,23 @@ inline void copy_run(const T* src, T* dst, int64_t n) {
   }
 #endif
   std::copy(src, src + n, dst);
+}
+
+// dst[i] += src[i] for a short run, as copy_run.
+template <class T>
+inline void add_run(const T* src, T* dst, int64_t n) {
+#if defined(__AVX512F__)
+  if constexpr (std::is_same_v<T, float>) {
+    int64_t i = 0;
+    for (; i + 16 <= n; i += 16) _mm512_storeu_ps(dst + i, _mm512_add_ps(_mm512_loadu_ps(dst + i), _mm512_loadu_ps(src + i)));
+    if (i < n) {
+      const __mmask16 m = static_cast<__mmask16>((1u << (n - i)) - 1u);
+      _mm512_mask_storeu_ps(dst + i, m, _mm512_add_ps(_mm512_maskz_loadu_ps(m, dst + i), _mm512_maskz_loadu_ps(m, src + i)));
+    }
+    return;
+  }
+#endif
+  for (int64_t i = 0; i < n; ++i) dst[i] += src[i];
 }
 
 template <class T>
@@ -167,6 +185,44 @@ void im2col_tile_phased(const T* xp, const ConvGeometry& g, const PhasedRows& ph
             std::fill(o, o + lo, T(0));
             copy_run(src + lo, o + lo, hi - lo);
             std::fill(o + hi, o + len, T(0));
+          });
+        }
+}
+
+// split_phases' inverse: x[r][ix] = phased[r][(ix mod s)·phase_len + ix / s] for rows r < rows.
+template <class T>
+void merge_phases(const T* phased, int64_t rows, int64_t W, const PhasedRows& ph, T* x) {
+  for (int64_t r = 0; r < rows; ++r) {
+    const T* src = phased + r * ph.row_pitch();
+    T* dst = x + r * W;
+    for (int64_t p = 0; p < ph.stride; ++p)
+      for (int64_t j = 0; j < ph.phase_len && ph.stride * j + p < W; ++j) dst[ph.stride * j + p] = src[p * ph.phase_len + j];
+  }
+}
+
+// col2im_tile into a phased gradient (dxp: one batch item, C·D·H phased rows, see
+// split_phases): each tap of an output-row segment adds one contiguous run instead of every s-th
+// element. Every element receives the same additions in the same order as with col2im_tile.
+template <class T>
+void col2im_tile_phased(const T* col, const ConvGeometry& g, const PhasedRows& ph, int64_t p0, int64_t count, T* dxp,
+                        int64_t ld) {
+  const int64_t D = g.in[0], H = g.in[1], W = g.in[2], s = ph.stride;
+  int64_t r = 0;
+  for (int64_t c = 0; c < g.C; ++c)
+    for (int64_t kz = 0; kz < g.k[0]; ++kz)
+      for (int64_t ky = 0; ky < g.k[1]; ++ky)
+        for (int64_t kx = 0; kx < g.k[2]; ++kx, ++r) {
+          const T* src = col + r * ld;
+          for_each_row_segment(g, p0, count, [&](int64_t off, int64_t z, int64_t y, int64_t x0, int64_t len) {
+            const int64_t iz = z * g.stride[0] - g.pad[0] + kz * g.dil[0];
+            const int64_t iy = y * g.stride[1] - g.pad[1] + ky * g.dil[1];
+            if (iz < 0 || iz >= D || iy < 0 || iy >= H) return;
+            const int64_t ix0 = x0 * s - g.pad[2] + kx * g.dil[2];
+            int64_t lo, hi;
+            valid_range(ix0, s, W, len, lo, hi);
+            const int64_t phase = ((ix0 % s) + s) % s, j0 = (ix0 - phase) / s;
+            T* dst = dxp + ((c * D + iz) * H + iy) * ph.row_pitch() + phase * ph.phase_len + j0;
+            add_run(src + off + lo, dst + lo, hi - lo);
           });
         }
 }

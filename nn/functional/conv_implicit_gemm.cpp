@@ -11,6 +11,7 @@
 #endif
 
 #include "nn/functional/conv_microkernel.h"
+#include "nn/functional/transpose16.h"
 #include "nn/functional/work_grain.h"
 #include "util/error.h"
 #include "util/parallel.h"
@@ -73,31 +74,6 @@ struct Padded {
 };
 
 #if defined(__AVX512F__)
-// In-register transpose of a 16 × 16 block: r[a][b] -> r[b][a].
-inline void transpose16(__m512 r[16]) {
-  __m512 t[16], u[16];
-  for (int k = 0; k < 8; ++k) {
-    t[2 * k] = _mm512_unpacklo_ps(r[2 * k], r[2 * k + 1]);
-    t[2 * k + 1] = _mm512_unpackhi_ps(r[2 * k], r[2 * k + 1]);
-  }
-  for (int k = 0; k < 4; ++k) {  // u[4k + e], 128-bit lane L: rows 4k..4k+3 at column 4L + e
-    u[4 * k] = _mm512_shuffle_ps(t[4 * k], t[4 * k + 2], _MM_SHUFFLE(1, 0, 1, 0));
-    u[4 * k + 1] = _mm512_shuffle_ps(t[4 * k], t[4 * k + 2], _MM_SHUFFLE(3, 2, 3, 2));
-    u[4 * k + 2] = _mm512_shuffle_ps(t[4 * k + 1], t[4 * k + 3], _MM_SHUFFLE(1, 0, 1, 0));
-    u[4 * k + 3] = _mm512_shuffle_ps(t[4 * k + 1], t[4 * k + 3], _MM_SHUFFLE(3, 2, 3, 2));
-  }
-  for (int e = 0; e < 4; ++e) {
-    const __m512 v0 = _mm512_shuffle_f32x4(u[e], u[4 + e], _MM_SHUFFLE(2, 0, 2, 0));
-    const __m512 v1 = _mm512_shuffle_f32x4(u[e], u[4 + e], _MM_SHUFFLE(3, 1, 3, 1));
-    const __m512 v2 = _mm512_shuffle_f32x4(u[8 + e], u[12 + e], _MM_SHUFFLE(2, 0, 2, 0));
-    const __m512 v3 = _mm512_shuffle_f32x4(u[8 + e], u[12 + e], _MM_SHUFFLE(3, 1, 3, 1));
-    r[e] = _mm512_shuffle_f32x4(v0, v2, _MM_SHUFFLE(2, 0, 2, 0));
-    r[8 + e] = _mm512_shuffle_f32x4(v0, v2, _MM_SHUFFLE(3, 1, 3, 1));
-    r[4 + e] = _mm512_shuffle_f32x4(v1, v3, _MM_SHUFFLE(2, 0, 2, 0));
-    r[12 + e] = _mm512_shuffle_f32x4(v1, v3, _MM_SHUFFLE(3, 1, 3, 1));
-  }
-}
-
 // dst[j·dst_step + i] = src[i·src_step + j] for i < ni, j < nj, in 16 × 16 register blocks: the
 // reordered copy of a volume whose original innermost axis is stored outermost. Element-wise, it
 // is one store per element to a different row and was 10% of a 3-D convolution's time.
@@ -201,10 +177,9 @@ Padded pad_input(const ConvGeometry& g, const Order& order, const float* x) {
 // copy), a block of up to 16 planes is computed first and then stored with the planes
 // contiguous, so y is written in whole cache lines rather than one float per line.
 void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp, const std::vector<int64_t>& taps,
-                    const float* w, const float* b, float* y) {
+                    const float* packed, const float* b, float* y) {
   const int64_t R = g.rows(), P = g.out_plane(), Hp = xp.ext[1], Wp = xp.ext[2];
   const Axes out = permute(g.out, order), ys = permute(out_strides(g), order);
-  const std::vector<float> packed = pack_weights(w, g.O, R);
   const int64_t span = (out[1] - 1) * Wp + out[2];  // one output plane on the padded pitch
   const int64_t chunk = 8 * kPanelCols, chunks = (span + chunk - 1) / chunk;
   const int64_t tile_floats = (g.O + kBlockRows) * kPanelCols;
@@ -219,7 +194,7 @@ void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp,
       float* yz = y + n * g.O * P + z0 * ys[0];
       for (int64_t q0 = c0; q0 < std::min(span, c0 + chunk); q0 += kPanelCols) {
         for (int64_t j = 0; j < nz; ++j)
-          conv_gemm_window(packed.data(), g.O, R, xn + (z0 + j) * Hp * Wp + q0, taps.data(),
+          conv_gemm_window(packed, g.O, R, xn + (z0 + j) * Hp * Wp + q0, taps.data(),
                            tiles.data() + j * tile_floats);
         const int64_t q1 = std::min(span, q0 + kPanelCols);
         for (int64_t q = q0; q < q1;) {  // copy the runs with column < out[2] into y, adding the bias
@@ -247,19 +222,10 @@ void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp,
   });
 }
 
-// wt[c][o][flipped tap] = w[o][c][tap]
-std::vector<float> flipped_transposed(const ConvGeometry& g, const float* w) {
-  const int64_t taps = g.taps();
-  std::vector<float> wt(static_cast<size_t>(g.O * g.rows()));
-  for (int64_t o = 0; o < g.O; ++o)
-    for (int64_t c = 0; c < g.C; ++c)
-      for (int64_t k = 0; k < taps; ++k) wt[(c * g.O + o) * taps + (taps - 1 - k)] = w[(o * g.C + c) * taps + k];
-  return wt;
-}
-
 void input_grad_from(const ConvGeometry& g, const Order& order, const Padded& padded_dy, const float* w, float* dx) {
   const ConvGeometry t = input_grad_geometry(g);
-  forward_padded(t, order, padded_dy, tap_offsets(t, order, padded_dy), flipped_transposed(g, w).data(), nullptr, dx);
+  forward_padded(t, order, padded_dy, tap_offsets(t, order, padded_dy),
+                 pack_weights_flipped(w, g.O, g.C, g.taps()).data(), nullptr, dx);
 }
 
 // dw[o][tap] = Σ_n Σ_q dy[n][o][q] · x_padded[n][tap offset + q] over the output positions q on
@@ -293,23 +259,33 @@ void weight_grad(const ConvGeometry& g, const Order& order, const float* x, cons
   // comes from splitting the output channels (8-row blocks) of each group across tasks, which
   // keeps every dw element summed by one task in a fixed order.
   const int64_t memory_cap = std::max<int64_t>(1, (int64_t{16} << 20) / (g.O * R * 4));
-  const int64_t groups = std::min({tasks, int64_t{16}, memory_cap});  // 16: even split over 2-4 threads
+  // Items shorter than a chunk (a ResNet's 8×16 stage: 142 positions on the padded pitch) are
+  // grouped, up to a chunk's worth (their dy rows stay in L1 as one chunk's do), into one kernel
+  // call that sums them on the same accumulators: one reduction per group instead of one per item.
+  const int64_t items_per_call = chunks == 1 ? std::max<int64_t>(1, kChunk / len_total) : 1;
+  const int64_t calls = (tasks + items_per_call - 1) / items_per_call;
+  const int64_t groups = std::min({calls, int64_t{16}, memory_cap});  // 16: even split over 2-4 threads
   const int64_t row_blocks = (g.O + kBlockRows - 1) / kBlockRows;
   const int64_t parts = groups >= 8 ? 1 : std::min(row_blocks, (16 + groups - 1) / groups);
-  std::vector<float> partial(static_cast<size_t>(groups * g.O * R), 0.0f);
+  // One group sums straight into dw (zeroed first): no partials to zero and add.
+  std::vector<float> partial(groups > 1 ? static_cast<size_t>(groups * g.O * R) : 0, 0.0f);
+  float* const sums = groups > 1 ? partial.data() : dw;
+  if (groups == 1) std::fill(dw, dw + g.O * R, 0.0f);
   parallel_for(groups * parts, grain_for(g.O * R * len_total * g.N / (groups * parts)), [&](int64_t t0, int64_t t1) {
     for (int64_t task = t0; task < t1; ++task) {
       const int64_t grp = task / parts, part = task % parts;
       const int64_t o0 = part * row_blocks / parts * kBlockRows;
       const int64_t o1 = std::min(g.O, (part + 1) * row_blocks / parts * kBlockRows);
-      for (int64_t t = grp * tasks / groups; t < (grp + 1) * tasks / groups; ++t) {
+      for (int64_t call = grp * calls / groups; call < (grp + 1) * calls / groups; ++call) {
+        const int64_t t = call * items_per_call, items = std::min(items_per_call, tasks - t);
         const int64_t n = t / chunks, i0 = (t % chunks) * kChunk, len = std::min(kChunk, len_total - i0);
         conv_weight_grad_window(dy_base + (n * g.O + o0) * dy_pitch + i0, dy_pitch, o1 - o0,
                                 xp.data.get() + n * g.C * xp.volume + i0, taps.data(), R, len,
-                                partial.data() + (grp * g.O + o0) * R);
+                                sums + (grp * g.O + o0) * R, items, g.O * dy_pitch, g.C * xp.volume);
       }
     }
   });
+  if (groups == 1) return;
   for (int64_t i = 0; i < g.O * R; ++i) {
     float acc = 0;
     for (int64_t grp = 0; grp < groups; ++grp) acc += partial[grp * g.O * R + i];
@@ -330,10 +306,10 @@ bool direct_input_grad_supported(const ConvGeometry& g) {
   return true;
 }
 
-void direct_forward(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y) {
+void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y) {
   const Order order = storage_order(g);
   const Padded xp = pad_input(g, order, x);
-  forward_padded(g, order, xp, tap_offsets(g, order, xp), w, b, y);
+  forward_padded(g, order, xp, tap_offsets(g, order, xp), packed_w, b, y);
 }
 
 void direct_backward_input(const ConvGeometry& g, const float* w, const float* dy, float* dx) {

@@ -2,7 +2,7 @@
 //
 // Contract: for a float ConvGeometry with stride 1 on every axis (any padding, dilation and
 // kernel), these compute exactly what conv.cpp's reference path computes, up to float rounding:
-//   forward:        y = conv(x, w) + b                     (b may be null)
+//   forward:        y = conv(x, w) + b                     (b may be null; w packed by the caller)
 //   backward_input: dx = conv(dy, flipped wᵀ)              (needs dilation·(k - 1) >= pad)
 //   backward_weight: dw = Σ dy ⊗ windows of x
 //   backward_fused:  dx and dw of a "same" convolution (dilation·(k - 1) = 2·pad), sharing one
@@ -22,7 +22,8 @@ namespace sl::nn::detail {
 
 bool direct_input_grad_supported(const ConvGeometry& g);
 
-void direct_forward(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y);
+// packed_w: the weights [O, C·taps] packed by pack_weights (conv_microkernel.h).
+void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y);
 void direct_backward_input(const ConvGeometry& g, const float* w, const float* dy, float* dx);
 void direct_backward_weight(const ConvGeometry& g, const float* x, const float* dy, float* dw);
 bool direct_backward_fused(const ConvGeometry& g, const float* x, const float* w, const float* dy, float* dx,

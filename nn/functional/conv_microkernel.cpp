@@ -6,14 +6,76 @@
 #include <immintrin.h>
 #endif
 
+#include "nn/functional/transpose16.h"
+#include "nn/functional/work_grain.h"
+#include "util/parallel.h"
+
 namespace sl::nn::detail {
 
-std::vector<float> pack_weights(const float* a, int64_t M, int64_t K) {
+PackedWeights pack_weights(const float* a, int64_t M, int64_t K) {
   const int64_t blocks = (M + kBlockRows - 1) / kBlockRows;
-  std::vector<float> packed(static_cast<size_t>(blocks * K * kBlockRows), 0.0f);
-  for (int64_t m = 0; m < M; ++m)
-    for (int64_t k = 0; k < K; ++k)
-      packed[((m / kBlockRows) * K + k) * kBlockRows + m % kBlockRows] = a[m * K + k];
+  PackedWeights packed{std::make_unique_for_overwrite<float[]>(static_cast<size_t>(blocks * K * kBlockRows))};
+  parallel_for(blocks, grain_for(K * kBlockRows), [&](int64_t b0, int64_t b1) {
+    for (int64_t blk = b0; blk < b1; ++blk) {
+      float* dst = packed.buffer.get() + blk * K * kBlockRows;
+      const float* src = a + blk * kBlockRows * K;
+      const int64_t rows = std::min(kBlockRows, M - blk * kBlockRows);
+      int64_t k0 = 0;
+#if defined(__AVX512F__)
+      static_assert(kBlockRows == 8);
+      // 8 rows × 32 columns per step: r[i] holds columns k0..k0+15 of row i, r[8 + i] columns
+      // k0+16..k0+31; after the transpose r[j] = {rows 0-7 at column k0 + j, rows 0-7 at k0 + 16 + j}.
+      if (rows == kBlockRows)
+        for (; k0 + 32 <= K; k0 += 32) {
+          __m512 r[16];
+          for (int i = 0; i < 8; ++i) {
+            r[i] = _mm512_loadu_ps(src + i * K + k0);
+            r[8 + i] = _mm512_loadu_ps(src + i * K + k0 + 16);
+          }
+          transpose16(r);
+          for (int j = 0; j < 16; ++j) {
+            _mm256_storeu_ps(dst + (k0 + j) * kBlockRows, _mm512_castps512_ps256(r[j]));
+            _mm256_storeu_ps(dst + (k0 + 16 + j) * kBlockRows,
+                             _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(r[j]), 1)));
+          }
+        }
+#endif
+      for (int64_t k = k0; k < K; ++k)
+        for (int64_t i = 0; i < kBlockRows; ++i) dst[k * kBlockRows + i] = i < rows ? src[i * K + k] : 0.0f;
+    }
+  });
+  return packed;
+}
+
+PackedWeights pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t taps) {
+  const int64_t blocks = (C + kBlockRows - 1) / kBlockRows, K = O * taps;
+  PackedWeights packed{std::make_unique_for_overwrite<float[]>(static_cast<size_t>(blocks * K * kBlockRows))};
+  parallel_for(blocks, grain_for(K * kBlockRows), [&](int64_t b0, int64_t b1) {
+    for (int64_t blk = b0; blk < b1; ++blk) {
+      const int64_t c0 = blk * kBlockRows, rows = std::min(kBlockRows, C - c0);
+      float* dst = packed.buffer.get() + blk * K * kBlockRows;
+      for (int64_t o = 0; o < O; ++o) {  // the block's kernels of output channel o: rows × taps contiguous floats
+        const float* src = w + (o * C + c0) * taps;
+        float* d = dst + o * taps * kBlockRows;
+        for (int64_t t = 0; t < taps; ++t)
+          for (int64_t i = 0; i < kBlockRows; ++i) d[t * kBlockRows + i] = i < rows ? src[i * taps + taps - 1 - t] : 0.0f;
+      }
+    }
+  });
+  return packed;
+}
+
+PackedWeights pack_weights_transposed(const float* w, int64_t O, int64_t R) {
+  const int64_t blocks = (R + kBlockRows - 1) / kBlockRows;
+  PackedWeights packed{std::make_unique_for_overwrite<float[]>(static_cast<size_t>(blocks * O * kBlockRows))};
+  parallel_for(blocks, grain_for(O * kBlockRows), [&](int64_t b0, int64_t b1) {
+    for (int64_t blk = b0; blk < b1; ++blk) {
+      const int64_t r0 = blk * kBlockRows, rows = std::min(kBlockRows, R - r0);
+      float* dst = packed.buffer.get() + blk * O * kBlockRows;
+      for (int64_t o = 0; o < O; ++o)
+        for (int64_t i = 0; i < kBlockRows; ++i) dst[o * kBlockRows + i] = i < rows ? w[o * R + r0 + i] : 0.0f;
+    }
+  });
   return packed;
 }
 
@@ -76,9 +138,9 @@ inline void micro_kernel(const float* a, const float* b, Row row, int64_t K, int
 }  // namespace
 
 void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                     const float* bias, float* c, int64_t ldc) {
+                     const float* bias, float* c, int64_t ldc, int64_t ldb) {
   for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
-    micro_kernel(packed_a + m0 * K, b_panel, [](int64_t k) { return k * kPanelCols; }, K, n,
+    micro_kernel(packed_a + m0 * K, b_panel, [ldb](int64_t k) { return k * ldb; }, K, n,
                  std::min(kBlockRows, M - m0), bias ? bias + m0 : nullptr, c + m0 * ldc, ldc);
 }
 
@@ -108,19 +170,19 @@ inline __m256 reduce8(__m512 v0, __m512 v1, __m512 v2, __m512 v3, __m512 v4, __m
 
 // dw[o][k] += Σ_i dy[o][i] · base[row_offset[k] + i]: 8 rows of dy against 3 windows of the padded
 // input, 16 positions per step, 24 vector accumulators reduced once at the end of the range.
-void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
-                             int64_t K, int64_t len, float* dw) {
+// kItems: whether several items share the accumulators (a separate instance, so that the
+// single-item loop compiles exactly as it did without the item loop).
+template <bool kItems>
+void weight_grad_kernel(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
+                        int64_t K, int64_t len, float* dw, int64_t items, int64_t dy_item, int64_t base_item) {
   const int64_t full = len / 16 * 16;
   const __mmask16 tail = static_cast<__mmask16>((1u << (len - full)) - 1u);
   for (int64_t o0 = 0; o0 < M; o0 += kBlockRows) {
     const int64_t rows = std::min(kBlockRows, M - o0);
-    const float* d[kBlockRows];
-    for (int64_t i = 0; i < kBlockRows; ++i) d[i] = dy + (o0 + std::min(i, rows - 1)) * ldy;  // extra rows dropped
+    const float* d0[kBlockRows];
+    for (int64_t i = 0; i < kBlockRows; ++i) d0[i] = dy + (o0 + std::min(i, rows - 1)) * ldy;  // extra rows dropped
     for (int64_t k0 = 0; k0 < K; k0 += 3) {
       const int64_t cols = std::min<int64_t>(3, K - k0);
-      const float* x0 = base + row_offset[k0];
-      const float* x1 = base + row_offset[k0 + std::min<int64_t>(1, cols - 1)];
-      const float* x2 = base + row_offset[k0 + std::min<int64_t>(2, cols - 1)];
 #define SL_ROW(i) __m512 a##i##0 = _mm512_setzero_ps(), a##i##1 = a##i##0, a##i##2 = a##i##0;
       SL_ROW(0) SL_ROW(1) SL_ROW(2) SL_ROW(3) SL_ROW(4) SL_ROW(5) SL_ROW(6) SL_ROW(7)
 #undef SL_ROW
@@ -143,9 +205,16 @@ void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const floa
       unsigned all_lanes = 0xffffu;
       asm("" : "+r"(all_lanes));
       const __mmask16 all = static_cast<__mmask16>(all_lanes);
-      int64_t i = 0;
-      for (; i < full; i += 16) SL_STEP(all)
-      if (tail) SL_STEP(tail)
+      for (int64_t t = 0; t < (kItems ? items : 1); ++t) {
+        const float* d[kBlockRows];
+        for (int64_t r = 0; r < kBlockRows; ++r) d[r] = d0[r] + t * dy_item;
+        const float* x0 = base + t * base_item + row_offset[k0];
+        const float* x1 = base + t * base_item + row_offset[k0 + std::min<int64_t>(1, cols - 1)];
+        const float* x2 = base + t * base_item + row_offset[k0 + std::min<int64_t>(2, cols - 1)];
+        int64_t i = 0;
+        for (; i < full; i += 16) SL_STEP(all)
+        if (tail) SL_STEP(tail)
+      }
 #undef SL_STEP
 #undef SL_FMA
       alignas(32) float sums[3][8];
@@ -158,17 +227,23 @@ void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const floa
   }
 }
 
+void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
+                             int64_t K, int64_t len, float* dw, int64_t items, int64_t dy_item, int64_t base_item) {
+  if (items > 1) return weight_grad_kernel<true>(dy, ldy, M, base, row_offset, K, len, dw, items, dy_item, base_item);
+  weight_grad_kernel<false>(dy, ldy, M, base, row_offset, K, len, dw, 1, 0, 0);
+}
+
 #else
 
 bool conv_gemm_available() { return false; }
 
 void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                     const float* bias, float* c, int64_t ldc) {
+                     const float* bias, float* c, int64_t ldc, int64_t ldb) {
   for (int64_t m = 0; m < M; ++m)
     for (int64_t j = 0; j < n; ++j) {
       float acc = 0.0f;
       for (int64_t k = 0; k < K; ++k)
-        acc += packed_a[((m / kBlockRows) * K + k) * kBlockRows + m % kBlockRows] * b_panel[k * kPanelCols + j];
+        acc += packed_a[((m / kBlockRows) * K + k) * kBlockRows + m % kBlockRows] * b_panel[k * ldb + j];
       c[m * ldc + j] = acc + (bias ? bias[m] : 0.0f);
     }
 }
@@ -185,11 +260,12 @@ void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* 
 }
 
 void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
-                             int64_t K, int64_t len, float* dw) {
+                             int64_t K, int64_t len, float* dw, int64_t items, int64_t dy_item, int64_t base_item) {
   for (int64_t o = 0; o < M; ++o)
     for (int64_t k = 0; k < K; ++k) {
       float acc = 0.0f;
-      for (int64_t i = 0; i < len; ++i) acc += dy[o * ldy + i] * base[row_offset[k] + i];
+      for (int64_t t = 0; t < items; ++t)
+        for (int64_t i = 0; i < len; ++i) acc += dy[t * dy_item + o * ldy + i] * base[t * base_item + row_offset[k] + i];
       dw[o * K + k] += acc;
     }
 }

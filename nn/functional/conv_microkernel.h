@@ -11,6 +11,7 @@
 // available() is false without AVX-512; conv.cpp then uses autodiff's Eigen GEMM.
 #pragma once
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace sl::nn::detail {
@@ -20,11 +21,26 @@ constexpr int64_t kPanelCols = 48;
 
 bool conv_gemm_available();
 
-// Zero-padded row blocks of A [M, K] (row-major, leading dim K).
-std::vector<float> pack_weights(const float* a, int64_t M, int64_t K);
+// Zero-padded row blocks of A [M, K] (row-major, leading dim K). The storage is written once,
+// block by block in parallel, without a zero fill first: deep layers have megabytes of weights
+// and only a few dozen positions per weight to amortise the packing over.
+struct PackedWeights {
+  std::unique_ptr<float[]> buffer;
+  const float* data() const { return buffer.get(); }
+};
+PackedWeights pack_weights(const float* a, int64_t M, int64_t K);
 
+// pack_weights of the flipped, transposed kernel that turns a stride-1 convolution's input
+// gradient into a forward convolution: A[c][o·taps + t] = w[o][c][taps - 1 - t] for w [O, C, taps],
+// in one pass over w (no intermediate transposed copy).
+PackedWeights pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t taps);
+
+// pack_weights of Wᵀ for w [O, R] (a strided convolution's column gradient Wᵀ·dy): A[r][o] = w[o][r].
+PackedWeights pack_weights_transposed(const float* w, int64_t O, int64_t R);
+
+// ldb: the row pitch of B (a window of a wider column block; 48 columns are read per row).
 void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                     const float* bias, float* c, int64_t ldc);
+                     const float* bias, float* c, int64_t ldc, int64_t ldb = kPanelCols);
 
 // Implicit GEMM for stride-1 convolutions: B[k][j] = base[row_offset[k] + j] for j < 48, i.e.
 // every row of B is a shifted window of a zero-padded input, so no column matrix is built.
@@ -33,10 +49,13 @@ void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* 
                       float* tile);
 
 // Weight gradient of a stride-1 convolution on the same windows: for o < M and k < K,
-// dw[o·K + k] += Σ_{i < len} dy[o·ldy + i] · base[row_offset[k] + i], where dy is the output
-// gradient laid out on the padded pitch (zeros at dropped positions). Reads nothing past
-// base[row_offset[k] + len - 1].
+// dw[o·K + k] += Σ_{t < items} Σ_{i < len} dy[t·dy_item + o·ldy + i] · base[t·base_item + row_offset[k] + i],
+// where dy is the output gradient laid out on the padded pitch (zeros at dropped positions).
+// Several items (batch items of a layer with few positions each) share one set of accumulators,
+// reduced once: per item the sums would be a few vector steps long. Reads nothing past
+// base[t·base_item + row_offset[k] + len - 1].
 void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
-                             int64_t K, int64_t len, float* dw);
+                             int64_t K, int64_t len, float* dw, int64_t items = 1, int64_t dy_item = 0,
+                             int64_t base_item = 0);
 
 }  // namespace sl::nn::detail

@@ -115,6 +115,21 @@ TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
       // Few positions per image: batch items folded side by side into one GEMM.
       {{3, 16, 4, 8}, {24, 16, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
       {{3, 8, 8, 8}, {16, 8, 3, 3}, {1, 2, 2}, {0, 1, 1}, {1, 1, 1}},
+      // Folded panels holding the end of one item and the start of the next; odd channel counts.
+      {{5, 7, 5, 7}, {13, 7, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
+      {{1, 9, 9, 11}, {20, 9, 3, 3}, {1, 2, 2}, {0, 1, 1}, {1, 1, 1}},
+      {{4, 6, 7, 9}, {33, 6, 3, 3}, {1, 2, 2}, {0, 0, 1}, {1, 1, 1}},
+      {{2, 3, 3, 4, 5}, {11, 3, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}, {1, 1, 1}},
+      // More columns than one 16 MiB round of folded panels (2304 taps × 1800 positions).
+      {{20, 256, 9, 10}, {8, 256, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
+      // Strided, >= 96 positions but all items in one weight-gradient block (rows split over threads).
+      {{3, 5, 24, 20}, {12, 5, 3, 3}, {1, 2, 2}, {0, 1, 1}, {1, 1, 1}},
+      // Strided 1×1 (a ResNet downsample): the input gradient scattered without a phased copy.
+      {{2, 5, 24, 22}, {7, 5, 1, 1}, {1, 2, 2}, {0, 0, 0}, {1, 1, 1}},
+      // A 7×7 stride-2 stem: im2col runs of several panels read as windows by the micro-kernel.
+      {{2, 3, 40, 52}, {10, 3, 7, 7}, {1, 2, 2}, {0, 3, 3}, {1, 1, 1}},
+      // Stride-1 items shorter than a weight-gradient chunk, summed on shared accumulators.
+      {{5, 6, 10, 12}, {9, 6, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
   };
 
   for (const Case& c : cases) {
@@ -138,8 +153,9 @@ TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
 }
 
 // Forward and all three gradients with 1 and with 2 threads, compared bit for bit, on every
-// kernel path: implicit GEMM (2-D, reordered 3-D), panels and reference (stride 2), and the
-// batch-folded GEMM (few positions per image).
+// kernel path: implicit GEMM (2-D, reordered 3-D; short items summed together in the weight
+// gradient), panels and reference (stride 2; one weight-gradient block split by rows), and the
+// batch-folded panels (few positions per image).
 TEST(Conv, ForwardBackwardBitwiseIdenticalWithOneAndTwoThreads) {
   struct Run { std::vector<double> y, gx, gw, gb; };
   auto run = [](int threads, const Shape& xs, int64_t stride) {
@@ -157,7 +173,8 @@ TEST(Conv, ForwardBackwardBitwiseIdenticalWithOneAndTwoThreads) {
     omp_set_num_threads(saved);
     return r;
   };
-  for (const Shape& xs : {Shape{3, 8, 40, 33}, Shape{2, 8, 34, 12, 4}, Shape{6, 8, 6, 7}})
+  for (const Shape& xs : {Shape{3, 8, 40, 33}, Shape{2, 8, 34, 12, 4}, Shape{6, 8, 6, 7}, Shape{5, 8, 24, 20},
+                          Shape{3, 8, 10, 12}})
     for (int64_t stride : {1, 2}) {
       const Run a = run(1, xs, stride), c = run(2, xs, stride);
       EXPECT_EQ(a.y, c.y) << shape_str(xs) << " stride " << stride;

@@ -4,6 +4,8 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cstdlib>
+#include <ctime>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -34,35 +36,86 @@ const std::vector<ConvCase>& conv_cases() {
   return cases;
 }
 
+// The distinct convolutions of the ResNet-18 benchmarked by `networks` (batch 4×3×128×256), with
+// how many times each runs per forward pass: for attributing the network's time to its layers.
+const std::vector<ConvCase>& resnet18_layer_cases() {
+  static const std::vector<ConvCase> cases = {
+      {"r18_stem_x1", {4, 3, 128, 256}, {64, 3, 7, 7}, 2, 3},
+      {"r18_l1_3x3_x4", {4, 64, 32, 64}, {64, 64, 3, 3}, 1, 1},
+      {"r18_l2_3x3s2_x1", {4, 64, 32, 64}, {128, 64, 3, 3}, 2, 1},
+      {"r18_l2_1x1s2_x1", {4, 64, 32, 64}, {128, 64, 1, 1}, 2, 0},
+      {"r18_l2_3x3_x3", {4, 128, 16, 32}, {128, 128, 3, 3}, 1, 1},
+      {"r18_l3_3x3s2_x1", {4, 128, 16, 32}, {256, 128, 3, 3}, 2, 1},
+      {"r18_l3_1x1s2_x1", {4, 128, 16, 32}, {256, 128, 1, 1}, 2, 0},
+      {"r18_l3_3x3_x3", {4, 256, 8, 16}, {256, 256, 3, 3}, 1, 1},
+      {"r18_l4_3x3s2_x1", {4, 256, 8, 16}, {512, 256, 3, 3}, 2, 1},
+      {"r18_l4_1x1s2_x1", {4, 256, 8, 16}, {512, 256, 1, 1}, 2, 0},
+      {"r18_l4_3x3_x3", {4, 512, 4, 8}, {512, 512, 3, 3}, 1, 1},
+  };
+  return cases;
+}
+
 Tensor run_conv(const ConvCase& c, const Tensor& x, const Tensor& w, const Tensor& b) {
   if (c.x.size() == 4) return nn::conv2d(x, w, b, {c.stride, c.stride}, {c.pad, c.pad});
   return nn::conv3d(x, w, b, {c.stride, c.stride, c.stride}, {c.pad, c.pad, c.pad});
 }
 
 int run_conv_command(const std::vector<std::string>& args) {
-  bool json = false;
-  for (const auto& a : args) {
-    if (a == "--json") {
+  bool json = false, resnet_layers = false;
+  std::string only;
+  int repeat = 5;
+  bool cpu_time = false;
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a == "--only" && i + 1 < args.size()) {
+      only = args[++i];
+    } else if (a == "--cpu-time") {
+      cpu_time = true;
+    } else if (a == "--repeat" && i + 1 < args.size()) {
+      repeat = std::max(1, std::atoi(args[++i].c_str()));
+    } else if (a == "--json") {
       json = true;
+    } else if (a == "--resnet18-layers") {
+      resnet_layers = true;
     } else if (a == "--help" || a == "-h") {
-      std::printf("usage: streetlight-bench conv [--json]\n  forward and forward+backward GFLOP/s of "
-                  "conv2d/conv3d on the PyTorch comparison shapes (OMP_NUM_THREADS threads)\n");
+      std::printf("usage: streetlight-bench conv [--json] [--resnet18-layers]\n  forward and forward+backward GFLOP/s of "
+                  "conv2d/conv3d on the PyTorch comparison shapes (OMP_NUM_THREADS threads)\n"
+                  "  --resnet18-layers: the distinct convolutions of the `networks` ResNet-18 instead\n"
+                  "  --only NAME: just the case NAME (for profiling)\n  --repeat N: best of N runs (default 5)\n"
+                  "  --cpu-time: process CPU time instead of wall time (with OMP_NUM_THREADS=1, a figure\n"
+                  "    that other processes' load on the machine disturbs less)\n");
       return 0;
     } else {
       std::fprintf(stderr, "error: conv: unknown option '%s' (try --help)\n", a.c_str());
       return 2;
     }
   }
-  return run_conv_benchmarks(json);
+  return run_conv_benchmarks(json, resnet_layers, only, repeat, cpu_time);
 }
 
 const Registrar reg("conv", "conv2d/conv3d forward and forward+backward GFLOP/s", &run_conv_command);
 
 }  // namespace
 
-int run_conv_benchmarks(bool json) {
-  const int repeat = 5;
-  for (const ConvCase& c : conv_cases()) {
+int run_conv_benchmarks(bool json, bool resnet18_layers, const std::string& only, int repeat, bool cpu_time) {
+  auto best_ms = [cpu_time](auto&& f, int runs) {
+    if (!cpu_time) return bench::best_ms(f, runs);
+    auto cpu_ms = [] {
+      timespec ts{};
+      clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+      return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+    };
+    f();
+    double best = 1e300;
+    for (int i = 0; i < runs; ++i) {
+      const double t0 = cpu_ms();
+      f();
+      best = std::min(best, cpu_ms() - t0);
+    }
+    return best;
+  };
+  for (const ConvCase& c : resnet18_layers ? resnet18_layer_cases() : conv_cases()) {
+    if (!only.empty() && only != c.name) continue;
     Tensor x = Tensor::normal(c.x, 0, 1, 1);
     Tensor w = Tensor::normal(c.w, 0, 0.1, 2);
     Tensor b = Tensor::normal({c.w[0]}, 0, 0.1, 3);

@@ -10,6 +10,7 @@
 #include <immintrin.h>
 #endif
 
+#include "autodiff/buffer_cache.h"
 #include "nn/functional/conv_microkernel.h"
 #include "nn/functional/transpose16.h"
 #include "nn/functional/work_grain.h"
@@ -25,18 +26,20 @@ using Order = std::array<int, 3>;  // order[i]: the original spatial axis stored
 Axes permute(const Axes& v, const Order& order) { return {v[order[0]], v[order[1]], v[order[2]]}; }
 
 // 64-byte aligned scratch, so that rows whose pitch is a multiple of 16 floats load without
-// splitting cache lines (it made the weight-gradient kernel 1.7× faster on 2-D shapes).
-struct FreeDeleter {
-  void operator()(float* p) const { std::free(p); }
+// splitting cache lines (it made the weight-gradient kernel 1.7× faster on 2-D shapes). Large
+// blocks come from the buffer cache (autodiff/buffer_cache.h): the padded copies of every call
+// have the same sizes step after step, and fresh pages would fault and be zeroed on each call.
+struct BufferDeleter {
+  size_t capacity = 0;
+  void operator()(float* p) const { release_buffer({p, capacity}); }
 };
-using Scratch = std::unique_ptr<float[], FreeDeleter>;
+using Scratch = std::unique_ptr<float[], BufferDeleter>;
 constexpr int64_t kSlack = 2 * kPanelCols;  // windows of dropped columns may run past the end
 
 Scratch make_scratch(int64_t floats) {
   const size_t bytes = (static_cast<size_t>(floats) * sizeof(float) + 63) / 64 * 64;
-  auto* p = static_cast<float*>(std::aligned_alloc(64, bytes == 0 ? 64 : bytes));
-  SL_CHECK(p != nullptr, "conv: out of memory allocating ", bytes, " bytes of scratch");
-  return Scratch(p);
+  const Buffer b = acquire_buffer(bytes == 0 ? 64 : bytes);  // throws when memory runs out
+  return Scratch(static_cast<float*>(b.data), BufferDeleter{b.capacity});
 }
 
 // Storage order of the spatial axes, outermost first. Output positions run along the padded

@@ -200,54 +200,53 @@ void merge_phases(const T* phased, int64_t rows, int64_t W, const PhasedRows& ph
   }
 }
 
+// The scatter walk shared by the col2im variants: for every column row r (channel c, tap kz, ky,
+// kx, in that order) and every output-row segment of the tile, the input row (c, iz, iy) it lands
+// in, its first input column ix0 (stepping by stride[2]) and the valid part [lo, hi) of the run,
+// whose values are col[r·ld + off + lo ..]. Rows falling outside the input are skipped.
+template <class F>
+void for_each_col2im_run(const ConvGeometry& g, int64_t p0, int64_t count, F&& f) {
+  const int64_t D = g.in[0], H = g.in[1], W = g.in[2];
+  int64_t r = 0;
+  for (int64_t c = 0; c < g.C; ++c)
+    for (int64_t kz = 0; kz < g.k[0]; ++kz)
+      for (int64_t ky = 0; ky < g.k[1]; ++ky)
+        for (int64_t kx = 0; kx < g.k[2]; ++kx, ++r)
+          for_each_row_segment(g, p0, count, [&](int64_t off, int64_t z, int64_t y, int64_t x0, int64_t len) {
+            const int64_t iz = z * g.stride[0] - g.pad[0] + kz * g.dil[0];
+            const int64_t iy = y * g.stride[1] - g.pad[1] + ky * g.dil[1];
+            if (iz < 0 || iz >= D || iy < 0 || iy >= H) return;
+            const int64_t ix0 = x0 * g.stride[2] - g.pad[2] + kx * g.dil[2];
+            int64_t lo, hi;
+            valid_range(ix0, g.stride[2], W, len, lo, hi);
+            f(r, c, iz, iy, ix0, off, lo, hi);
+          });
+}
+
 // col2im_tile into a phased gradient (dxp: one batch item, C·D·H phased rows, see
 // split_phases): each tap of an output-row segment adds one contiguous run instead of every s-th
 // element. Every element receives the same additions in the same order as with col2im_tile.
 template <class T>
 void col2im_tile_phased(const T* col, const ConvGeometry& g, const PhasedRows& ph, int64_t p0, int64_t count, T* dxp,
                         int64_t ld) {
-  const int64_t D = g.in[0], H = g.in[1], W = g.in[2], s = ph.stride;
-  int64_t r = 0;
-  for (int64_t c = 0; c < g.C; ++c)
-    for (int64_t kz = 0; kz < g.k[0]; ++kz)
-      for (int64_t ky = 0; ky < g.k[1]; ++ky)
-        for (int64_t kx = 0; kx < g.k[2]; ++kx, ++r) {
-          const T* src = col + r * ld;
-          for_each_row_segment(g, p0, count, [&](int64_t off, int64_t z, int64_t y, int64_t x0, int64_t len) {
-            const int64_t iz = z * g.stride[0] - g.pad[0] + kz * g.dil[0];
-            const int64_t iy = y * g.stride[1] - g.pad[1] + ky * g.dil[1];
-            if (iz < 0 || iz >= D || iy < 0 || iy >= H) return;
-            const int64_t ix0 = x0 * s - g.pad[2] + kx * g.dil[2];
-            int64_t lo, hi;
-            valid_range(ix0, s, W, len, lo, hi);
-            const int64_t phase = ((ix0 % s) + s) % s, j0 = (ix0 - phase) / s;
-            T* dst = dxp + ((c * D + iz) * H + iy) * ph.row_pitch() + phase * ph.phase_len + j0;
-            add_run(src + off + lo, dst + lo, hi - lo);
-          });
-        }
+  const int64_t D = g.in[0], H = g.in[1], s = ph.stride;
+  for_each_col2im_run(g, p0, count,
+                      [&](int64_t r, int64_t c, int64_t iz, int64_t iy, int64_t ix0, int64_t off, int64_t lo, int64_t hi) {
+                        const int64_t phase = ((ix0 % s) + s) % s, j0 = (ix0 - phase) / s;
+                        T* dst = dxp + ((c * D + iz) * H + iy) * ph.row_pitch() + phase * ph.phase_len + j0;
+                        add_run(col + r * ld + off + lo, dst + lo, hi - lo);
+                      });
 }
 
 template <class T>
 void col2im_tile(const T* col, const ConvGeometry& g, int64_t p0, int64_t count, T* dx, int64_t ld) {
-  const int64_t D = g.in[0], H = g.in[1], W = g.in[2];
-  int64_t r = 0;
-  for (int64_t c = 0; c < g.C; ++c)
-    for (int64_t kz = 0; kz < g.k[0]; ++kz)
-      for (int64_t ky = 0; ky < g.k[1]; ++ky)
-        for (int64_t kx = 0; kx < g.k[2]; ++kx, ++r) {
-          const T* src = col + r * ld;
-          for_each_row_segment(g, p0, count, [&](int64_t off, int64_t z, int64_t y, int64_t x0, int64_t len) {
-            const int64_t iz = z * g.stride[0] - g.pad[0] + kz * g.dil[0];
-            const int64_t iy = y * g.stride[1] - g.pad[1] + ky * g.dil[1];
-            if (iz < 0 || iz >= D || iy < 0 || iy >= H) return;
-            T* o = dx + ((c * D + iz) * H + iy) * W;
-            const int64_t ix0 = x0 * g.stride[2] - g.pad[2] + kx * g.dil[2];
-            int64_t lo, hi;
-            valid_range(ix0, g.stride[2], W, len, lo, hi);
-            const int64_t s = g.stride[2];
-            for (int64_t i = lo; i < hi; ++i) o[ix0 + i * s] += src[off + i];
-          });
-        }
+  const int64_t D = g.in[0], H = g.in[1], W = g.in[2], s = g.stride[2];
+  for_each_col2im_run(g, p0, count,
+                      [&](int64_t r, int64_t c, int64_t iz, int64_t iy, int64_t ix0, int64_t off, int64_t lo, int64_t hi) {
+                        T* o = dx + ((c * D + iz) * H + iy) * W;
+                        const T* src = col + r * ld + off;
+                        for (int64_t i = lo; i < hi; ++i) o[ix0 + i * s] += src[i];
+                      });
 }
 
 }  // namespace sl::nn::detail

@@ -60,7 +60,12 @@ out=$(cd "$out" && pwd)
 log="$out/commands.txt"
 start=$(date +%s)
 prev=0; [ -f "$out/elapsed" ] && prev=$(cat "$out/elapsed")  # wall time of earlier (killed) invocations
-trap 'echo $(( $(date +%s) - start + prev )) > "$out/elapsed"' EXIT
+# The summed wall time survives a kill: a ticker rewrites it every 10 s while this script lives,
+# and the EXIT trap writes the final value.
+save_elapsed() { echo $(( $(date +%s) - start + prev )) > "$out/elapsed.tmp" && mv "$out/elapsed.tmp" "$out/elapsed"; }
+( while kill -0 $$ 2> /dev/null; do save_elapsed; sleep 10; done ) &
+ticker=$!
+trap 'kill $ticker 2> /dev/null; save_elapsed' EXIT
 run() { echo "$*" >> "$log"; echo "tables: [$(( $(date +%s) - start )) s] $*" >&2; "$@"; }
 # done_or_run NAME CMD...: runs CMD unless NAME finished in an earlier invocation.
 done_or_run() {

@@ -1,0 +1,105 @@
+#include "tools/common/eval_report.h"
+
+#include <cstdio>
+#include <sstream>
+
+namespace sl::cli {
+
+using nlohmann::json;
+
+namespace {
+
+std::string fmt(const json& r, const char* key, int prec = 2) {
+  if (!r.contains(key)) return "—";
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", prec, r.at(key).get<double>());
+  return b;
+}
+
+// "v [lo, hi]" when the row has a 95% interval for the key (train/bootstrap.h), else fmt's "v".
+std::string fmt_ci(const json& r, const char* key, int prec = 2) {
+  std::string v = fmt(r, key, prec);
+  if (!r.contains("ci95") || !r["ci95"].contains(key) || !r["ci95"][key].is_array()) return v;
+  char b[96];
+  std::snprintf(b, sizeof b, " [%.*f, %.*f]", prec, r["ci95"][key][0].get<double>(), prec, r["ci95"][key][1].get<double>());
+  return v + b;
+}
+
+}  // namespace
+
+std::string eval_markdown(const std::vector<json>& rows, const std::vector<std::string>& names, const json& baseline) {
+  std::ostringstream md;
+  bool any_light = false, any_sky = false;
+  for (const auto& r : rows) (r.contains("sky_log_l2") ? any_sky : any_light) = true;
+  if (any_light) {
+    md << "| checkpoint | stage (step) | sun median ° | sun mean ° | PSNR | si-PSNR | PSNR upper | si-PSNR upper | "
+          "insertion PSNR | shadow-ratio err | ms/image |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+    for (size_t i = 0; i < rows.size(); ++i) {
+      const json& r = rows[i];
+      if (r.contains("sky_log_l2")) continue;
+      md << "| " << names[i] << " | " << r["stage"].get<std::string>() << " (" << r["step"].get<int64_t>() << ") | "
+         << fmt_ci(r, "sun_error_median_deg", 1) << " | " << fmt_ci(r, "sun_error_mean_deg", 1) << " | "
+         << fmt_ci(r, "psnr") << " | " << fmt_ci(r, "si_psnr") << " | " << fmt_ci(r, "psnr_upper") << " | "
+         << fmt_ci(r, "si_psnr_upper") << " | " << fmt_ci(r, "insertion_psnr") << " | "
+         << fmt_ci(r, "shadow_ratio_error", 3) << " | " << fmt(r, "inference_ms", 0) << " |\n";
+    }
+    for (const auto& r : rows)
+      if (r.contains("oracle"))
+        md << "| oracle lighting (the generator's HDR " << r["oracle"].value("light", "panorama at the camera")
+           << ") | — | — | — | — | — | — | — | "
+           << fmt_ci(r["oracle"], "insertion_psnr") << " | " << fmt_ci(r["oracle"], "shadow_ratio_error", 3) << " | — |\n";
+    if (!baseline.is_null())
+      md << "| " << baseline["name"].get<std::string>() << " | — | " << fmt_ci(baseline, "sun_error_median_deg", 1)
+         << " | " << fmt_ci(baseline, "sun_error_mean_deg", 1) << " | — | — | — | — | — | — | — |\n";
+  }
+  bool any_parts = false;
+  for (const auto& r : rows) any_parts = any_parts || r.contains("insertion_psnr_parts");
+  if (any_parts) {
+    md << "\nInsertion PSNR by part of the region (object interior, object edge, shadow):\n\n"
+          "| lighting | object | edge | shadow |\n|---|---|---|---|\n";
+    auto parts_row = [&](const std::string& name, const json& p) {
+      md << "| " << name << " | " << fmt(p, "object") << " | " << fmt(p, "edge") << " | " << fmt(p, "shadow") << " |\n";
+    };
+    for (size_t i = 0; i < rows.size(); ++i)
+      if (rows[i].contains("insertion_psnr_parts")) parts_row(names[i], rows[i]["insertion_psnr_parts"]);
+    for (const auto& r : rows)
+      if (r.contains("oracle") && r["oracle"].contains("insertion_psnr_parts"))
+        parts_row("oracle lighting", r["oracle"]["insertion_psnr_parts"]);
+  }
+  if (any_sky) {
+    md << (any_light ? "\n" : "")
+       << "| checkpoint | step | sky log-L2 | sun median ° | sun mean ° | ms/image |\n|---|---|---|---|---|---|\n";
+    for (size_t i = 0; i < rows.size(); ++i) {
+      const json& r = rows[i];
+      if (!r.contains("sky_log_l2")) continue;
+      md << "| " << names[i] << " | " << r["step"].get<int64_t>() << " | " << fmt(r, "sky_log_l2", 4) << " | "
+         << fmt(r, "sun_error_median_deg", 1) << " | " << fmt(r, "sun_error_mean_deg", 1) << " | "
+         << fmt(r, "inference_ms", 1) << " |\n";
+    }
+  }
+  return md.str();
+}
+
+// Table 1 on real skies: one row per lighting checkpoint and the constant baseline.
+std::string real_sky_markdown(const std::vector<json>& rows, const json& baseline) {
+  std::ostringstream md;
+  md << "| model | crops with a hard sun | median ° [95% CI] | mean ° [95% CI] | ≤15° | ≤30° | ≤45° | "
+        "sun in crop: median ° (n) | sun outside: median ° (n) |\n|---|---|---|---|---|---|---|---|---|\n";
+  auto row = [&](const std::string& name, const json& sun) {
+    const json& a = sun.at("all");
+    char b[640];
+    std::snprintf(b, sizeof b, "| %s | %zu | %s | %s | %.2f | %.2f | %.2f | %.1f (%zu) | %.1f (%zu) |\n", name.c_str(),
+                  a.at("count").get<size_t>(), fmt_ci(a, "median_deg", 1).c_str(), fmt_ci(a, "mean_deg", 1).c_str(),
+                  a.at("within_15").get<double>(), a.at("within_30").get<double>(), a.at("within_45").get<double>(),
+                  sun.at("sun_in_crop").at("median_deg").get<double>(), sun.at("sun_in_crop").at("count").get<size_t>(),
+                  sun.at("sun_outside_crop").at("median_deg").get<double>(),
+                  sun.at("sun_outside_crop").at("count").get<size_t>());
+    md << b;
+  };
+  for (const auto& r : rows)
+    if (r.contains("sun") && r.at("sun").contains("sun_in_crop")) row(r.at("name").get<std::string>(), r.at("sun"));
+  if (!baseline.is_null()) row(baseline.at("name").get<std::string>(), baseline.at("sun"));
+  return md.str();
+}
+
+}  // namespace sl::cli

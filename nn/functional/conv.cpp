@@ -207,18 +207,20 @@ bool uses_kernels(const ConvGeometry& g) {
   return detail::conv_gemm_available() && (g.out_plane() >= kMinDirectPositions || !is_pointwise(g));
 }
 
-// The micro-kernel forward passes (uses_kernels(g)) on weights packed by pack_weights.
-void conv_forward_kernels(const ConvGeometry& g, const float* x, const float* packed, const float* b, float* y) {
+// The micro-kernel forward passes (uses_kernels(g)) on weights packed by pack_weights. `keep`
+// (optional) receives the implicit GEMM's padded copy of x, for the weight gradient.
+void conv_forward_kernels(const ConvGeometry& g, const float* x, const float* packed, const float* b, float* y,
+                          detail::KeptInput* keep = nullptr) {
   if (g.out_plane() < kMinDirectPositions) return conv_forward_folded(g, x, packed, b, y);
-  if (unit_stride(g)) return detail::direct_forward(g, x, packed, b, y);
+  if (unit_stride(g)) return detail::direct_forward(g, x, packed, b, y, keep);
   conv_forward_panels(g, x, packed, b, y);
 }
 
 // y[n] = W · im2col(x[n]) + b, one GEMM per (batch item, spatial tile).
 template <class T>
-void conv_forward(const ConvGeometry& g, const T* x, const T* w, const T* b, T* y) {
+void conv_forward(const ConvGeometry& g, const T* x, const T* w, const T* b, T* y, detail::KeptInput* keep = nullptr) {
   if constexpr (std::is_same_v<T, float>) {
-    if (uses_kernels(g)) return conv_forward_kernels(g, x, detail::pack_weights(w, g.O, g.rows()).data(), b, y);
+    if (uses_kernels(g)) return conv_forward_kernels(g, x, detail::pack_weights(w, g.O, g.rows()).data(), b, y, keep);
   }
   const int64_t P = g.out_plane(), R = g.rows();
   const ColumnBlocks cb = column_blocks<T>(g);
@@ -265,10 +267,11 @@ void conv_forward(const ConvGeometry& g, const T* x, const T* w, const T* b, T* 
 // number of groups fixed by the shapes; each group sums its tasks in order into its own
 // partial, and the partials are added in group order: the bits never depend on threads.
 template <class T>
-void conv_backward_weight(const ConvGeometry& g, const T* x, const T* dy, T* dw) {
+void conv_backward_weight(const ConvGeometry& g, const T* x, const T* dy, T* dw,
+                          const detail::PaddedInput* kept = nullptr) {
   if constexpr (std::is_same_v<T, float>) {
     if (detail::conv_gemm_available() && unit_stride(g) && g.out_plane() >= kMinDirectPositions)
-      return detail::direct_backward_weight(g, x, dy, dw);
+      return detail::direct_backward_weight(g, x, dy, dw, kept);
   }
   const int64_t P = g.out_plane(), R = g.rows(), per = g.O * R;
   const ColumnBlocks cb = column_blocks<T>(g);
@@ -485,12 +488,14 @@ void conv_backward_input(const ConvGeometry& g, const T* w, const T* dy, T* dx) 
 }
 
 // Float, stride 1, both gradients of a "same" convolution: one padded copy of dy serves both.
-bool conv_backward_fused(const ConvGeometry& g, const float* x, const float* w, const float* dy, float* dx, float* dw) {
+bool conv_backward_fused(const ConvGeometry& g, const float* x, const float* w, const float* dy, float* dx, float* dw,
+                         const detail::PaddedInput* kept) {
   return detail::conv_gemm_available() && g.out_plane() >= kMinDirectPositions &&
-         detail::direct_backward_fused(g, x, w, dy, dx, dw);
+         detail::direct_backward_fused(g, x, w, dy, dx, dw, kept);
 }
 
-bool conv_backward_fused(const ConvGeometry&, const double*, const double*, const double*, double*, double*) {
+bool conv_backward_fused(const ConvGeometry&, const double*, const double*, const double*, double*, double*,
+                         const detail::PaddedInput*) {
   return false;  // float64 (gradient checks) keeps the reference path
 }
 
@@ -537,10 +542,15 @@ Tensor conv_nd(const char* op, const Tensor& x_in, const Tensor& w_in, const Ten
   const Tensor x = x_in.detach().contiguous(), w = w_in.detach().contiguous();
   const Tensor b = b_in.defined() ? b_in.detach().contiguous() : Tensor();
   Tensor y = Tensor::empty(out_shape, x.dtype());
+  // When the weight will need a gradient, the forward's padded copy of x (if it makes one) is
+  // kept for it: conv_implicit_gemm.h, "Keeping the forward's copy".
+  detail::KeptInput kept;
+  const bool keep = w_in.requires_grad() && needs_grad({x_in, w_in, b_in});
   if (y.numel() > 0)
     SL_DISPATCH_FLOAT(x.dtype(), op, [&] {
       using T = scalar_t;
-      conv_forward<T>(g, x.data<T>(), w.data<T>(), b.defined() ? b.data<T>() : nullptr, y.data<T>());
+      conv_forward<T>(g, x.data<T>(), w.data<T>(), b.defined() ? b.data<T>() : nullptr, y.data<T>(),
+                      keep ? &kept : nullptr);
     });
   if (needs_grad({x_in, w_in, b_in})) {
     const bool gx = x_in.requires_grad(), gw = w_in.requires_grad(), gb = b_in.defined() && b_in.requires_grad();
@@ -559,9 +569,11 @@ Tensor conv_nd(const char* op, const Tensor& x_in, const Tensor& w_in, const Ten
       SL_DISPATCH_FLOAT(x.dtype(), op, [&] {
         using T = scalar_t;
         bool fused = false;
-        if (gx && gw) fused = conv_backward_fused(g, x.data<T>(), w.data<T>(), dy.data<T>(), r[0].data<T>(), r[1].data<T>());
+        if (gx && gw)
+          fused = conv_backward_fused(g, x.data<T>(), w.data<T>(), dy.data<T>(), r[0].data<T>(), r[1].data<T>(),
+                                      kept.get());
         if (gx && !fused) conv_backward_input<T>(g, w.data<T>(), dy.data<T>(), r[0].data<T>());
-        if (gw && !fused) conv_backward_weight<T>(g, x.data<T>(), dy.data<T>(), r[1].data<T>());
+        if (gw && !fused) conv_backward_weight<T>(g, x.data<T>(), dy.data<T>(), r[1].data<T>(), kept.get());
         if (gb) conv_bias_grad<T>(g, dy.data<T>(), r[2].data<T>());
       });
       return r;

@@ -237,9 +237,8 @@ void input_grad_from(const ConvGeometry& g, const Order& order, const Padded& pa
 // own partial, and the partials are added in group order: the bits never depend on threads.
 // padded_dy, when given, is dy padded for the input gradient of a "same" convolution: it has
 // exactly the padded input's extents, with dy starting `pad` positions in on every axis.
-void weight_grad(const ConvGeometry& g, const Order& order, const float* x, const float* dy, float* dw,
+void weight_grad(const ConvGeometry& g, const Order& order, const Padded& xp, const float* dy, float* dw,
                  const Padded* padded_dy) {
-  const Padded xp = pad_input(g, order, x);
   const std::vector<int64_t> taps = tap_offsets(g, order, xp);
   const int64_t R = g.rows(), Hp = xp.ext[1], Wp = xp.ext[2];
   const Axes out = permute(g.out, order);
@@ -303,16 +302,34 @@ Padded pad_output_grad(const ConvGeometry& g, const Order& order, const float* d
 
 }  // namespace
 
+struct PaddedInput {
+  Padded copy;
+};
+
+namespace {
+
+// The kept copy when there is one, else a fresh one (returned through `own`).
+const Padded& padded_x(const ConvGeometry& g, const Order& order, const float* x, const PaddedInput* kept,
+                       Padded& own) {
+  if (kept) return kept->copy;
+  own = pad_input(g, order, x);
+  return own;
+}
+
+}  // namespace
+
 bool direct_input_grad_supported(const ConvGeometry& g) {
   for (int a = 0; a < 3; ++a)
     if (g.stride[a] != 1 || g.dil[a] * (g.k[a] - 1) - g.pad[a] < 0) return false;
   return true;
 }
 
-void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y) {
+void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y,
+                    KeptInput* keep) {
   const Order order = storage_order(g);
-  const Padded xp = pad_input(g, order, x);
-  forward_padded(g, order, xp, tap_offsets(g, order, xp), packed_w, b, y);
+  auto xp = std::make_shared<PaddedInput>(PaddedInput{pad_input(g, order, x)});
+  forward_padded(g, order, xp->copy, tap_offsets(g, order, xp->copy), packed_w, b, y);
+  if (keep) *keep = std::move(xp);
 }
 
 void direct_backward_input(const ConvGeometry& g, const float* w, const float* dy, float* dx) {
@@ -320,20 +337,24 @@ void direct_backward_input(const ConvGeometry& g, const float* w, const float* d
   input_grad_from(g, order, pad_output_grad(g, order, dy), w, dx);
 }
 
-void direct_backward_weight(const ConvGeometry& g, const float* x, const float* dy, float* dw) {
-  weight_grad(g, storage_order(g), x, dy, dw, nullptr);
+void direct_backward_weight(const ConvGeometry& g, const float* x, const float* dy, float* dw,
+                            const PaddedInput* kept) {
+  const Order order = storage_order(g);
+  Padded own;
+  weight_grad(g, order, padded_x(g, order, x, kept, own), dy, dw, nullptr);
 }
 
 // For a "same" convolution the padded dy made for the input gradient has exactly the padded
 // input's extents, so the weight gradient reads it too instead of making a second copy of dy.
 bool direct_backward_fused(const ConvGeometry& g, const float* x, const float* w, const float* dy, float* dx,
-                           float* dw) {
+                           float* dw, const PaddedInput* kept) {
   for (int a = 0; a < 3; ++a)
     if (g.stride[a] != 1 || g.dil[a] * (g.k[a] - 1) != 2 * g.pad[a]) return false;
   const Order order = storage_order(g);
   const Padded padded_dy = pad_output_grad(g, order, dy);
   input_grad_from(g, order, padded_dy, w, dx);
-  weight_grad(g, order, x, dy, dw, &padded_dy);
+  Padded own;
+  weight_grad(g, order, padded_x(g, order, x, kept, own), dy, dw, &padded_dy);
   return true;
 }
 

@@ -15,18 +15,33 @@
 // order chosen per shape (see conv_direct.cpp). Output positions are enumerated on the padded
 // row pitch, so that each kernel tap of 48 consecutive positions is one contiguous window of
 // the copy and the micro-kernel of conv_gemm.h streams it directly: no column matrix.
+//
+// Keeping the forward's copy: the weight gradient reads the same padded (and possibly reordered)
+// copy of x that the forward made. When the caller passes `keep`, direct_forward hands that copy
+// over instead of releasing it, and the backward calls given it skip making their own: the same
+// bits, one pass over x (a reordered copy is a strided gather) fewer, at the cost of holding the
+// copy until the backward.
 #pragma once
+#include <memory>
+
 #include "nn/functional/conv_geometry.h"
 
 namespace sl::nn::detail {
 
+struct PaddedInput;  // opaque: the padded copy of x for one geometry
+using KeptInput = std::shared_ptr<const PaddedInput>;
+
 bool direct_input_grad_supported(const ConvGeometry& g);
 
 // packed_w: the weights [O, C·taps] packed by pack_weights (conv_microkernel.h).
-void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y);
+// keep (optional): receives the padded copy of x for the backward calls below.
+void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y,
+                    KeptInput* keep = nullptr);
 void direct_backward_input(const ConvGeometry& g, const float* w, const float* dy, float* dx);
-void direct_backward_weight(const ConvGeometry& g, const float* x, const float* dy, float* dw);
+// kept (optional): direct_forward's copy of this x for this g; x is then not read.
+void direct_backward_weight(const ConvGeometry& g, const float* x, const float* dy, float* dw,
+                            const PaddedInput* kept = nullptr);
 bool direct_backward_fused(const ConvGeometry& g, const float* x, const float* w, const float* dy, float* dx,
-                           float* dw);
+                           float* dw, const PaddedInput* kept = nullptr);
 
 }  // namespace sl::nn::detail

@@ -2,10 +2,14 @@
 // non-contiguous inputs; a direct-loop reference; determinism across thread counts; errors.
 #include "nn/functional/conv.h"
 
+#include <cmath>
+#include <limits>
+
 #include <gtest/gtest.h>
 #include <omp.h>
 
 #include "autodiff/buffer_cache.h"
+#include "nn/functional/conv_implicit_gemm.h"
 #include "nn/functional/conv_microkernel.h"
 #include "support/test_util.h"
 
@@ -204,6 +208,48 @@ TEST(Conv, RepeatedForwardTakesItsPaddedCopyFromTheBufferCache) {
   EXPECT_EQ(after.misses, before.misses);
   EXPECT_EQ(after.hits - before.hits, 2) << "the output and the padded copy";
   EXPECT_EQ(first, y.to_vector());
+}
+
+// The weight gradient reads the padded copy the forward kept (conv_implicit_gemm.h): the same
+// bits as a fresh copy, and x itself is not read again (a NaN-filled x changes nothing). Both
+// a reordered 3-D copy (a 16-deep axis) and a plain 2-D one, through both backward entry points.
+TEST(Conv, WeightGradientFromTheForwardsKeptCopyHasTheSameBitsAndDoesNotReadX) {
+  if (!nn::detail::conv_gemm_available()) GTEST_SKIP() << "no implicit-GEMM kernels on this CPU";
+  for (const std::array<int64_t, 3> in : {std::array<int64_t, 3>{40, 36, 16}, std::array<int64_t, 3>{1, 48, 40}}) {
+    nn::detail::ConvGeometry g;
+    g.N = 2, g.C = 3, g.O = 5, g.in = in;
+    const bool volume = in[0] > 1;
+    for (int a = 0; a < 3; ++a) {
+      g.k[a] = volume || a > 0 ? 3 : 1;
+      g.pad[a] = volume || a > 0 ? 1 : 0;
+      g.stride[a] = g.dil[a] = 1;
+      g.out[a] = in[a];
+    }
+    SCOPED_TRACE(volume ? "3-D, reordered copy" : "2-D");
+    const std::vector<double> xd = Tensor::normal({g.N * g.C * g.in_plane()}, 0, 1, 41).to_vector();
+    const std::vector<double> wd = Tensor::normal({g.O * g.rows()}, 0, 0.2, 42).to_vector();
+    const std::vector<double> dyd = Tensor::normal({g.N * g.O * g.out_plane()}, 0, 1, 43).to_vector();
+    const std::vector<float> x(xd.begin(), xd.end()), w(wd.begin(), wd.end()), dy(dyd.begin(), dyd.end());
+    const std::vector<float> nan_x(x.size(), std::numeric_limits<float>::quiet_NaN());
+    std::vector<float> y(static_cast<size_t>(g.N * g.O * g.out_plane()));
+    nn::detail::KeptInput kept;
+    nn::detail::direct_forward(g, x.data(), nn::detail::pack_weights(w.data(), g.O, g.rows()).data(), nullptr,
+                               y.data(), &kept);
+    ASSERT_TRUE(kept);
+    std::vector<float> fresh(w.size()), from_kept(w.size());
+    nn::detail::direct_backward_weight(g, x.data(), dy.data(), fresh.data());
+    nn::detail::direct_backward_weight(g, nan_x.data(), dy.data(), from_kept.data(), kept.get());
+    EXPECT_EQ(fresh, from_kept);
+    std::vector<float> dx_fresh(x.size()), dx_kept(x.size()), dw_fused(w.size()), dw_fused_kept(w.size());
+    ASSERT_TRUE(nn::detail::direct_backward_fused(g, x.data(), w.data(), dy.data(), dx_fresh.data(), dw_fused.data()));
+    ASSERT_TRUE(nn::detail::direct_backward_fused(g, nan_x.data(), w.data(), dy.data(), dx_kept.data(),
+                                                  dw_fused_kept.data(), kept.get()));
+    EXPECT_EQ(dw_fused, dw_fused_kept);
+    EXPECT_EQ(dx_fresh, dx_kept);
+    double max_diff = 0;  // and both are the weight gradient: against the fused path's independent sum
+    for (size_t i = 0; i < w.size(); ++i) max_diff = std::max(max_diff, double(std::abs(fresh[i] - dw_fused[i])));
+    EXPECT_LT(max_diff, 1e-3);
+  }
 }
 
 TEST(Conv, ErrorsNameOpAndShapes) {

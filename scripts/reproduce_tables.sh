@@ -162,6 +162,25 @@ else
 fi
 done_or_run eval run "$bin/streetlight-eval" "${evaldata[@]}" --split test --no-budgets --out "$out/eval" "${rows[@]}" \
   > /dev/null
+# The paper's claim judged plainly (Sec 4.3): does stage 3 with the adversarial loss lower the median
+# sun error against the same steps without it? Only intervals that do not overlap count.
+adversarial_verdict() {  # adversarial_verdict RESULTS.md
+  awk -F'|' '
+    /^## / { s = substr($0, 4); if (!(s in seen)) { seen[s] = 1; order[++n] = s } }
+    $2 == " Ours " && !(s in ours) { ours[s] = $4 }  # the first table of a section: the main one
+    $2 == " w/o adv. supervision " && !(s in plain) { plain[s] = $4 }
+    function parse(cell, v) { gsub(/[][,]/, " ", cell); return split(cell, v, " ") == 3 }
+    END {
+      for (i = 1; i <= n; ++i) {
+        s = order[i]
+        if (!(s in ours) || !(s in plain) || !parse(ours[s], a) || !parse(plain[s], b)) continue
+        if (a[3] + 0 < b[2] + 0) v = "**lowers** the median sun error (the intervals do not overlap)"
+        else if (a[2] + 0 > b[3] + 0) v = "**raises** the median sun error (the intervals do not overlap)"
+        else v = "**does not lower** the median sun error: the intervals overlap"
+        printf "- %s: Ours %s° [%s, %s] against w/o adversarial %s° [%s, %s]. The adversarial loss %s.\n", s, a[1], a[2], a[3], b[1], b[2], b[3], v
+      }
+    }' "$1"
+}
 elapsed=$(( $(date +%s) - start + prev ))
 commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
 block=$(mktemp)
@@ -184,6 +203,10 @@ block=$(mktemp)
   fi
   echo
   cat "$out/eval/results.md"
+  echo "Does the adversarial loss help (Ours against the same stage-3 steps without it)?"
+  echo
+  adversarial_verdict "$out/eval/results.md"
+  echo
   echo "Sun: angular error of the predicted sun direction (degrees), over samples whose sun is hard."
   echo "PSNR / si-PSNR: LDR novel views through the radiance query (Eq. 1), all pixels and the upper"
   echo "hemisphere. Insertion PSNR: the object and its shadow against the generator's path-traced"

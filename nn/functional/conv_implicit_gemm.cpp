@@ -329,7 +329,9 @@ void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w
   const Order order = storage_order(g);
   auto xp = std::make_shared<PaddedInput>(PaddedInput{pad_input(g, order, x)});
   forward_padded(g, order, xp->copy, tap_offsets(g, order, xp->copy), packed_w, b, y);
-  if (keep) *keep = std::move(xp);
+  // Only a reordered copy is worth holding: it is a strided gather, while a plain padded copy is
+  // a contiguous one that costs less than the memory it would pin (ResNet-18 ran 2% slower).
+  if (keep && order != Order{0, 1, 2}) *keep = std::move(xp);
 }
 
 void direct_backward_input(const ConvGeometry& g, const float* w, const float* dy, float* dx) {

@@ -17,10 +17,11 @@
 // the copy and the micro-kernel of conv_gemm.h streams it directly: no column matrix.
 //
 // Keeping the forward's copy: the weight gradient reads the same padded (and possibly reordered)
-// copy of x that the forward made. When the caller passes `keep`, direct_forward hands that copy
-// over instead of releasing it, and the backward calls given it skip making their own: the same
-// bits, one pass over x (a reordered copy is a strided gather) fewer, at the cost of holding the
-// copy until the backward.
+// copy of x that the forward made. When the caller passes `keep` and the copy is reordered (a
+// strided gather, see storage_order), direct_forward hands that copy over instead of releasing
+// it, and the backward calls given it skip making their own: the same bits, one gather over x
+// fewer, at the cost of holding the copy until the backward. A plain padded copy is not kept
+// (`keep` stays empty): it is cheaper to make again than the memory it would pin.
 #pragma once
 #include <memory>
 

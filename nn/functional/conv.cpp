@@ -545,14 +545,15 @@ Tensor conv_nd(const char* op, const Tensor& x_in, const Tensor& w_in, const Ten
   // When the weight will need a gradient, the forward's padded copy of x (if it makes one) is
   // kept for it: conv_implicit_gemm.h, "Keeping the forward's copy".
   detail::KeptInput kept;
-  const bool keep = w_in.requires_grad() && needs_grad({x_in, w_in, b_in});
+  const bool recording = needs_grad({x_in, w_in, b_in});
+  const bool keep = recording && w_in.requires_grad();
   if (y.numel() > 0)
     SL_DISPATCH_FLOAT(x.dtype(), op, [&] {
       using T = scalar_t;
       conv_forward<T>(g, x.data<T>(), w.data<T>(), b.defined() ? b.data<T>() : nullptr, y.data<T>(),
                       keep ? &kept : nullptr);
     });
-  if (needs_grad({x_in, w_in, b_in})) {
+  if (recording) {
     const bool gx = x_in.requires_grad(), gw = w_in.requires_grad(), gb = b_in.defined() && b_in.requires_grad();
     record(op, {x_in, w_in, b_in}, {y}, [=](const TensorList& grads) {
       const Tensor dy = grads[0].contiguous();

@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <tuple>
@@ -28,6 +29,7 @@
 
 #include "autodiff/ops.h"
 #include "data/image_io.h"
+#include "data/sun_from_shadows.h"
 #include "data/kitti_labels.h"
 #include "data/procedural_car.h"
 #include "render/gltf_loader.h"
@@ -52,6 +54,9 @@ using sl::data::KittiLabel;
 using sl::data::make_procedural_car;
 using sl::data::occlusion_level;
 using sl::data::read_kitti_labels;
+using sl::data::fit_sun_from_shadows;
+using sl::data::ShadowSunFit;
+using sl::data::ShadowSunOptions;
 using sl::data::to_object_frame;
 using sl::data::Transfer;
 using sl::data::write_depth;
@@ -247,6 +252,23 @@ int single(const cli::Args& a) {
   if (a.has("--sun-azimuth")) edit.azimuth_deg = a.number("--sun-azimuth", 0);
   if (a.has("--sun-elevation")) edit.elevation_deg = a.number("--sun-elevation", 0);
   edit.intensity_scale = a.number("--sun-intensity", 1.0);
+  // --sun-from-shadows (data/sun_from_shadows.h): the photo's own cast shadows and its depth set
+  // the sun's direction, and their darkness its strength against the sky; the network keeps the
+  // sky's colour and the volume. Without a confident fit the network's sun stays, with a warning.
+  std::optional<ShadowSunFit> shadow_fit;
+  if (a.has("--sun-from-shadows")) {
+    SL_CHECK(!a.has("--sun-azimuth") && !a.has("--sun-elevation"),
+             "--sun-from-shadows sets the sun's direction itself; drop --sun-azimuth/--sun-elevation");
+    shadow_fit = fit_sun_from_shadows(photo.ldr, photo.depth, photo.camera);
+    if (shadow_fit->found) {
+      edit.azimuth_deg = shadow_fit->azimuth_deg;
+      edit.elevation_deg = shadow_fit->elevation_deg;
+    } else {
+      std::fprintf(stderr, "warning: --sun-from-shadows found no shadow the depth explains (score %.2f < %.2f, %d ground "
+                   "samples, depth: %s); keeping the network's sun\n", shadow_fit->score, ShadowSunOptions{}.min_score,
+                   shadow_fit->ground_samples, photo.depth_source.c_str());
+    }
+  }
 
   const std::string checkpoint = a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path();
   Refinement refine = refinement_from_args(a, checkpoint);
@@ -254,7 +276,13 @@ int single(const cli::Args& a) {
   LightingEstimator est(checkpoint);
   std::vector<InferenceView> views;
   for (const Photo& p : photos) views.push_back({p.ldr, p.depth, p.camera});
-  const EstimatedLighting estimated = est.estimate(views, edit);
+  EstimatedLighting estimated = est.estimate(views, edit);
+  double shadow_scale = 1.0;
+  if (shadow_fit && shadow_fit->found && estimated.has_sky_code) {
+    shadow_scale = sun_scale_for_shadow_ratio(estimated, shadow_fit->shadow_ratio);
+    edit.intensity_scale *= shadow_scale;
+    estimated = est.estimate(views, edit);
+  }
   const PhotoInsertionOptions options = insertion_options(a, est.volume_query());
   SL_CHECK(refine.options.steps == 0 || estimated.has_sky_code, "--refine needs a checkpoint with the 'sky_decoder' "
            "sky branch (a sky vector to refine); '", checkpoint, "' uses '", est.predictor().options().sky_branch, "'");
@@ -322,6 +350,16 @@ int single(const cli::Args& a) {
                        {"y", ins.box3d[4]}, {"z", ins.box3d[5]}, {"rotation_y", ins.box3d[6]}}},
             {"kitti_label", label},
             {"timing_ms", {{"lighting", light.inference_ms}, {"insertion", ins.render_ms}}}};
+  if (shadow_fit)
+    j["sun_from_shadows"] = {{"found", shadow_fit->found},
+                             {"azimuth_deg", shadow_fit->azimuth_deg},
+                             {"elevation_deg", shadow_fit->elevation_deg},
+                             {"score", shadow_fit->score},
+                             {"shadow_ratio", shadow_fit->shadow_ratio},
+                             {"ground_samples", shadow_fit->ground_samples},
+                             {"shadow_samples", shadow_fit->shadow_samples},
+                             {"intensity_scale", shadow_scale},
+                             {"ms", shadow_fit->time_ms}};
   if (refine.options.steps > 0) {
     j["refinement"] = {{"steps", refine.options.steps},
                        {"lr", refine.options.lr},
@@ -627,6 +665,8 @@ int run(int argc, char** argv) {
                {"--sun-azimuth", "DEG", "edit the sun: world azimuth (Sec 3.2 sky vector)"},
                {"--sun-elevation", "DEG", "edit the sun: elevation above the horizon"},
                {"--sun-intensity", "X", "edit the sun: multiply its intensity by X"},
+               {"--sun-from-shadows", "", "set the sun's direction and strength from the photo's own cast shadows and its\n"
+                "                               depth (needs real geometry: --lidar or --depth); else the network's sun stays"},
                {"--aa", "N", "primary rays per pixel (default 4)"},
                {"--light-samples", "N", "light samples per primary ray, Eq. 2 (default 16)"},
                {"--shadow-rays", "N", "shadow rays per shadow-map pixel, Eq. 4 (default 64)"},

@@ -1,6 +1,8 @@
 // Lighting inference, sun editing and multi-view fusion. See inference.h.
 #include "train/inference.h"
 
+#include "render/equirect.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -9,6 +11,7 @@
 #include "autodiff/tape.h"
 #include "data/panorama.h"
 #include "nn/checkpoint.h"
+#include "render/equirect.h"
 #include "train/train_config.h"
 #include "train/unprojection.h"
 #include "util/math.h"
@@ -38,6 +41,32 @@ glm::dvec3 direction_from_azimuth_elevation_deg(double azimuth_deg, double eleva
 double azimuth_deg_of(const glm::dvec3& d) { return std::atan2(d.x, -d.z) * 180.0 / kPi; }
 double elevation_deg_of(const glm::dvec3& d) {
   return std::asin(std::clamp(d.y / std::max(glm::length(d), 1e-12), -1.0, 1.0)) * 180.0 / kPi;
+}
+
+double sun_scale_for_shadow_ratio(const EstimatedLighting& l, double shadow_ratio, double sun_cone_deg) {
+  SL_CHECK(std::isfinite(shadow_ratio), "sun_scale_for_shadow_ratio: shadow ratio ", shadow_ratio, " is not finite");
+  SL_CHECK(l.env.defined() && l.env.dim() == 3 && l.env.size(0) == 3, "sun_scale_for_shadow_ratio: the lighting has no [3, H, W] dome");
+  const Tensor env = l.env.to(DType::F64).contiguous();
+  const int H = static_cast<int>(env.size(1)), W = static_cast<int>(env.size(2));
+  const double* e = env.data<double>();
+  const glm::dvec3 sun = glm::normalize(l.sun_direction_canonical);
+  const double cos_cone = std::cos(sun_cone_deg * kPi / 180.0);
+  double e_sun = 0.0, e_sky = 0.0;
+  for (int i = 0; i < H; ++i) {
+    const double omega = render::equirect::pixel_solid_angle(i, W, H);
+    for (int j = 0; j < W; ++j) {
+      const render::equirect::Dir d = render::equirect::uv_to_direction(j + 0.5, i + 0.5, W, H);
+      if (d.y <= 0.0) continue;
+      const size_t k = static_cast<size_t>(i) * W + j, plane = static_cast<size_t>(H) * W;
+      const double lum = 0.2126 * e[k] + 0.7152 * e[plane + k] + 0.0722 * e[2 * plane + k];
+      if (!std::isfinite(lum) || lum <= 0.0) continue;
+      const double irr = lum * d.y * omega;
+      (d.x * sun.x + d.y * sun.y + d.z * sun.z >= cos_cone ? e_sun : e_sky) += irr;
+    }
+  }
+  if (!(e_sun > 0.0) || !(e_sky > 0.0)) return 1.0;
+  const double r = std::clamp(shadow_ratio, 0.05, 0.95);
+  return std::clamp(e_sky * (1.0 - r) / (r * e_sun), 1e-3, 1e4);
 }
 
 glm::dvec3 EstimatedLighting::world_direction(const glm::dvec3& c) const {

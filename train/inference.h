@@ -102,6 +102,16 @@ class LightingEstimator {
   render::VsgGrid grid_template_;
 };
 
+// The sun-strength scale that makes a fully sun-blocked ground point of this lighting as much
+// darker than a lit one as the photo's own shadows are (shadow_ratio = shadowed / lit ground,
+// data/sun_from_shadows.h). From the dome's irradiance on level ground, split into the sun
+// (texels within sun_cone_deg of the sun direction) and the rest of the sky:
+//   ratio = E_sky / (E_sky + s·E_sun)   ⇒   s = E_sky (1 − ratio) / (ratio · E_sun).
+// The volume's light and the object's own occlusion of the sky are left out. ratio is clamped
+// to [0.05, 0.95] and s to [1e-3, 1e4]; returns 1 when the dome has no sun or no sky above the
+// horizon (nothing to calibrate).
+double sun_scale_for_shadow_ratio(const EstimatedLighting& lighting, double shadow_ratio, double sun_cone_deg = 8.0);
+
 // World unit direction of a panorama (azimuth, elevation) in degrees (render/equirect.h).
 glm::dvec3 direction_from_azimuth_elevation_deg(double azimuth_deg, double elevation_deg);
 double azimuth_deg_of(const glm::dvec3& d);

@@ -3,12 +3,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
 #include <nlohmann/json.hpp>
 
 #include "data/image_io.h"
+#include "util/math.h"
 #include "support/tool_fixture.h"
 
 namespace sl::test {
@@ -68,6 +70,94 @@ TEST(InsertTool, SunEditingMovesTheEstimatedSun) {
   EXPECT_NEAR(j["sun"]["azimuth_deg"].get<double>(), 30.0, 1e-3);
   EXPECT_NEAR(j["sun"]["elevation_deg"].get<double>(), 40.0, 1e-3);
   EXPECT_TRUE(j["sun"]["edited"].get<bool>());
+}
+
+// --sun-from-shadows on an analytic photo with a depth file: two boxes on the ground, the ground
+// dark exactly where they block a sun at azimuth 60°, elevation 40° (a slab test).
+TEST(InsertTool, SunFromShadowsTakesTheSunFromThePhotosShadows) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_sun_shadows");
+  const int W = 240, H = 120;
+  const double f = 120.0, cam_h = 1.65;
+  const glm::dvec3 sun(std::cos(40 * kPi / 180) * std::sin(60 * kPi / 180), std::sin(40 * kPi / 180),
+                       -std::cos(40 * kPi / 180) * std::cos(60 * kPi / 180));
+  const std::vector<std::pair<glm::dvec3, glm::dvec3>> boxes = {{{-3.5, 0, -12}, {-1.7, 1.5, -7.5}},
+                                                                {{1.5, 0, -18}, {3.3, 1.5, -13.5}}};
+  const auto hit = [&](const glm::dvec3& o, const glm::dvec3& d, const std::pair<glm::dvec3, glm::dvec3>& b) {
+    double t0 = 1e-9, t1 = 1e30;
+    for (int a = 0; a < 3; ++a) {
+      if (std::abs(d[a]) < 1e-15) {
+        if (o[a] < b.first[a] || o[a] > b.second[a]) return 1e30;
+        continue;
+      }
+      double ta = (b.first[a] - o[a]) / d[a], tb = (b.second[a] - o[a]) / d[a];
+      if (ta > tb) std::swap(ta, tb);
+      t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+    }
+    return t0 <= t1 ? t0 : 1e30;
+  };
+  Tensor img = Tensor::zeros({3, H, W}), depth = Tensor::zeros({1, H, W});
+  for (int row = 0; row < H; ++row)
+    for (int col = 0; col < W; ++col) {
+      const glm::dvec3 o(0, cam_h, 0), d = glm::normalize(glm::dvec3((col + 0.5 - W / 2.0) / f, -(row + 0.5 - H / 2.0) / f, -1));
+      double t = d.y < 0 ? -cam_h / d.y : 1e30;
+      bool on_box = false;
+      for (const auto& b : boxes)
+        if (const double tb = hit(o, d, b); tb < t) t = tb, on_box = true;
+      float v = 0.9f;
+      if (t < 200) {
+        const glm::dvec3 p = o + t * d;
+        depth.data<float>()[row * W + col] = static_cast<float>(-p.z);
+        bool shadow = false;
+        for (const auto& b : boxes) shadow |= !on_box && hit(p + 1e-6 * sun, sun, b) < 1e29;
+        v = on_box ? 0.5f : shadow ? 0.3f : 0.8f;
+      }
+      for (int ch = 0; ch < 3; ++ch) img.data<float>()[(ch * H + row) * W + col] = v;
+    }
+  data::ImageWriteOptions lin;
+  lin.transfer = data::Transfer::Linear;
+  data::write_image(c.dir + "/shadow_photo.png", img, lin);
+  data::write_depth(c.dir + "/shadow_depth.exr", depth);
+  std::ofstream(c.dir + "/shadow_intrinsics.json") << nlohmann::json{{"fx", f}, {"fy", f}, {"cx", W / 2.0}, {"cy", H / 2.0}}.dump();
+  const std::string out = c.dir + "/out";
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/shadow_photo.png --intrinsics " + c.dir +
+                                                    "/shadow_intrinsics.json --depth " + c.dir +
+                                                    "/shadow_depth.exr --at 0,9 --sun-from-shadows --out " + out + c.base);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream jf(out + "/result.json");
+  const auto j = nlohmann::json::parse(jf);
+  ASSERT_TRUE(j.contains("sun_from_shadows")) << j.dump();
+  EXPECT_TRUE(j["sun_from_shadows"]["found"].get<bool>()) << j["sun_from_shadows"].dump();
+  const glm::dvec3 got(j["sun"]["direction_world"][0], j["sun"]["direction_world"][1], j["sun"]["direction_world"][2]);
+  EXPECT_LT(std::acos(std::clamp(glm::dot(got, sun), -1.0, 1.0)) * 180 / kPi, 15.0) << j["sun"].dump();
+  EXPECT_TRUE(j["sun"]["edited"].get<bool>());
+  EXPECT_GT(j["sun_from_shadows"]["intensity_scale"].get<double>(), 0.0);
+}
+
+// Without geometry that casts a shadow (the ground-plane fallback), the network's sun stays, the
+// tool says so, and result.json records the attempt.
+TEST(InsertTool, SunFromShadowsWithoutGeometryKeepsTheNetworksSun) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_sun_shadows_none");
+  const std::string args = "--image " + c.dir + "/photo.png --intrinsics " + c.dir + "/intrinsics.json --at 0,8";
+  const auto plain = run_tool("streetlight-insert", args + " --out " + c.dir + "/plain" + c.base);
+  const auto flagged = run_tool("streetlight-insert", args + " --sun-from-shadows --out " + c.dir + "/flagged" + c.base);
+  ASSERT_EQ(plain.code, 0) << plain.out;
+  ASSERT_EQ(flagged.code, 0) << flagged.out;
+  EXPECT_NE(flagged.out.find("warning: --sun-from-shadows found no shadow"), std::string::npos) << flagged.out;
+  std::ifstream pf(c.dir + "/plain/result.json"), ff(c.dir + "/flagged/result.json");
+  const auto jp = nlohmann::json::parse(pf), jf = nlohmann::json::parse(ff);
+  EXPECT_FALSE(jf["sun_from_shadows"]["found"].get<bool>());
+  EXPECT_EQ(jp["sun"]["direction_world"], jf["sun"]["direction_world"]);
+}
+
+TEST(InsertTool, SunFromShadowsWithAnEditedSunIsACleanError) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_sun_shadows_conflict");
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                    "/intrinsics.json --at 0,8 --sun-from-shadows --sun-azimuth 30 --out " +
+                                                    c.dir + "/out" + c.base);
+  expect_clean_error(r, c.dir + "/out", "--sun-from-shadows");
 }
 
 TEST(InsertTool, MissingImageIsACleanError) {

@@ -3,6 +3,7 @@
 
 #include "autodiff/ops.h"
 #include "render/bvh.h"
+#include "render/equirect.h"
 #include "render/primitives.h"
 #include "support/tool_fixture.h"
 #include "train/inference.h"
@@ -119,6 +120,38 @@ TEST(Inference, InsertedObjectMatchesTheWorldPoseWhateverTheCameraYaw) {
     ASSERT_GT(either, 20) << "camera yaw " << cam_yaw;
     EXPECT_GT(double(both) / either, 0.9) << "camera yaw " << cam_yaw << ": IoU of the rendered and the posed object";
   }
+}
+
+// A dome of uniform sky radiance 1 with one bright texel at the sun: the scale makes the sun's
+// ground irradiance s·E_sun equal E_sky (1 − r) / r, so it is inversely proportional to the sun's
+// brightness and falls as the photo's shadows get lighter.
+TEST(Inference, SunScaleForShadowRatioMatchesThePhotosShadowDarkness) {
+  const auto dome = [](float sun) {
+    EstimatedLighting l;
+    l.env = Tensor::full({3, 16, 64}, 1.0f);
+    float* e = l.env.data<float>();
+    const int row = 4, col = 40;  // elevation 45° - 5.6°·0.5, some azimuth
+    for (int c = 0; c < 3; ++c) e[c * 16 * 64 + row * 64 + col] = sun;
+    const render::equirect::Dir d = render::equirect::uv_to_direction(col + 0.5, row + 0.5, 64, 16);
+    l.sun_direction_canonical = {d.x, d.y, d.z};
+    return l;
+  };
+  const double s1 = sun_scale_for_shadow_ratio(dome(1000.0f), 0.25);
+  const double s2 = sun_scale_for_shadow_ratio(dome(2000.0f), 0.25);
+  EXPECT_GT(s1, 0.0);
+  EXPECT_NEAR(s2 / s1, 0.5, 0.01);  // the sun texel dominates its cone
+  EXPECT_LT(sun_scale_for_shadow_ratio(dome(1000.0f), 0.5), s1);
+  // r = 0.5 means s·E_sun = E_sky: with E_sky ≈ π·1 (the cone's few texels aside) and the sun's
+  // irradiance = (1000 − 1)·sin(elevation)·Ω_texel.
+  const double omega = render::equirect::pixel_solid_angle(4, 64, 16);
+  const double el = (0.5 - 4.5 / 16.0) * kPi;
+  const double e_sun = 1000.0 * std::sin(el) * omega;  // the texel, plus its sky within the cone
+  EXPECT_NEAR(sun_scale_for_shadow_ratio(dome(1000.0f), 0.5) * e_sun / kPi, 1.0, 0.1);
+  // No sky above the horizon, or no sun: nothing to calibrate.
+  EstimatedLighting dark = dome(1000.0f);
+  dark.env = Tensor::zeros({3, 16, 64});
+  EXPECT_EQ(sun_scale_for_shadow_ratio(dark, 0.3), 1.0);
+  EXPECT_THROW(sun_scale_for_shadow_ratio(dome(10.0f), std::nan("")), Error);
 }
 
 }  // namespace

@@ -54,9 +54,9 @@ using sl::data::KittiLabel;
 using sl::data::make_procedural_car;
 using sl::data::occlusion_level;
 using sl::data::read_kitti_labels;
-using sl::data::fit_sun_from_shadows;
 using sl::data::ShadowSunFit;
-using sl::data::ShadowSunOptions;
+using sl::train::estimate_with_shadow_sun;
+using sl::train::ShadowSunLighting;
 using sl::data::to_object_frame;
 using sl::data::Transfer;
 using sl::data::write_depth;
@@ -144,6 +144,14 @@ json sun_json(const EstimatedLighting& light) {
           {"azimuth_deg", azimuth_deg_of(sun)},
           {"elevation_deg", elevation_deg_of(sun)},
           {"intensity_rgb", vec_json(light.sun_intensity_rgb)}};
+}
+
+// --sun-from-shadows without a confident fit: say so on stderr (the network's sun stays).
+void warn_if_no_shadow_sun(const ShadowSunFit& fit, const std::string& depth_source, const std::string& frame) {
+  if (fit.found) return;
+  std::fprintf(stderr, "warning: --sun-from-shadows found no shadow the depth explains%s%s (score %.2f, %d ground "
+               "samples, depth: %s); keeping the network's sun\n", frame.empty() ? "" : " in ", frame.c_str(), fit.score,
+               fit.ground_samples, depth_source.c_str());
 }
 
 // --refine N, --refine-lr, --refine-volume, --discriminator: checked before anything is estimated
@@ -255,20 +263,11 @@ int single(const cli::Args& a) {
   // --sun-from-shadows (data/sun_from_shadows.h): the photo's own cast shadows and its depth set
   // the sun's direction, and their darkness its strength against the sky; the network keeps the
   // sky's colour and the volume. Without a confident fit the network's sun stays, with a warning.
-  std::optional<ShadowSunFit> shadow_fit;
-  if (a.has("--sun-from-shadows")) {
-    SL_CHECK(!a.has("--sun-azimuth") && !a.has("--sun-elevation"),
-             "--sun-from-shadows sets the sun's direction itself; drop --sun-azimuth/--sun-elevation");
-    shadow_fit = fit_sun_from_shadows(photo.ldr, photo.depth, photo.camera);
-    if (shadow_fit->found) {
-      edit.azimuth_deg = shadow_fit->azimuth_deg;
-      edit.elevation_deg = shadow_fit->elevation_deg;
-    } else {
-      std::fprintf(stderr, "warning: --sun-from-shadows found no shadow the depth explains (score %.2f < %.2f, %d ground "
-                   "samples, depth: %s); keeping the network's sun\n", shadow_fit->score, ShadowSunOptions{}.min_score,
-                   shadow_fit->ground_samples, photo.depth_source.c_str());
-    }
-  }
+  const bool from_shadows = a.has("--sun-from-shadows");
+  SL_CHECK(!from_shadows || (!a.has("--sun-azimuth") && !a.has("--sun-elevation")),
+           "--sun-from-shadows sets the sun's direction itself; drop --sun-azimuth/--sun-elevation");
+  SL_CHECK(!from_shadows || photos.size() == 1, "--sun-from-shadows reads one photo's shadows; it does not take ",
+           photos.size(), " views");
 
   const std::string checkpoint = a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path();
   Refinement refine = refinement_from_args(a, checkpoint);
@@ -276,13 +275,12 @@ int single(const cli::Args& a) {
   LightingEstimator est(checkpoint);
   std::vector<InferenceView> views;
   for (const Photo& p : photos) views.push_back({p.ldr, p.depth, p.camera});
-  EstimatedLighting estimated = est.estimate(views, edit);
-  double shadow_scale = 1.0;
-  if (shadow_fit && shadow_fit->found && estimated.has_sky_code) {
-    shadow_scale = sun_scale_for_shadow_ratio(estimated, shadow_fit->shadow_ratio);
-    edit.intensity_scale *= shadow_scale;
-    estimated = est.estimate(views, edit);
+  std::optional<ShadowSunLighting> shadow;
+  if (from_shadows) {
+    shadow = estimate_with_shadow_sun(est, views.front(), edit);
+    warn_if_no_shadow_sun(shadow->fit, photo.depth_source, "");
   }
+  const EstimatedLighting estimated = shadow ? shadow->lighting : est.estimate(views, edit);
   const PhotoInsertionOptions options = insertion_options(a, est.volume_query());
   SL_CHECK(refine.options.steps == 0 || estimated.has_sky_code, "--refine needs a checkpoint with the 'sky_decoder' "
            "sky branch (a sky vector to refine); '", checkpoint, "' uses '", est.predictor().options().sky_branch, "'");
@@ -338,7 +336,7 @@ int single(const cli::Args& a) {
                      {"elevation_deg", elevation_deg_of(sun)},
                      {"intensity_rgb", vec_json(light.sun_intensity_rgb)},
                      {"from_sky_vector", light.has_sky_code},
-                     {"edited", edit.active()}}},
+                     {"edited", edit.active() || (shadow && shadow->fit.found)}}},
             {"placement", {{"at_camera_ground_xz", {ax, az}},
                            {"world_x_m", pose.x_m},
                            {"world_z_m", pose.z_m},
@@ -350,16 +348,17 @@ int single(const cli::Args& a) {
                        {"y", ins.box3d[4]}, {"z", ins.box3d[5]}, {"rotation_y", ins.box3d[6]}}},
             {"kitti_label", label},
             {"timing_ms", {{"lighting", light.inference_ms}, {"insertion", ins.render_ms}}}};
-  if (shadow_fit)
-    j["sun_from_shadows"] = {{"found", shadow_fit->found},
-                             {"azimuth_deg", shadow_fit->azimuth_deg},
-                             {"elevation_deg", shadow_fit->elevation_deg},
-                             {"score", shadow_fit->score},
-                             {"shadow_ratio", shadow_fit->shadow_ratio},
-                             {"ground_samples", shadow_fit->ground_samples},
-                             {"shadow_samples", shadow_fit->shadow_samples},
-                             {"intensity_scale", shadow_scale},
-                             {"ms", shadow_fit->time_ms}};
+  if (shadow)
+    j["sun_from_shadows"] = {{"found", shadow->fit.found},
+                             {"azimuth_deg", shadow->fit.azimuth_deg},
+                             {"elevation_deg", shadow->fit.elevation_deg},
+                             {"score", shadow->fit.score},
+                             {"spread_deg", shadow->fit.spread_deg},
+                             {"shadow_ratio", shadow->fit.shadow_ratio},
+                             {"ground_samples", shadow->fit.ground_samples},
+                             {"shadow_samples", shadow->fit.shadow_samples},
+                             {"intensity_scale", shadow->intensity_scale},
+                             {"ms", shadow->fit.time_ms}};
   if (refine.options.steps > 0) {
     j["refinement"] = {{"steps", refine.options.steps},
                        {"lr", refine.options.lr},
@@ -506,6 +505,7 @@ int kill_after() {
 struct BatchResult {
   int placed = 0;
   std::string depth_source;
+  std::optional<bool> sun_from_shadows;  // with --sun-from-shadows: whether the fit was used
 };
 
 BatchResult augment_one(const cli::Args& a, LightingEstimator& est, const std::vector<Mesh>& objects,
@@ -514,7 +514,12 @@ BatchResult augment_one(const cli::Args& a, LightingEstimator& est, const std::v
   std::vector<KittiLabel> labels = item.labels.empty() ? std::vector<KittiLabel>{} : read_kitti_labels(item.labels);
   const std::string calib = item.calib.empty() ? kitti_calibration_from_intrinsics(photo.camera.intrinsics())
                                                : kitti_calibration_text(item.calib);
-  const EstimatedLighting light = est.estimate({{photo.ldr, photo.depth, photo.camera}});
+  std::optional<ShadowSunLighting> shadow;
+  if (a.has("--sun-from-shadows")) {
+    shadow = estimate_with_shadow_sun(est, {photo.ldr, photo.depth, photo.camera});
+    warn_if_no_shadow_sun(shadow->fit, photo.depth_source, item.id);
+  }
+  const EstimatedLighting light = shadow ? shadow->lighting : est.estimate({{photo.ldr, photo.depth, photo.camera}});
   const int per_image = static_cast<int>(a.integer("--objects-per-image", 1));
   const uint64_t seed = static_cast<uint64_t>(a.integer("--seed", 0));
   const Intrinsics& k = photo.camera.intrinsics();
@@ -523,6 +528,7 @@ BatchResult augment_one(const cli::Args& a, LightingEstimator& est, const std::v
   Rng rng(seed, item_index);
   BatchResult res;
   res.depth_source = photo.depth_source;
+  if (shadow) res.sun_from_shadows = shadow->fit.found;
   for (int attempt = 0; attempt < 40 * per_image && res.placed < per_image; ++attempt) {
     // A random spot on the road ahead: 6-25 m forward, within ±4 m of the centre line.
     Placement pose;
@@ -623,6 +629,7 @@ int batch(const cli::Args& a) {
     const BatchResult r = augment_one(a, est, objects, items[i], i, out, done);
     placed += r.placed;
     this_run.push_back({{"id", items[i].id}, {"objects", r.placed}, {"depth", r.depth_source}});
+    if (r.sun_from_shadows) this_run.back()["sun_from_shadows"] = *r.sun_from_shadows;
     progress.update(++done, items[i].id);
   }
   progress.finish();

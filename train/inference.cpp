@@ -69,6 +69,23 @@ double sun_scale_for_shadow_ratio(const EstimatedLighting& l, double shadow_rati
   return std::clamp(e_sky * (1.0 - r) / (r * e_sun), 1e-3, 1e4);
 }
 
+ShadowSunLighting estimate_with_shadow_sun(LightingEstimator& est, const InferenceView& view, SunEdit edit,
+                                           const data::ShadowSunOptions& options) {
+  ShadowSunLighting r;
+  r.fit = data::fit_sun_from_shadows(view.ldr, view.depth, view.camera, options);
+  if (r.fit.found) {
+    edit.azimuth_deg = r.fit.azimuth_deg;
+    edit.elevation_deg = r.fit.elevation_deg;
+  }
+  r.lighting = est.estimate({view}, edit);
+  if (r.fit.found) {
+    r.intensity_scale = sun_scale_for_shadow_ratio(r.lighting, r.fit.shadow_ratio);
+    edit.intensity_scale *= r.intensity_scale;
+    r.lighting = est.estimate({view}, edit);
+  }
+  return r;
+}
+
 glm::dvec3 EstimatedLighting::world_direction(const glm::dvec3& c) const {
   return rotate_direction_azimuth(c, frame.yaw_rad);
 }

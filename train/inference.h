@@ -36,6 +36,7 @@
 #include <nlohmann/json.hpp>
 
 #include "autodiff/tensor.h"
+#include "data/sun_from_shadows.h"
 #include "render/camera.h"
 #include "render/radiance_query.h"
 #include "render/vsg_volume.h"
@@ -111,6 +112,21 @@ class LightingEstimator {
 // to [0.05, 0.95] and s to [1e-3, 1e4]; returns 1 when the dome has no sun or no sky above the
 // horizon (nothing to calibrate).
 double sun_scale_for_shadow_ratio(const EstimatedLighting& lighting, double shadow_ratio, double sun_cone_deg = 8.0);
+
+// Lighting with its sun taken from the photo's own cast shadows (data/sun_from_shadows.h), the
+// path of streetlight-insert --sun-from-shadows (single photo and batch): fit the sun on the view's
+// LDR, depth and camera; when found, estimate with the fitted direction (edit's azimuth and
+// elevation are replaced), then scale the sun by sun_scale_for_shadow_ratio() and estimate again,
+// so the network keeps the sky's colour and the volume. When not found, the estimate is the
+// network's with `edit` as given, and intensity_scale is 1. Throws as estimate(); a found fit
+// needs the "sky_decoder" sky branch.
+struct ShadowSunLighting {
+  EstimatedLighting lighting;
+  data::ShadowSunFit fit;
+  double intensity_scale = 1.0;  // applied on top of edit.intensity_scale
+};
+ShadowSunLighting estimate_with_shadow_sun(LightingEstimator& estimator, const InferenceView& view, SunEdit edit = {},
+                                           const data::ShadowSunOptions& options = {});
 
 // World unit direction of a panorama (azimuth, elevation) in degrees (render/equirect.h).
 glm::dvec3 direction_from_azimuth_elevation_deg(double azimuth_deg, double elevation_deg);

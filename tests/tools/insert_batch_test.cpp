@@ -111,6 +111,24 @@ TEST(InsertBatch, KittiFolderKeepsIdsLabelsFullCalibrationAndUsesTheLidar) {
   EXPECT_EQ(res["this_run"][0]["depth"], "lidar") << res.dump();
 }
 
+// --sun-from-shadows in batch mode: KITTI 000008's lidar explains its parked cars' shadows, so
+// the frame's sun comes from them (result.json says so per frame).
+TEST(InsertBatch, SunFromShadowsUsesEachFramesLidarShadows) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  if (!fs::exists(std::string(STREETLIGHT_SHARED_DATA) + "/street/kitti_000008/000008.png"))
+    GTEST_SKIP() << "shared KITTI frame absent";
+  const std::string dir = sl::test::tool_dir("insert_batch_kitti_shadows");
+  const std::string ckpt = sl::test::tiny_lighting_checkpoint(dir);
+  const std::string in = kitti_fixture(dir), out = dir + "/aug";
+  const auto r = run_tool("streetlight-insert",
+                          "--batch " + in + " --checkpoint " + ckpt + " --sun-from-shadows --out " + out + kBase);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.find("warning: --sun-from-shadows"), std::string::npos) << r.out;
+  std::ifstream rf(out + "/result.json");
+  const json res = json::parse(rf);
+  EXPECT_EQ(res["this_run"][0]["sun_from_shadows"], true) << res.dump();
+}
+
 // Tiny photos listed nuScenes-style: one image and one intrinsics JSON per entry, ground plane.
 std::string tiny_list(const std::string& dir, int n) {
   sl::test::tiny_photo(dir);

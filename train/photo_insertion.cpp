@@ -96,6 +96,8 @@ InsertionOptions insertion_options(const PhotoInsertionOptions& o) {
   io.seed = o.seed;
   io.query = o.volume_query;
   io.radiance_cache = o.radiance_cache;
+  io.cache_spacing_m = o.cache_spacing_m;
+  io.cache_shadow_max_xz = o.cache_shadow_max_xz;
   io.bilinear_env_sampling = o.bilinear_env_sampling;
   io.stratify_per_pixel = o.stratify_per_pixel;
   return io;

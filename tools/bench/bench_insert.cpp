@@ -43,6 +43,7 @@
 #include "tools/bench/reference_store.h"
 #include "tools/bench/timing.h"
 #include "tools/common/plot.h"
+#include "tools/common/cli.h"
 #include "train/inference.h"
 #include "train/lighting_predictor.h"
 #include "train/object_labels.h"
@@ -275,7 +276,8 @@ double lighting_ms(const train::Photo& photo, const std::string& dir) {
 }
 
 int run_production(const std::string& size, bool json, const std::string& data, const std::string& out, bool quick,
-                   int reference_spp, bool reference_cache, const std::string& reference_dir, const std::string& only) {
+                   int reference_spp, bool reference_cache, const std::string& reference_dir, const std::string& only,
+                   const std::string& lighting) {
   SL_CHECK(size == "kitti" || size == "nuscenes", "insert: --size must be kitti or nuscenes, got '", size, "'");
   std::filesystem::create_directories(out);
   const ProductionScene s = production_scene(size, data);
@@ -300,6 +302,24 @@ int run_production(const std::string& size, bool json, const std::string& data, 
   pl.x_m = s.pose.x_m;
   pl.z_m = s.pose.z_m;
   pl.yaw_deg = s.pose.yaw_deg;
+  if (lighting != "random") {
+    // The lighting a trained model estimates for this photo (what streetlight-insert renders
+    // with), in the model's canonical frame; the object's pose follows into that frame.
+    train::LightingEstimator est(lighting);
+    const train::EstimatedLighting l = est.estimate({{s.photo.ldr, s.photo.depth, s.photo.camera}});
+    SL_CHECK(l.vsg.defined(), "insert: --lighting '", lighting, "' has no volume branch");
+    in.env = l.env;
+    in.vsg = l.vsg;
+    in.grid = l.grid;
+    in.camera = l.camera;
+    const glm::dvec3 c = l.frame.point({pl.x_m, 0.0, pl.z_m});
+    pl.x_m = c.x;
+    pl.z_m = c.z;
+    pl.yaw_deg = l.frame.object_yaw_deg(pl.yaw_deg);
+    std::fprintf(stderr, "insertion lighting: %s's estimate for the photo\n", lighting.c_str());
+  } else {
+    std::fprintf(stderr, "insertion lighting: chinese_garden sky + a VSG volume of uniform random parameters (stress)\n");
+  }
   in.objects.push_back(place_object(s.object, pl, in.camera, in.depth));
 
   const train::PhotoInsertionOptions production;  // what streetlight-insert runs by default
@@ -404,13 +424,14 @@ int run_production(const std::string& size, bool json, const std::string& data, 
       o.shadow_rays = n;
       rows.push_back({"shadow" + std::to_string(n), o});
     }
-    for (int xz : {4, 8}) {  // the shadow rays' probe grid (default 2×2×2), with 256 shadow rays
-      InsertionOptions o = train::insertion_options(production);
-      o.shadow_rays = 256;
-      o.cache_shadow_max_xz = xz;
-      o.cache_spacing_m = 1.0;
-      rows.push_back({"shadow256_grid" + std::to_string(xz) + "x2x" + std::to_string(xz), o});
-    }
+    for (int rays : {64, 256})  // the shadow rays' probe grid (default 2×2×2)
+      for (int xz : {4, 8}) {
+        InsertionOptions o = train::insertion_options(production);
+        o.shadow_rays = rays;
+        o.cache_shadow_max_xz = xz;
+        o.cache_spacing_m = 1.0;
+        rows.push_back({"shadow" + std::to_string(rays) + "_grid" + std::to_string(xz) + "x2x" + std::to_string(xz), o});
+      }
     {  // the measured knobs together: object probes 8×4×8, 256 shadow rays over a 4×2×4 grid
       InsertionOptions o = train::insertion_options(production);
       o.cache_spacing_m = 1.0;
@@ -467,7 +488,7 @@ int run_production(const std::string& size, bool json, const std::string& data, 
 
 int run_insert(const std::vector<std::string>& args) {
   bool json = false, quick = false;
-  std::string out = "insert-bench", data = "../shared/data", size, reference_dir, only;
+  std::string out = "insert-bench", data = "../shared/data", size, reference_dir, only, lighting = "random";
   int reference_spp = 4096;
   bool reference_cache = false;
   for (size_t i = 0; i < args.size(); ++i) {
@@ -487,7 +508,11 @@ int run_insert(const std::vector<std::string>& args) {
           "                     error alone; the default marches the volume for every ray)\n"
           "  --reference-dir DIR  keep the reference in DIR keyed by everything that determines it and reuse it\n"
           "                     (development only: the renderer's code is named by a version string, not hashed)\n"
-          "  --rows A,B         with --size: only these rows (names as printed)\n");
+          "  --rows A,B         with --size: only these rows (names as printed)\n"
+          "  --lighting L       with --size: the insertion's lighting. random (default): the chinese_garden sky and\n"
+          "                     a VSG volume of uniform random parameters, a stress case whose volume is noise;\n"
+          "                     released, or a checkpoint path: that model's estimate for the photo, as\n"
+          "                     streetlight-insert renders it\n");
       return 0;
     } else if (a == "--json") {
       json = true;
@@ -500,13 +525,17 @@ int run_insert(const std::vector<std::string>& args) {
       SL_CHECK(reference_spp >= 1, "insert: --reference-spp must be >= 1");
     } else if (a == "--rows" && i + 1 < args.size()) {
       only = args[++i];
+    } else if (a == "--lighting" && i + 1 < args.size()) {
+      lighting = args[++i];
+      if (lighting == "released") lighting = cli::released_model_path();
     } else if ((a == "--out" || a == "--data" || a == "--size" || a == "--reference-dir") && i + 1 < args.size()) {
       (a == "--out" ? out : a == "--data" ? data : a == "--size" ? size : reference_dir) = args[++i];
     } else {
       fail("insert: unknown option '", a, "' (try --help)");
     }
   }
-  if (!size.empty()) return run_production(size, json, data, out, quick, reference_spp, reference_cache, reference_dir, only);
+  if (!size.empty())
+    return run_production(size, json, data, out, quick, reference_spp, reference_cache, reference_dir, only, lighting);
   std::filesystem::create_directories(out);
   const Scene s = make_scene(data);
   const PlacedObject obj = place_object(s.object, {0.8, -10.0, 30.0, 1.0}, s.camera, s.depth);

@@ -18,6 +18,7 @@
 #include "render/radiance_query.h"
 #include "render/spherical_gaussian.h"
 #include "tools/bench/bench.h"
+#include "tools/bench/kitti_frame.h"
 #include "tools/bench/timing.h"
 #include "tools/common/cli.h"
 #include "train/inference.h"
@@ -116,12 +117,7 @@ int run_eq1_spacing(const std::vector<std::string>& args) {
       fail("eq1-spacing: unknown argument '", a, "' (try eq1-spacing --help)");
     }
   }
-  train::PhotoSources src;
-  src.image = kitti + "/000008.png";
-  src.intrinsics = kitti + "/000008.txt";
-  src.calib = kitti + "/000008_calib.json";
-  src.lidar = kitti + "/000008_velodyne.bin";
-  const train::Photo photo = train::load_photo(src);
+  const train::Photo photo = train::load_photo(kitti_000008(kitti));
   train::LightingEstimator est(checkpoint);
   const train::EstimatedLighting l = est.estimate({{photo.ldr, photo.depth, photo.camera}});
   SL_CHECK(l.vsg.defined(), "eq1-spacing: '", checkpoint, "' has no volume branch");

@@ -40,6 +40,7 @@
 #include "render/path_tracer.h"
 #include "render/primitives.h"
 #include "tools/bench/bench.h"
+#include "tools/bench/kitti_frame.h"
 #include "tools/bench/reference_store.h"
 #include "tools/bench/timing.h"
 #include "tools/common/plot.h"
@@ -220,12 +221,7 @@ ProductionScene production_scene(const std::string& size, const std::string& dat
   s.object = to_object_frame(std::filesystem::exists(truck) ? load_gltf(truck) : make_procedural_car());
   s.pose.yaw_deg = 60.0;
   if (size == "kitti" && std::filesystem::exists(kitti + "/000008.png")) {
-    train::PhotoSources src;
-    src.image = kitti + "/000008.png";
-    src.intrinsics = kitti + "/000008.txt";
-    src.lidar = kitti + "/000008_velodyne.bin";
-    src.calib = kitti + "/000008_calib.json";
-    s.photo = train::load_photo(src);
+    s.photo = train::load_photo(kitti_000008(kitti));
     s.name = "KITTI 000008 (lidar depth)";
     s.pose.x_m = 1.5;
     s.pose.z_m = -11.0;

@@ -18,6 +18,7 @@
 #include "data/street_dataset.h"
 #include "data/sun_from_shadows.h"
 #include "tools/bench/bench.h"
+#include "tools/bench/kitti_frame.h"
 #include "train/inference.h"
 #include "train/photo_input.h"
 #include "util/error.h"
@@ -119,11 +120,7 @@ int run_sun_from_shadows(const std::vector<std::string>& args) {
     }
   }
   if (!kitti.empty()) {
-    train::PhotoSources src;
-    src.image = kitti + "/000008.png";
-    src.intrinsics = kitti + "/000008.txt";
-    src.calib = kitti + "/000008_calib.json";
-    src.lidar = kitti + "/000008_velodyne.bin";
+    const train::PhotoSources src = kitti_000008(kitti);
     const train::Photo photo = train::load_photo(src);
     const data::ShadowSunFit fit = data::fit_sun_from_shadows(photo.ldr, photo.depth, photo.camera, options);
     std::printf("{\"photo\":\"%s\",\"found\":%s,\"score\":%.4f,\"azimuth_deg\":%.2f,\"elevation_deg\":%.2f,"

@@ -144,11 +144,28 @@ glm::vec3 eval(const Params& p, const glm::vec3& n, const glm::vec3& wo, const g
   return all_finite(f) ? f : glm::vec3(0.0f);
 }
 
+glm::vec3 lambertian(const Params& p) {
+  const Prepared m = prepare(p);
+  return (1.0f - m.metallic) * m.base / kPiF;
+}
+
 float pdf(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi) {
   const Cosines c = cosines(n, wo, wi);
   if (!c.ok) return 0.0f;
   const Prepared m = prepare(p);
   return pdf_lobes(m, weights(m, c.nv), c);
+}
+
+Sample evaluate(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi) {
+  Sample s;
+  s.wi = wi;
+  const Cosines c = cosines(n, wo, wi);
+  if (!c.ok) return s;
+  const Prepared m = prepare(p);
+  s.pdf = pdf_lobes(m, weights(m, c.nv), c);
+  const glm::vec3 f = eval_lobes(m, c);
+  s.f = all_finite(f) ? f : glm::vec3(0.0f);
+  return s;
 }
 
 Sample sample(const Params& p, const glm::vec3& n_in, const glm::vec3& wo_in, float u1, float u2, float u3) {

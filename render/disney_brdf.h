@@ -145,6 +145,12 @@ inline constexpr float kClearcoatG = 0.25f;  // Burley's fixed α for the clearc
 glm::vec3 eval(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi);
 Sample sample(const Params& p, const glm::vec3& n, const glm::vec3& wo, float u1, float u2, float u3);
 float pdf(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi);
+// {wi, eval(wi), pdf(wi)} with the shared work done once (identical bits to the two calls).
+Sample evaluate(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi);
+// The Lambertian part of the diffuse lobe, (1 − metallic)·base/π (parameters clamped as in
+// eval): eval() minus this is the retro-reflection correction, sheen and the specular lobes.
+// A control variate's coefficient (render/object_insertion.h, diffuse_control_variate).
+glm::vec3 lambertian(const Params& p);
 
 // Probabilities with which sample() picks the diffuse, specular and clearcoat lobes for this
 // view (sum to 1; a lobe that can reflect light never gets probability 0).

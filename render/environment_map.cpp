@@ -152,7 +152,16 @@ EnvironmentMap::Sample EnvironmentMap::sample_bilinear(float u1, float u2) const
 }
 
 glm::vec3 EnvironmentMap::sample_bilinear_direction(float u1, float u2) const {
-  if (cell_prob_.empty()) return sample(u1, u2).direction;
+  equirect::UV unit;
+  return sample_bilinear_direction(u1, u2, unit);
+}
+
+glm::vec3 EnvironmentMap::sample_bilinear_direction(float u1, float u2, equirect::UV& unit) const {
+  if (cell_prob_.empty()) {
+    const glm::vec3 d = sample(u1, u2).direction;
+    unit = equirect::direction_to_uv(d.x, d.y, d.z, 1, 1);
+    return d;
+  }
   const int H = height_, W = width_;
   auto pick = [](const double* cdf, int n, double u, double& frac) {
     int k = static_cast<int>(std::upper_bound(cdf, cdf + n + 1, u) - cdf) - 1;
@@ -177,14 +186,23 @@ glm::vec3 EnvironmentMap::sample_bilinear_direction(float u1, float u2) const {
   double u = c + 0.5 + x;
   if (u >= W) u -= W;
   const equirect::Dir dir = equirect::uv_to_direction(u, v, W, H);
+  unit = {u / W, v / H};
   return glm::vec3(float(dir.x), float(dir.y), float(dir.z));
 }
 
 float EnvironmentMap::pdf_bilinear(const glm::vec3& d) const {
   if (cell_prob_.empty()) return pdf(d);
   if (!(glm::dot(d, d) > 0.0f) || !all_finite3(d)) return 0.0f;
+  return pdf_bilinear_unit(equirect::direction_to_uv(d.x, d.y, d.z, 1, 1));
+}
+
+float EnvironmentMap::pdf_bilinear_unit(const equirect::UV& unit) const {
   const int H = height_, W = width_;
-  const auto uv = equirect::direction_to_uv(d.x, d.y, d.z, W, H);
+  if (cell_prob_.empty()) {
+    const equirect::Dir d = equirect::uv_to_direction(unit.u * W, unit.v * H, W, H);
+    return pdf(glm::vec3(float(d.x), float(d.y), float(d.z)));
+  }
+  const equirect::UV uv{unit.u * W, unit.v * H};
   const int k = std::clamp(static_cast<int>(std::floor(uv.v + 0.5)), 0, H);
   const CellRow r = cell_row(k, H);
   double fu = uv.u - 0.5;

@@ -61,7 +61,13 @@ class EnvironmentMap {
   // sample_bilinear(u1, u2).direction alone (no radiance lookup, no density: callers that mix
   // techniques evaluate the mixture's density themselves).
   glm::vec3 sample_bilinear_direction(float u1, float u2) const;
+  // The same, also giving the sample's unit panorama coordinates (u/W, v/H), so callers read
+  // pdf_bilinear_unit() and lookups without an atan2/asin.
+  glm::vec3 sample_bilinear_direction(float u1, float u2, equirect::UV& unit) const;
   float pdf_bilinear(const glm::vec3& direction) const;
+  // pdf_bilinear() at unit panorama coordinates (equirect::direction_to_uv(x, y, z, 1, 1));
+  // identical bits to pdf_bilinear(d) for the coordinates of d.
+  float pdf_bilinear_unit(const equirect::UV& unit) const;
 
   // Integral of radiance over the sphere, per channel (W/m²/sr × sr).
   glm::dvec3 integral() const;

@@ -101,64 +101,89 @@ std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& 
   return all;
 }
 
-// Pass 2: N light directions per G-buffer sample, written to fixed slots [i·N, (i+1)·N).
-void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
-                      const std::vector<GSample>& gs, Foreground& fg, QueryRays& rays) {
-  const int N = fg.light_samples;
+namespace {
+
+// The N light directions of G-buffer sample i and their weights f·cos/pdf/(N·aa) (× I_a where
+// the object blocks them; less c·cos/pdf/(N·aa) with the control variate), into l[0..N), w[0..N).
+// A failed sample gets l = n and w = 0 (a harmless ray keeps the layout regular).
+void light_rays(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map, const GSample& g, int N,
+                bool control_variate, glm::vec3* ls, glm::vec3* ws, equirect::UV* units) {
   const uint64_t light_seed = sample_seed(opt, kTagLight), choice_seed = sample_seed(opt, kTagChoice);
   const uint64_t rot_seed = sample_seed(opt, kTagRotation);
   const int n_brdf = N / 2;  // inference: BRDF samples first, then environment samples
   const float c_brdf = float(n_brdf) / float(N), c_env = 1.0f - c_brdf;
-  fg.weights.assign(gs.size() * size_t(N) * 3, 0.0f);
   const float norm = 1.0f / float(N * opt.aa_samples);
-  parallel_for(int64_t(gs.size()), 16, [&](int64_t b, int64_t e) {
-    for (int64_t i = b; i < e; ++i) {
-      const GSample& g = gs[size_t(i)];
-      const Frame frame(g.n);
-      const glm::vec3 origin = g.x + ray_epsilon(g.x) * g.n;
-      for (int k = 0; k < N; ++k) {
-        glm::vec3 l;
-        float pdf;
-        const bool split = opt.importance_sampling && n_brdf > 0;
-        const float u1 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k);
-        const float u2 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k + 1);
-        if (!opt.importance_sampling) {  // training: cosine-weighted hemisphere
-          l = frame.to_world(cosine_hemisphere(u1, u2));
-          pdf = cosine_hemisphere_pdf(glm::dot(l, g.n));
-        } else if (n_brdf == 0) {  // a single sample: one-sample MIS (balance heuristic)
-          if (uniform01f(choice_seed, g.stream, k) < 0.5f)
-            l = disney::sample(g.material, g.n, g.wo, u1, u2, uniform01f(choice_seed, g.stream, k + N)).wi;
-          else
-            l = env_sample(env_map, opt, u1, u2);
-          pdf = 0.5f * disney::pdf(g.material, g.n, g.wo, l) + 0.5f * env_pdf(env_map, opt, l);
-        } else {  // inference: stratified multi-sample MIS of BRDF and environment sampling
-          // One stratified set per pixel, interleaved over its anti-aliasing samples.
-          const int aa = opt.stratify_per_pixel ? opt.aa_samples : 1;
-          const SplitSample sp = split_sample(rot_seed, g.stream / uint64_t(aa), k, N, n_brdf, int(g.stream % uint64_t(aa)), aa);
-          if (sp.technique == 0)
-            l = disney::sample(g.material, g.n, g.wo, sp.u.x, sp.u.y, uniform01f(choice_seed, g.stream, k + N)).wi;
-          else
-            l = env_sample(env_map, opt, sp.u.x, sp.u.y);
-          pdf = c_brdf * disney::pdf(g.material, g.n, g.wo, l) + c_env * env_pdf(env_map, opt, l);
-        }
-        const float cos_l = glm::dot(l, g.n);
-        glm::vec3 w(0.0f);
-        if (cos_l > 0 && pdf > 0 && std::isfinite(pdf)) {
-          w = disney::eval(g.material, g.n, g.wo, l) * (cos_l / pdf) * norm;
-          if (!all_finite(w)) w = glm::vec3(0.0f);
-          Ray shadow;
-          shadow.origin = origin;
-          shadow.direction = l;
-          if (bvh.occluded(shadow)) w *= float(opt.ambient);  // blocked by the object itself
+  const Frame frame(g.n);
+  const glm::vec3 origin = light_origin(g);
+  const glm::vec3 cv = control_variate ? disney::lambertian(g.material) : glm::vec3(0.0f);
+  for (int k = 0; k < N; ++k) {
+    glm::vec3 l, f(0.0f);
+    float pdf;
+    equirect::UV unit{0.5, 0.5};
+    bool have_f = false, have_unit = false;
+    const bool split = opt.importance_sampling && n_brdf > 0;
+    const float u1 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k);
+    const float u2 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k + 1);
+    if (!opt.importance_sampling) {  // training: cosine-weighted hemisphere
+      l = frame.to_world(cosine_hemisphere(u1, u2));
+      pdf = cosine_hemisphere_pdf(glm::dot(l, g.n));
+    } else if (n_brdf == 0) {  // a single sample: one-sample MIS (balance heuristic)
+      if (uniform01f(choice_seed, g.stream, k) < 0.5f)
+        l = disney::sample(g.material, g.n, g.wo, u1, u2, uniform01f(choice_seed, g.stream, k + N)).wi;
+      else
+        l = env_sample(env_map, opt, u1, u2);
+      pdf = 0.5f * disney::pdf(g.material, g.n, g.wo, l) + 0.5f * env_pdf(env_map, opt, l);
+    } else {  // inference: stratified multi-sample MIS of BRDF and environment sampling
+      // One stratified set per pixel, interleaved over its anti-aliasing samples. The BRDF's
+      // value and density come with its sample (or from one evaluate()); the panorama
+      // coordinates with the environment's sample, so the env density and the cache's read
+      // share them.
+      const int aa = opt.stratify_per_pixel ? opt.aa_samples : 1;
+      const SplitSample sp = split_sample(rot_seed, g.stream / uint64_t(aa), k, N, n_brdf, int(g.stream % uint64_t(aa)), aa);
+      disney::Sample b;
+      if (sp.technique == 0) {
+        b = disney::sample(g.material, g.n, g.wo, sp.u.x, sp.u.y, uniform01f(choice_seed, g.stream, k + N));
+        l = b.wi;
+      } else {
+        if (opt.bilinear_env_sampling) {
+          l = env_map.sample_bilinear_direction(sp.u.x, sp.u.y, unit);
+          have_unit = true;
         } else {
-          l = g.n;  // a harmless ray with zero weight keeps the layout regular
+          l = env_sample(env_map, opt, sp.u.x, sp.u.y);
         }
-        const int64_t slot = i * N + k;
-        rays.set(slot, origin, l);
-        for (int c = 0; c < 3; ++c) fg.weights[size_t(3 * slot + c)] = w[c];
+        b = disney::evaluate(g.material, g.n, g.wo, l);
       }
+      if (!have_unit && glm::dot(l, l) > 0.0f) {
+        unit = equirect::direction_to_uv(l.x, l.y, l.z, 1, 1);
+        have_unit = true;
+      }
+      const float pe = !have_unit ? 0.0f : opt.bilinear_env_sampling ? env_map.pdf_bilinear_unit(unit) : env_map.pdf(l);
+      pdf = c_brdf * b.pdf + c_env * pe;
+      f = b.f;
+      have_f = true;
     }
-  });
+    const float cos_l = glm::dot(l, g.n);
+    glm::vec3 w(0.0f);
+    if (cos_l > 0 && pdf > 0 && std::isfinite(pdf)) {
+      w = (have_f ? f : disney::eval(g.material, g.n, g.wo, l)) * (cos_l / pdf) * norm;
+      if (!all_finite(w)) w = glm::vec3(0.0f);
+      Ray shadow;
+      shadow.origin = origin;
+      shadow.direction = l;
+      if (bvh.occluded(shadow)) w *= float(opt.ambient);  // blocked by the object itself
+      if (control_variate && all_finite(w)) w -= cv * (cos_l / pdf) * norm;
+    } else {
+      l = g.n;
+      have_unit = false;
+    }
+    ls[k] = l;
+    ws[k] = w;
+    if (units) units[k] = have_unit ? unit : equirect::direction_to_uv(l.x, l.y, l.z, 1, 1);
+  }
+}
+
+// Per pixel (in sample order), the offsets of its light rays.
+void pixel_offsets(const std::vector<GSample>& gs, int N, Foreground& fg) {
   fg.offsets.assign(1, 0);
   for (size_t i = 0; i < gs.size(); ++i) {
     if (i == 0 || gs[i].pixel != gs[i - 1].pixel) {
@@ -167,6 +192,57 @@ void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
     }
   }
   if (!gs.empty()) fg.offsets.push_back(int64_t(gs.size()) * N);
+}
+
+}  // namespace
+
+// Pass 2: N light directions per G-buffer sample, written to fixed slots [i·N, (i+1)·N).
+void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
+                      const std::vector<GSample>& gs, Foreground& fg, QueryRays& rays, bool control_variate) {
+  const int N = fg.light_samples;
+  fg.weights.assign(gs.size() * size_t(N) * 3, 0.0f);
+  parallel_for(int64_t(gs.size()), 16, [&](int64_t b, int64_t e) {
+    std::vector<glm::vec3> ls(static_cast<size_t>(N)), ws(static_cast<size_t>(N));
+    for (int64_t i = b; i < e; ++i) {
+      const GSample& g = gs[size_t(i)];
+      light_rays(opt, bvh, env_map, g, N, control_variate, ls.data(), ws.data(), nullptr);
+      const glm::vec3 origin = light_origin(g);
+      for (int k = 0; k < N; ++k) {
+        const int64_t slot = i * N + k;
+        rays.set(slot, origin, ls[size_t(k)]);
+        for (int c = 0; c < 3; ++c) fg.weights[size_t(3 * slot + c)] = ws[size_t(k)][c];
+      }
+    }
+  });
+  pixel_offsets(gs, N, fg);
+}
+
+void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
+                      const std::vector<GSample>& gs, const RadianceCache& cache, bool control_variate, Foreground& fg,
+                      std::vector<float>& colour) {
+  const int N = fg.light_samples;
+  std::vector<glm::vec3> per_sample(gs.size());
+  parallel_for(int64_t(gs.size()), 16, [&](int64_t b, int64_t e) {
+    std::vector<glm::vec3> ls(static_cast<size_t>(N)), ws(static_cast<size_t>(N));
+    std::vector<equirect::UV> units(static_cast<size_t>(N));
+    for (int64_t i = b; i < e; ++i) {
+      const GSample& g = gs[size_t(i)];
+      light_rays(opt, bvh, env_map, g, N, control_variate, ls.data(), ws.data(), units.data());
+      const glm::vec3 origin = light_origin(g);
+      glm::vec3 acc(0.0f);
+      for (int k = 0; k < N; ++k)
+        if (ws[size_t(k)] != glm::vec3(0.0f)) acc += ws[size_t(k)] * cache.radiance_unit(&origin[0], units[size_t(k)]);
+      if (control_variate) acc += disney::lambertian(g.material) * cache.irradiance(origin, g.n) / float(opt.aa_samples);
+      per_sample[size_t(i)] = acc;
+    }
+  });
+  pixel_offsets(gs, N, fg);
+  colour.assign(size_t(3 * fg.pixels.size()), 0.0f);
+  for (size_t p = 0; p < fg.pixels.size(); ++p) {
+    glm::vec3 acc(0.0f);
+    for (int64_t i = fg.offsets[p] / N; i < fg.offsets[p + 1] / N; ++i) acc += per_sample[size_t(i)];
+    for (int c = 0; c < 3; ++c) colour[3 * p + size_t(c)] = acc[c];
+  }
 }
 
 }  // namespace sl::render::insertion

@@ -21,6 +21,7 @@
 #include "render/insertion_rays.h"
 #include "render/mesh.h"
 #include "render/object_insertion.h"
+#include "render/radiance_cache.h"
 
 namespace sl::render::insertion {
 
@@ -45,7 +46,19 @@ struct GSample {
 std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& opt, const Mesh& mesh, const Bvh& bvh,
                              const double* depth, Foreground& fg, InsertionStats& stats);
 // Pass 2: N light directions per G-buffer sample, written to fixed slots [i·N, (i+1)·N).
+// The origin of a sample's light rays (offset along its normal).
+inline glm::vec3 light_origin(const GSample& g) { return g.x + ray_epsilon(g.x) * g.n; }
+
+// With control_variate, each weight is less c·cos/pdf/(N·aa) (c = disney::lambertian: the
+// residual of render/object_insertion.h's "Control variate"); the caller adds c·E/aa per sample.
 void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
-                      const std::vector<GSample>& gs, Foreground& fg, QueryRays& rays);
+                      const std::vector<GSample>& gs, Foreground& fg, QueryRays& rays, bool control_variate = false);
+// Inference with the radiance cache: the same light rays, read from `cache` as they are drawn
+// (no ray buffer); `colour` gets Σ w·L per pixel of fg.pixels (3 floats each), plus c·E/aa per
+// sample with the control variate (cache.build_irradiance() done for the samples' normals).
+// Equal to trace_foreground() followed by the cache's reads and weighted_segment_sum (tested).
+void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
+                      const std::vector<GSample>& gs, const RadianceCache& cache, bool control_variate, Foreground& fg,
+                      std::vector<float>& colour);
 
 }  // namespace sl::render::insertion

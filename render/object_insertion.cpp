@@ -16,6 +16,7 @@
 #include "render/insertion_foreground.h"
 #include "render/insertion_ops.h"
 #include "render/insertion_shadows.h"
+#include "render/radiance_cache.h"
 #include "render/sampling.h"
 #include "util/math.h"
 #include "util/parallel.h"
@@ -23,99 +24,6 @@
 
 namespace sl::render {
 namespace {
-using insertion::QueryRays;
-
-// The radiance cache of the header: V = Σ τ α G and τ_K per probe and direction, read
-// trilinearly × bilinearly; L_env is looked up exactly per ray.
-class RadianceCache {
- public:
-  // Probes over the origins of rays [begin, end), at most max_xz per horizontal axis and
-  // max_y vertically.
-  RadianceCache(const InsertionInputs& in, const InsertionOptions& opt, const EnvironmentMap& env_map,
-                const QueryRays& rays, int64_t begin, int64_t end, int max_xz, int max_y)
-      : env_map_(env_map), H_(opt.cache_height), W_(opt.cache_width) {
-    if (begin >= end) return;  // no rays read it
-    glm::vec3 lo(1e30f), hi(-1e30f);
-    for (int64_t r = begin; r < end; ++r) {
-      const glm::vec3 o(rays.origin[size_t(3 * r)], rays.origin[size_t(3 * r + 1)], rays.origin[size_t(3 * r + 2)]);
-      lo = glm::min(lo, o);
-      hi = glm::max(hi, o);
-    }
-    lo_ = lo;
-    for (int a = 0; a < 3; ++a) {
-      const float ext = std::max(0.0f, hi[a] - lo[a]);
-      n_[a] = std::clamp(int(std::ceil(ext / opt.cache_spacing_m)) + 1, 2, a == 1 ? max_y : max_xz);
-      step_[a] = ext > 0 ? ext / float(n_[a] - 1) : 1.0f;
-    }
-    const int64_t D = int64_t(H_) * W_, P = int64_t(n_[0]) * n_[1] * n_[2];
-    std::vector<float> o(size_t(3 * P * D)), d(size_t(3 * P * D));
-    std::vector<glm::vec3> dirs(static_cast<size_t>(D));
-    for (int64_t t = 0; t < D; ++t) {
-      const equirect::Dir e = equirect::uv_to_direction(double(t % W_) + 0.5, double(t / W_) + 0.5, W_, H_);
-      dirs[size_t(t)] = glm::vec3(float(e.x), float(e.y), float(e.z));
-    }
-    for (int64_t p = 0; p < P; ++p)
-      for (int64_t t = 0; t < D; ++t)
-        for (int c = 0; c < 3; ++c) {
-          o[size_t(3 * (p * D + t) + c)] = probe(p)[c];
-          d[size_t(3 * (p * D + t) + c)] = dirs[size_t(t)][c];
-        }
-    Tensor ot = Tensor::empty({P * D, 3}, DType::F32), dt = Tensor::empty({P * D, 3}, DType::F32);
-    std::copy(o.begin(), o.end(), ot.data<float>());
-    std::copy(d.begin(), d.end(), dt.data<float>());
-    const RadianceQueryResult q = radiance_query(in.vsg.detach().to(DType::F32).contiguous(),
-                                                 in.env.detach().to(DType::F32).contiguous(), ot, dt, in.grid, opt.query);
-    const Tensor rad = q.radiance.contiguous(), tau = q.transmittance.contiguous();
-    const float* rp = rad.data<float>();
-    const float* tp = tau.data<float>();
-    cache_.resize(size_t(4 * P * D));
-    for (int64_t i = 0; i < P * D; ++i) {
-      const glm::vec3 sky = env_map_.lookup(dirs[size_t(i % D)]);
-      for (int c = 0; c < 3; ++c) cache_[size_t(4 * i + c)] = rp[3 * i + c] - tp[i] * sky[c];
-      cache_[size_t(4 * i + 3)] = tp[i];
-    }
-  }
-
-  glm::vec3 radiance(const float* origin, const float* dir) const {
-    const glm::vec3 l(dir[0], dir[1], dir[2]);
-    if (!(glm::dot(l, l) > 0.0f) || !all_finite(l)) return glm::vec3(0.0f);
-    int i0[3];
-    float f[3];
-    for (int a = 0; a < 3; ++a) {
-      const float x = std::clamp((origin[a] - lo_[a]) / step_[a], 0.0f, float(n_[a] - 1));
-      i0[a] = std::min(int(x), n_[a] - 2);
-      f[a] = x - float(i0[a]);
-    }
-    const equirect::UV unit = equirect::direction_to_uv(l.x, l.y, l.z, 1, 1);  // one atan2/asin for both maps
-    const EnvTaps taps = env_bilinear_taps_unit(unit, W_, H_);
-    const int64_t D = int64_t(H_) * W_;
-    glm::vec4 acc(0.0f);
-    for (int c = 0; c < 8; ++c) {
-      const int ix = i0[0] + (c & 1), iy = i0[1] + ((c >> 1) & 1), iz = i0[2] + (c >> 2);
-      const float wc = ((c & 1) ? f[0] : 1 - f[0]) * (((c >> 1) & 1) ? f[1] : 1 - f[1]) * ((c >> 2) ? f[2] : 1 - f[2]);
-      if (wc == 0.0f) continue;
-      const float* base = &cache_[size_t(4 * ((int64_t(iz) * n_[1] + iy) * n_[0] + ix) * D)];
-      for (int k = 0; k < 4; ++k) {
-        const float w = wc * float(taps.weight[k]);
-        const float* e = base + 4 * taps.index[k];
-        acc += w * glm::vec4(e[0], e[1], e[2], e[3]);
-      }
-    }
-    return glm::vec3(acc) + acc.w * env_map_.lookup_unit(unit);
-  }
-
- private:
-  glm::vec3 probe(int64_t p) const {
-    const int ix = int(p % n_[0]), iy = int(p / n_[0] % n_[1]), iz = int(p / (int64_t(n_[0]) * n_[1]));
-    return lo_ + glm::vec3(float(ix) * step_[0], float(iy) * step_[1], float(iz) * step_[2]);
-  }
-  const EnvironmentMap& env_map_;
-  int H_, W_;
-  glm::vec3 lo_{0.0f};
-  int n_[3] = {2, 2, 2};
-  float step_[3] = {1, 1, 1};
-  std::vector<float> cache_;  // [probe][direction][V rgb, τ]
-};
 
 void validate(const InsertionInputs& in, const InsertionOptions& opt) {
   const int W = in.camera.intrinsics().width, H = in.camera.intrinsics().height;
@@ -190,10 +98,39 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
     fg.silhouette.assign(size_t(HW), 0.0f);
     out.stats.image_pixels_total = HW;
   }
-  const int64_t fg_rays = int64_t(gs.size()) * fg.light_samples;
+  // Inference with the radiance cache (render/radiance_cache.h): light rays are read from the
+  // object's probes as they are drawn, never stored. Two probe grids: one over the object's
+  // surface (light rays), one over the ground the shadow rays leave; one grid over both would
+  // stretch its few probes over the whole shadow region and blur the volume's light at the
+  // object. The shadow grid is coarser (cache_shadow_max_*): the volume's light enters S of
+  // Eq. 4 in numerator and denominator alike (measured: streetlight-bench insert, shadow term).
+  const bool cached = opt.radiance_cache && in.vsg.defined();
+  const bool cv = cached && opt.diffuse_control_variate;
+  const int64_t light_rays = int64_t(gs.size()) * fg.light_samples;
+  const int64_t fg_rays = cached ? 0 : light_rays;  // light rays in the one query's buffer
+  std::vector<float> shaded;  // cached: Σ w·L (+ c·E/aa) per pixel of fg.pixels
   if (!bvh.empty()) {
-    rays.resize(fg_rays);
-    trace_foreground(opt, bvh, env_map, gs, fg, rays);
+    if (cached) {
+      if (!gs.empty()) {
+        std::vector<float> origins(3 * gs.size());
+        std::vector<glm::vec3> normals(gs.size());
+        for (size_t i = 0; i < gs.size(); ++i) {
+          const glm::vec3 o = light_origin(gs[i]);
+          for (int c = 0; c < 3; ++c) origins[3 * i + size_t(c)] = o[c];
+          normals[i] = gs[i].n;
+        }
+        glm::vec3 lo, hi;
+        origin_bounds(origins.data(), int64_t(gs.size()), lo, hi);
+        RadianceCache fg_cache(in, opt, env_map, lo, hi, opt.cache_max_xz, opt.cache_max_y);
+        if (cv) fg_cache.build_irradiance(opt.cv_normals_height, opt.cv_quadrature_supersample, normals);
+        shade_foreground(opt, bvh, env_map, gs, fg_cache, cv, fg, shaded);
+      } else {
+        fg.offsets = {0};
+      }
+    } else {
+      rays.resize(fg_rays);
+      trace_foreground(opt, bvh, env_map, gs, fg, rays);
+    }
     QueryRays shadow_rays;  // appended after the light rays
     trace_shadows(in, opt, bvh.bounds(), bvh, env_map, depth, sh, shadow_rays, out.stats);
     rays.origin.insert(rays.origin.end(), shadow_rays.origin.begin(), shadow_rays.origin.end());
@@ -205,24 +142,18 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
     out.stats.shadow_pixels_total = int64_t(opt.shadow_width) * opt.shadow_height;
   }
   const int64_t sh_rays = rays.size() - fg_rays;
-  out.stats.query_rays = rays.size();
+  out.stats.query_rays = light_rays + sh_rays;
 
-  // ---- one radiance query for every light and shadow ray (Eq. 1)
+  // ---- one radiance query for every light and shadow ray in the buffer (Eq. 1)
   Tensor radiance = Tensor::zeros({0, 3}, dt);
-  if (rays.size() > 0 && in.vsg.defined() && opt.radiance_cache) {
-    // Two probe grids: one over the object's surface (light rays), one over the ground the
-    // shadow rays leave; one grid over both would stretch its few probes over the whole
-    // shadow region and blur the volume's light at the object. The shadow grid is 2×2×2: the
-    // volume's light enters S of Eq. 4 in numerator and denominator alike, so a coarse grid
-    // moves S little (measured: streetlight-bench insert --size kitti, shadow term).
-    const RadianceCache fg_cache(in, opt, env_map, rays, 0, fg_rays, opt.cache_max_xz, opt.cache_max_y);
-    const RadianceCache sh_cache(in, opt, env_map, rays, fg_rays, rays.size(), opt.cache_shadow_max_xz,
-                                 opt.cache_shadow_max_y);
+  if (rays.size() > 0 && cached) {
+    glm::vec3 lo, hi;
+    origin_bounds(rays.origin.data(), rays.size(), lo, hi);
+    const RadianceCache sh_cache(in, opt, env_map, lo, hi, opt.cache_shadow_max_xz, opt.cache_shadow_max_y);
     std::vector<float> l(size_t(3 * rays.size()));
     parallel_for(rays.size(), 256, [&](int64_t b, int64_t e) {
       for (int64_t r = b; r < e; ++r) {
-        const RadianceCache& cache = r < fg_rays ? fg_cache : sh_cache;
-        const glm::vec3 v = cache.radiance(&rays.origin[size_t(3 * r)], &rays.dir[size_t(3 * r)]);
+        const glm::vec3 v = sh_cache.radiance(&rays.origin[size_t(3 * r)], &rays.dir[size_t(3 * r)]);
         for (int c = 0; c < 3; ++c) l[size_t(3 * r + c)] = v[c];
       }
     });
@@ -235,8 +166,9 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   // ---- foreground: C = Σ w·L per pixel (Eq. 2), scattered into the image
   Tensor colour = Tensor::zeros({HW, 3}, dt);
   if (!fg.pixels.empty()) {
-    const Tensor per_pixel = weighted_segment_sum(slice(radiance, 0, 0, fg_rays),
-                                                  as_tensor(fg.weights, {fg_rays, 3}, dt), fg.offsets);
+    const Tensor per_pixel = cached ? as_tensor(shaded, {int64_t(fg.pixels.size()), 3}, dt)
+                                    : weighted_segment_sum(slice(radiance, 0, 0, fg_rays),
+                                                           as_tensor(fg.weights, {fg_rays, 3}, dt), fg.offsets);
     std::vector<int64_t> idx;
     for (int64_t p : fg.pixels) idx.insert(idx.end(), {p, p, p});
     colour = scatter_add(colour, 0, Tensor::from_indices(idx, {int64_t(fg.pixels.size()), 3}), per_pixel);

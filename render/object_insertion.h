@@ -37,11 +37,22 @@
 // 2×2×2 over those of the shadow rays) and
 // direction (cache_height × cache_width texel centres); a ray
 // reads them trilinearly in position and bilinearly in direction, and L_env(l) exactly, so a
-// sun in the sky keeps its full sharpness. Error against exact queries: streetlight-bench insert.
+// sun in the sky keeps its full sharpness (render/radiance_cache.h). The object's light rays are
+// then read as they are drawn and never stored (the foreground is off the tape in this mode).
+// Error against exact queries: streetlight-bench insert.
 // Lean: shadows are computed only inside the screen-space region the object can shadow (its
 // bounds swept along the light directions that carry energy, clipped to the image) and shading
 // only inside the object's screen bounds. stats reports the fraction skipped; the result equals
 // the unpruned one (tested).
+// Control variate (diffuse_control_variate, with the radiance cache): Eq. 2 splits as
+//   I_obj = c·E(x, n) + (1/N) Σ_k [f(v, l_k)·V'(l_k) − c] (n·l_k) L(x, l_k) / p(l_k),
+// c = (1 − metallic)·base/π (disney::lambertian), V' = 1 or I_a where the object blocks l_k,
+// E(x, n) = ∫_{n·l>0} (n·l) L(x, l) dΩ the irradiance of the cached radiance. E is integrated
+// once per probe (one matrix product over a quadrature grid twice the env's resolution) for the
+// nodes of a grid of normals the samples touch, and read trilinearly × bilinearly like L.
+// Where the object does not block the sky and the surface is near-Lambertian the sum is near
+// zero, so the sun's and sky's sampling noise leaves the diffuse shading; the bias is E's
+// quadrature and normal-grid interpolation (streetlight-bench insert, rows cv_*).
 // Every op is one tape node per call; backward recomputes its rays and samples.
 #pragma once
 #include <cstdint>
@@ -83,6 +94,11 @@ struct InsertionOptions {
   double cache_spacing_m = 2.0;             // probe spacing over the rays' origins...
   int cache_max_xz = 4, cache_max_y = 3;    // ...with at most this many probes per horizontal axis / vertically (light rays)
   int cache_shadow_max_xz = 2, cache_shadow_max_y = 2;  // the same for the shadow rays' grid
+  // Inference, with the radiance cache: Eq. 2 with the Lambertian part of the BRDF as a control
+  // variate (see "Control variate" above): E on a grid of cv_normals_height × 2·height normals,
+  // integrated over square texels half the env's rows high, refined cv_quadrature_supersample× per axis.
+  bool diffuse_control_variate = false;
+  int cv_normals_height = 32, cv_quadrature_supersample = 1;
 };
 
 struct InsertionStats {

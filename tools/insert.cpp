@@ -676,7 +676,7 @@ int run(int argc, char** argv) {
                 "                               depth (needs real geometry: --lidar or --depth); else the network's sun stays"},
                {"--aa", "N", "primary rays per pixel (default 4)"},
                {"--light-samples", "N", "light samples per primary ray, Eq. 2 (default 16)"},
-               {"--shadow-rays", "N", "shadow rays per shadow-map pixel, Eq. 4 (default 64)"},
+               {"--shadow-rays", "N", "shadow rays per shadow-map pixel, Eq. 4 (default 128)"},
                {"--shadow-width", "N", "shadow-map width (default 160)"},
                {"--shadow-height", "N", "shadow-map height (default 90)"},
                {"--seed", "N", "sampling seed (default 0)"},

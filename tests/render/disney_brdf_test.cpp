@@ -70,6 +70,19 @@ glm::dvec3 albedo_quadrature(const sl::render::disney::Params& p, const glm::vec
 
 // Pure GGX (metallic 1, no coat) reflects at most everything: single scattering only loses
 // energy (the Smith masking term; no multiple-scattering compensation, Kulla & Conty 2017).
+// evaluate() is eval() and pdf() in one call, with identical bits.
+TEST(DisneyBrdf, EvaluateEqualsEvalAndPdf) {
+  for (float metallic : {0.0f, 1.0f})
+    for (float roughness : {0.05f, 0.6f})
+      for (int i = 0; i < 200; ++i) {
+        const auto p = white(metallic, roughness, 0.5f, i % 2 ? 0.5f : 0.0f);
+        const glm::vec3 wo = view_at(0.7f), wi = random_hemisphere(11, uint64_t(i));
+        const auto e = sl::render::disney::evaluate(p, kUp, wo, wi);
+        EXPECT_EQ(e.f, sl::render::disney::eval(p, kUp, wo, wi));
+        EXPECT_EQ(e.pdf, sl::render::disney::pdf(p, kUp, wo, wi));
+      }
+}
+
 TEST(DisneyBrdf, WhiteFurnaceAlbedoOfGgxMetalNeverExceedsOne) {
   for (float roughness : {0.0f, 0.1f, 0.25f, 0.5f, 0.75f, 1.0f})
     for (float theta_deg : {0.0f, 30.0f, 60.0f, 75.0f, 85.0f, 89.0f}) {

@@ -97,6 +97,23 @@ TEST(EnvironmentMap, ImportanceSampledEstimateMatchesQuadratureWithAHugeSun) {
 // histogram on a fine grid (4×4 per texel, so the within-texel shape is checked, not just the
 // texel's mass) against the pdf integrated over each fine cell — and it is proportional to
 // the lookup's luminance inside every cell.
+// The unit-coordinate forms the inference shading uses: pdf_bilinear_unit at a direction's
+// coordinates is pdf_bilinear bit for bit; a sample's own coordinates give the same direction as
+// the two-argument sampler and the density at that direction to float rounding.
+TEST(EnvironmentMap, UnitCoordinateFormsAgreeWithTheDirectionForms) {
+  const int W = 16, H = 8;
+  Tensor t = sun_sky(W, H, 2, 5, 500.0f);
+  EnvironmentMap env(t);
+  for (int s = 0; s < 2000; ++s) {
+    render::equirect::UV unit;
+    const glm::vec3 d = env.sample_bilinear_direction(uniform01f(5, s, 0), uniform01f(5, s, 1), unit);
+    ASSERT_EQ(d, env.sample_bilinear_direction(uniform01f(5, s, 0), uniform01f(5, s, 1)));
+    const auto back = render::equirect::direction_to_uv(d.x, d.y, d.z, 1, 1);
+    ASSERT_EQ(env.pdf_bilinear_unit(back), env.pdf_bilinear(d));
+    ASSERT_NEAR(env.pdf_bilinear_unit(unit), env.pdf_bilinear(d), 1e-4f * env.pdf_bilinear(d));
+  }
+}
+
 TEST(EnvironmentMap, BilinearSamplingPdfMatchesTheSampledDensity) {
   const int W = 16, H = 8, sub = 4;
   Tensor t = sun_sky(W, H, 2, 5, 200.0f);

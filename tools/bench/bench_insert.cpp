@@ -326,13 +326,14 @@ int run_production(const std::string& size, bool json, const std::string& data, 
   ref.light_samples = 64;
   ref.shadow_rays = 256;
   ref.radiance_cache = reference_cache;
+  ref.diffuse_control_variate = false;  // plain Eq. 2: the control variate's bias stays visible
   const int passes = std::max({1, reference_spp / (ref.aa_samples * ref.light_samples), reference_spp / ref.shadow_rays});
   double ref_ms = 0;
   InsertionResult reference;
   // A stored reference (--reference-dir) is keyed by everything that determines it; the
   // renderer's code is named by kReferenceRenderer, bumped whenever an expectation changes.
   Fingerprint key;
-  key.text("insertion reference; renderer v2");  // v2: Owen-scrambled primary samples
+  key.text("insertion reference; renderer v3");  // v2: Owen-scrambled primary samples; v3: the key names every probe knob of a cache reference
   for (const Tensor& t : {in.background, in.depth, in.env, in.vsg}) key.tensor(t);
   key.bytes(in.objects[0].mesh.positions.data(), in.objects[0].mesh.positions.size() * sizeof(glm::vec3));
   key.value(k);
@@ -340,10 +341,15 @@ int run_production(const std::string& size, bool json, const std::string& data, 
   key.value(in.camera.position());
   key.value(in.grid);
   for (int v : {passes, ref.aa_samples, ref.light_samples, ref.shadow_rays, ref.shadow_width, ref.shadow_height,
-                ref.cache_height, ref.cache_width, int(ref.radiance_cache), int(ref.importance_sampling), int(ref.prune)})
+                int(ref.radiance_cache), int(ref.importance_sampling), int(ref.prune)})
     key.value(v);
+  if (ref.radiance_cache) {  // the probes shape a cache reference only
+    for (int v : {ref.cache_height, ref.cache_width, ref.cache_max_xz, ref.cache_max_y, ref.cache_shadow_max_xz,
+                  ref.cache_shadow_max_y})
+      key.value(v);
+    key.value(ref.cache_spacing_m);
+  }
   key.value(ref.ambient);
-  key.value(ref.cache_spacing_m);
   key.value(ref.seed);
   for (double v : {double(ref.query.samples), double(ref.query.spacing), double(ref.query.trilinear),
                    double(ref.query.prune), ref.query.empty_alpha, ref.query.min_transmittance})
@@ -384,6 +390,32 @@ int run_production(const std::string& size, bool json, const std::string& data, 
   };
   std::vector<Row> rows;
   rows.push_back({"production", train::insertion_options(production)});
+  if (!quick) {
+    // Eq. 2's diffuse control variate: off, and its two knobs (normal grid, quadrature).
+    InsertionOptions plain = train::insertion_options(production);
+    plain.diffuse_control_variate = false;
+    rows.push_back({"no_control_variate", plain});
+    for (int hn : {16, 64}) {
+      InsertionOptions o = train::insertion_options(production);
+      o.cv_normals_height = hn;
+      rows.push_back({"cv_normals" + std::to_string(hn), o});
+    }
+    InsertionOptions q2 = train::insertion_options(production);
+    q2.cv_quadrature_supersample = 2;
+    rows.push_back({"cv_quadrature2", q2});
+    // The object's probe grid: the former default (1 m, up to 4×3×4, 32×64 directions).
+    InsertionOptions coarse = train::insertion_options(production);
+    coarse.cache_spacing_m = 1.0;
+    coarse.cache_max_y = 3;
+    coarse.cache_height = 32;
+    coarse.cache_width = 64;
+    rows.push_back({"cache_4x3x4_1m", coarse});
+    for (int n : {8, 24}) {
+      InsertionOptions o = train::insertion_options(production);
+      o.light_samples = n;
+      rows.push_back({"cv_light" + std::to_string(n), o});
+    }
+  }
   if (!quick) {
     InsertionOptions exact = train::insertion_options(production);
     exact.radiance_cache = false;

@@ -1,0 +1,192 @@
+// render/radiance_cache.h: probes of Eq. 1 and their irradiance for the control variate.
+#include "render/radiance_cache.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "autodiff/matmul.h"
+#include "autodiff/ops.h"
+#include "render/equirect.h"
+#include "render/radiance_query.h"
+#include "render/sampling.h"
+#include "util/math.h"
+#include "util/parallel.h"
+
+namespace sl::render::insertion {
+
+RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& opt, const EnvironmentMap& env_map,
+              const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y)
+    : env_map_(env_map), H_(opt.cache_height), W_(opt.cache_width) {
+  if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return;  // no rays read it
+  lo_ = lo;
+  for (int a = 0; a < 3; ++a) {
+    const float ext = std::max(0.0f, hi[a] - lo[a]);
+    n_[a] = std::clamp(int(std::ceil(ext / opt.cache_spacing_m)) + 1, 2, a == 1 ? max_y : max_xz);
+    step_[a] = ext > 0 ? ext / float(n_[a] - 1) : 1.0f;
+  }
+  const int64_t D = int64_t(H_) * W_, P = int64_t(n_[0]) * n_[1] * n_[2];
+  std::vector<float> o(size_t(3 * P * D)), d(size_t(3 * P * D));
+  std::vector<glm::vec3> dirs(static_cast<size_t>(D));
+  for (int64_t t = 0; t < D; ++t) {
+    const equirect::Dir e = equirect::uv_to_direction(double(t % W_) + 0.5, double(t / W_) + 0.5, W_, H_);
+    dirs[size_t(t)] = glm::vec3(float(e.x), float(e.y), float(e.z));
+  }
+  for (int64_t p = 0; p < P; ++p)
+    for (int64_t t = 0; t < D; ++t)
+      for (int c = 0; c < 3; ++c) {
+        o[size_t(3 * (p * D + t) + c)] = probe(p)[c];
+        d[size_t(3 * (p * D + t) + c)] = dirs[size_t(t)][c];
+      }
+  Tensor ot = Tensor::empty({P * D, 3}, DType::F32), dt = Tensor::empty({P * D, 3}, DType::F32);
+  std::copy(o.begin(), o.end(), ot.data<float>());
+  std::copy(d.begin(), d.end(), dt.data<float>());
+  const RadianceQueryResult q = radiance_query(in.vsg.detach().to(DType::F32).contiguous(),
+                                               in.env.detach().to(DType::F32).contiguous(), ot, dt, in.grid, opt.query);
+  const Tensor rad = q.radiance.contiguous(), tau = q.transmittance.contiguous();
+  const float* rp = rad.data<float>();
+  const float* tp = tau.data<float>();
+  cache_.resize(size_t(4 * P * D));
+  for (int64_t i = 0; i < P * D; ++i) {
+    const glm::vec3 sky = env_map_.lookup(dirs[size_t(i % D)]);
+    for (int c = 0; c < 3; ++c) cache_[size_t(4 * i + c)] = rp[3 * i + c] - tp[i] * sky[c];
+    cache_[size_t(4 * i + 3)] = tp[i];
+  }
+}
+
+// E(probe, normal) = Σ_q max(0, n·d_q) ΔΩ_q L_probe(d_q), L_env bilinear as every ray reads it
+// and V, τ as radiance() reads them: one [touched normals × q] × [q × 3·probes] GEMM. The
+// quadrature rows are half the env's (a sun over a texel or two is integrated to ~0.3%, where
+// texel centres alone miss it by 5%: tests/render/radiance_cache_test.cpp), its texels square.
+void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<glm::vec3>& normals) {
+  if (cache_.empty()) return;
+  hn_ = std::max(2, hn);
+  wn_ = 2 * hn_;
+  const int ss = std::max(1, supersample);
+  const int hq = ss * std::max(2 * env_map_.height(), H_);
+  const int wq = std::max({2 * hq, ss * env_map_.width(), ss * W_});
+  const int64_t Q = int64_t(hq) * wq, P = int64_t(n_[0]) * n_[1] * n_[2], D = int64_t(H_) * W_;
+  node_row_.assign(size_t(hn_) * wn_, -1);
+  for (const glm::vec3& n : normals) {
+    if (!all_finite(n) || !(glm::dot(n, n) > 0.0f)) continue;
+    const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
+    for (int k = 0; k < 4; ++k) node_row_[size_t(taps.index[k])] = 0;
+  }
+  std::vector<int64_t> nodes;
+  for (size_t j = 0; j < node_row_.size(); ++j)
+    if (node_row_[j] == 0) {
+      node_row_[j] = int64_t(nodes.size());
+      nodes.push_back(int64_t(j));
+    }
+  const int64_t Nn = int64_t(nodes.size());
+  if (Nn == 0) return;
+  std::vector<glm::vec3> qdir(static_cast<size_t>(Q));
+  std::vector<float> lq(size_t(Q * 3 * P));  // [q][probe][rgb] · ΔΩ_q
+  parallel_for(Q, 64, [&](int64_t b, int64_t e) {
+    for (int64_t q = b; q < e; ++q) {
+      const equirect::Dir d = equirect::uv_to_direction(double(q % wq) + 0.5, double(q / wq) + 0.5, wq, hq);
+      const glm::vec3 l(float(d.x), float(d.y), float(d.z));
+      qdir[size_t(q)] = l;
+      const equirect::UV unit = equirect::direction_to_uv(l.x, l.y, l.z, 1, 1);
+      const EnvTaps taps = env_bilinear_taps_unit(unit, W_, H_);
+      const glm::vec3 sky = env_map_.lookup_unit(unit);
+      const float solid = float(equirect::pixel_solid_angle(int(q / wq), wq, hq));
+      for (int64_t p = 0; p < P; ++p) {
+        glm::vec4 acc(0.0f);
+        for (int k = 0; k < 4; ++k) {
+          const float* c = &cache_[size_t(4 * (p * D + taps.index[k]))];
+          acc += float(taps.weight[k]) * glm::vec4(c[0], c[1], c[2], c[3]);
+        }
+        const glm::vec3 L = (glm::vec3(acc) + acc.w * sky) * solid;
+        for (int c = 0; c < 3; ++c) lq[size_t((q * P + p) * 3 + c)] = L[c];
+      }
+    }
+  });
+  std::vector<float> a(size_t(Nn * Q));  // [touched normal][q] = max(0, n·d_q)
+  parallel_for(Nn, 4, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) {
+      const int64_t j = nodes[size_t(i)];
+      const equirect::Dir d = equirect::uv_to_direction(double(j % wn_) + 0.5, double(j / wn_) + 0.5, wn_, hn_);
+      const glm::vec3 n(float(d.x), float(d.y), float(d.z));
+      for (int64_t q = 0; q < Q; ++q) a[size_t(i * Q + q)] = std::max(0.0f, glm::dot(n, qdir[size_t(q)]));
+    }
+  });
+  irradiance_.assign(size_t(Nn * 3 * P), 0.0f);  // [touched normal][probe][rgb]
+  detail::gemm<float>(false, false, Nn, 3 * P, Q, 1.0f, a.data(), Q, lq.data(), 3 * P, 0.0f, irradiance_.data(), 3 * P);
+}
+
+// E(x, n) of build_irradiance() (n among the normals it was given): trilinear in the probes,
+// bilinear in the normal.
+glm::vec3 RadianceCache::irradiance(const glm::vec3& origin, const glm::vec3& n) const {
+  if (irradiance_.empty() || !all_finite(n) || !(glm::dot(n, n) > 0.0f)) return glm::vec3(0.0f);
+  int i0[3];
+  float f[3];
+  corner(&origin[0], i0, f);
+  const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
+  const int64_t P = int64_t(n_[0]) * n_[1] * n_[2];
+  glm::vec3 acc(0.0f);
+  for (int k = 0; k < 4; ++k) {
+    const int64_t row = node_row_[size_t(taps.index[k])];
+    if (row < 0 || taps.weight[k] == 0.0) continue;
+    for (int c = 0; c < 8; ++c) {
+      const int ix = i0[0] + (c & 1), iy = i0[1] + ((c >> 1) & 1), iz = i0[2] + (c >> 2);
+      const float wc = ((c & 1) ? f[0] : 1 - f[0]) * (((c >> 1) & 1) ? f[1] : 1 - f[1]) * ((c >> 2) ? f[2] : 1 - f[2]);
+      if (wc == 0.0f) continue;
+      const float* e = &irradiance_[size_t((row * P + (int64_t(iz) * n_[1] + iy) * n_[0] + ix) * 3)];
+      acc += wc * float(taps.weight[k]) * glm::vec3(e[0], e[1], e[2]);
+    }
+  }
+  return acc;
+}
+
+glm::vec3 RadianceCache::radiance(const float* origin, const float* dir) const {
+  const glm::vec3 l(dir[0], dir[1], dir[2]);
+  if (!(glm::dot(l, l) > 0.0f) || !all_finite(l)) return glm::vec3(0.0f);
+  return radiance_unit(origin, equirect::direction_to_uv(l.x, l.y, l.z, 1, 1));  // one atan2/asin for both maps
+}
+
+glm::vec3 RadianceCache::radiance_unit(const float* origin, const equirect::UV& unit) const {
+  if (cache_.empty()) return glm::vec3(0.0f);
+  int i0[3];
+  float f[3];
+  corner(origin, i0, f);
+  const EnvTaps taps = env_bilinear_taps_unit(unit, W_, H_);
+  const int64_t D = int64_t(H_) * W_;
+  glm::vec4 acc(0.0f);
+  for (int c = 0; c < 8; ++c) {
+    const int ix = i0[0] + (c & 1), iy = i0[1] + ((c >> 1) & 1), iz = i0[2] + (c >> 2);
+    const float wc = ((c & 1) ? f[0] : 1 - f[0]) * (((c >> 1) & 1) ? f[1] : 1 - f[1]) * ((c >> 2) ? f[2] : 1 - f[2]);
+    if (wc == 0.0f) continue;
+    const float* base = &cache_[size_t(4 * ((int64_t(iz) * n_[1] + iy) * n_[0] + ix) * D)];
+    for (int k = 0; k < 4; ++k) {
+      const float w = wc * float(taps.weight[k]);
+      const float* e = base + 4 * taps.index[k];
+      acc += w * glm::vec4(e[0], e[1], e[2], e[3]);
+    }
+  }
+  return glm::vec3(acc) + acc.w * env_map_.lookup_unit(unit);
+}
+
+// The probe cell of a point (clamped to the grid) and its trilinear fractions.
+void RadianceCache::corner(const float* origin, int i0[3], float f[3]) const {
+  for (int a = 0; a < 3; ++a) {
+    const float x = std::clamp((origin[a] - lo_[a]) / step_[a], 0.0f, float(n_[a] - 1));
+    i0[a] = std::min(int(x), n_[a] - 2);
+    f[a] = x - float(i0[a]);
+  }
+}
+glm::vec3 RadianceCache::probe(int64_t p) const {
+  const int ix = int(p % n_[0]), iy = int(p / n_[0] % n_[1]), iz = int(p / (int64_t(n_[0]) * n_[1]));
+  return lo_ + glm::vec3(float(ix) * step_[0], float(iy) * step_[1], float(iz) * step_[2]);
+}
+
+void origin_bounds(const float* origins, int64_t n, glm::vec3& lo, glm::vec3& hi) {
+  lo = glm::vec3(1e30f);
+  hi = glm::vec3(-1e30f);
+  for (int64_t r = 0; r < n; ++r) {
+    const glm::vec3 o(origins[3 * r], origins[3 * r + 1], origins[3 * r + 2]);
+    lo = glm::min(lo, o);
+    hi = glm::max(hi, o);
+  }
+}
+
+}  // namespace sl::render::insertion

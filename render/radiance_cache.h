@@ -1,0 +1,62 @@
+// The radiance cache of object insertion (render/object_insertion.h, "Radiance cache" and
+// "Control variate"): Eq. 1 split into the volume's own radiance V(x, l) = Σ τ α G and its
+// transmittance τ_K(x, l), queried once per probe and direction, so that
+//   L(x, l) = V(x, l) + τ_K(x, l) L_env(l)
+// is read per ray trilinearly in position, bilinearly in direction, with L_env exact. Inference
+// only (no tape). Internal to render/.
+//
+// Contract:
+// - Probes span the box [lo, hi] (the origins of the rays that will read it), cache_spacing_m
+//   apart or sparser: at most max_xz per horizontal axis and max_y vertically, at least 2. An
+//   empty box (lo > hi) builds nothing; radiance() then returns 0.
+// - Directions are the cache_height × cache_width texel centres (render/equirect.h).
+// - radiance(o, l) for any o (clamped to the box) and l (zero or non-finite l reads 0).
+// - build_irradiance(hn, ss, normals): E(probe, n) = ∫_{n·l>0} (n·l) L_probe(l) dΩ for the
+//   nodes of an hn × 2·hn grid of normals that bilinear reads of `normals` touch, as a sum over
+//   the texel centres of a grid with ss·max(2·env rows, cache rows) rows of square texels (at
+//   least ss × the env's and the cache's columns). irradiance(o, n) reads it like radiance(),
+//   for n among those normals.
+// Results do not depend on the thread count.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "render/environment_map.h"
+#include "render/equirect.h"
+#include "render/object_insertion.h"
+
+namespace sl::render::insertion {
+
+class RadianceCache {
+ public:
+  RadianceCache(const InsertionInputs& in, const InsertionOptions& opt, const EnvironmentMap& env_map,
+                const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y);
+
+  glm::vec3 radiance(const float* origin, const float* dir) const;
+  // radiance() at the unit panorama coordinates of a valid direction (no atan2/asin).
+  glm::vec3 radiance_unit(const float* origin, const equirect::UV& unit) const;
+  void build_irradiance(int hn, int supersample, const std::vector<glm::vec3>& normals);
+  glm::vec3 irradiance(const glm::vec3& origin, const glm::vec3& n) const;
+  int64_t probes() const { return cache_.empty() ? 0 : int64_t(n_[0]) * n_[1] * n_[2]; }
+
+ private:
+  void corner(const float* origin, int i0[3], float f[3]) const;
+  glm::vec3 probe(int64_t p) const;
+
+  const EnvironmentMap& env_map_;
+  int H_, W_;
+  glm::vec3 lo_{0.0f};
+  int n_[3] = {2, 2, 2};
+  float step_[3] = {1, 1, 1};
+  std::vector<float> cache_;  // [probe][direction][V rgb, τ]
+  int hn_ = 0, wn_ = 0;
+  std::vector<int64_t> node_row_;  // normal-grid node → row of irradiance_ (−1: not built)
+  std::vector<float> irradiance_;   // [touched normal][probe][rgb]
+};
+
+// The box of n origins (3 floats each); lo > hi when n = 0.
+void origin_bounds(const float* origins, int64_t n, glm::vec3& lo, glm::vec3& hi);
+
+}  // namespace sl::render::insertion

@@ -185,9 +185,12 @@ glm::vec3 EnvironmentMap::sample_bilinear_direction(float u1, float u2, equirect
   const double v = r.v0 + y * (r.v1 - r.v0);
   double u = c + 0.5 + x;
   if (u >= W) u -= W;
-  const equirect::Dir dir = equirect::uv_to_direction(u, v, W, H);
   unit = {u / W, v / H};
-  return glm::vec3(float(dir.x), float(dir.y), float(dir.z));
+  // equirect::uv_to_direction in single precision (the result is a float vector either way):
+  // the inference shading draws millions of these.
+  const float azimuth = float((unit.u - 0.5) * kTwoPi), elevation = float((0.5 - unit.v) * kPi);
+  const float ce = std::cos(elevation);
+  return glm::vec3(ce * std::sin(azimuth), std::sin(elevation), -ce * std::cos(azimuth));
 }
 
 float EnvironmentMap::pdf_bilinear(const glm::vec3& d) const {

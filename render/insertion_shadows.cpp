@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 #include "render/equirect.h"
 #include "render/sampling.h"
@@ -45,21 +46,50 @@ struct ShadowSampler {
     const double cos_t = d.y, pdf = c_cos * std::max(0.0, cos_t) / kPi + (1.0 - c_cos) * env_pdf(env_map, opt, d);
     return {d, (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0};
   }
+  // Inference with the radiance cache: operator() with the direction's panorama coordinates,
+  // taken from the environment sample itself (no atan2/asin) when it is one.
+  struct Ray {
+    glm::vec3 d;
+    double w;
+    equirect::UV unit;
+  };
+  Ray cached(int64_t t, int k) const {
+    const int N = opt.shadow_rays, n_cos = N / 2;
+    if (!opt.importance_sampling || n_cos == 0 || !opt.bilinear_env_sampling) {
+      const auto [d, w] = (*this)(t, k);
+      return {d, w, equirect::direction_to_uv(d.x, d.y, d.z, 1, 1)};
+    }
+    const SplitSample sp = split_sample(rot_seed, uint64_t(t), k, N, n_cos);
+    Ray r;
+    if (sp.technique == 0) {
+      r.d = frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y));
+      r.unit = equirect::direction_to_uv(r.d.x, r.d.y, r.d.z, 1, 1);
+    } else {
+      r.d = env_map.sample_bilinear_direction(sp.u.x, sp.u.y, r.unit);
+    }
+    const double c_cos = double(n_cos) / N;
+    const double cos_t = r.d.y, pdf = c_cos * std::max(0.0, cos_t) / kPi + (1.0 - c_cos) * env_map.pdf_bilinear_unit(r.unit);
+    r.w = (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0;
+    return r;
+  }
 };
+
+ShadowSampler make_sampler(const InsertionOptions& opt, const EnvironmentMap& env_map) {
+  return ShadowSampler{opt, env_map, sample_seed(opt, kTagShadow), sample_seed(opt, kTagChoice + 1),
+                       sample_seed(opt, kTagRotation + 1)};
+}
 
 }  // namespace
 
-// Pass 1 decides which texels need rays (those with depth whose rays can meet the object's box);
-// pass 2 writes their rays into fixed slots (the caller appends them after the light rays).
-void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const Bounds3& box, const Bvh& bvh,
-                   const EnvironmentMap& env_map, const double* depth, Shadows& sh, QueryRays& rays,
-                   InsertionStats& stats) {
+// Pass 1: which texels need rays (those with depth whose rays can meet the object's box).
+std::vector<glm::vec3> shadow_texels(const InsertionInputs& in, const InsertionOptions& opt, const Bounds3& box,
+                                     const EnvironmentMap& env_map, const double* depth, Shadows& sh,
+                                     InsertionStats& stats) {
   const Camera& cam = in.camera;
   const int W = cam.intrinsics().width, H = cam.intrinsics().height;
   const int sw = opt.shadow_width, shh = opt.shadow_height, N = opt.shadow_rays;
   const int64_t n_texels = int64_t(sw) * shh;
-  const ShadowSampler sampler{opt, env_map, sample_seed(opt, kTagShadow), sample_seed(opt, kTagChoice + 1),
-                              sample_seed(opt, kTagRotation + 1)};
+  const ShadowSampler sampler = make_sampler(opt, env_map);
   const glm::vec3 up(0, 1, 0);
   sh.texel_depth.assign(size_t(n_texels), 0.0f);
   std::vector<glm::vec3> origin(static_cast<size_t>(n_texels));
@@ -79,6 +109,7 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
       needed[size_t(t)] = any ? 1 : 0;  // none can meet the object: S = 1 exactly
     }
   });
+  sh.texels.clear();
   for (int64_t t = 0; t < n_texels; ++t)
     if (needed[size_t(t)]) sh.texels.push_back(t);
   const int64_t count = int64_t(sh.texels.size());
@@ -86,6 +117,18 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
   stats.shadow_pixels_computed = count;
   sh.offsets.resize(size_t(count) + 1);
   for (int64_t i = 0; i <= count; ++i) sh.offsets[size_t(i)] = i * N;
+  return origin;
+}
+
+// Pass 2 writes their rays into fixed slots (the caller appends them after the light rays).
+void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const Bounds3& box, const Bvh& bvh,
+                   const EnvironmentMap& env_map, const double* depth, Shadows& sh, QueryRays& rays,
+                   InsertionStats& stats) {
+  const std::vector<glm::vec3> origin = shadow_texels(in, opt, box, env_map, depth, sh, stats);
+  const ShadowSampler sampler = make_sampler(opt, env_map);
+  const glm::vec3 up(0, 1, 0);
+  const int N = opt.shadow_rays;
+  const int64_t count = int64_t(sh.texels.size());
   rays.resize(count * N);
   sh.visibility.assign(size_t(count * N), 1.0);
   sh.weights.assign(size_t(count * N), 0.0);
@@ -94,7 +137,15 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
       const int64_t t = sh.texels[size_t(i)];
       const glm::vec3 o = origin[size_t(t)];
       for (int k = 0; k < N; ++k) {
-        const auto [dir, w] = sampler(t, k);
+        glm::vec3 dir;
+        double w;
+        if (opt.radiance_cache) {  // the directions shade_shadows() draws
+          const ShadowSampler::Ray c = sampler.cached(t, k);
+          dir = c.d;
+          w = c.w;
+        } else {
+          std::tie(dir, w) = sampler(t, k);
+        }
         const size_t slot = size_t(i * N + k);
         Ray r;
         r.origin = o;
@@ -107,40 +158,117 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
   });
 }
 
-// Edge-aware upsampling taps: 4 bilinear texels per image pixel, weighted by depth similarity
-// (σ = 5% of the pixel's depth), renormalised. Index `n_texels` is a constant-1 row for pixels
-// with no depth.
+void shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map, const Shadows& sh,
+                   const std::vector<glm::vec3>& origins, const RadianceCache& cache, double epsilon,
+                   std::vector<float>& ratio) {
+  const ShadowSampler sampler = make_sampler(opt, env_map);
+  const int N = opt.shadow_rays;
+  const int64_t count = int64_t(sh.texels.size());
+  ratio.assign(size_t(3 * count), 1.0f);
+  parallel_for(count, 4, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) {
+      const int64_t t = sh.texels[size_t(i)];
+      const glm::vec3 o = origins[size_t(t)];
+      double num[3] = {epsilon, epsilon, epsilon}, den[3] = {epsilon, epsilon, epsilon};
+      for (int k = 0; k < N; ++k) {
+        const ShadowSampler::Ray s = sampler.cached(t, k);
+        if (!(s.w > 0)) continue;  // weight 0: adds nothing to either sum
+        Ray r;
+        r.origin = o;
+        r.direction = s.d;
+        const double vis = bvh.occluded(r) ? opt.ambient : 1.0;
+        const glm::vec3 L = cache.radiance_unit(&o[0], s.unit);
+        for (int c = 0; c < 3; ++c) {
+          num[c] += vis * s.w * L[c];
+          den[c] += s.w * L[c];
+        }
+      }
+      for (int c = 0; c < 3; ++c) ratio[size_t(3 * i + c)] = float(num[c] / den[c]);
+    }
+  });
+}
+
+// Edge-aware upsampling taps:
+// 4 bilinear texels per image pixel, weighted by depth similarity (σ = 5% of the pixel's depth),
+// renormalised. Index `n_texels` is a constant-1 row for pixels with no depth.
+void pixel_taps(const InsertionOptions& opt, const Shadows& sh, const double* depth, int W, int H, int row, int col,
+                int64_t idx[4], double w[4]) {
+  const int sw = opt.shadow_width, shh = opt.shadow_height;
+  const int64_t one_row = int64_t(sw) * shh;
+  const int64_t p = int64_t(row) * W + col;
+  const double dp = depth[p];
+  for (int c = 0; c < 4; ++c) {
+    idx[c] = one_row;
+    w[c] = 0.0;
+  }
+  if (!valid_depth(dp)) {
+    w[0] = 1.0;
+    return;
+  }
+  const double fx = (col + 0.5) * sw / W - 0.5, fy = (row + 0.5) * shh / H - 0.5;
+  const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
+  const double ax = fx - x0, ay = fy - y0;
+  double total = 0;
+  for (int c = 0; c < 4; ++c) {
+    const int x = std::clamp(x0 + (c & 1), 0, sw - 1), y = std::clamp(y0 + (c >> 1), 0, shh - 1);
+    const int64_t t = int64_t(y) * sw + x;
+    const double bil = ((c & 1) ? ax : 1 - ax) * ((c >> 1) ? ay : 1 - ay);
+    const double dt = sh.texel_depth[t];
+    const double sim = dt > 0 ? std::exp(-0.5 * std::pow((dp - dt) / (0.05 * dp), 2)) : 0.0;
+    idx[c] = dt > 0 ? t : one_row;
+    w[c] = bil * std::max(sim, 1e-12);
+    total += w[c];
+  }
+  for (int c = 0; c < 4; ++c) w[c] = total > 0 ? w[c] / total : (c == 0 ? 1.0 : 0.0);
+}
+
 void upsample_taps(const InsertionInputs& in, const InsertionOptions& opt, const Shadows& sh, const double* depth,
                    std::vector<int64_t>& idx, std::vector<double>& w) {
   const int W = in.camera.intrinsics().width, H = in.camera.intrinsics().height;
-  const int sw = opt.shadow_width, shh = opt.shadow_height;
-  const int64_t one_row = int64_t(sw) * shh;
-  idx.assign(size_t(W) * H * 4, one_row);
+  idx.assign(size_t(W) * H * 4, 0);
   w.assign(size_t(W) * H * 4, 0.0);
   parallel_for(H, 4, [&](int64_t r0, int64_t r1) {
     for (int row = int(r0); row < int(r1); ++row)
       for (int col = 0; col < W; ++col) {
         const int64_t p = int64_t(row) * W + col;
-        const double dp = depth[p];
-        if (!valid_depth(dp)) {
-          w[4 * p] = 1.0;
-          continue;
+        pixel_taps(opt, sh, depth, W, H, row, col, &idx[size_t(4 * p)], &w[size_t(4 * p)]);
+      }
+  });
+}
+
+void upsample_shadows(const InsertionInputs& in, const InsertionOptions& opt, const Shadows& sh, const double* depth,
+                      const std::vector<float>& ratio, std::vector<float>& s_img) {
+  const int W = in.camera.intrinsics().width, H = in.camera.intrinsics().height;
+  const int sw = opt.shadow_width, shh = opt.shadow_height;
+  const int64_t n_texels = int64_t(sw) * shh;
+  std::vector<float> texel(size_t(3 * (n_texels + 1)), 1.0f);  // S per texel; the extra row is the constant 1
+  for (size_t i = 0; i < sh.texels.size(); ++i)
+    for (int c = 0; c < 3; ++c) texel[size_t(3 * sh.texels[i] + c)] = ratio[3 * i + size_t(c)];
+  // Rows and columns whose bilinear footprint meets a computed texel; every other pixel reads
+  // texels of S = 1 only (weights sum to 1), so it is 1 exactly.
+  int tx0 = sw, tx1 = -1, ty0 = shh, ty1 = -1;
+  for (int64_t t : sh.texels) {
+    tx0 = std::min(tx0, int(t % sw));
+    tx1 = std::max(tx1, int(t % sw));
+    ty0 = std::min(ty0, int(t / sw));
+    ty1 = std::max(ty1, int(t / sw));
+  }
+  s_img.assign(size_t(3) * W * H, 1.0f);
+  if (tx1 < 0) return;
+  const int row0 = std::max(0, int(std::floor(double(ty0 - 1) * H / shh))), row1 = std::min(H, int(std::ceil(double(ty1 + 2) * H / shh)));
+  const int col0 = std::max(0, int(std::floor(double(tx0 - 1) * W / sw))), col1 = std::min(W, int(std::ceil(double(tx1 + 2) * W / sw)));
+  parallel_for(row1 - row0, 4, [&](int64_t r0, int64_t r1) {
+    for (int row = row0 + int(r0); row < row0 + int(r1); ++row)
+      for (int col = col0; col < col1; ++col) {
+        int64_t idx[4];
+        double w[4];
+        pixel_taps(opt, sh, depth, W, H, row, col, idx, w);
+        const int64_t p = int64_t(row) * W + col;
+        for (int c = 0; c < 3; ++c) {
+          double v = 0;
+          for (int k = 0; k < 4; ++k) v += w[k] * texel[size_t(3 * idx[k] + c)];
+          s_img[size_t(3 * p + c)] = float(v);
         }
-        const double fx = (col + 0.5) * sw / W - 0.5, fy = (row + 0.5) * shh / H - 0.5;
-        const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
-        const double ax = fx - x0, ay = fy - y0;
-        double total = 0;
-        for (int c = 0; c < 4; ++c) {
-          const int x = std::clamp(x0 + (c & 1), 0, sw - 1), y = std::clamp(y0 + (c >> 1), 0, shh - 1);
-          const int64_t t = int64_t(y) * sw + x;
-          const double bil = ((c & 1) ? ax : 1 - ax) * ((c >> 1) ? ay : 1 - ay);
-          const double dt = sh.texel_depth[t];
-          const double sim = dt > 0 ? std::exp(-0.5 * std::pow((dp - dt) / (0.05 * dp), 2)) : 0.0;
-          idx[4 * p + c] = dt > 0 ? t : one_row;
-          w[4 * p + c] = bil * std::max(sim, 1e-12);
-          total += w[4 * p + c];
-        }
-        for (int c = 0; c < 4; ++c) w[4 * p + c] = total > 0 ? w[4 * p + c] / total : (c == 0 ? 1.0 : 0.0);
       }
   });
 }

@@ -105,12 +105,14 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   // object. The shadow grid is coarser (cache_shadow_max_*): the volume's light enters S of
   // Eq. 4 in numerator and denominator alike (measured: streetlight-bench insert, shadow term).
   const bool cached = opt.radiance_cache && in.vsg.defined();
-  const bool cv = cached && opt.diffuse_control_variate;
-  const int64_t light_rays = int64_t(gs.size()) * fg.light_samples;
-  const int64_t fg_rays = cached ? 0 : light_rays;  // light rays in the one query's buffer
-  std::vector<float> shaded;  // cached: Σ w·L (+ c·E/aa) per pixel of fg.pixels
-  if (!bvh.empty()) {
-    if (cached) {
+  // Guard of Eq. 4: S = (Σ L' + ε)/(Σ L + ε), ε = 1e-6 · mean sky radiance (never 0/0).
+  const double eps = 1e-6 * std::max(1e-12, mean(in.env.detach().to(DType::F64)).item());
+  if (cached) {
+    // Inference with the radiance cache: every light and shadow ray is read from the probes as
+    // it is drawn, and the image is assembled by plain loops (no ray buffer, no tape).
+    const bool cv = opt.diffuse_control_variate;
+    std::vector<float> shaded, ratio;  // Σ w·L (+ c·E/aa) per pixel of fg.pixels; S per texel of sh.texels
+    if (!bvh.empty()) {
       if (!gs.empty()) {
         std::vector<float> origins(3 * gs.size());
         std::vector<glm::vec3> normals(gs.size());
@@ -124,13 +126,52 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
         RadianceCache fg_cache(in, opt, env_map, lo, hi, opt.cache_max_xz, opt.cache_max_y);
         if (cv) fg_cache.build_irradiance(opt.cv_normals_height, opt.cv_quadrature_supersample, normals);
         shade_foreground(opt, bvh, env_map, gs, fg_cache, cv, fg, shaded);
-      } else {
-        fg.offsets = {0};
+      }
+      const std::vector<glm::vec3> texel_origins = shadow_texels(in, opt, bvh.bounds(), env_map, depth, sh, out.stats);
+      if (!sh.texels.empty()) {
+        std::vector<float> origins;
+        for (int64_t t : sh.texels) origins.insert(origins.end(), {texel_origins[size_t(t)].x, texel_origins[size_t(t)].y, texel_origins[size_t(t)].z});
+        glm::vec3 lo, hi;
+        origin_bounds(origins.data(), int64_t(sh.texels.size()), lo, hi);
+        const RadianceCache sh_cache(in, opt, env_map, lo, hi, opt.cache_shadow_max_xz, opt.cache_shadow_max_y);
+        shade_shadows(opt, bvh, env_map, sh, texel_origins, sh_cache, eps, ratio);
       }
     } else {
-      rays.resize(fg_rays);
-      trace_foreground(opt, bvh, env_map, gs, fg, rays);
+      sh.texel_depth.assign(size_t(opt.shadow_width) * opt.shadow_height, 0.0f);
+      out.stats.shadow_pixels_total = int64_t(opt.shadow_width) * opt.shadow_height;
     }
+    out.stats.query_rays = int64_t(gs.size()) * fg.light_samples + int64_t(sh.texels.size()) * opt.shadow_rays;
+    std::vector<float> s_img;
+    upsample_shadows(in, opt, sh, depth, ratio, s_img);
+    // I_edit = α·I_obj + (1 − α)·(S ⊙ I), written channel-first.
+    std::vector<float> colour(size_t(3 * HW), 0.0f);
+    for (size_t i = 0; i < fg.pixels.size(); ++i)
+      for (int c = 0; c < 3; ++c) colour[size_t(3 * fg.pixels[i] + c)] = shaded[3 * i + size_t(c)];
+    const Tensor bg = in.background.detach().to(DType::F32).contiguous();
+    const float* pb = bg.data<float>();
+    Tensor comp = Tensor::empty({3, H, W}, DType::F32), smap = Tensor::empty({3, H, W}, DType::F32);
+    float *pc = comp.data<float>(), *ps = smap.data<float>();
+    parallel_for(HW, 4096, [&](int64_t b, int64_t e) {
+      for (int64_t p = b; p < e; ++p)
+        for (int c = 0; c < 3; ++c) {
+          const float S = s_img[size_t(3 * p + c)];
+          ps[c * HW + p] = S;
+          pc[c * HW + p] = colour[size_t(3 * p + c)] + (1.0f - fg.coverage[size_t(p)]) * S * pb[c * HW + p];
+        }
+    });
+    out.composite = comp.to(dt);
+    out.shadow_map = smap.to(dt);
+    out.object_mask = as_tensor(fg.coverage, {1, H, W}, dt);
+    out.object_depth = as_tensor(fg.depth, {1, H, W}, dt);
+    out.object_silhouette = as_tensor(fg.silhouette, {1, H, W}, dt);
+    return out;
+  }
+
+  // Exact queries (training and refinement: on the tape).
+  const int64_t fg_rays = int64_t(gs.size()) * fg.light_samples;
+  if (!bvh.empty()) {
+    rays.resize(fg_rays);
+    trace_foreground(opt, bvh, env_map, gs, fg, rays);
     QueryRays shadow_rays;  // appended after the light rays
     trace_shadows(in, opt, bvh.bounds(), bvh, env_map, depth, sh, shadow_rays, out.stats);
     rays.origin.insert(rays.origin.end(), shadow_rays.origin.begin(), shadow_rays.origin.end());
@@ -142,23 +183,11 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
     out.stats.shadow_pixels_total = int64_t(opt.shadow_width) * opt.shadow_height;
   }
   const int64_t sh_rays = rays.size() - fg_rays;
-  out.stats.query_rays = light_rays + sh_rays;
+  out.stats.query_rays = rays.size();
 
-  // ---- one radiance query for every light and shadow ray in the buffer (Eq. 1)
+  // ---- one radiance query for every light and shadow ray (Eq. 1)
   Tensor radiance = Tensor::zeros({0, 3}, dt);
-  if (rays.size() > 0 && cached) {
-    glm::vec3 lo, hi;
-    origin_bounds(rays.origin.data(), rays.size(), lo, hi);
-    const RadianceCache sh_cache(in, opt, env_map, lo, hi, opt.cache_shadow_max_xz, opt.cache_shadow_max_y);
-    std::vector<float> l(size_t(3 * rays.size()));
-    parallel_for(rays.size(), 256, [&](int64_t b, int64_t e) {
-      for (int64_t r = b; r < e; ++r) {
-        const glm::vec3 v = sh_cache.radiance(&rays.origin[size_t(3 * r)], &rays.dir[size_t(3 * r)]);
-        for (int c = 0; c < 3; ++c) l[size_t(3 * r + c)] = v[c];
-      }
-    });
-    radiance = as_tensor(l, {rays.size(), 3}, dt);
-  } else if (rays.size() > 0) {
+  if (rays.size() > 0) {
     const Tensor o = as_tensor(rays.origin, {rays.size(), 3}, dt), d = as_tensor(rays.dir, {rays.size(), 3}, dt);
     radiance = in.vsg.defined() ? radiance_query(in.vsg, in.env, o, d, in.grid, opt.query).radiance : env_lookup(in.env, d);
   }
@@ -166,9 +195,8 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   // ---- foreground: C = Σ w·L per pixel (Eq. 2), scattered into the image
   Tensor colour = Tensor::zeros({HW, 3}, dt);
   if (!fg.pixels.empty()) {
-    const Tensor per_pixel = cached ? as_tensor(shaded, {int64_t(fg.pixels.size()), 3}, dt)
-                                    : weighted_segment_sum(slice(radiance, 0, 0, fg_rays),
-                                                           as_tensor(fg.weights, {fg_rays, 3}, dt), fg.offsets);
+    const Tensor per_pixel =
+        weighted_segment_sum(slice(radiance, 0, 0, fg_rays), as_tensor(fg.weights, {fg_rays, 3}, dt), fg.offsets);
     std::vector<int64_t> idx;
     for (int64_t p : fg.pixels) idx.insert(idx.end(), {p, p, p});
     colour = scatter_add(colour, 0, Tensor::from_indices(idx, {int64_t(fg.pixels.size()), 3}), per_pixel);
@@ -178,8 +206,6 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   const int64_t n_texels = int64_t(opt.shadow_width) * opt.shadow_height;
   Tensor s_map = Tensor::ones({n_texels + 1, 3}, dt);  // the extra row is the constant 1
   if (!sh.texels.empty()) {
-    // Guard of Eq. 4: S = (Σ L' + ε)/(Σ L + ε), ε = 1e-6 · mean sky radiance (never 0/0).
-    const double eps = 1e-6 * std::max(1e-12, mean(in.env.detach().to(DType::F64)).item());
     const Tensor s = shadow_ratio(slice(radiance, 0, fg_rays, fg_rays + sh_rays), sh.weights, sh.visibility, sh.offsets, eps);
     std::vector<int64_t> idx;
     for (int64_t t : sh.texels) idx.insert(idx.end(), {t, t, t});

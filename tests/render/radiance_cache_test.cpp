@@ -11,6 +11,8 @@
 #include "render/environment_map.h"
 #include "render/equirect.h"
 #include "render/insertion_foreground.h"
+#include "render/insertion_ops.h"
+#include "render/insertion_shadows.h"
 #include "render/object_insertion.h"
 #include "render/primitives.h"
 #include "util/math.h"
@@ -162,6 +164,64 @@ TEST(RadianceCache, FusedShadingEqualsStoredRaysReadThroughTheCache) {
     }
     EXPECT_LT(std::sqrt(err / ref), 1e-4) << "control variate " << cv;
   }
+}
+
+// shade_shadows() and upsample_shadows() against the stored rays read through the cache, the
+// tape's shadow_ratio and the upsampling taps.
+TEST(RadianceCache, FusedShadowsEqualStoredRaysShadowRatioAndTaps) {
+  const Scene s = scene();
+  const InsertionOptions opt = cached_options();
+  const EnvironmentMap env_map(s.in.env);
+  const Tensor depth_t = s.in.depth.to(DType::F64).contiguous();
+  const double* depth = depth_t.data<double>();
+  const Bvh& bvh = *s.in.objects[0].bvh;
+  insertion::Shadows fused, stored;
+  InsertionStats st1, st2;
+  const auto origins = insertion::shadow_texels(s.in, opt, bvh.bounds(), env_map, depth, fused, st1);
+  ASSERT_GT(fused.texels.size(), 4u);
+  std::vector<float> flat;
+  for (int64_t t : fused.texels) flat.insert(flat.end(), {origins[size_t(t)].x, origins[size_t(t)].y, origins[size_t(t)].z});
+  glm::vec3 lo, hi;
+  insertion::origin_bounds(flat.data(), int64_t(fused.texels.size()), lo, hi);
+  const insertion::RadianceCache cache(s.in, opt, env_map, lo, hi, opt.cache_shadow_max_xz, opt.cache_shadow_max_y);
+  const double eps = 1e-6;
+  std::vector<float> ratio;
+  insertion::shade_shadows(opt, bvh, env_map, fused, origins, cache, eps, ratio);
+
+  insertion::QueryRays rays;
+  insertion::trace_shadows(s.in, opt, bvh.bounds(), bvh, env_map, depth, stored, rays, st2);
+  ASSERT_EQ(stored.texels, fused.texels);
+  std::vector<float> l(size_t(3 * rays.size()));
+  for (int64_t r = 0; r < rays.size(); ++r) {
+    const glm::vec3 v = cache.radiance(&rays.origin[size_t(3 * r)], &rays.dir[size_t(3 * r)]);
+    for (int c = 0; c < 3; ++c) l[size_t(3 * r + c)] = v[c];
+  }
+  const Tensor L = Tensor::from_vector(std::vector<double>(l.begin(), l.end()), {rays.size(), 3}, DType::F64);
+  const auto S = shadow_ratio(L, stored.weights, stored.visibility, stored.offsets, eps).to_vector();
+  ASSERT_EQ(S.size(), ratio.size());
+  bool shadowed = false;
+  for (size_t i = 0; i < S.size(); ++i) {
+    EXPECT_NEAR(ratio[i], S[i], 2e-5 * std::max(1.0, S[i])) << i;
+    shadowed = shadowed || S[i] < 0.9;
+  }
+  EXPECT_TRUE(shadowed);
+
+  // Upsampling: the taps' weighted sum over S (1 on uncomputed texels) at every pixel.
+  std::vector<float> s_img;
+  insertion::upsample_shadows(s.in, opt, fused, depth, ratio, s_img);
+  std::vector<int64_t> idx;
+  std::vector<double> w;
+  insertion::upsample_taps(s.in, opt, fused, depth, idx, w);
+  std::vector<double> texel(size_t(3 * (opt.shadow_width * opt.shadow_height + 1)), 1.0);
+  for (size_t i = 0; i < fused.texels.size(); ++i)
+    for (int c = 0; c < 3; ++c) texel[size_t(3 * fused.texels[i] + c)] = ratio[3 * i + size_t(c)];
+  const size_t HW = s_img.size() / 3;
+  for (size_t p = 0; p < HW; ++p)
+    for (int c = 0; c < 3; ++c) {
+      double v = 0;
+      for (int k = 0; k < 4; ++k) v += w[4 * p + size_t(k)] * texel[size_t(3 * idx[4 * p + size_t(k)] + c)];
+      ASSERT_NEAR(s_img[3 * p + size_t(c)], v, 1e-6) << "pixel " << p;
+    }
 }
 
 // Relative RMSE over the object's fully covered pixels.

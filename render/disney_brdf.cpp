@@ -144,9 +144,12 @@ glm::vec3 eval(const Params& p, const glm::vec3& n, const glm::vec3& wo, const g
   return all_finite(f) ? f : glm::vec3(0.0f);
 }
 
-glm::vec3 lambertian(const Params& p) {
+DiffuseControl diffuse_control(const Params& p, float n_dot_v) {
   const Prepared m = prepare(p);
-  return (1.0f - m.metallic) * m.base / kPiF;
+  DiffuseControl d;
+  d.kappa = m.roughness - 0.5f;
+  d.c = (1.0f - m.metallic) * m.base / kPiF * (1.0f + d.kappa * schlick_weight(n_dot_v));
+  return d;
 }
 
 float pdf(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi) {

@@ -147,10 +147,15 @@ Sample sample(const Params& p, const glm::vec3& n, const glm::vec3& wo, float u1
 float pdf(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi);
 // {wi, eval(wi), pdf(wi)} with the shared work done once (identical bits to the two calls).
 Sample evaluate(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi);
-// The Lambertian part of the diffuse lobe, (1 − metallic)·base/π (parameters clamped as in
-// eval): eval() minus this is the retro-reflection correction, sheen and the specular lobes.
-// A control variate's coefficient (render/object_insertion.h, diffuse_control_variate).
-glm::vec3 lambertian(const Params& p);
+// The diffuse lobe as a control variate needs it (render/object_insertion.h,
+// diffuse_control_variate): g(l) = c·(1 + κ·F_L), F_L = (1 − n·l)^5, with
+// c = (1 − metallic)·base/π·(1 + κ·F_V) and κ = F_D90 − 1 = roughness − ½, Burley's F_D90 at
+// (l·h)² = ½ (a light at the horizon, averaged over its azimuth). Parameters clamped as in eval.
+struct DiffuseControl {
+  glm::vec3 c{0.0f};
+  float kappa = 0.0f;
+};
+DiffuseControl diffuse_control(const Params& p, float n_dot_v);
 
 // Probabilities with which sample() picks the diffuse, specular and clearcoat lobes for this
 // view (sum to 1; a lobe that can reflect light never gets probability 0).

@@ -115,7 +115,8 @@ void light_rays(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMa
   const float norm = 1.0f / float(N * opt.aa_samples);
   const Frame frame(g.n);
   const glm::vec3 origin = light_origin(g);
-  const glm::vec3 cv = control_variate ? disney::lambertian(g.material) : glm::vec3(0.0f);
+  const disney::DiffuseControl cv = control_variate ? disney::diffuse_control(g.material, glm::dot(g.n, g.wo))
+                                                    : disney::DiffuseControl{};
   for (int k = 0; k < N; ++k) {
     glm::vec3 l, f(0.0f);
     float pdf;
@@ -171,7 +172,8 @@ void light_rays(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMa
       shadow.origin = origin;
       shadow.direction = l;
       if (bvh.occluded(shadow)) w *= float(opt.ambient);  // blocked by the object itself
-      if (control_variate && all_finite(w)) w -= cv * (cos_l / pdf) * norm;
+      if (control_variate && all_finite(w))
+        w -= cv.c * ((1.0f + cv.kappa * disney::schlick_weight(cos_l)) * cos_l / pdf * norm);
     } else {
       l = g.n;
       have_unit = false;
@@ -232,7 +234,11 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
       glm::vec3 acc(0.0f);
       for (int k = 0; k < N; ++k)
         if (ws[size_t(k)] != glm::vec3(0.0f)) acc += ws[size_t(k)] * cache.radiance_unit(&origin[0], units[size_t(k)]);
-      if (control_variate) acc += disney::lambertian(g.material) * cache.irradiance(origin, g.n) / float(opt.aa_samples);
+      if (control_variate) {
+        const disney::DiffuseControl d = disney::diffuse_control(g.material, glm::dot(g.n, g.wo));
+        const RadianceCache::Irradiance e = cache.irradiance(origin, g.n);
+        acc += d.c * (e.cosine + d.kappa * e.grazing) / float(opt.aa_samples);
+      }
       per_sample[size_t(i)] = acc;
     }
   });

@@ -49,8 +49,8 @@ std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& 
 // The origin of a sample's light rays (offset along its normal).
 inline glm::vec3 light_origin(const GSample& g) { return g.x + ray_epsilon(g.x) * g.n; }
 
-// With control_variate, each weight is less c·cos/pdf/(N·aa) (c = disney::lambertian: the
-// residual of render/object_insertion.h's "Control variate"); the caller adds c·E/aa per sample.
+// With control_variate, each weight is less g(l)·cos/pdf/(N·aa) (g of disney::diffuse_control:
+// the residual of render/object_insertion.h's "Control variate"); shade_foreground() adds ∫g·cos·L/aa.
 void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
                       const std::vector<GSample>& gs, Foreground& fg, QueryRays& rays, bool control_variate = false);
 // Inference with the radiance cache: the same light rays, read from `cache` as they are drawn

@@ -45,14 +45,15 @@
 // only inside the object's screen bounds. stats reports the fraction skipped; the result equals
 // the unpruned one (tested).
 // Control variate (diffuse_control_variate, with the radiance cache): Eq. 2 splits as
-//   I_obj = c·E(x, n) + (1/N) Σ_k [f(v, l_k)·V'(l_k) − c] (n·l_k) L(x, l_k) / p(l_k),
-// c = (1 − metallic)·base/π (disney::lambertian), V' = 1 or I_a where the object blocks l_k,
-// E(x, n) = ∫_{n·l>0} (n·l) L(x, l) dΩ the irradiance of the cached radiance. E is integrated
-// once per probe (one matrix product over a quadrature grid twice the env's resolution) for the
-// nodes of a grid of normals the samples touch, and read trilinearly × bilinearly like L.
-// Where the object does not block the sky and the surface is near-Lambertian the sum is near
-// zero, so the sun's and sky's sampling noise leaves the diffuse shading; the bias is E's
-// quadrature and normal-grid interpolation (streetlight-bench insert, rows cv_*).
+//   I_obj = ∫ g cos L dΩ + (1/N) Σ_k [f(v, l_k)·V'(l_k) − g(l_k)] (n·l_k) L(x, l_k) / p(l_k),
+// V' = 1 or I_a where the object blocks l_k, and g Burley's diffuse lobe with F_D90 fixed at a
+// horizon light's azimuthal mean (disney::diffuse_control): g = c·(1 + κ(1 − n·l)^5), so
+// ∫ g cos L = c·(E(x, n) + κ E₅(x, n)), E the irradiance of the cached radiance and E₅ the same
+// with the extra (1 − n·l)^5. Both are integrated once per probe (one matrix product over a
+// quadrature grid twice the env's resolution) for the nodes of a grid of normals the samples
+// touch, and read trilinearly × bilinearly like L. Where the object does not block the sky the
+// sum is small, so most of the sun's and sky's sampling noise leaves the diffuse shading; the
+// bias is E's quadrature and normal-grid interpolation (streetlight-bench insert, rows cv_*).
 // Every op is one tape node per call; backward recomputes its rays and samples.
 #pragma once
 #include <cstdint>

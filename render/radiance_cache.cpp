@@ -6,6 +6,7 @@
 
 #include "autodiff/matmul.h"
 #include "autodiff/ops.h"
+#include "render/disney_brdf.h"
 #include "render/equirect.h"
 #include "render/radiance_query.h"
 #include "render/sampling.h"
@@ -101,29 +102,35 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
       }
     }
   });
-  std::vector<float> a(size_t(Nn * Q));  // [touched normal][q] = max(0, n·d_q)
+  // [kernel][touched normal][q]: max(0, n·d_q), then max(0, n·d_q)·(1 − max(0, n·d_q))^5.
+  std::vector<float> a(size_t(2 * Nn * Q));
   parallel_for(Nn, 4, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) {
       const int64_t j = nodes[size_t(i)];
       const equirect::Dir d = equirect::uv_to_direction(double(j % wn_) + 0.5, double(j / wn_) + 0.5, wn_, hn_);
       const glm::vec3 n(float(d.x), float(d.y), float(d.z));
-      for (int64_t q = 0; q < Q; ++q) a[size_t(i * Q + q)] = std::max(0.0f, glm::dot(n, qdir[size_t(q)]));
+      for (int64_t q = 0; q < Q; ++q) {
+        const float c = std::max(0.0f, glm::dot(n, qdir[size_t(q)]));
+        a[size_t(i * Q + q)] = c;
+        a[size_t((Nn + i) * Q + q)] = c > 0.0f ? c * disney::schlick_weight(c) : 0.0f;
+      }
     }
   });
-  irradiance_.assign(size_t(Nn * 3 * P), 0.0f);  // [touched normal][probe][rgb]
-  detail::gemm<float>(false, false, Nn, 3 * P, Q, 1.0f, a.data(), Q, lq.data(), 3 * P, 0.0f, irradiance_.data(), 3 * P);
+  touched_ = Nn;
+  irradiance_.assign(size_t(2 * Nn * 3 * P), 0.0f);
+  detail::gemm<float>(false, false, 2 * Nn, 3 * P, Q, 1.0f, a.data(), Q, lq.data(), 3 * P, 0.0f, irradiance_.data(), 3 * P);
 }
 
 // E(x, n) of build_irradiance() (n among the normals it was given): trilinear in the probes,
 // bilinear in the normal.
-glm::vec3 RadianceCache::irradiance(const glm::vec3& origin, const glm::vec3& n) const {
-  if (irradiance_.empty() || !all_finite(n) || !(glm::dot(n, n) > 0.0f)) return glm::vec3(0.0f);
+RadianceCache::Irradiance RadianceCache::irradiance(const glm::vec3& origin, const glm::vec3& n) const {
+  Irradiance out;
+  if (irradiance_.empty() || !all_finite(n) || !(glm::dot(n, n) > 0.0f)) return out;
   int i0[3];
   float f[3];
   corner(&origin[0], i0, f);
   const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
   const int64_t P = int64_t(n_[0]) * n_[1] * n_[2];
-  glm::vec3 acc(0.0f);
   for (int k = 0; k < 4; ++k) {
     const int64_t row = node_row_[size_t(taps.index[k])];
     if (row < 0 || taps.weight[k] == 0.0) continue;
@@ -131,11 +138,15 @@ glm::vec3 RadianceCache::irradiance(const glm::vec3& origin, const glm::vec3& n)
       const int ix = i0[0] + (c & 1), iy = i0[1] + ((c >> 1) & 1), iz = i0[2] + (c >> 2);
       const float wc = ((c & 1) ? f[0] : 1 - f[0]) * (((c >> 1) & 1) ? f[1] : 1 - f[1]) * ((c >> 2) ? f[2] : 1 - f[2]);
       if (wc == 0.0f) continue;
-      const float* e = &irradiance_[size_t((row * P + (int64_t(iz) * n_[1] + iy) * n_[0] + ix) * 3)];
-      acc += wc * float(taps.weight[k]) * glm::vec3(e[0], e[1], e[2]);
+      const int64_t p = (int64_t(iz) * n_[1] + iy) * n_[0] + ix;
+      const float w = wc * float(taps.weight[k]);
+      const float* e1 = &irradiance_[size_t((row * P + p) * 3)];
+      const float* e5 = &irradiance_[size_t(((touched_ + row) * P + p) * 3)];
+      out.cosine += w * glm::vec3(e1[0], e1[1], e1[2]);
+      out.grazing += w * glm::vec3(e5[0], e5[1], e5[2]);
     }
   }
-  return acc;
+  return out;
 }
 
 glm::vec3 RadianceCache::radiance(const float* origin, const float* dir) const {

@@ -11,7 +11,8 @@
 //   empty box (lo > hi) builds nothing; radiance() then returns 0.
 // - Directions are the cache_height × cache_width texel centres (render/equirect.h).
 // - radiance(o, l) for any o (clamped to the box) and l (zero or non-finite l reads 0).
-// - build_irradiance(hn, ss, normals): E(probe, n) = ∫_{n·l>0} (n·l) L_probe(l) dΩ for the
+// - build_irradiance(hn, ss, normals): E(probe, n) = ∫_{n·l>0} (n·l) L_probe(l) dΩ (and the
+//   same with (n·l)(1 − n·l)^5 for the control variate's grazing term) for the
 //   nodes of an hn × 2·hn grid of normals that bilinear reads of `normals` touch, as a sum over
 //   the texel centres of a grid with ss·max(2·env rows, cache rows) rows of square texels (at
 //   least ss × the env's and the cache's columns). irradiance(o, n) reads it like radiance(),
@@ -37,8 +38,12 @@ class RadianceCache {
   glm::vec3 radiance(const float* origin, const float* dir) const;
   // radiance() at the unit panorama coordinates of a valid direction (no atan2/asin).
   glm::vec3 radiance_unit(const float* origin, const equirect::UV& unit) const;
+  // ∫ (n·l) L dΩ and ∫ (n·l)(1 − n·l)^5 L dΩ over n·l > 0 (the second is Burley's grazing term).
+  struct Irradiance {
+    glm::vec3 cosine{0.0f}, grazing{0.0f};
+  };
   void build_irradiance(int hn, int supersample, const std::vector<glm::vec3>& normals);
-  glm::vec3 irradiance(const glm::vec3& origin, const glm::vec3& n) const;
+  Irradiance irradiance(const glm::vec3& origin, const glm::vec3& n) const;
   int64_t probes() const { return cache_.empty() ? 0 : int64_t(n_[0]) * n_[1] * n_[2]; }
 
  private:
@@ -53,7 +58,8 @@ class RadianceCache {
   std::vector<float> cache_;  // [probe][direction][V rgb, τ]
   int hn_ = 0, wn_ = 0;
   std::vector<int64_t> node_row_;  // normal-grid node → row of irradiance_ (−1: not built)
-  std::vector<float> irradiance_;   // [touched normal][probe][rgb]
+  std::vector<float> irradiance_;   // [kernel][touched normal][probe][rgb]
+  int64_t touched_ = 0;
 };
 
 // The box of n origins (3 floats each); lo > hi when n = 0.

@@ -99,7 +99,7 @@ struct InsertionOptions {
   // variate (see "Control variate" above): E on a grid of cv_normals_height × 2·height normals,
   // integrated over square texels half the env's rows high, refined cv_quadrature_supersample× per axis.
   bool diffuse_control_variate = false;
-  int cv_normals_height = 32, cv_quadrature_supersample = 1;
+  int cv_normals_height = 64, cv_quadrature_supersample = 1;
 };
 
 struct InsertionStats {

@@ -395,7 +395,7 @@ int run_production(const std::string& size, bool json, const std::string& data, 
     InsertionOptions plain = train::insertion_options(production);
     plain.diffuse_control_variate = false;
     rows.push_back({"no_control_variate", plain});
-    for (int hn : {16, 64}) {
+    for (int hn : {16, 32}) {
       InsertionOptions o = train::insertion_options(production);
       o.cv_normals_height = hn;
       rows.push_back({"cv_normals" + std::to_string(hn), o});

@@ -247,7 +247,9 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
   for (size_t p = 0; p < fg.pixels.size(); ++p) {
     glm::vec3 acc(0.0f);
     for (int64_t i = fg.offsets[p] / N; i < fg.offsets[p + 1] / N; ++i) acc += per_sample[size_t(i)];
-    for (int c = 0; c < 3; ++c) colour[3 * p + size_t(c)] = acc[c];
+    // A control-variate estimate can dip below 0 where the object blocks much of its own light
+    // (3 of 1.4M values on KITTI 000008, the lowest −0.011); radiance cannot.
+    for (int c = 0; c < 3; ++c) colour[3 * p + size_t(c)] = std::max(0.0f, acc[c]);
   }
 }
 

@@ -54,8 +54,9 @@ inline glm::vec3 light_origin(const GSample& g) { return g.x + ray_epsilon(g.x) 
 void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
                       const std::vector<GSample>& gs, Foreground& fg, QueryRays& rays, bool control_variate = false);
 // Inference with the radiance cache: the same light rays, read from `cache` as they are drawn
-// (no ray buffer); `colour` gets Σ w·L per pixel of fg.pixels (3 floats each), plus c·E/aa per
-// sample with the control variate (cache.build_irradiance() done for the samples' normals).
+// (no ray buffer); `colour` gets Σ w·L per pixel of fg.pixels (3 floats each), plus ∫g·cos·L/aa per
+// sample with the control variate (cache.build_irradiance() done for the samples' normals),
+// clamped at 0.
 // Equal to trace_foreground() followed by the cache's reads and weighted_segment_sum (tested).
 void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
                       const std::vector<GSample>& gs, const RadianceCache& cache, bool control_variate, Foreground& fg,

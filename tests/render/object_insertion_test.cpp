@@ -225,6 +225,67 @@ TEST(ObjectInsertion, ExtremeCasesKeepOutputsAndGradientsFinite) {
   }
 }
 
+// The inference path (radiance cache, fused reads, the diffuse control variate) on the same
+// extremes: every output finite, the shadow ratio and the composite never negative.
+TEST(ObjectInsertion, ExtremeCasesKeepTheCachedControlVariatePathFiniteAndNonNegative) {
+  struct Case {
+    const char* name;
+    double sun;
+    float roughness;
+    double pitch_deg;
+    Placement placement;
+    bool holes;
+    int vsg;  // 1 empty, 2 opaque, 3 random
+  };
+  const Case cases[] = {
+      {"sun_1e6_in_one_texel", 1e6, 0.5f, -15, {0, -6, 0, 1}, false, 3},
+      {"roughness_0_metal", 1e6, 0.0f, -15, {0, -6, 0, 1}, false, 3},
+      {"roughness_1", 1e6, 1.0f, -15, {0, -6, 0, 1}, false, 3},
+      {"grazing_camera", 1e5, 0.5f, -0.5, {0, -25, 30, 3}, false, 3},
+      {"object_at_image_border", 1e5, 0.5f, -15, {3.4, -6, 45, 1}, false, 3},
+      {"depth_holes", 1e5, 0.5f, -15, {0, -6, 0, 1}, true, 3},
+      {"empty_volume", 1e5, 0.5f, -15, {0, -6, 0, 1}, false, 1},
+      {"opaque_volume", 1e5, 0.5f, -15, {0, -6, 0, 1}, false, 2},
+      {"black_sky", 0.0, 0.5f, -15, {0, -6, 0, 1}, false, 3},
+  };
+  for (const Case& c : cases) {
+    GroundScene s = ground_scene(32, 24, DType::F32, c.pitch_deg);
+    const PlacedObject obj = place_object(box_mesh(c.roughness, c.roughness == 0.0f ? 1.0f : 0.0f), c.placement,
+                                          s.camera, s.depth);
+    if (c.holes) {
+      float* d = s.depth.data<float>();
+      for (int64_t i = 0; i < s.depth.numel(); i += 3) d[i] = (i % 9 == 0) ? 0.0f : (i % 9 == 3 ? INFINITY : NAN);
+    }
+    Tensor env = c.sun > 0 ? sun_sky(32, 16, c.sun, DType::F32, 3, 12) : Tensor::zeros({3, 16, 32});
+    Tensor vsg;
+    if (c.vsg == 3) {
+      vsg = vsg_activate(Tensor::uniform({8, 4, 4, 2}, -3, -1, 5), 0).detach().contiguous();
+    } else {
+      vsg = Tensor::zeros({8, 4, 4, 2});
+      slice(vsg, 0, 0, 3).fill_(0.5);
+      slice(vsg, 0, 4, 5).fill_(1.0);
+      slice(vsg, 0, 6, 7).fill_(1.0);
+      slice(vsg, 0, 7, 8).fill_(c.vsg == 2 ? 1.0 : 0.0);
+    }
+    InsertionInputs in{s.background, s.depth, s.camera, env, vsg, small_grid(), {obj}};
+    InsertionOptions opt = small_options();
+    opt.aa_samples = 2;
+    opt.light_samples = 8;
+    opt.importance_sampling = true;
+    opt.bilinear_env_sampling = true;
+    opt.stratify_per_pixel = true;
+    opt.radiance_cache = true;
+    opt.diffuse_control_variate = true;
+    opt.cache_height = 8;
+    opt.cache_width = 16;
+    const InsertionResult r = insert_objects(in, opt);
+    EXPECT_TRUE(finite(r.composite)) << c.name;
+    EXPECT_TRUE(finite(r.shadow_map)) << c.name;
+    for (double v : r.shadow_map.to_vector()) EXPECT_GE(v, 0.0) << c.name;
+    for (double v : r.composite.to_vector()) EXPECT_GE(v, 0.0) << c.name;
+  }
+}
+
 TEST(ObjectInsertion, FullyHiddenObjectLeavesNoForeground) {
   GroundScene s = ground_scene(32, 24, DType::F32);
   const PlacedObject obj = place_object(box_mesh(), {0, -8, 0, 1}, s.camera, s.depth);

@@ -164,6 +164,7 @@ TEST(RadianceCache, FusedShadingEqualsStoredRaysReadThroughTheCache) {
         }
       }
       for (int c = 0; c < 3; ++c) {
+        acc[c] = std::max(0.0, acc[c]);  // shade_foreground's clamp
         err += (acc[c] - fused[3 * p + size_t(c)]) * (acc[c] - fused[3 * p + size_t(c)]);
         ref += acc[c] * acc[c];
       }

@@ -140,6 +140,19 @@ void EnvironmentMap::build_bilinear_sampling() {
     const double mass = cdf[W];
     for (int c = 0; c <= W; ++c) cdf[c] = mass > 0 ? cdf[c] / mass : static_cast<double>(c) / W;
   }
+  auto guide = [](const double* cdf, int n, int* out) {
+    int k = 0;
+    for (int i = 0; i < n; ++i) {
+      const double u = double(i) / n;
+      while (k < n - 1 && cdf[k + 1] <= u) ++k;
+      out[i] = k;
+    }
+  };
+  cell_row_guide_.assign(static_cast<size_t>(H) + 1, 0);
+  guide(cell_row_cdf_.data(), H + 1, cell_row_guide_.data());
+  cell_col_guide_.assign(static_cast<size_t>(H + 1) * W, 0);
+  for (int k = 0; k <= H; ++k)
+    guide(&cell_col_cdf_[static_cast<size_t>(k) * (W + 1)], W, &cell_col_guide_[static_cast<size_t>(k) * W]);
 }
 
 EnvironmentMap::Sample EnvironmentMap::sample_bilinear(float u1, float u2) const {
@@ -163,9 +176,12 @@ glm::vec3 EnvironmentMap::sample_bilinear_direction(float u1, float u2, equirect
     return d;
   }
   const int H = height_, W = width_;
-  auto pick = [](const double* cdf, int n, double u, double& frac) {
-    int k = static_cast<int>(std::upper_bound(cdf, cdf + n + 1, u) - cdf) - 1;
-    k = std::clamp(k, 0, n - 1);
+  // The cell k with cdf[k] <= u < cdf[k + 1] (the last such k: upper_bound − 1, clamped to a
+  // cell), searched forward from the guide table's entry for u.
+  auto pick = [](const double* cdf, const int* guide, int n, double u, double& frac) {
+    int k = guide[std::clamp(static_cast<int>(u * n), 0, n - 1)];
+    while (k > 0 && cdf[k] > u) --k;  // u·n rounded up into the next entry
+    while (k < n - 1 && cdf[k + 1] <= u) ++k;
     while (k > 0 && cdf[k + 1] - cdf[k] <= 0.0) --k;
     while (k < n - 1 && cdf[k + 1] - cdf[k] <= 0.0) ++k;
     const double w = cdf[k + 1] - cdf[k];
@@ -173,8 +189,8 @@ glm::vec3 EnvironmentMap::sample_bilinear_direction(float u1, float u2, equirect
     return k;
   };
   double fr, fc;
-  const int k = pick(cell_row_cdf_.data(), H + 1, u1, fr);
-  const int c = pick(&cell_col_cdf_[static_cast<size_t>(k) * (W + 1)], W, u2, fc);
+  const int k = pick(cell_row_cdf_.data(), cell_row_guide_.data(), H + 1, u1, fr);
+  const int c = pick(&cell_col_cdf_[static_cast<size_t>(k) * (W + 1)], &cell_col_guide_[static_cast<size_t>(k) * W], W, u2, fc);
   const CellRow r = cell_row(k, H);
   const int c1 = (c + 1) % W;
   const double a = lum_[size_t(r.top) * W + c], b = lum_[size_t(r.top) * W + c1];
@@ -281,6 +297,8 @@ EnvironmentMap::Sample EnvironmentMap::sample(float u1, float u2) const {
   const int H = height_, W = width_;
   // Row by the marginal, then column by the row's conditional; the leftover fraction of each
   // uniform places the direction inside the texel, uniformly in solid angle.
+  // The cell k with cdf[k] <= u < cdf[k + 1] (the last such k: upper_bound − 1, clamped to a
+  // cell), searched forward from the guide table's entry for u.
   auto pick = [](const double* cdf, int n, double u, double& frac) {
     int k = static_cast<int>(std::upper_bound(cdf, cdf + n + 1, u) - cdf) - 1;
     k = std::clamp(k, 0, n - 1);

@@ -92,6 +92,11 @@ class EnvironmentMap {
   std::vector<double> cell_row_cdf_;  // H+2 entries
   std::vector<double> cell_col_cdf_;  // (H+1)×(W+1), conditional per cell row
   std::vector<double> cell_prob_;     // (H+1)×W probability of each cell
+  // Guide tables of the two CDFs above: entry i is the cell holding u = i/n (n = cells), where
+  // the inversion's search starts, so a draw looks at one or two entries instead of a binary
+  // search (the same cell as the search: tested).
+  std::vector<int> cell_row_guide_;   // H+1
+  std::vector<int> cell_col_guide_;   // (H+1)×W
 };
 
 // The four texels and weights of the bilinear lookup in direction (x, y, z) of an H×W map:

@@ -170,45 +170,61 @@ TEST(ObjectInsertion, GradcheckThroughForegroundAndShadowsIntoSkyAndVolume) {
   EXPECT_GT(cov, 0.0);
 }
 
+// The extreme inputs both insertion paths are held to: a one-texel sun of 1e6, mirror-smooth and
+// fully rough surfaces, a grazing camera, an object at the image border, 0/inf/NaN depth holes,
+// an empty, an opaque and a random volume, a black sky.
+struct ExtremeCase {
+  const char* name;
+  double sun;  // 0: a black sky
+  float roughness;
+  double pitch_deg;
+  Placement placement;
+  bool holes;
+  int vsg;  // 0 none, 1 empty, 2 opaque, 3 random
+};
+
+const ExtremeCase kExtremeCases[] = {
+    {"sun_1e6_in_one_texel", 1e6, 0.5f, -15, {0, -6, 0, 1}, false, 0},
+    {"roughness_0_metal", 1e6, 0.0f, -15, {0, -6, 0, 1}, false, 0},
+    {"roughness_1", 1e6, 1.0f, -15, {0, -6, 0, 1}, false, 0},
+    {"grazing_camera", 1e5, 0.5f, -0.5, {0, -25, 30, 3}, false, 0},
+    {"object_at_image_border", 1e5, 0.5f, -15, {3.4, -6, 45, 1}, false, 0},
+    {"depth_holes", 1e5, 0.5f, -15, {0, -6, 0, 1}, true, 0},
+    {"empty_volume", 1e5, 0.5f, -15, {0, -6, 0, 1}, false, 1},
+    {"opaque_volume", 1e5, 0.5f, -15, {0, -6, 0, 1}, false, 2},
+    {"random_volume", 1e6, 0.5f, -15, {0, -6, 0, 1}, false, 3},
+    {"black_sky", 0.0, 0.5f, -15, {0, -6, 0, 1}, false, 3},
+};
+
+Tensor random_small_vsg() { return vsg_activate(Tensor::uniform({8, 4, 4, 2}, -3, -1, 5), 0).detach().contiguous(); }
+
+InsertionInputs extreme_inputs(const ExtremeCase& c) {
+  GroundScene s = ground_scene(32, 24, DType::F32, c.pitch_deg);
+  const PlacedObject obj = place_object(box_mesh(c.roughness, c.roughness == 0.0f ? 1.0f : 0.0f), c.placement,
+                                        s.camera, s.depth);
+  if (c.holes) {  // 0, inf and NaN holes across the ground
+    float* d = s.depth.data<float>();
+    for (int64_t i = 0; i < s.depth.numel(); i += 3) d[i] = (i % 9 == 0) ? 0.0f : (i % 9 == 3 ? INFINITY : NAN);
+  }
+  Tensor env = c.sun > 0 ? sun_sky(32, 16, c.sun, DType::F32, 3, 12) : Tensor::zeros({3, 16, 32});
+  Tensor vsg;
+  if (c.vsg == 3) {
+    vsg = random_small_vsg();
+  } else if (c.vsg) {
+    vsg = Tensor::zeros({8, 4, 4, 2});
+    slice(vsg, 0, 0, 3).fill_(0.5);
+    slice(vsg, 0, 4, 5).fill_(1.0);
+    slice(vsg, 0, 6, 7).fill_(1.0);
+    slice(vsg, 0, 7, 8).fill_(c.vsg == 2 ? 1.0 : 0.0);
+  }
+  return InsertionInputs{s.background, s.depth, s.camera, env, vsg, small_grid(), {obj}};
+}
+
 TEST(ObjectInsertion, ExtremeCasesKeepOutputsAndGradientsFinite) {
-  struct Case {
-    const char* name;
-    double sun;
-    float roughness;
-    double pitch_deg;
-    Placement placement;
-    bool holes;
-    int vsg;  // 0 none, 1 empty, 2 opaque
-  };
-  const Case cases[] = {
-      {"sun_1e6_in_one_texel", 1e6, 0.5f, -15, {0, -6, 0, 1}, false, 0},
-      {"roughness_0", 1e6, 0.0f, -15, {0, -6, 0, 1}, false, 0},
-      {"roughness_1", 1e6, 1.0f, -15, {0, -6, 0, 1}, false, 0},
-      {"grazing_camera", 1e5, 0.5f, -0.5, {0, -25, 30, 3}, false, 0},
-      {"object_at_image_border", 1e5, 0.5f, -15, {3.4, -6, 45, 1}, false, 0},
-      {"depth_holes", 1e5, 0.5f, -15, {0, -6, 0, 1}, true, 0},
-      {"empty_volume", 1e5, 0.5f, -15, {0, -6, 0, 1}, false, 1},
-      {"opaque_volume", 1e5, 0.5f, -15, {0, -6, 0, 1}, false, 2},
-  };
-  for (const Case& c : cases) {
-    GroundScene s = ground_scene(32, 24, DType::F32, c.pitch_deg);
-    const PlacedObject obj = place_object(box_mesh(c.roughness, c.roughness == 0.0f ? 1.0f : 0.0f), c.placement,
-                                          s.camera, s.depth);
-    if (c.holes) {  // 0, inf and NaN holes across the ground
-      float* d = s.depth.data<float>();
-      for (int64_t i = 0; i < s.depth.numel(); i += 3) d[i] = (i % 9 == 0) ? 0.0f : (i % 9 == 3 ? INFINITY : NAN);
-    }
-    Tensor env = sun_sky(32, 16, c.sun, DType::F32, 3, 12).set_requires_grad(true);
-    Tensor vsg;
-    if (c.vsg) {
-      vsg = Tensor::zeros({8, 4, 4, 2});
-      slice(vsg, 0, 0, 3).fill_(0.5);
-      slice(vsg, 0, 4, 5).fill_(1.0);
-      slice(vsg, 0, 6, 7).fill_(1.0);
-      slice(vsg, 0, 7, 8).fill_(c.vsg == 2 ? 1.0 : 0.0);
-      vsg.set_requires_grad(true);
-    }
-    InsertionInputs in{s.background, s.depth, s.camera, env, vsg, small_grid(), {obj}};
+  for (const ExtremeCase& c : kExtremeCases) {
+    InsertionInputs in = extreme_inputs(c);
+    in.env.set_requires_grad(true);
+    if (in.vsg.defined()) in.vsg.set_requires_grad(true);
     InsertionOptions opt = small_options();
     opt.query.prune = true;
     const InsertionResult r = insert_objects(in, opt);
@@ -217,9 +233,9 @@ TEST(ObjectInsertion, ExtremeCasesKeepOutputsAndGradientsFinite) {
     backward(sum(r.composite));
     EXPECT_TRUE(finite(r.composite)) << c.name;
     EXPECT_TRUE(finite(r.shadow_map)) << c.name;
-    EXPECT_TRUE(finite(env.grad())) << c.name;
-    if (vsg.defined()) {
-      EXPECT_TRUE(finite(vsg.grad())) << c.name;
+    EXPECT_TRUE(finite(in.env.grad())) << c.name;
+    if (in.vsg.defined()) {
+      EXPECT_TRUE(finite(in.vsg.grad())) << c.name;
     }
     for (double v : r.shadow_map.to_vector()) EXPECT_GE(v, 0.0) << c.name;
   }
@@ -228,46 +244,9 @@ TEST(ObjectInsertion, ExtremeCasesKeepOutputsAndGradientsFinite) {
 // The inference path (radiance cache, fused reads, the diffuse control variate) on the same
 // extremes: every output finite, the shadow ratio and the composite never negative.
 TEST(ObjectInsertion, ExtremeCasesKeepTheCachedControlVariatePathFiniteAndNonNegative) {
-  struct Case {
-    const char* name;
-    double sun;
-    float roughness;
-    double pitch_deg;
-    Placement placement;
-    bool holes;
-    int vsg;  // 1 empty, 2 opaque, 3 random
-  };
-  const Case cases[] = {
-      {"sun_1e6_in_one_texel", 1e6, 0.5f, -15, {0, -6, 0, 1}, false, 3},
-      {"roughness_0_metal", 1e6, 0.0f, -15, {0, -6, 0, 1}, false, 3},
-      {"roughness_1", 1e6, 1.0f, -15, {0, -6, 0, 1}, false, 3},
-      {"grazing_camera", 1e5, 0.5f, -0.5, {0, -25, 30, 3}, false, 3},
-      {"object_at_image_border", 1e5, 0.5f, -15, {3.4, -6, 45, 1}, false, 3},
-      {"depth_holes", 1e5, 0.5f, -15, {0, -6, 0, 1}, true, 3},
-      {"empty_volume", 1e5, 0.5f, -15, {0, -6, 0, 1}, false, 1},
-      {"opaque_volume", 1e5, 0.5f, -15, {0, -6, 0, 1}, false, 2},
-      {"black_sky", 0.0, 0.5f, -15, {0, -6, 0, 1}, false, 3},
-  };
-  for (const Case& c : cases) {
-    GroundScene s = ground_scene(32, 24, DType::F32, c.pitch_deg);
-    const PlacedObject obj = place_object(box_mesh(c.roughness, c.roughness == 0.0f ? 1.0f : 0.0f), c.placement,
-                                          s.camera, s.depth);
-    if (c.holes) {
-      float* d = s.depth.data<float>();
-      for (int64_t i = 0; i < s.depth.numel(); i += 3) d[i] = (i % 9 == 0) ? 0.0f : (i % 9 == 3 ? INFINITY : NAN);
-    }
-    Tensor env = c.sun > 0 ? sun_sky(32, 16, c.sun, DType::F32, 3, 12) : Tensor::zeros({3, 16, 32});
-    Tensor vsg;
-    if (c.vsg == 3) {
-      vsg = vsg_activate(Tensor::uniform({8, 4, 4, 2}, -3, -1, 5), 0).detach().contiguous();
-    } else {
-      vsg = Tensor::zeros({8, 4, 4, 2});
-      slice(vsg, 0, 0, 3).fill_(0.5);
-      slice(vsg, 0, 4, 5).fill_(1.0);
-      slice(vsg, 0, 6, 7).fill_(1.0);
-      slice(vsg, 0, 7, 8).fill_(c.vsg == 2 ? 1.0 : 0.0);
-    }
-    InsertionInputs in{s.background, s.depth, s.camera, env, vsg, small_grid(), {obj}};
+  for (const ExtremeCase& c : kExtremeCases) {
+    InsertionInputs in = extreme_inputs(c);
+    if (!in.vsg.defined()) in.vsg = random_small_vsg();  // the cache reads a volume
     InsertionOptions opt = small_options();
     opt.aa_samples = 2;
     opt.light_samples = 8;

@@ -40,14 +40,16 @@ struct PhotoInsertionOptions {
   double max_ground_offset_m = 1.0;
   uint64_t seed = 0;
   bool radiance_cache = true;  // render/object_insertion.h: probes instead of per-ray volume marches
-  // The radiance cache's probes (render/object_insertion.h): 0.5 m apart, up to 4×6×4 over the
-  // object (vertical resolution is what moved its error), 4×2×4 for the shadow rays, 24×48
-  // directions; Eq. 2's diffuse control variate on (its normal grid 64×128: 32×128 doubled the
-  // object's error). KITTI 000008 under the released model's lighting, against a 4096-spp
+  // The radiance cache's probes (render/object_insertion.h): 1 m apart, up to 4×6×4 over the
+  // object (a 2.6 m truck gets 4 levels) and 4×2×4 for the shadow rays, 24×48 directions; Eq. 2's
+  // diffuse control variate on (its normal grid 64×128: 32×64 raised the object's error, 16×32
+  // doubled it). KITTI 000008 under the released model's lighting, against a 4096-spp
   // exact-query reference (streetlight-bench insert --size kitti --lighting released, rows
-  // production, no_control_variate, cv_normals16/32, cache_4x3x4_1m; 2026-11-23, idle):
-  // 908-922 ms at rel. RMSE 0.94% (object 0.83%), was 1037 ms at 2.02% (object 1.85%).
-  double cache_spacing_m = 0.5;
+  // production, no_control_variate, cv_normals16/32, cache_4x3x4_1m, shadow128_grid*; 2026-11-23):
+  // 0.91% (object 0.79%), was 2.02% (object 1.85%) at session 8's defaults. Probes 0.5 m apart
+  // (up to 4×6×4) gave 0.94% in ~90 ms more; an 8×2×8 shadow grid lowers the shadow term
+  // (nuScenes size 0.44% → 0.17%) for 130-160 ms more on KITTI.
+  double cache_spacing_m = 1.0;
   int cache_max_y = 6, cache_shadow_max_xz = 4, cache_height = 24;
   bool diffuse_control_variate = true;
   bool bilinear_env_sampling = true, stratify_per_pixel = true;  // render/object_insertion.h

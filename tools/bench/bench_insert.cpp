@@ -452,7 +452,7 @@ int run_production(const std::string& size, bool json, const std::string& data, 
       o.shadow_rays = n;
       rows.push_back({"shadow" + std::to_string(n), o});
     }
-    for (int rays : {64, 256})  // the shadow rays' probe grid (default 2×2×2)
+    for (int rays : {64, 128, 256})  // the shadow rays' probe grid (default 2×2×2)
       for (int xz : {4, 8}) {
         InsertionOptions o = train::insertion_options(production);
         o.shadow_rays = rays;

@@ -133,7 +133,12 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
         for (int64_t t : sh.texels) origins.insert(origins.end(), {texel_origins[size_t(t)].x, texel_origins[size_t(t)].y, texel_origins[size_t(t)].z});
         glm::vec3 lo, hi;
         origin_bounds(origins.data(), int64_t(sh.texels.size()), lo, hi);
-        const RadianceCache sh_cache(in, opt, env_map, lo, hi, opt.cache_shadow_max_xz, opt.cache_shadow_max_y);
+        InsertionOptions sh_opt = opt;
+        if (opt.cache_shadow_height > 0) {
+          sh_opt.cache_height = std::max(2, opt.cache_shadow_height);
+          sh_opt.cache_width = 2 * sh_opt.cache_height;
+        }
+        const RadianceCache sh_cache(in, sh_opt, env_map, lo, hi, opt.cache_shadow_max_xz, opt.cache_shadow_max_y);
         shade_shadows(opt, bvh, env_map, sh, texel_origins, sh_cache, eps, ratio);
       }
     } else {

@@ -95,6 +95,7 @@ struct InsertionOptions {
   double cache_spacing_m = 2.0;             // probe spacing over the rays' origins...
   int cache_max_xz = 4, cache_max_y = 3;    // ...with at most this many probes per horizontal axis / vertically (light rays)
   int cache_shadow_max_xz = 2, cache_shadow_max_y = 2;  // the same for the shadow rays' grid
+  int cache_shadow_height = 0;  // > 0: the shadow grid's directions, cache_shadow_height × 2·that (else as above)
   // Inference, with the radiance cache: Eq. 2 with the Lambertian part of the BRDF as a control
   // variate (see "Control variate" above): E on a grid of cv_normals_height × 2·height normals,
   // integrated over square texels half the env's rows high, refined cv_quadrature_supersample× per axis.

@@ -101,6 +101,7 @@ InsertionOptions insertion_options(const PhotoInsertionOptions& o) {
   io.cache_max_y = o.cache_max_y;
   io.cache_height = o.cache_height;
   io.cache_width = 2 * o.cache_height;
+  io.cache_shadow_height = o.cache_shadow_height;
   io.diffuse_control_variate = o.diffuse_control_variate;
   io.bilinear_env_sampling = o.bilinear_env_sampling;
   io.stratify_per_pixel = o.stratify_per_pixel;

@@ -460,6 +460,14 @@ int run_production(const std::string& size, bool json, const std::string& data, 
         o.cache_spacing_m = 1.0;
         rows.push_back({"shadow" + std::to_string(rays) + "_grid" + std::to_string(xz) + "x2x" + std::to_string(xz), o});
       }
+    for (const auto& [xz, hs] : std::vector<std::pair<int, int>>{{4, 24}, {8, 6}, {8, 24}}) {  // the shadow grid
+      InsertionOptions o = train::insertion_options(production);
+      o.cache_shadow_max_xz = xz;
+      o.cache_shadow_height = hs;
+      rows.push_back({"shadow_grid" + std::to_string(xz) + "x2x" + std::to_string(xz) + "_dirs" + std::to_string(hs) +
+                          "x" + std::to_string(2 * hs),
+                      o});
+    }
     {  // the measured knobs together: object probes 8×4×8, 256 shadow rays over a 4×2×4 grid
       InsertionOptions o = train::insertion_options(production);
       o.cache_spacing_m = 1.0;

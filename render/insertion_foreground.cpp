@@ -106,17 +106,26 @@ namespace {
 // The N light directions of G-buffer sample i and their weights f·cos/pdf/(N·aa) (× I_a where
 // the object blocks them; less c·cos/pdf/(N·aa) with the control variate), into l[0..N), w[0..N).
 // A failed sample gets l = n and w = 0 (a harmless ray keeps the layout regular).
-void light_rays(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map, const GSample& g, int N,
-                bool control_variate, glm::vec3* ls, glm::vec3* ws, equirect::UV* units) {
-  const uint64_t light_seed = sample_seed(opt, kTagLight), choice_seed = sample_seed(opt, kTagChoice);
-  const uint64_t rot_seed = sample_seed(opt, kTagRotation);
-  const int n_brdf = N / 2;  // inference: BRDF samples first, then environment samples
-  const float c_brdf = float(n_brdf) / float(N), c_env = 1.0f - c_brdf;
-  const float norm = 1.0f / float(N * opt.aa_samples);
+// What every sample's light rays share: seeds, the technique split and the normalisation.
+struct LightSampling {
+  LightSampling(const InsertionOptions& opt, int n)
+      : light_seed(sample_seed(opt, kTagLight)), choice_seed(sample_seed(opt, kTagChoice)),
+        rot_seed(sample_seed(opt, kTagRotation)), N(n), n_brdf(n / 2), c_brdf(float(n / 2) / float(n)),
+        c_env(1.0f - c_brdf), norm(1.0f / float(n * opt.aa_samples)) {}
+  uint64_t light_seed, choice_seed, rot_seed;
+  int N, n_brdf;  // inference: n_brdf BRDF samples first, then environment samples
+  float c_brdf, c_env, norm;
+};
+
+// cv: the sample's control-variate lobe (disney::diffuse_control), or null without one.
+void light_rays(const InsertionOptions& opt, const LightSampling& sampling, const Bvh& bvh, const EnvironmentMap& env_map,
+                const GSample& g, const disney::DiffuseControl* cv, glm::vec3* ls, glm::vec3* ws,
+                equirect::UV* units) {
+  const uint64_t light_seed = sampling.light_seed, choice_seed = sampling.choice_seed, rot_seed = sampling.rot_seed;
+  const int N = sampling.N, n_brdf = sampling.n_brdf;
+  const float c_brdf = sampling.c_brdf, c_env = sampling.c_env, norm = sampling.norm;
   const Frame frame(g.n);
   const glm::vec3 origin = light_origin(g);
-  const disney::DiffuseControl cv = control_variate ? disney::diffuse_control(g.material, glm::dot(g.n, g.wo))
-                                                    : disney::DiffuseControl{};
   for (int k = 0; k < N; ++k) {
     glm::vec3 l, f(0.0f);
     float pdf;
@@ -172,8 +181,7 @@ void light_rays(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMa
       shadow.origin = origin;
       shadow.direction = l;
       if (bvh.occluded(shadow)) w *= float(opt.ambient);  // blocked by the object itself
-      if (control_variate && all_finite(w))
-        w -= cv.c * ((1.0f + cv.kappa * disney::schlick_weight(cos_l)) * cos_l / pdf * norm);
+      if (cv && all_finite(w)) w -= cv->c * ((1.0f + cv->kappa * disney::schlick_weight(cos_l)) * cos_l / pdf * norm);
     } else {
       l = g.n;
       have_unit = false;
@@ -202,12 +210,15 @@ void pixel_offsets(const std::vector<GSample>& gs, int N, Foreground& fg) {
 void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
                       const std::vector<GSample>& gs, Foreground& fg, QueryRays& rays, bool control_variate) {
   const int N = fg.light_samples;
+  const LightSampling sampling(opt, N);
   fg.weights.assign(gs.size() * size_t(N) * 3, 0.0f);
   parallel_for(int64_t(gs.size()), 16, [&](int64_t b, int64_t e) {
     std::vector<glm::vec3> ls(static_cast<size_t>(N)), ws(static_cast<size_t>(N));
     for (int64_t i = b; i < e; ++i) {
       const GSample& g = gs[size_t(i)];
-      light_rays(opt, bvh, env_map, g, N, control_variate, ls.data(), ws.data(), nullptr);
+      const disney::DiffuseControl cv =
+          control_variate ? disney::diffuse_control(g.material, glm::dot(g.n, g.wo)) : disney::DiffuseControl{};
+      light_rays(opt, sampling, bvh, env_map, g, control_variate ? &cv : nullptr, ls.data(), ws.data(), nullptr);
       const glm::vec3 origin = light_origin(g);
       for (int k = 0; k < N; ++k) {
         const int64_t slot = i * N + k;
@@ -223,21 +234,23 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
                       const std::vector<GSample>& gs, const RadianceCache& cache, bool control_variate, Foreground& fg,
                       std::vector<float>& colour) {
   const int N = fg.light_samples;
+  const LightSampling sampling(opt, N);
   std::vector<glm::vec3> per_sample(gs.size());
   parallel_for(int64_t(gs.size()), 16, [&](int64_t b, int64_t e) {
     std::vector<glm::vec3> ls(static_cast<size_t>(N)), ws(static_cast<size_t>(N));
     std::vector<equirect::UV> units(static_cast<size_t>(N));
     for (int64_t i = b; i < e; ++i) {
       const GSample& g = gs[size_t(i)];
-      light_rays(opt, bvh, env_map, g, N, control_variate, ls.data(), ws.data(), units.data());
+      const disney::DiffuseControl cv =
+          control_variate ? disney::diffuse_control(g.material, glm::dot(g.n, g.wo)) : disney::DiffuseControl{};
+      light_rays(opt, sampling, bvh, env_map, g, control_variate ? &cv : nullptr, ls.data(), ws.data(), units.data());
       const glm::vec3 origin = light_origin(g);
       glm::vec3 acc(0.0f);
       for (int k = 0; k < N; ++k)
         if (ws[size_t(k)] != glm::vec3(0.0f)) acc += ws[size_t(k)] * cache.radiance_unit(&origin[0], units[size_t(k)]);
       if (control_variate) {
-        const disney::DiffuseControl d = disney::diffuse_control(g.material, glm::dot(g.n, g.wo));
         const RadianceCache::Irradiance e = cache.irradiance(origin, g.n);
-        acc += d.c * (e.cosine + d.kappa * e.grazing) / float(opt.aa_samples);
+        acc += cv.c * (e.cosine + cv.kappa * e.grazing) / float(opt.aa_samples);
       }
       per_sample[size_t(i)] = acc;
     }

@@ -114,25 +114,23 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
     std::vector<float> shaded, ratio;  // Σ w·L (+ c·E/aa) per pixel of fg.pixels; S per texel of sh.texels
     if (!bvh.empty()) {
       if (!gs.empty()) {
-        std::vector<float> origins(3 * gs.size());
-        std::vector<glm::vec3> normals(gs.size());
+        std::vector<glm::vec3> origins(gs.size()), normals(gs.size());
         for (size_t i = 0; i < gs.size(); ++i) {
-          const glm::vec3 o = light_origin(gs[i]);
-          for (int c = 0; c < 3; ++c) origins[3 * i + size_t(c)] = o[c];
+          origins[i] = light_origin(gs[i]);
           normals[i] = gs[i].n;
         }
         glm::vec3 lo, hi;
-        origin_bounds(origins.data(), int64_t(gs.size()), lo, hi);
+        origin_bounds(origins, lo, hi);
         RadianceCache fg_cache(in, opt, env_map, lo, hi, opt.cache_max_xz, opt.cache_max_y);
         if (cv) fg_cache.build_irradiance(opt.cv_normals_height, opt.cv_quadrature_supersample, normals);
         shade_foreground(opt, bvh, env_map, gs, fg_cache, cv, fg, shaded);
       }
       const std::vector<glm::vec3> texel_origins = shadow_texels(in, opt, bvh.bounds(), env_map, depth, sh, out.stats);
       if (!sh.texels.empty()) {
-        std::vector<float> origins;
-        for (int64_t t : sh.texels) origins.insert(origins.end(), {texel_origins[size_t(t)].x, texel_origins[size_t(t)].y, texel_origins[size_t(t)].z});
+        std::vector<glm::vec3> origins;
+        for (int64_t t : sh.texels) origins.push_back(texel_origins[size_t(t)]);
         glm::vec3 lo, hi;
-        origin_bounds(origins.data(), int64_t(sh.texels.size()), lo, hi);
+        origin_bounds(origins, lo, hi);
         InsertionOptions sh_opt = opt;
         if (opt.cache_shadow_height > 0) {
           sh_opt.cache_height = std::max(2, opt.cache_shadow_height);

@@ -140,22 +140,19 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
 RadianceCache::Irradiance RadianceCache::irradiance(const glm::vec3& origin, const glm::vec3& n) const {
   Irradiance out;
   if (irradiance_.empty() || !all_finite(n) || !(glm::dot(n, n) > 0.0f)) return out;
-  int i0[3];
-  float f[3];
-  corner(&origin[0], i0, f);
+  int64_t probe[8];
+  float wp[8];
+  probe_weights(&origin[0], probe, wp);
   const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
   const int64_t P = int64_t(n_[0]) * n_[1] * n_[2];
   for (int k = 0; k < 4; ++k) {
     const int64_t row = node_row_[size_t(taps.index[k])];
     if (row < 0 || taps.weight[k] == 0.0) continue;
     for (int c = 0; c < 8; ++c) {
-      const int ix = i0[0] + (c & 1), iy = i0[1] + ((c >> 1) & 1), iz = i0[2] + (c >> 2);
-      const float wc = ((c & 1) ? f[0] : 1 - f[0]) * (((c >> 1) & 1) ? f[1] : 1 - f[1]) * ((c >> 2) ? f[2] : 1 - f[2]);
-      if (wc == 0.0f) continue;
-      const int64_t p = (int64_t(iz) * n_[1] + iy) * n_[0] + ix;
-      const float w = wc * float(taps.weight[k]);
-      const float* e1 = &irradiance_[size_t((row * P + p) * 3)];
-      const float* e5 = &irradiance_[size_t(((touched_ + row) * P + p) * 3)];
+      if (wp[c] == 0.0f) continue;
+      const float w = wp[c] * float(taps.weight[k]);
+      const float* e1 = &irradiance_[size_t((row * P + probe[c]) * 3)];
+      const float* e5 = &irradiance_[size_t(((touched_ + row) * P + probe[c]) * 3)];
       out.cosine += w * glm::vec3(e1[0], e1[1], e1[2]);
       out.grazing += w * glm::vec3(e5[0], e5[1], e5[2]);
     }
@@ -171,19 +168,17 @@ glm::vec3 RadianceCache::radiance(const float* origin, const float* dir) const {
 
 glm::vec3 RadianceCache::radiance_unit(const float* origin, const equirect::UV& unit) const {
   if (cache_.empty()) return glm::vec3(0.0f);
-  int i0[3];
-  float f[3];
-  corner(origin, i0, f);
+  int64_t probe[8];
+  float wp[8];
+  probe_weights(origin, probe, wp);
   const EnvTaps taps = env_bilinear_taps_unit(unit, W_, H_);
   const int64_t D = int64_t(H_) * W_;
   glm::vec4 acc(0.0f);
   for (int c = 0; c < 8; ++c) {
-    const int ix = i0[0] + (c & 1), iy = i0[1] + ((c >> 1) & 1), iz = i0[2] + (c >> 2);
-    const float wc = ((c & 1) ? f[0] : 1 - f[0]) * (((c >> 1) & 1) ? f[1] : 1 - f[1]) * ((c >> 2) ? f[2] : 1 - f[2]);
-    if (wc == 0.0f) continue;
-    const float* base = &cache_[size_t(4 * ((int64_t(iz) * n_[1] + iy) * n_[0] + ix) * D)];
+    if (wp[c] == 0.0f) continue;
+    const float* base = &cache_[size_t(4 * probe[c] * D)];
     for (int k = 0; k < 4; ++k) {
-      const float w = wc * float(taps.weight[k]);
+      const float w = wp[c] * float(taps.weight[k]);
       const float* e = base + 4 * taps.index[k];
       acc += w * glm::vec4(e[0], e[1], e[2], e[3]);
     }
@@ -191,12 +186,19 @@ glm::vec3 RadianceCache::radiance_unit(const float* origin, const equirect::UV& 
   return glm::vec3(acc) + acc.w * env_map_.lookup_unit(unit);
 }
 
-// The probe cell of a point (clamped to the grid) and its trilinear fractions.
-void RadianceCache::corner(const float* origin, int i0[3], float f[3]) const {
+// The 8 probes around a point (clamped to the grid) and their trilinear weights.
+void RadianceCache::probe_weights(const float* origin, int64_t probe[8], float w[8]) const {
+  int i0[3];
+  float f[3];
   for (int a = 0; a < 3; ++a) {
     const float x = std::clamp((origin[a] - lo_[a]) / step_[a], 0.0f, float(n_[a] - 1));
     i0[a] = std::min(int(x), n_[a] - 2);
     f[a] = x - float(i0[a]);
+  }
+  for (int c = 0; c < 8; ++c) {
+    const int ix = i0[0] + (c & 1), iy = i0[1] + ((c >> 1) & 1), iz = i0[2] + (c >> 2);
+    w[c] = ((c & 1) ? f[0] : 1 - f[0]) * (((c >> 1) & 1) ? f[1] : 1 - f[1]) * ((c >> 2) ? f[2] : 1 - f[2]);
+    probe[c] = (int64_t(iz) * n_[1] + iy) * n_[0] + ix;
   }
 }
 glm::vec3 RadianceCache::probe(int64_t p) const {
@@ -204,11 +206,10 @@ glm::vec3 RadianceCache::probe(int64_t p) const {
   return lo_ + glm::vec3(float(ix) * step_[0], float(iy) * step_[1], float(iz) * step_[2]);
 }
 
-void origin_bounds(const float* origins, int64_t n, glm::vec3& lo, glm::vec3& hi) {
+void origin_bounds(const std::vector<glm::vec3>& origins, glm::vec3& lo, glm::vec3& hi) {
   lo = glm::vec3(1e30f);
   hi = glm::vec3(-1e30f);
-  for (int64_t r = 0; r < n; ++r) {
-    const glm::vec3 o(origins[3 * r], origins[3 * r + 1], origins[3 * r + 2]);
+  for (const glm::vec3& o : origins) {
     lo = glm::min(lo, o);
     hi = glm::max(hi, o);
   }

@@ -47,7 +47,7 @@ class RadianceCache {
   int64_t probes() const { return cache_.empty() ? 0 : int64_t(n_[0]) * n_[1] * n_[2]; }
 
  private:
-  void corner(const float* origin, int i0[3], float f[3]) const;
+  void probe_weights(const float* origin, int64_t probe[8], float w[8]) const;
   glm::vec3 probe(int64_t p) const;
 
   const EnvironmentMap& env_map_;
@@ -62,7 +62,7 @@ class RadianceCache {
   int64_t touched_ = 0;
 };
 
-// The box of n origins (3 floats each); lo > hi when n = 0.
-void origin_bounds(const float* origins, int64_t n, glm::vec3& lo, glm::vec3& hi);
+// The box of the origins; lo > hi when there are none.
+void origin_bounds(const std::vector<glm::vec3>& origins, glm::vec3& lo, glm::vec3& hi);
 
 }  // namespace sl::render::insertion

@@ -131,15 +131,13 @@ TEST(RadianceCache, FusedShadingEqualsStoredRaysReadThroughTheCache) {
     const auto gs = insertion::gbuffer(s.in, opt, s.in.objects[0].mesh, *s.in.objects[0].bvh, depth_t.data<double>(), fg, stats);
     ASSERT_GT(gs.size(), 10u);
     fg.light_samples = fg2.light_samples = opt.light_samples;
-    std::vector<float> origins;
-    std::vector<glm::vec3> normals;
+    std::vector<glm::vec3> origins, normals;
     for (const auto& g : gs) {
-      const glm::vec3 o = insertion::light_origin(g);
-      origins.insert(origins.end(), {o.x, o.y, o.z});
+      origins.push_back(insertion::light_origin(g));
       normals.push_back(g.n);
     }
     glm::vec3 lo, hi;
-    insertion::origin_bounds(origins.data(), int64_t(gs.size()), lo, hi);
+    insertion::origin_bounds(origins, lo, hi);
     insertion::RadianceCache cache(s.in, opt, env_map, lo, hi, opt.cache_max_xz, opt.cache_max_y);
     if (cv) cache.build_irradiance(opt.cv_normals_height, opt.cv_quadrature_supersample, normals);
     std::vector<float> fused;
@@ -186,10 +184,10 @@ TEST(RadianceCache, FusedShadowsEqualStoredRaysShadowRatioAndTaps) {
   InsertionStats st1, st2;
   const auto origins = insertion::shadow_texels(s.in, opt, bvh.bounds(), env_map, depth, fused, st1);
   ASSERT_GT(fused.texels.size(), 4u);
-  std::vector<float> flat;
-  for (int64_t t : fused.texels) flat.insert(flat.end(), {origins[size_t(t)].x, origins[size_t(t)].y, origins[size_t(t)].z});
+  std::vector<glm::vec3> used;
+  for (int64_t t : fused.texels) used.push_back(origins[size_t(t)]);
   glm::vec3 lo, hi;
-  insertion::origin_bounds(flat.data(), int64_t(fused.texels.size()), lo, hi);
+  insertion::origin_bounds(used, lo, hi);
   const insertion::RadianceCache cache(s.in, opt, env_map, lo, hi, opt.cache_shadow_max_xz, opt.cache_shadow_max_y);
   const double eps = 1e-6;
   std::vector<float> ratio;

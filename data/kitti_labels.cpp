@@ -8,6 +8,7 @@
 #include <map>
 #include <sstream>
 
+#include <glm/glm.hpp>
 #include <nlohmann/json.hpp>
 
 #include "util/error.h"
@@ -140,6 +141,34 @@ int occlusion_level(double hidden_fraction) {
 void cover_label(KittiLabel& label, double covered_fraction) {
   if (label.occluded == 3 || label.occluded < 0) return;
   label.occluded = std::max(label.occluded, occlusion_level(covered_fraction));
+}
+
+namespace {
+
+// Bird's-eye footprint of a KITTI box (h w l x y z ry, camera frame), grown by `margin` metres.
+std::array<glm::dvec2, 4> footprint(const std::array<double, 7>& b, double margin) {
+  const double c = std::cos(b[6]), s = std::sin(b[6]), hl = 0.5 * b[2] + margin, hw = 0.5 * b[1] + margin;
+  std::array<glm::dvec2, 4> out;
+  for (int i = 0; i < 4; ++i) {
+    const double dx = (i == 0 || i == 3) ? -hl : hl, dz = i < 2 ? -hw : hw;
+    out[size_t(i)] = {b[3] + c * dx + s * dz, b[5] - s * dx + c * dz};
+  }
+  return out;
+}
+
+}  // namespace
+
+bool footprints_within(const std::array<double, 7>& box_a, const std::array<double, 7>& box_b, double margin) {
+  const auto a = footprint(box_a, margin), b = footprint(box_b, 0.0);
+  for (const auto* poly : {&a, &b})
+    for (int i = 0; i < 4; ++i) {
+      const glm::dvec2 e = (*poly)[size_t((i + 1) % 4)] - (*poly)[size_t(i)], n(-e.y, e.x);
+      double a0 = 1e300, a1 = -1e300, b0 = 1e300, b1 = -1e300;
+      for (const auto& p : a) a0 = std::min(a0, glm::dot(n, p)), a1 = std::max(a1, glm::dot(n, p));
+      for (const auto& p : b) b0 = std::min(b0, glm::dot(n, p)), b1 = std::max(b1, glm::dot(n, p));
+      if (a1 < b0 || b1 < a0) return false;
+    }
+  return true;
 }
 
 std::string kitti_calibration_text(const std::string& path) {

@@ -45,6 +45,9 @@ std::string format_kitti_label(const KittiLabel& label);
 
 int occlusion_level(double hidden_fraction);
 void cover_label(KittiLabel& label, double covered_fraction);
+// Whether the bird's-eye footprints (x-z rectangles) of two 3D boxes (h w l x y z ry) overlap
+// once `a`'s is grown by `margin` metres on every side (a separating-axis test).
+bool footprints_within(const std::array<double, 7>& a, const std::array<double, 7>& b, double margin);
 
 std::string kitti_calibration_text(const std::string& path);
 std::string kitti_calibration_from_intrinsics(const render::Intrinsics& k);

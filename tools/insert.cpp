@@ -45,6 +45,7 @@
 #include "util/random.h"
 
 using sl::data::cover_label;
+using sl::data::footprints_within;
 using sl::data::format_kitti_label;
 using sl::data::ImageWriteOptions;
 using sl::data::kitti_box3d;
@@ -460,38 +461,12 @@ double covered_fraction(const std::vector<float>& mask, int W, int H, const std:
   return double(n) / (double(x1 - x0) * (y1 - y0));
 }
 
-// Bird's-eye footprint of a KITTI box (h w l x y z ry, camera frame), grown by `margin` metres.
-std::array<glm::dvec2, 4> footprint(const std::array<double, 7>& b, double margin) {
-  const double c = std::cos(b[6]), s = std::sin(b[6]), hl = 0.5 * b[2] + margin, hw = 0.5 * b[1] + margin;
-  std::array<glm::dvec2, 4> out;
-  for (int i = 0; i < 4; ++i) {
-    const double dx = (i == 0 || i == 3) ? -hl : hl, dz = i < 2 ? -hw : hw;
-    out[size_t(i)] = {b[3] + c * dx + s * dz, b[5] - s * dx + c * dz};
-  }
-  return out;
-}
-
-// Separating-axis test of two convex quadrilaterals.
-bool footprints_overlap(const std::array<glm::dvec2, 4>& a, const std::array<glm::dvec2, 4>& b) {
-  for (const auto* poly : {&a, &b})
-    for (int i = 0; i < 4; ++i) {
-      const glm::dvec2 e = (*poly)[size_t((i + 1) % 4)] - (*poly)[size_t(i)], n(-e.y, e.x);
-      double a0 = 1e300, a1 = -1e300, b0 = 1e300, b1 = -1e300;
-      for (const auto& p : a) a0 = std::min(a0, glm::dot(n, p)), a1 = std::max(a1, glm::dot(n, p));
-      for (const auto& p : b) b0 = std::min(b0, glm::dot(n, p)), b1 = std::max(b1, glm::dot(n, p));
-      if (a1 < b0 || b1 < a0) return false;
-    }
-  return true;
-}
-
 // Whether a new box's footprint comes within 0.3 m of a labelled object's (input labels and
 // objects inserted before). DontCare regions (no 3D box) do not count.
 bool overlaps_any(const std::array<double, 7>& b, const std::vector<KittiLabel>& a, const std::vector<KittiLabel>& c) {
-  const auto fb = footprint(b, 0.3);
   for (const auto* list : {&a, &c})
     for (const KittiLabel& l : *list)
-      if (l.box3d[1] > 0 && l.box3d[2] > 0 && l.box3d[5] > -100 && footprints_overlap(fb, footprint(l.box3d, 0.0)))
-        return true;
+      if (l.box3d[1] > 0 && l.box3d[2] > 0 && l.box3d[5] > -100 && footprints_within(b, l.box3d, 0.3)) return true;
   return false;
 }
 

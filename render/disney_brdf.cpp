@@ -10,13 +10,7 @@ namespace {
 // [0, 1] clamp that also maps NaN to 0.
 float unit01(float x) { return x > 0.0f ? (x < 1.0f ? x : 1.0f) : 0.0f; }
 
-// Parameters clamped to their ranges, and the colours derived from them once per shading point.
-struct Prepared {
-  glm::vec3 base, cspec0, csheen;
-  float metallic, roughness, alpha, sheen, clearcoat, clearcoat_alpha;
-  float dielectric_f0;  // 0.08·specular: the IOR of the exact Fresnel option
-  bool exact_fresnel;
-};
+}  // namespace
 
 Prepared prepare(const Params& p) {
   Prepared m;
@@ -38,6 +32,8 @@ Prepared prepare(const Params& p) {
   return m;
 }
 
+namespace {
+
 // The cosines every lobe needs; `ok` is false for degenerate input or a direction below the
 // horizon, in which case the BRDF and its density are zero.
 struct Cosines {
@@ -45,9 +41,10 @@ struct Cosines {
   bool ok = false;
 };
 
-Cosines cosines(const glm::vec3& n_in, const glm::vec3& wo_in, const glm::vec3& wi_in) {
+// n and wo already unit (safe_normalize'd).
+Cosines cosines_unit(const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi_in) {
   Cosines c;
-  const glm::vec3 n = safe_normalize(n_in), wo = safe_normalize(wo_in), wi = safe_normalize(wi_in);
+  const glm::vec3 wi = safe_normalize(wi_in);
   c.nv = glm::dot(n, wo);
   c.nl = glm::dot(n, wi);
   if (!(c.nv > 0.0f) || !(c.nl > 0.0f)) return c;  // also rejects zero vectors (dot = 0)
@@ -58,6 +55,10 @@ Cosines cosines(const glm::vec3& n_in, const glm::vec3& wo_in, const glm::vec3& 
   c.nl = std::min(c.nl, 1.0f);
   c.ok = true;
   return c;
+}
+
+Cosines cosines(const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi) {
+  return cosines_unit(safe_normalize(n), safe_normalize(wo), wi);
 }
 
 glm::vec3 eval_lobes(const Prepared& m, const Cosines& c) {
@@ -159,41 +160,53 @@ float pdf(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::v
   return pdf_lobes(m, weights(m, c.nv), c);
 }
 
-Sample evaluate(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi) {
+Point point(const Params& p, const glm::vec3& n, const glm::vec3& wo) {
+  Point q;
+  q.n = safe_normalize(n);
+  q.wo = safe_normalize(wo);
+  q.nv = glm::dot(q.n, q.wo);
+  q.ok = q.nv > 0.0f;
+  q.m = prepare(p);
+  q.w = weights(q.m, std::min(q.nv, 1.0f));
+  q.frame = Frame(q.n);
+  return q;
+}
+
+Sample evaluate(const Point& q, const glm::vec3& wi) {
   Sample s;
   s.wi = wi;
-  const Cosines c = cosines(n, wo, wi);
+  const Cosines c = cosines_unit(q.n, q.wo, wi);
   if (!c.ok) return s;
-  const Prepared m = prepare(p);
-  s.pdf = pdf_lobes(m, weights(m, c.nv), c);
-  const glm::vec3 f = eval_lobes(m, c);
+  // c.nv = min(n·wo, 1), as q.w's.
+  s.pdf = pdf_lobes(q.m, q.w, c);
+  const glm::vec3 f = eval_lobes(q.m, c);
   s.f = all_finite(f) ? f : glm::vec3(0.0f);
   return s;
 }
 
-Sample sample(const Params& p, const glm::vec3& n_in, const glm::vec3& wo_in, float u1, float u2, float u3) {
-  Sample s;
-  const glm::vec3 n = safe_normalize(n_in), wo = safe_normalize(wo_in);
-  const float nv = glm::dot(n, wo);
-  if (!(nv > 0.0f)) return s;
-  const Prepared m = prepare(p);
-  const LobeWeights w = weights(m, std::min(nv, 1.0f));
-  const Frame frame(n);
+Sample evaluate(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi) {
+  return evaluate(point(p, n, wo), wi);
+}
 
+Sample sample(const Point& q, float u1, float u2, float u3) {
+  Sample s;
+  if (!q.ok) return s;
+  const Prepared& m = q.m;
+  const LobeWeights& w = q.w;
   glm::vec3 wi;
   if (u3 < w.diffuse) {
-    wi = frame.to_world(cosine_hemisphere(u1, u2));
+    wi = q.frame.to_world(cosine_hemisphere(u1, u2));
   } else {
     const bool coat = u3 >= w.diffuse + w.specular && w.clearcoat > 0.0f;
     const glm::vec3 h_local = coat ? sample_gtr1_normal(m.clearcoat_alpha, u1, u2)
-                                   : sample_ggx_visible_normal(frame.to_local(wo), m.alpha, u1, u2);
-    const glm::vec3 h = frame.to_world(h_local);
-    const float vh = glm::dot(wo, h);
+                                   : sample_ggx_visible_normal(q.frame.to_local(q.wo), m.alpha, u1, u2);
+    const glm::vec3 h = q.frame.to_world(h_local);
+    const float vh = glm::dot(q.wo, h);
     if (!(vh > 0.0f)) return s;  // a back-facing microfacet cannot reflect wo
-    wi = 2.0f * vh * h - wo;
+    wi = 2.0f * vh * h - q.wo;
   }
   wi = safe_normalize(wi);  // f and pdf below are those of exactly the returned direction
-  const Cosines c = cosines(n, wo, wi);
+  const Cosines c = cosines_unit(q.n, q.wo, wi);
   if (!c.ok) return s;  // reflected below the horizon: the sample is lost, not re-drawn
   s.pdf = pdf_lobes(m, w, c);
   if (!(s.pdf > 0.0f)) return Sample{};
@@ -201,6 +214,10 @@ Sample sample(const Params& p, const glm::vec3& n_in, const glm::vec3& wo_in, fl
   s.f = eval_lobes(m, c);
   if (!all_finite(s.f)) return Sample{};
   return s;
+}
+
+Sample sample(const Params& p, const glm::vec3& n, const glm::vec3& wo, float u1, float u2, float u3) {
+  return sample(point(p, n, wo), u1, u2, u3);
 }
 
 }  // namespace sl::render::disney

@@ -142,6 +142,15 @@ inline constexpr float kClearcoatG = 0.25f;  // Burley's fixed α for the clearc
 
 // ---- the BRDF
 
+// Parameters clamped to their ranges, and the colours derived from them once per shading point.
+struct Prepared {
+  glm::vec3 base, cspec0, csheen;
+  float metallic, roughness, alpha, sheen, clearcoat, clearcoat_alpha;
+  float dielectric_f0;  // 0.08·specular: the IOR of the exact Fresnel option
+  bool exact_fresnel;
+};
+Prepared prepare(const Params& p);
+
 glm::vec3 eval(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi);
 Sample sample(const Params& p, const glm::vec3& n, const glm::vec3& wo, float u1, float u2, float u3);
 float pdf(const Params& p, const glm::vec3& n, const glm::vec3& wo, const glm::vec3& wi);
@@ -163,5 +172,20 @@ struct LobeWeights {
   float diffuse, specular, clearcoat;
 };
 LobeWeights lobe_weights(const Params& p, float n_dot_wo);
+
+// One shading point (p, n, wo) prepared once for many directions: the clamped parameters, unit
+// n and wo, the lobe weights and the tangent frame. sample(point(p, n, wo), …) and
+// evaluate(point(p, n, wo), wi) give identical bits to the per-call forms above.
+struct Point {
+  glm::vec3 n{0.0f}, wo{0.0f};
+  float nv = 0.0f;
+  bool ok = false;  // wo above the horizon of n
+  Prepared m{};
+  LobeWeights w{};
+  Frame frame{glm::vec3(0, 0, 1)};
+};
+Point point(const Params& p, const glm::vec3& n, const glm::vec3& wo);
+Sample sample(const Point& q, float u1, float u2, float u3);
+Sample evaluate(const Point& q, const glm::vec3& wi);
 
 }  // namespace sl::render::disney

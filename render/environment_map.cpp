@@ -216,6 +216,10 @@ float EnvironmentMap::pdf_bilinear(const glm::vec3& d) const {
 }
 
 float EnvironmentMap::pdf_bilinear_unit(const equirect::UV& unit) const {
+  return pdf_bilinear_unit(unit, std::cos((0.5 - unit.v) * kPi));
+}
+
+float EnvironmentMap::pdf_bilinear_unit(const equirect::UV& unit, double cos_elevation) const {
   const int H = height_, W = width_;
   if (cell_prob_.empty()) {
     const equirect::Dir d = equirect::uv_to_direction(unit.u * W, unit.v * H, W, H);
@@ -234,7 +238,7 @@ float EnvironmentMap::pdf_bilinear_unit(const equirect::UV& unit) const {
   const double mean = 0.25 * (a + b + cc + dd);
   if (!(mean > 0.0)) return 0.0f;
   const double value = (1 - y) * ((1 - x) * a + x * b) + y * ((1 - x) * cc + x * dd);
-  const double j = jacobian(uv.v, W, H);
+  const double j = cos_elevation * (kTwoPi / W) * (kPi / H);  // jacobian(uv.v, W, H)
   if (!(j > 1e-12)) return 0.0f;
   // (u, v) density P_cell · value / ∫cell value, with ∫cell value = mean · (v1 − v0).
   const double p = cell_prob_[static_cast<size_t>(k) * W + c] * value / (mean * (r.v1 - r.v0)) / j;

@@ -68,6 +68,9 @@ class EnvironmentMap {
   // pdf_bilinear() at unit panorama coordinates (equirect::direction_to_uv(x, y, z, 1, 1));
   // identical bits to pdf_bilinear(d) for the coordinates of d.
   float pdf_bilinear_unit(const equirect::UV& unit) const;
+  // The same given the direction's cos(elevation) = √(x² + z²) (no cosine of v; equal to the
+  // above up to float rounding).
+  float pdf_bilinear_unit(const equirect::UV& unit, double cos_elevation) const;
 
   // Integral of radiance over the sphere, per channel (W/m²/sr × sr).
   glm::dvec3 integral() const;

@@ -31,6 +31,14 @@ inline UV direction_to_uv(double x, double y, double z, int width, int height) {
   return {width * (azimuth / (2.0 * kPi) + 0.5), height * (0.5 - elevation / kPi)};
 }
 
+// direction_to_uv(x, y, z, 1, 1) of a unit direction in single precision (within ~1e-7 of it):
+// for inner loops that draw millions.
+inline UV direction_to_unit(float x, float y, float z) {
+  const float ey = std::fmax(-1.0f, std::fmin(1.0f, y));
+  const float elevation = std::asin(ey), azimuth = std::atan2(x, -z);
+  return {double(azimuth * (0.5f / kPiF) + 0.5f), double(0.5f - elevation / kPiF)};
+}
+
 inline Dir uv_to_direction(double u, double v, int width, int height) {
   const double azimuth = (u / width - 0.5) * 2.0 * kPi;
   const double elevation = (0.5 - v / height) * kPi;

@@ -170,6 +170,7 @@ void shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const Environmen
       const int64_t t = sh.texels[size_t(i)];
       const glm::vec3 o = origins[size_t(t)];
       double num[3] = {epsilon, epsilon, epsilon}, den[3] = {epsilon, epsilon, epsilon};
+      const RadianceCache::Corners at = cache.corners(&o[0]);
       for (int k = 0; k < N; ++k) {
         const ShadowSampler::Ray s = sampler.cached(t, k);
         if (!(s.w > 0)) continue;  // weight 0: adds nothing to either sum
@@ -177,7 +178,7 @@ void shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const Environmen
         r.origin = o;
         r.direction = s.d;
         const double vis = bvh.occluded(r) ? opt.ambient : 1.0;
-        const glm::vec3 L = cache.radiance_unit(&o[0], s.unit);
+        const glm::vec3 L = cache.radiance_unit(at, s.unit);
         for (int c = 0; c < 3; ++c) {
           num[c] += vis * s.w * L[c];
           den[c] += s.w * L[c];

@@ -166,11 +166,21 @@ glm::vec3 RadianceCache::radiance(const float* origin, const float* dir) const {
   return radiance_unit(origin, equirect::direction_to_uv(l.x, l.y, l.z, 1, 1));  // one atan2/asin for both maps
 }
 
+RadianceCache::Corners RadianceCache::corners(const float* origin) const {
+  Corners at;
+  probe_weights(origin, at.probe, at.weight);
+  return at;
+}
+
 glm::vec3 RadianceCache::radiance_unit(const float* origin, const equirect::UV& unit) const {
   if (cache_.empty()) return glm::vec3(0.0f);
-  int64_t probe[8];
-  float wp[8];
-  probe_weights(origin, probe, wp);
+  return radiance_unit(corners(origin), unit);
+}
+
+glm::vec3 RadianceCache::radiance_unit(const Corners& at, const equirect::UV& unit) const {
+  if (cache_.empty()) return glm::vec3(0.0f);
+  const int64_t* probe = at.probe;
+  const float* wp = at.weight;
   const EnvTaps taps = env_bilinear_taps_unit(unit, W_, H_);
   const int64_t D = int64_t(H_) * W_;
   glm::vec4 acc(0.0f);

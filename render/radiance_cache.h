@@ -38,6 +38,13 @@ class RadianceCache {
   glm::vec3 radiance(const float* origin, const float* dir) const;
   // radiance() at the unit panorama coordinates of a valid direction (no atan2/asin).
   glm::vec3 radiance_unit(const float* origin, const equirect::UV& unit) const;
+  // The 8 probes around a point and their trilinear weights, for reading many directions there.
+  struct Corners {
+    int64_t probe[8];
+    float weight[8];
+  };
+  Corners corners(const float* origin) const;
+  glm::vec3 radiance_unit(const Corners& at, const equirect::UV& unit) const;
   // ∫ (n·l) L dΩ and ∫ (n·l)(1 − n·l)^5 L dΩ over n·l > 0 (the second is Burley's grazing term).
   struct Irradiance {
     glm::vec3 cosine{0.0f}, grazing{0.0f};

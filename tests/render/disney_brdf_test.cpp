@@ -83,6 +83,31 @@ TEST(DisneyBrdf, EvaluateEqualsEvalAndPdf) {
       }
 }
 
+// The prepared shading point (disney::point) is what the inference shading uses for its N
+// directions: its sample() and evaluate() must give the per-call forms' exact bits.
+TEST(DisneyBrdf, PreparedPointGivesThePerCallBits) {
+  for (float metallic : {0.0f, 1.0f})
+    for (float roughness : {0.05f, 0.6f})
+      for (int i = 0; i < 200; ++i) {
+        const auto p = white(metallic, roughness, 0.5f, i % 2 ? 0.5f : 0.0f);
+        const glm::vec3 n = glm::normalize(kUp + glm::vec3(0.1f, -0.2f, 0.0f)) * 1.7f;  // not unit: both normalise
+        const glm::vec3 wo = view_at(0.02f * float(i % 80)), wi = random_hemisphere(13, uint64_t(i));
+        const auto q = sl::render::disney::point(p, n, wo);
+        const auto e1 = sl::render::disney::evaluate(p, n, wo, wi), e2 = sl::render::disney::evaluate(q, wi);
+        EXPECT_EQ(e1.f, e2.f);
+        EXPECT_EQ(e1.pdf, e2.pdf);
+        const float u1 = float(i % 17) / 17.0f, u2 = float(i % 23) / 23.0f, u3 = float(i % 7) / 7.0f;
+        const auto s1 = sl::render::disney::sample(p, n, wo, u1, u2, u3), s2 = sl::render::disney::sample(q, u1, u2, u3);
+        EXPECT_EQ(s1.wi, s2.wi);
+        EXPECT_EQ(s1.f, s2.f);
+        EXPECT_EQ(s1.pdf, s2.pdf);
+      }
+  // A view below the horizon: no sample, as the per-call form.
+  const auto q = sl::render::disney::point(white(0.0f, 0.5f, 0.5f, 0.0f), kUp, glm::vec3(0, -1, 0));
+  EXPECT_FALSE(q.ok);
+  EXPECT_EQ(sl::render::disney::sample(q, 0.3f, 0.4f, 0.5f).pdf, 0.0f);
+}
+
 TEST(DisneyBrdf, WhiteFurnaceAlbedoOfGgxMetalNeverExceedsOne) {
   for (float roughness : {0.0f, 0.1f, 0.25f, 0.5f, 0.75f, 1.0f})
     for (float theta_deg : {0.0f, 30.0f, 60.0f, 75.0f, 85.0f, 89.0f}) {

@@ -111,6 +111,20 @@ TEST(EnvironmentMap, UnitCoordinateFormsAgreeWithTheDirectionForms) {
     const auto back = render::equirect::direction_to_uv(d.x, d.y, d.z, 1, 1);
     ASSERT_EQ(env.pdf_bilinear_unit(back), env.pdf_bilinear(d));
     ASSERT_NEAR(env.pdf_bilinear_unit(unit), env.pdf_bilinear(d), 1e-4f * env.pdf_bilinear(d));
+    // The single-precision coordinates of the inner loops, and the density with the direction's
+    // own cos(elevation).
+    const auto fast = render::equirect::direction_to_unit(d.x, d.y, d.z);
+    ASSERT_NEAR(fast.u, back.u, 1e-6);
+    ASSERT_NEAR(fast.v, back.v, 1e-6);
+    ASSERT_NEAR(env.pdf_bilinear_unit(fast, std::sqrt(double(d.x) * d.x + double(d.z) * d.z)), env.pdf_bilinear(d),
+                1e-4f * env.pdf_bilinear(d));
+  }
+  // Poles and the seam.
+  for (const glm::vec3& d : {glm::vec3(0, 1, 0), glm::vec3(0, -1, 0), glm::vec3(0, 0, 1), glm::vec3(-1e-7f, 0, 1)}) {
+    const auto a = render::equirect::direction_to_unit(d.x, d.y, d.z);
+    const auto b = render::equirect::direction_to_uv(d.x, d.y, d.z, 1, 1);
+    EXPECT_NEAR(a.v, b.v, 1e-6);
+    EXPECT_NEAR(std::fmod(a.u - b.u + 1.5, 1.0), 0.5, 1e-6);  // equal modulo the seam
   }
 }
 

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "render/insertion_denoise.h"
+#include "render/pixel_window.h"
 #include "render/qmc_sampler.h"
 #include "render/sampling.h"
 #include "util/math.h"
@@ -56,11 +58,13 @@ std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& 
   fg.coverage.assign(size_t(W) * H, 0.0f);
   fg.depth.assign(size_t(W) * H, 0.0f);
   fg.silhouette.assign(size_t(W) * H, 0.0f);
+  fg.width = W;
   const uint64_t aa_seed = hash_counter(opt.seed, kTagAa);
   std::vector<std::vector<GSample>> rows(size_t(std::max(0, r.y1 - r.y0)));
   parallel_for(int64_t(rows.size()), 1, [&](int64_t b, int64_t e) {
     for (int64_t ri = b; ri < e; ++ri) {
       const int row = r.y0 + int(ri);
+      rows[size_t(ri)].reserve(size_t(std::max(0, r.x1 - r.x0)) * size_t(opt.aa_samples));
       for (int col = r.x0; col < r.x1; ++col) {
         const int64_t pix = int64_t(row) * W + col;
         int visible = 0, hits = 0;
@@ -95,22 +99,36 @@ std::vector<GSample> gbuffer(const InsertionInputs& in, const InsertionOptions& 
       }
     }
   });
-  std::vector<GSample> all;
-  for (auto& row : rows) all.insert(all.end(), row.begin(), row.end());
+  // Concatenated in row order, each row copied by one thread into its slot.
+  std::vector<size_t> start(rows.size() + 1, 0);
+  for (size_t i = 0; i < rows.size(); ++i) start[i + 1] = start[i] + rows[i].size();
+  std::vector<GSample> all(start.back());
+  parallel_for(int64_t(rows.size()), 1, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) {
+      std::copy(rows[size_t(i)].begin(), rows[size_t(i)].end(), all.begin() + std::ptrdiff_t(start[size_t(i)]));
+      std::vector<GSample>().swap(rows[size_t(i)]);
+    }
+  });
   stats.foreground_samples = int64_t(all.size());
   return all;
 }
 
 namespace {
 
+// The seed of a family of light samples in pass `pass_tag` (0: the first pass, as before).
+uint64_t pass_seed(const InsertionOptions& opt, uint64_t tag, uint64_t pass_tag) {
+  return pass_tag == 0 ? sample_seed(opt, tag) : hash_counter(sample_seed(opt, tag), pass_tag);
+}
+
 // The N light directions of G-buffer sample i and their weights f·cos/pdf/(N·aa) (× I_a where
 // the object blocks them; less c·cos/pdf/(N·aa) with the control variate), into l[0..N), w[0..N).
 // A failed sample gets l = n and w = 0 (a harmless ray keeps the layout regular).
 // What every sample's light rays share: seeds, the technique split and the normalisation.
 struct LightSampling {
-  LightSampling(const InsertionOptions& opt, int n)
-      : light_seed(sample_seed(opt, kTagLight)), choice_seed(sample_seed(opt, kTagChoice)),
-        rot_seed(sample_seed(opt, kTagRotation)), N(n), n_brdf(n / 2), c_brdf(float(n / 2) / float(n)),
+  // pass_tag != 0: an independent set (the adaptive pass), its seeds hashed with the tag.
+  LightSampling(const InsertionOptions& opt, int n, uint64_t pass_tag = 0)
+      : light_seed(pass_seed(opt, kTagLight, pass_tag)), choice_seed(pass_seed(opt, kTagChoice, pass_tag)),
+        rot_seed(pass_seed(opt, kTagRotation, pass_tag)), N(n), n_brdf(n / 2), c_brdf(float(n / 2) / float(n)),
         c_env(1.0f - c_brdf), norm(1.0f / float(n * opt.aa_samples)) {}
   uint64_t light_seed, choice_seed, rot_seed;
   int N, n_brdf;  // inference: n_brdf BRDF samples first, then environment samples
@@ -126,6 +144,11 @@ void light_rays(const InsertionOptions& opt, const LightSampling& sampling, cons
   const float c_brdf = sampling.c_brdf, c_env = sampling.c_env, norm = sampling.norm;
   const Frame frame(g.n);
   const glm::vec3 origin = light_origin(g);
+  const bool inference = opt.importance_sampling && n_brdf > 0;
+  // Inference: the shading point and the stratified set's rotations, once for all N directions.
+  const int aa = opt.stratify_per_pixel ? opt.aa_samples : 1;
+  const disney::Point point = inference ? disney::point(g.material, g.n, g.wo) : disney::Point{};
+  const SplitRotations rotations = inference ? split_rotations(rot_seed, g.stream / uint64_t(aa)) : SplitRotations{};
   for (int k = 0; k < N; ++k) {
     glm::vec3 l, f(0.0f);
     float pdf;
@@ -148,11 +171,10 @@ void light_rays(const InsertionOptions& opt, const LightSampling& sampling, cons
       // value and density come with its sample (or from one evaluate()); the panorama
       // coordinates with the environment's sample, so the env density and the cache's read
       // share them.
-      const int aa = opt.stratify_per_pixel ? opt.aa_samples : 1;
-      const SplitSample sp = split_sample(rot_seed, g.stream / uint64_t(aa), k, N, n_brdf, int(g.stream % uint64_t(aa)), aa);
+      const SplitSample sp = split_sample(rotations, k, N, n_brdf, int(g.stream % uint64_t(aa)), aa);
       disney::Sample b;
       if (sp.technique == 0) {
-        b = disney::sample(g.material, g.n, g.wo, sp.u.x, sp.u.y, uniform01f(choice_seed, g.stream, k + N));
+        b = disney::sample(point, sp.u.x, sp.u.y, uniform01f(choice_seed, g.stream, k + N));
         l = b.wi;
       } else {
         if (opt.bilinear_env_sampling) {
@@ -161,13 +183,15 @@ void light_rays(const InsertionOptions& opt, const LightSampling& sampling, cons
         } else {
           l = env_sample(env_map, opt, sp.u.x, sp.u.y);
         }
-        b = disney::evaluate(g.material, g.n, g.wo, l);
+        b = disney::evaluate(point, l);
       }
       if (!have_unit && glm::dot(l, l) > 0.0f) {
-        unit = equirect::direction_to_uv(l.x, l.y, l.z, 1, 1);
+        unit = equirect::direction_to_unit(l.x, l.y, l.z);  // l is unit (both techniques)
         have_unit = true;
       }
-      const float pe = !have_unit ? 0.0f : opt.bilinear_env_sampling ? env_map.pdf_bilinear_unit(unit) : env_map.pdf(l);
+      const float pe = !have_unit                    ? 0.0f
+                       : opt.bilinear_env_sampling ? env_map.pdf_bilinear_unit(unit, std::sqrt(l.x * l.x + l.z * l.z))
+                                                   : env_map.pdf(l);
       pdf = c_brdf * b.pdf + c_env * pe;
       f = b.f;
       have_f = true;
@@ -230,39 +254,187 @@ void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
   pixel_offsets(gs, N, fg);
 }
 
+std::vector<int> adaptive_extra_samples(const std::vector<double>& spread, const std::vector<int>& visible, int N,
+                                        double budget, int cap) {
+  const size_t P = spread.size();
+  std::vector<int> extra(P, 0);
+  double max_s = 0;
+  for (size_t p = 0; p < P; ++p) max_s = std::max(max_s, std::isfinite(spread[p]) ? spread[p] : 0.0);
+  if (!(budget > 0) || cap <= 0 || !(max_s > 0)) return extra;
+  auto m_of = [&](double t, size_t p) {
+    const double s = std::isfinite(spread[p]) ? spread[p] : 0.0;
+    return std::clamp(t * s - N, 0.0, double(cap));
+  };
+  auto cost = [&](double t) {
+    double c = 0;
+    for (size_t p = 0; p < P; ++p) c += visible[p] * m_of(t, p);
+    return c;
+  };
+  // The cost is non-decreasing in t; at hi every pixel with a spread is at its cap.
+  double min_s = max_s;
+  for (size_t p = 0; p < P; ++p)
+    if (std::isfinite(spread[p]) && spread[p] > 0) min_s = std::min(min_s, spread[p]);
+  double lo = 0, hi = (N + cap) / min_s;
+  if (cost(hi) <= budget) {
+    lo = hi;
+  } else {
+    for (int it = 0; it < 40; ++it) {  // 2^-40 of the bracket: far below the rounding to even
+      const double mid = 0.5 * (lo + hi);
+      (cost(mid) <= budget ? lo : hi) = mid;
+    }
+  }
+  for (size_t p = 0; p < P; ++p) extra[p] = 2 * int(std::lround(0.5 * m_of(lo, p)));
+  return extra;
+}
+
 void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
                       const std::vector<GSample>& gs, const RadianceCache& cache, bool control_variate, Foreground& fg,
                       std::vector<float>& colour) {
   const int N = fg.light_samples;
-  const LightSampling sampling(opt, N);
-  std::vector<glm::vec3> per_sample(gs.size());
+  pixel_offsets(gs, N, fg);
+  const size_t P = fg.pixels.size();
+  const bool adaptive = opt.adaptive_light_samples > 0 && N > 0;
+  const bool denoise = opt.denoise_radius > 0 && control_variate;
+  // Per sample: the Monte Carlo residual Σ w·L (pass 1), the control variate's c·E/aa, and
+  // Σ (w·L)² per channel (for the pixels' spreads).
+  std::vector<glm::vec3> residual(gs.size()), control(gs.size(), glm::vec3(0.0f)), squares;
+  if (adaptive || denoise) squares.assign(gs.size(), glm::vec3(0.0f));
+  // One sample's light rays under `sampling`: Σ w·L, and Σ (w·L)² into *sq when given.
+  auto trace = [&](const LightSampling& sampling, const GSample& g, const disney::DiffuseControl* cv,
+                   std::vector<glm::vec3>& ls, std::vector<glm::vec3>& ws, std::vector<equirect::UV>& units,
+                   glm::vec3* sq) {
+    const int n = sampling.N;
+    if (int(ls.size()) < n) {
+      ls.resize(size_t(n));
+      ws.resize(size_t(n));
+      units.resize(size_t(n));
+    }
+    light_rays(opt, sampling, bvh, env_map, g, cv, ls.data(), ws.data(), units.data());
+    const glm::vec3 origin = light_origin(g);
+    const RadianceCache::Corners at = cache.corners(&origin[0]);
+    glm::vec3 acc(0.0f), acc2(0.0f);
+    for (int k = 0; k < n; ++k)
+      if (ws[size_t(k)] != glm::vec3(0.0f)) {
+        const glm::vec3 t = ws[size_t(k)] * cache.radiance_unit(at, units[size_t(k)]);
+        acc += t;
+        acc2 += t * t;
+      }
+    if (sq) *sq = acc2;
+    return acc;
+  };
+  const LightSampling first(opt, N);
   parallel_for(int64_t(gs.size()), 16, [&](int64_t b, int64_t e) {
-    std::vector<glm::vec3> ls(static_cast<size_t>(N)), ws(static_cast<size_t>(N));
-    std::vector<equirect::UV> units(static_cast<size_t>(N));
+    std::vector<glm::vec3> ls, ws;
+    std::vector<equirect::UV> units;
     for (int64_t i = b; i < e; ++i) {
       const GSample& g = gs[size_t(i)];
       const disney::DiffuseControl cv =
           control_variate ? disney::diffuse_control(g.material, glm::dot(g.n, g.wo)) : disney::DiffuseControl{};
-      light_rays(opt, sampling, bvh, env_map, g, control_variate ? &cv : nullptr, ls.data(), ws.data(), units.data());
-      const glm::vec3 origin = light_origin(g);
-      glm::vec3 acc(0.0f);
-      for (int k = 0; k < N; ++k)
-        if (ws[size_t(k)] != glm::vec3(0.0f)) acc += ws[size_t(k)] * cache.radiance_unit(&origin[0], units[size_t(k)]);
+      residual[size_t(i)] =
+          trace(first, g, control_variate ? &cv : nullptr, ls, ws, units, squares.empty() ? nullptr : &squares[size_t(i)]);
       if (control_variate) {
-        const RadianceCache::Irradiance e = cache.irradiance(origin, g.n);
-        acc += cv.c * (e.cosine + cv.kappa * e.grazing) / float(opt.aa_samples);
+        const RadianceCache::Irradiance e = cache.irradiance(light_origin(g), g.n);
+        control[size_t(i)] = cv.c * (e.cosine + cv.kappa * e.grazing) / float(opt.aa_samples);
       }
-      per_sample[size_t(i)] = acc;
     }
   });
-  pixel_offsets(gs, N, fg);
-  colour.assign(size_t(3 * fg.pixels.size()), 0.0f);
-  for (size_t p = 0; p < fg.pixels.size(); ++p) {
-    glm::vec3 acc(0.0f);
-    for (int64_t i = fg.offsets[p] / N; i < fg.offsets[p + 1] / N; ++i) acc += per_sample[size_t(i)];
+  auto samples_of = [&](size_t p) { return std::pair<int64_t, int64_t>{fg.offsets[p] / N, fg.offsets[p + 1] / N}; };
+  const PixelWindow window(fg.pixels, fg.width);
+  // Per pixel: the first pass's residual, and the variance of one light sample's term (summed
+  // over channels).
+  std::vector<glm::vec3> first_sum(P, glm::vec3(0.0f));
+  std::vector<double> sample_var(P, 0.0);
+  parallel_for(int64_t(P), 1024, [&](int64_t b, int64_t e) {
+    for (size_t p = size_t(b); p < size_t(e); ++p) {
+      const auto [i0, i1] = samples_of(p);
+      glm::dvec3 s1(0.0), s2(0.0);
+      for (int64_t i = i0; i < i1; ++i) {
+        s1 += glm::dvec3(residual[size_t(i)]);
+        if (!squares.empty()) s2 += glm::dvec3(squares[size_t(i)]);
+      }
+      first_sum[p] = glm::vec3(s1);
+      const double count = double(i1 - i0) * N;
+      const glm::dvec3 mean = s1 / count, var = glm::max(s2 / count - mean * mean, glm::dvec3(0.0));
+      sample_var[p] = var.x + var.y + var.z;
+    }
+  });
+  // Adaptive: the extra samples per pixel, and the second pass over the pixels that got some.
+  std::vector<int> extra(P, 0);
+  std::vector<glm::vec3> second;
+  if (adaptive) {
+    // A pixel's spread is the mean of its object neighbours' (3×3, itself left out): its extra
+    // samples then do not depend on its own first pass, so the blend stays unbiased.
+    std::vector<double> spread(P, 0.0);
+    std::vector<int> visible(P, 0);
+    parallel_for(int64_t(P), 1024, [&](int64_t b, int64_t e) {
+      for (size_t p = size_t(b); p < size_t(e); ++p) {
+        visible[p] = int(samples_of(p).second - samples_of(p).first);
+        double sum = 0;
+        int n = 0;
+        window.for_neighbours(p, 1, [&](size_t q) {
+          if (q == p) return;
+          sum += std::sqrt(sample_var[q]);
+          ++n;
+        });
+        spread[p] = n > 0 ? sum / n : 0.0;
+      }
+    });
+    extra = adaptive_extra_samples(spread, visible, N, opt.adaptive_light_samples * double(gs.size()),
+                                   opt.adaptive_max_factor * N);
+    std::vector<int64_t> todo;  // samples of pixels with extra > 0
+    for (size_t p = 0; p < P; ++p) {
+      if (extra[p] == 0) continue;
+      for (int64_t i = samples_of(p).first; i < samples_of(p).second; ++i) todo.push_back(i);
+      fg.extra_light_rays += int64_t(extra[p]) * (samples_of(p).second - samples_of(p).first);
+    }
+    std::vector<int> extra_of(gs.size(), 0);
+    for (size_t p = 0; p < P; ++p)
+      for (int64_t i = samples_of(p).first; i < samples_of(p).second; ++i) extra_of[size_t(i)] = extra[p];
+    second.assign(gs.size(), glm::vec3(0.0f));
+    parallel_for_dynamic(int64_t(todo.size()), 4, [&](int64_t b, int64_t e) {
+      std::vector<glm::vec3> ls, ws;
+      std::vector<equirect::UV> units;
+      for (int64_t t = b; t < e; ++t) {
+        const size_t i = size_t(todo[size_t(t)]);
+        const GSample& g = gs[i];
+        const LightSampling more(opt, extra_of[i], kTagAdaptive);
+        const disney::DiffuseControl cv =
+            control_variate ? disney::diffuse_control(g.material, glm::dot(g.n, g.wo)) : disney::DiffuseControl{};
+        second[i] = trace(more, g, control_variate ? &cv : nullptr, ls, ws, units, nullptr);
+      }
+    });
+  }
+  // Per pixel: the residual (both passes blended by their counts) and the control's integral.
+  std::vector<DenoisePixel> px(P);
+  parallel_for(int64_t(P), 1024, [&](int64_t b, int64_t e) {
+  for (size_t p = size_t(b); p < size_t(e); ++p) {
+    const auto [i0, i1] = samples_of(p);
+    glm::vec3 r2(0.0f), c(0.0f), n(0.0f), x(0.0f);
+    for (int64_t i = i0; i < i1; ++i) {
+      c += control[size_t(i)];
+      n += gs[size_t(i)].n;
+      x += gs[size_t(i)].x / float(i1 - i0);
+      if (!second.empty()) r2 += second[size_t(i)];
+    }
+    const int m = extra[p];
+    DenoisePixel& d = px[p];
+    d.residual = m > 0 ? (float(N) * first_sum[p] + float(m) * r2) / float(N + m) : first_sum[p];
+    d.control = c;
+    d.normal = safe_normalize(n);
+    d.position = x;
+    d.depth = fg.depth[size_t(fg.pixels[p])];
+    // The variance of the residual's channel sum: (samples in the first pass) × (one term's),
+    // scaled by the blend's weight N/(N + m) of that pass (the second's terms are alike).
+    d.variance = float(sample_var[p] * double(i1 - i0) * N * double(N) / double(N + m));
+  }
+  });
+  const std::vector<glm::vec3> r = denoise ? denoise_residual(px, window, opt) : std::vector<glm::vec3>{};
+  colour.assign(size_t(3 * P), 0.0f);
+  for (size_t p = 0; p < P; ++p) {
+    const glm::vec3 acc = px[p].control + (denoise ? r[p] : px[p].residual);
     // A control-variate estimate can dip below 0 where the object blocks much of its own light
     // (3 of 1.4M values on KITTI 000008, the lowest −0.011); radiance cannot.
-    for (int c = 0; c < 3; ++c) colour[3 * p + size_t(c)] = std::max(0.0f, acc[c]);
+    for (int ch = 0; ch < 3; ++ch) colour[3 * p + size_t(ch)] = std::max(0.0f, acc[ch]);
   }
 }
 

@@ -32,6 +32,8 @@ struct Foreground {
   std::vector<float> coverage, depth;  // per image pixel
   std::vector<float> silhouette;       // per image pixel: coverage before the photo's occlusion
   int light_samples = 0;         // N actually used
+  int64_t width = 0;             // the image's, for pixel neighbourhoods
+  int64_t extra_light_rays = 0;  // adaptive sampling's second pass (shade_foreground)
 };
 
 // A visible primary sample: the G-buffer entry of Eq. 2.
@@ -57,9 +59,19 @@ void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
 // (no ray buffer); `colour` gets Σ w·L per pixel of fg.pixels (3 floats each), plus ∫g·cos·L/aa per
 // sample with the control variate (cache.build_irradiance() done for the samples' normals),
 // clamped at 0.
-// Equal to trace_foreground() followed by the cache's reads and weighted_segment_sum (tested).
+// With opt.adaptive_light_samples > 0, a second pass adds light samples where the first was noisy
+// (render/object_insertion.h, "Adaptive sampling"); with opt.denoise_radius > 0 and the control
+// variate, the residual is filtered (render/insertion_denoise.h). Both off: equal to
+// trace_foreground() followed by the cache's reads and weighted_segment_sum (tested).
 void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
                       const std::vector<GSample>& gs, const RadianceCache& cache, bool control_variate, Foreground& fg,
                       std::vector<float>& colour);
+
+// Adaptive sampling's allocation: per pixel, the extra light samples m per primary sample that
+// minimise Σ s²/(N + m) for Σ visible·m ≈ budget: m = clamp(t·s − N, 0, cap) rounded to even,
+// t found by bisection (the largest t whose unrounded cost fits the budget). spread s ≥ 0
+// (non-finite counts as 0), visible = the pixel's visible primary samples.
+std::vector<int> adaptive_extra_samples(const std::vector<double>& spread, const std::vector<int>& visible, int N,
+                                        double budget, int cap);
 
 }  // namespace sl::render::insertion

@@ -24,7 +24,7 @@ namespace sl::render::insertion {
 
 inline constexpr uint64_t kTagAa = 0xA11A5EEDull, kTagLight = 0x11647ull, kTagShadow = 0x5AD0Eull, kTagChoice = 0xC401CEull;
 
-inline constexpr uint64_t kTagRotation = 0x2071A7Eull;
+inline constexpr uint64_t kTagRotation = 0x2071A7Eull, kTagAdaptive = 0xADA97ull;
 
 inline bool valid_depth(double d) { return std::isfinite(d) && d > 0.0; }
 
@@ -64,12 +64,23 @@ struct SplitSample {
   int technique;
   glm::vec2 u;
 };
+// The per-stream rotations of both techniques (r1, r2 of technique 0, then of technique 1).
+struct SplitRotations {
+  float r[4];
+};
+inline SplitRotations split_rotations(uint64_t rot_seed, uint64_t stream) {
+  return {{uniform01f(rot_seed, stream, 0), uniform01f(rot_seed, stream, 1), uniform01f(rot_seed, stream, 2),
+           uniform01f(rot_seed, stream, 3)}};
+}
+inline SplitSample split_sample(const SplitRotations& rot, int k, int n, int n0, int sub = 0, int subs = 1) {
+  const int technique = k < n0 ? 0 : 1, j = technique == 0 ? k : k - n0, m = technique == 0 ? n0 : n - n0;
+  return {technique, rotated_hammersley(j * subs + sub, m * subs, rot.r[2 * technique], rot.r[2 * technique + 1])};
+}
 inline SplitSample split_sample(uint64_t rot_seed, uint64_t stream, int k, int n, int n0, int sub = 0, int subs = 1) {
   const int technique = k < n0 ? 0 : 1, j = technique == 0 ? k : k - n0, m = technique == 0 ? n0 : n - n0;
   const float r1 = uniform01f(rot_seed, stream, 2 * technique), r2 = uniform01f(rot_seed, stream, 2 * technique + 1);
   return {technique, rotated_hammersley(j * subs + sub, m * subs, r1, r2)};
 }
-
 // The environment technique of inference sampling (InsertionOptions::bilinear_env_sampling).
 inline glm::vec3 env_sample(const EnvironmentMap& env, const InsertionOptions& opt, float u1, float u2) {
   return opt.bilinear_env_sampling ? env.sample_bilinear_direction(u1, u2) : env.sample(u1, u2).direction;

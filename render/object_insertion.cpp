@@ -45,6 +45,14 @@ void validate(const InsertionInputs& in, const InsertionOptions& opt) {
                                     opt.cache_shadow_max_y >= 2),
            "insert_objects: radiance cache ", opt.cache_width, "x", opt.cache_height, " with spacing ",
            opt.cache_spacing_m, " m (at most ", opt.cache_max_xz, "x", opt.cache_max_y, " probes) is invalid");
+  SL_CHECK(std::isfinite(opt.adaptive_light_samples) && opt.adaptive_light_samples >= 0 && opt.adaptive_max_factor >= 0,
+           "insert_objects: adaptive_light_samples ", opt.adaptive_light_samples, " and adaptive_max_factor ",
+           opt.adaptive_max_factor, " must be >= 0");
+  SL_CHECK(opt.denoise_radius >= 0 && opt.denoise_radius <= 16 && opt.denoise_normal_sigma > 0 &&
+               opt.denoise_depth_sigma > 0 && opt.denoise_variance_sigma >= 0,
+           "insert_objects: denoise radius ", opt.denoise_radius, " (0..16) and sigmas (normal ",
+           opt.denoise_normal_sigma, ", depth ", opt.denoise_depth_sigma, " > 0; variance ",
+           opt.denoise_variance_sigma, " >= 0) are invalid");
   SL_CHECK(!opt.radiance_cache || !grad_enabled() ||
                !(in.env.requires_grad() || (in.vsg.defined() && in.vsg.requires_grad())),
            "insert_objects: radiance_cache is for inference; gradients into env/vsg need exact queries");
@@ -143,7 +151,9 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
       sh.texel_depth.assign(size_t(opt.shadow_width) * opt.shadow_height, 0.0f);
       out.stats.shadow_pixels_total = int64_t(opt.shadow_width) * opt.shadow_height;
     }
-    out.stats.query_rays = int64_t(gs.size()) * fg.light_samples + int64_t(sh.texels.size()) * opt.shadow_rays;
+    out.stats.adaptive_light_rays = fg.extra_light_rays;
+    out.stats.query_rays = int64_t(gs.size()) * fg.light_samples + fg.extra_light_rays +
+                           int64_t(sh.texels.size()) * opt.shadow_rays;
     std::vector<float> s_img;
     upsample_shadows(in, opt, sh, depth, ratio, s_img);
     // I_edit = α·I_obj + (1 − α)·(S ⊙ I), written channel-first.

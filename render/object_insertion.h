@@ -54,6 +54,22 @@
 // touch, and read trilinearly × bilinearly like L. Where the object does not block the sky the
 // sum is small, so most of the sun's and sky's sampling noise leaves the diffuse shading; the
 // bias is E's quadrature and normal-grid interpolation (streetlight-bench insert, rows cv_*).
+// Adaptive sampling (adaptive_light_samples > 0, with the radiance cache): a second pass of
+// Eq. 2's sum where the first is noisy. From the first pass's N samples per primary sample, each
+// pixel's spread s: the standard deviation of one light sample's term (summed over channels),
+// averaged over its 3×3 object neighbours with the pixel itself left out. The error over the
+// image, Σ s²/(N + m), is least for a fixed number of extra rays when N + m ∝ s, so each pixel
+// gets m = clamp(t·s − N, 0, adaptive_max_factor·N) more per primary sample (rounded to even),
+// t set so that the extra rays average adaptive_light_samples per visible primary sample. The
+// m samples are a fresh stratified set (their own seeds), and the pixel's sum is
+// (N·first + m·second)/(N + m). Since m does not depend on the pixel's own first pass, the
+// blend is unbiased (tested: AdaptiveSampling.KeepsTheMeanAtTheSameNumberOfRays).
+// Denoising (denoise_radius > 0, with the control variate): the sampled residual R of each
+// pixel (Eq. 2 less ∫g·cos·L) is smoothed as a ratio to the control's noise-free C over a small
+// window guided by normals, depth and the ratio's own noise (render/insertion_denoise.h); C
+// itself, the coverage and the shadows are untouched. It trades noise for a bias where the
+// object's self-occlusion or specular changes faster than the guides see (measured:
+// streetlight-bench insert, rows denoise*).
 // Every op is one tape node per call; backward recomputes its rays and samples.
 #pragma once
 #include <cstdint>
@@ -101,6 +117,18 @@ struct InsertionOptions {
   // integrated over square texels half the env's rows high, refined cv_quadrature_supersample× per axis.
   bool diffuse_control_variate = false;
   int cv_normals_height = 64, cv_quadrature_supersample = 1;
+  // Inference, with the radiance cache: adaptive light samples (see "Adaptive sampling" above).
+  // On average adaptive_light_samples more per visible primary sample, at most
+  // adaptive_max_factor·N more per pixel's primary sample; 0 = off.
+  double adaptive_light_samples = 0;
+  int adaptive_max_factor = 8;
+  // Inference, with the radiance cache and the control variate: the residual filter (see
+  // "Denoising" above) over a (2·denoise_radius + 1)² window; 0 = off. Its guides: normals
+  // (1 − n·n' over denoise_normal_sigma), the distance from the pixel's tangent plane relative to
+  // its depth (over denoise_depth_sigma), and the residual's ratio to the control in units of its
+  // noise (denoise_variance_sigma; 0 = unused).
+  int denoise_radius = 0;
+  double denoise_normal_sigma = 0.02, denoise_depth_sigma = 0.003, denoise_variance_sigma = 4.0;
 };
 
 struct InsertionStats {
@@ -108,6 +136,7 @@ struct InsertionStats {
   int64_t image_pixels_total = 0, foreground_pixels_shaded = 0;
   int64_t foreground_samples = 0;  // primary rays that see the object (the "foreground rays")
   int64_t query_rays = 0;          // rays sent to the radiance query (light + shadow)
+  int64_t adaptive_light_rays = 0; // of those, the light rays adaptive sampling added
 };
 
 struct InsertionResult {

@@ -103,6 +103,8 @@ InsertionOptions insertion_options(const PhotoInsertionOptions& o) {
   io.cache_width = 2 * o.cache_height;
   io.cache_shadow_height = o.cache_shadow_height;
   io.diffuse_control_variate = o.diffuse_control_variate;
+  io.adaptive_light_samples = o.adaptive_light_samples;
+  io.denoise_radius = o.denoise_radius;
   io.bilinear_env_sampling = o.bilinear_env_sampling;
   io.stratify_per_pixel = o.stratify_per_pixel;
   return io;

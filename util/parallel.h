@@ -27,6 +27,21 @@ void parallel_for(int64_t n, int64_t grain, Body&& body) {
   for (int64_t c = 0; c < chunks; ++c) body(c * grain, std::min(n, (c + 1) * grain));
 }
 
+// The same with chunks handed out dynamically, for bodies whose cost varies widely by index
+// (adaptive sample counts). Which thread runs a chunk varies; what each index computes does not.
+template <class Body>
+void parallel_for_dynamic(int64_t n, int64_t grain, Body&& body) {
+  if (n <= 0) return;
+  grain = std::max<int64_t>(grain, 1);
+  const int64_t chunks = (n + grain - 1) / grain;
+  if (chunks == 1 || omp_in_parallel()) {
+    body(int64_t{0}, n);
+    return;
+  }
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int64_t c = 0; c < chunks; ++c) body(c * grain, std::min(n, (c + 1) * grain));
+}
+
 // Number of elements summed sequentially into one partial before partials are combined.
 constexpr int64_t kReduceBlock = 4096;
 

@@ -257,6 +257,8 @@ TEST(ObjectInsertion, ExtremeCasesKeepTheCachedControlVariatePathFiniteAndNonNeg
     opt.diffuse_control_variate = true;
     opt.cache_height = 8;
     opt.cache_width = 16;
+    opt.adaptive_light_samples = 4;  // and the photo defaults' adaptive sampling and residual filter
+    opt.denoise_radius = 2;
     const InsertionResult r = insert_objects(in, opt);
     EXPECT_TRUE(finite(r.composite)) << c.name;
     EXPECT_TRUE(finite(r.shadow_map)) << c.name;

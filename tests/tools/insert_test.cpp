@@ -160,6 +160,18 @@ TEST(InsertTool, SunFromShadowsWithAnEditedSunIsACleanError) {
   expect_clean_error(r, c.dir + "/out", "--sun-from-shadows");
 }
 
+TEST(InsertTool, BadSamplingKnobsAreCleanErrors) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_bad_knobs");
+  for (const auto& [flag, value] : std::vector<std::pair<std::string, std::string>>{
+           {"--adaptive-samples", "-1"}, {"--adaptive-samples", "nan"}, {"--denoise-radius", "-2"}, {"--denoise-radius", "99"}}) {
+    const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                      "/intrinsics.json --at 0,8 --out " + c.dir + "/out" + c.base + " " +
+                                                      flag + " " + value);
+    expect_clean_error(r, c.dir + "/out", flag);
+  }
+}
+
 TEST(InsertTool, MissingImageIsACleanError) {
   if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
   const InsertCase c = setup("insert_missing");

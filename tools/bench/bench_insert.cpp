@@ -327,13 +327,15 @@ int run_production(const std::string& size, bool json, const std::string& data, 
   ref.shadow_rays = 256;
   ref.radiance_cache = reference_cache;
   ref.diffuse_control_variate = false;  // plain Eq. 2: the control variate's bias stays visible
+  ref.adaptive_light_samples = 0;        // and so do adaptive sampling's
+  ref.denoise_radius = 0;                // and the residual filter's
   const int passes = std::max({1, reference_spp / (ref.aa_samples * ref.light_samples), reference_spp / ref.shadow_rays});
   double ref_ms = 0;
   InsertionResult reference;
   // A stored reference (--reference-dir) is keyed by everything that determines it; the
   // renderer's code is named by kReferenceRenderer, bumped whenever an expectation changes.
   Fingerprint key;
-  key.text("insertion reference; renderer v3");  // v2: Owen-scrambled primary samples; v3: the key names every probe knob of a cache reference
+  key.text("insertion reference; renderer v4");  // v2: Owen-scrambled primary samples; v3: the key names every probe knob of a cache reference; v4: single-precision panorama coordinates of BRDF samples
   for (const Tensor& t : {in.background, in.depth, in.env, in.vsg}) key.tensor(t);
   key.bytes(in.objects[0].mesh.positions.data(), in.objects[0].mesh.positions.size() * sizeof(glm::vec3));
   key.value(k);
@@ -415,6 +417,35 @@ int run_production(const std::string& size, bool json, const std::string& data, 
       o.light_samples = n;
       rows.push_back({"cv_light" + std::to_string(n), o});
     }
+    // Adaptive sampling and the residual filter: each off, and the former N = 16 with and without
+    // the filter; then the knobs (base N and average extra samples; the filter's radius).
+    InsertionOptions denoise_off = train::insertion_options(production);
+    denoise_off.denoise_radius = 0;
+    rows.push_back({"denoise_off", denoise_off});
+    InsertionOptions adaptive_off = train::insertion_options(production);
+    adaptive_off.adaptive_light_samples = 0;
+    rows.push_back({"adaptive_off", adaptive_off});
+    for (int radius : {0, 2}) {
+      InsertionOptions o = train::insertion_options(production);
+      o.light_samples = 16;
+      o.adaptive_light_samples = 0;
+      o.denoise_radius = radius;
+      rows.push_back({radius == 0 ? "light16_plain" : "light16_denoise", o});
+    }
+    for (const auto& [n, a] : std::vector<std::pair<int, int>>{{8, 2}, {8, 4}, {6, 4}, {12, 4}, {16, 8}}) {
+      InsertionOptions o = train::insertion_options(production);
+      o.light_samples = n;
+      o.adaptive_light_samples = a;
+      rows.push_back({"adaptive_light" + std::to_string(n) + "_plus" + std::to_string(a), o});
+    }
+    for (int radius : {1, 3}) {
+      InsertionOptions o = train::insertion_options(production);
+      o.denoise_radius = radius;
+      rows.push_back({"denoise_radius" + std::to_string(radius), o});
+    }
+    InsertionOptions no_variance_guide = train::insertion_options(production);
+    no_variance_guide.denoise_variance_sigma = 0;
+    rows.push_back({"denoise_no_variance_guide", no_variance_guide});
   }
   if (!quick) {
     InsertionOptions exact = train::insertion_options(production);

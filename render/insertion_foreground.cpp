@@ -407,26 +407,26 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
   // Per pixel: the residual (both passes blended by their counts) and the control's integral.
   std::vector<DenoisePixel> px(P);
   parallel_for(int64_t(P), 1024, [&](int64_t b, int64_t e) {
-  for (size_t p = size_t(b); p < size_t(e); ++p) {
-    const auto [i0, i1] = samples_of(p);
-    glm::vec3 r2(0.0f), c(0.0f), n(0.0f), x(0.0f);
-    for (int64_t i = i0; i < i1; ++i) {
-      c += control[size_t(i)];
-      n += gs[size_t(i)].n;
-      x += gs[size_t(i)].x / float(i1 - i0);
-      if (!second.empty()) r2 += second[size_t(i)];
+    for (size_t p = size_t(b); p < size_t(e); ++p) {
+      const auto [i0, i1] = samples_of(p);
+      glm::vec3 r2(0.0f), c(0.0f), n(0.0f), x(0.0f);
+      for (int64_t i = i0; i < i1; ++i) {
+        c += control[size_t(i)];
+        n += gs[size_t(i)].n;
+        x += gs[size_t(i)].x / float(i1 - i0);
+        if (!second.empty()) r2 += second[size_t(i)];
+      }
+      const int m = extra[p];
+      DenoisePixel& d = px[p];
+      d.residual = m > 0 ? (float(N) * first_sum[p] + float(m) * r2) / float(N + m) : first_sum[p];
+      d.control = c;
+      d.normal = safe_normalize(n);
+      d.position = x;
+      d.depth = fg.depth[size_t(fg.pixels[p])];
+      // The variance of the residual's channel sum: (samples in the first pass) × (one term's),
+      // scaled by the blend's weight N/(N + m) of that pass (the second's terms are alike).
+      d.variance = float(sample_var[p] * double(i1 - i0) * N * double(N) / double(N + m));
     }
-    const int m = extra[p];
-    DenoisePixel& d = px[p];
-    d.residual = m > 0 ? (float(N) * first_sum[p] + float(m) * r2) / float(N + m) : first_sum[p];
-    d.control = c;
-    d.normal = safe_normalize(n);
-    d.position = x;
-    d.depth = fg.depth[size_t(fg.pixels[p])];
-    // The variance of the residual's channel sum: (samples in the first pass) × (one term's),
-    // scaled by the blend's weight N/(N + m) of that pass (the second's terms are alike).
-    d.variance = float(sample_var[p] * double(i1 - i0) * N * double(N) / double(N + m));
-  }
   });
   const std::vector<glm::vec3> r = denoise ? denoise_residual(px, window, opt) : std::vector<glm::vec3>{};
   colour.assign(size_t(3 * P), 0.0f);

@@ -9,13 +9,15 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace sl {
 
-// Calls body(begin, end) over [0, n) in chunks of `grain` (the last may be shorter).
-template <class Body>
-void parallel_for(int64_t n, int64_t grain, Body&& body) {
+namespace detail {
+// body(begin, end) over [0, n) in chunks of `grain`, scheduled statically or dynamically.
+template <bool kDynamic, class Body>
+void for_chunks(int64_t n, int64_t grain, Body&& body) {
   if (n <= 0) return;
   grain = std::max<int64_t>(grain, 1);
   const int64_t chunks = (n + grain - 1) / grain;
@@ -23,23 +25,27 @@ void parallel_for(int64_t n, int64_t grain, Body&& body) {
     body(int64_t{0}, n);
     return;
   }
+  if constexpr (kDynamic) {
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int64_t c = 0; c < chunks; ++c) body(c * grain, std::min(n, (c + 1) * grain));
+  } else {
 #pragma omp parallel for schedule(static)
-  for (int64_t c = 0; c < chunks; ++c) body(c * grain, std::min(n, (c + 1) * grain));
+    for (int64_t c = 0; c < chunks; ++c) body(c * grain, std::min(n, (c + 1) * grain));
+  }
+}
+}  // namespace detail
+
+// Calls body(begin, end) over [0, n) in chunks of `grain` (the last may be shorter).
+template <class Body>
+void parallel_for(int64_t n, int64_t grain, Body&& body) {
+  detail::for_chunks<false>(n, grain, std::forward<Body>(body));
 }
 
 // The same with chunks handed out dynamically, for bodies whose cost varies widely by index
 // (adaptive sample counts). Which thread runs a chunk varies; what each index computes does not.
 template <class Body>
 void parallel_for_dynamic(int64_t n, int64_t grain, Body&& body) {
-  if (n <= 0) return;
-  grain = std::max<int64_t>(grain, 1);
-  const int64_t chunks = (n + grain - 1) / grain;
-  if (chunks == 1 || omp_in_parallel()) {
-    body(int64_t{0}, n);
-    return;
-  }
-#pragma omp parallel for schedule(dynamic, 1)
-  for (int64_t c = 0; c < chunks; ++c) body(c * grain, std::min(n, (c + 1) * grain));
+  detail::for_chunks<true>(n, grain, std::forward<Body>(body));
 }
 
 // Number of elements summed sequentially into one partial before partials are combined.

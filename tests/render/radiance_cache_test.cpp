@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "autodiff/ops.h"
 #include "render/environment_map.h"
@@ -246,35 +247,45 @@ double object_error(const InsertionResult& a, const InsertionResult& b) {
 // The control variate changes the estimator, not its mean: over 8 seeds its average agrees
 // with the plain estimator's 8-seed average to within their noise, and one run's noise (the
 // spread between two seeds) is less than half the plain estimator's.
+// The mean composite of n runs with lighting seeds first, first + 1, …
+InsertionResult mean_of(const Scene& s, InsertionOptions o, int n, uint64_t first) {
+  Tensor sum;
+  InsertionResult last;
+  for (int k = 0; k < n; ++k) {
+    o.lighting_seed = first + uint64_t(k);
+    last = insert_objects(s.in, o);
+    sum = k == 0 ? last.composite : add(sum, last.composite);
+  }
+  last.composite = mul_scalar(sum, 1.0 / n);
+  return last;
+}
+
+// One run's noise over the object: the error between two lighting seeds, / √2.
+double noise_of(const Scene& s, InsertionOptions o) {
+  o.lighting_seed = 1;
+  const InsertionResult a = insert_objects(s.in, o);
+  o.lighting_seed = 2;
+  return object_error(a, insert_objects(s.in, o)) / std::sqrt(2.0);
+}
+
+// Expects a and b to have the same mean: their 8-seed means differ by less than 3σ of that
+// difference, √((n_a² + n_b²)/8), plus 0.003. Returns the two estimators' noises.
+std::pair<double, double> expect_same_mean(const Scene& s, const InsertionOptions& a, const InsertionOptions& b,
+                                           uint64_t first_seed) {
+  const double n_a = noise_of(s, a), n_b = noise_of(s, b);
+  const double diff = object_error(mean_of(s, a, 8, first_seed), mean_of(s, b, 8, first_seed));
+  EXPECT_LT(diff, 3.0 * std::sqrt((n_a * n_a + n_b * n_b) / 8.0) + 0.003) << "noises " << n_a << ", " << n_b;
+  return {n_a, n_b};
+}
+
 TEST(RadianceCache, ControlVariateKeepsTheMeanAndCutsTheNoise) {
   const Scene s = scene();
   InsertionOptions plain = cached_options();
   InsertionOptions cv = plain;
   cv.diffuse_control_variate = true;
-  auto mean_of = [&](InsertionOptions o, int n) {
-    Tensor sum;
-    InsertionResult last;
-    for (int k = 0; k < n; ++k) {
-      o.lighting_seed = uint64_t(100 + k);
-      last = insert_objects(s.in, o);
-      sum = k == 0 ? last.composite : add(sum, last.composite);
-    }
-    last.composite = mul_scalar(sum, 1.0 / n);
-    return last;
-  };
-  auto noise_of = [&](InsertionOptions o) {
-    o.lighting_seed = 1;
-    const InsertionResult a = insert_objects(s.in, o);
-    o.lighting_seed = 2;
-    return object_error(a, insert_objects(s.in, o)) / std::sqrt(2.0);
-  };
-  const double n_plain = noise_of(plain), n_cv = noise_of(cv);
+  const auto [n_cv, n_plain] = expect_same_mean(s, cv, plain, 100);
   EXPECT_GT(n_plain, 0.0);
   EXPECT_LT(n_cv, 0.5 * n_plain) << "plain " << n_plain << " cv " << n_cv;
-  const double diff = object_error(mean_of(cv, 8), mean_of(plain, 8));
-  // Standard deviation of the difference of the two 8-seed means: √((n_plain² + n_cv²)/8).
-  EXPECT_LT(diff, 3.0 * std::sqrt((n_plain * n_plain + n_cv * n_cv) / 8.0) + 0.003)
-      << "plain noise " << n_plain << ", cv noise " << n_cv;
 }
 
 // Adaptive sampling (render/object_insertion.h): N = 8 plus on average 8 more where the
@@ -293,28 +304,9 @@ TEST(AdaptiveSampling, KeepsTheMeanAtTheSameNumberOfRays) {
   // The extra rays average 8 per visible primary sample (each pixel rounds to even).
   EXPECT_NEAR(double(one.stats.adaptive_light_rays), 8.0 * double(samples), 1.0 * double(samples));
   EXPECT_GT(one.stats.adaptive_light_rays, 0);
-  auto mean_of = [&](InsertionOptions o, int n) {
-    Tensor sum;
-    InsertionResult last;
-    for (int k = 0; k < n; ++k) {
-      o.lighting_seed = uint64_t(300 + k);
-      last = insert_objects(s.in, o);
-      sum = k == 0 ? last.composite : add(sum, last.composite);
-    }
-    last.composite = mul_scalar(sum, 1.0 / n);
-    return last;
-  };
-  auto noise_of = [&](InsertionOptions o) {
-    o.lighting_seed = 1;
-    const InsertionResult a = insert_objects(s.in, o);
-    o.lighting_seed = 2;
-    return object_error(a, insert_objects(s.in, o)) / std::sqrt(2.0);
-  };
-  const double n_uniform = noise_of(uniform), n_adaptive = noise_of(adaptive);
+  const auto [n_adaptive, n_uniform] = expect_same_mean(s, adaptive, uniform, 300);
   EXPECT_GT(n_adaptive, 0.0);
-  const double diff = object_error(mean_of(adaptive, 8), mean_of(uniform, 8));
-  EXPECT_LT(diff, 3.0 * std::sqrt((n_uniform * n_uniform + n_adaptive * n_adaptive) / 8.0) + 0.003)
-      << "uniform noise " << n_uniform << ", adaptive noise " << n_adaptive;
+  EXPECT_GT(n_uniform, 0.0);
 }
 
 // The residual filter (render/object_insertion.h, "Denoising"): much less noise from seed to
@@ -327,25 +319,8 @@ TEST(ResidualFilter, CutsTheNoiseWithASmallBiasAndTouchesNothingElse) {
   plain.diffuse_control_variate = true;
   InsertionOptions filtered = plain;
   filtered.denoise_radius = 2;
-  auto mean_of = [&](InsertionOptions o, int n) {
-    Tensor sum;
-    InsertionResult last;
-    for (int k = 0; k < n; ++k) {
-      o.lighting_seed = uint64_t(500 + k);
-      last = insert_objects(s.in, o);
-      sum = k == 0 ? last.composite : add(sum, last.composite);
-    }
-    last.composite = mul_scalar(sum, 1.0 / n);
-    return last;
-  };
-  auto noise_of = [&](InsertionOptions o) {
-    o.lighting_seed = 1;
-    const InsertionResult a = insert_objects(s.in, o);
-    o.lighting_seed = 2;
-    return object_error(a, insert_objects(s.in, o)) / std::sqrt(2.0);
-  };
-  const double n_plain = noise_of(plain), n_filtered = noise_of(filtered);
-  const double bias = object_error(mean_of(filtered, 16), mean_of(plain, 16));
+  const double n_plain = noise_of(s, plain), n_filtered = noise_of(s, filtered);
+  const double bias = object_error(mean_of(s, filtered, 16, 500), mean_of(s, plain, 16, 500));
   std::printf("noise plain %.4f filtered %.4f; mean difference %.4f\n", n_plain, n_filtered, bias);
   EXPECT_LT(n_filtered, 0.5 * n_plain);
   EXPECT_LT(bias, n_plain);

@@ -300,9 +300,10 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
   std::vector<glm::vec3> residual(gs.size()), control(gs.size(), glm::vec3(0.0f)), squares;
   if (adaptive || denoise) squares.assign(gs.size(), glm::vec3(0.0f));
   // One sample's light rays under `sampling`: Σ w·L, and Σ (w·L)² into *sq when given.
+  // `at` = cache.corners() of the sample's light origin.
   auto trace = [&](const LightSampling& sampling, const GSample& g, const disney::DiffuseControl* cv,
-                   std::vector<glm::vec3>& ls, std::vector<glm::vec3>& ws, std::vector<equirect::UV>& units,
-                   glm::vec3* sq) {
+                   const RadianceCache::Corners& at, std::vector<glm::vec3>& ls, std::vector<glm::vec3>& ws,
+                   std::vector<equirect::UV>& units, glm::vec3* sq) {
     const int n = sampling.N;
     if (int(ls.size()) < n) {
       ls.resize(size_t(n));
@@ -310,8 +311,6 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
       units.resize(size_t(n));
     }
     light_rays(opt, sampling, bvh, env_map, g, cv, ls.data(), ws.data(), units.data());
-    const glm::vec3 origin = light_origin(g);
-    const RadianceCache::Corners at = cache.corners(&origin[0]);
     glm::vec3 acc(0.0f), acc2(0.0f);
     for (int k = 0; k < n; ++k)
       if (ws[size_t(k)] != glm::vec3(0.0f)) {
@@ -330,10 +329,12 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
       const GSample& g = gs[size_t(i)];
       const disney::DiffuseControl cv =
           control_variate ? disney::diffuse_control(g.material, glm::dot(g.n, g.wo)) : disney::DiffuseControl{};
-      residual[size_t(i)] =
-          trace(first, g, control_variate ? &cv : nullptr, ls, ws, units, squares.empty() ? nullptr : &squares[size_t(i)]);
+      const glm::vec3 origin = light_origin(g);
+      const RadianceCache::Corners at = cache.corners(&origin[0]);
+      residual[size_t(i)] = trace(first, g, control_variate ? &cv : nullptr, at, ls, ws, units,
+                                  squares.empty() ? nullptr : &squares[size_t(i)]);
       if (control_variate) {
-        const RadianceCache::Irradiance e = cache.irradiance(light_origin(g), g.n);
+        const RadianceCache::Irradiance e = cache.irradiance(at, g.n);
         control[size_t(i)] = cv.c * (e.cosine + cv.kappa * e.grazing) / float(opt.aa_samples);
       }
     }
@@ -400,7 +401,8 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
         const LightSampling more(opt, extra_of[i], kTagAdaptive);
         const disney::DiffuseControl cv =
             control_variate ? disney::diffuse_control(g.material, glm::dot(g.n, g.wo)) : disney::DiffuseControl{};
-        second[i] = trace(more, g, control_variate ? &cv : nullptr, ls, ws, units, nullptr);
+        const glm::vec3 origin = light_origin(g);
+        second[i] = trace(more, g, control_variate ? &cv : nullptr, cache.corners(&origin[0]), ls, ws, units, nullptr);
       }
     });
   }

@@ -138,11 +138,14 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
 // E(x, n) of build_irradiance() (n among the normals it was given): trilinear in the probes,
 // bilinear in the normal.
 RadianceCache::Irradiance RadianceCache::irradiance(const glm::vec3& origin, const glm::vec3& n) const {
+  return irradiance(corners(&origin[0]), n);
+}
+
+RadianceCache::Irradiance RadianceCache::irradiance(const Corners& at, const glm::vec3& n) const {
   Irradiance out;
   if (irradiance_.empty() || !all_finite(n) || !(glm::dot(n, n) > 0.0f)) return out;
-  int64_t probe[8];
-  float wp[8];
-  probe_weights(&origin[0], probe, wp);
+  const int64_t* probe = at.probe;
+  const float* wp = at.weight;
   const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
   const int64_t P = int64_t(n_[0]) * n_[1] * n_[2];
   for (int k = 0; k < 4; ++k) {

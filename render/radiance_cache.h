@@ -51,6 +51,7 @@ class RadianceCache {
   };
   void build_irradiance(int hn, int supersample, const std::vector<glm::vec3>& normals);
   Irradiance irradiance(const glm::vec3& origin, const glm::vec3& n) const;
+  Irradiance irradiance(const Corners& at, const glm::vec3& n) const;  // at = corners(origin)
   int64_t probes() const { return cache_.empty() ? 0 : int64_t(n_[0]) * n_[1] * n_[2]; }
 
  private:

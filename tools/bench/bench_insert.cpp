@@ -40,6 +40,7 @@
 #include "render/path_tracer.h"
 #include "render/primitives.h"
 #include "tools/bench/bench.h"
+#include "tools/bench/insert_rows.h"
 #include "tools/bench/kitti_frame.h"
 #include "tools/bench/reference_store.h"
 #include "tools/bench/timing.h"
@@ -386,130 +387,8 @@ int run_production(const std::string& size, bool json, const std::string& data, 
       std::fprintf(stderr, "reference: stored %s\n", stored.c_str());
     }
   }
-  struct Row {
-    std::string name;
-    InsertionOptions opt;
-  };
-  std::vector<Row> rows;
-  rows.push_back({"production", train::insertion_options(production)});
-  if (!quick) {
-    // Eq. 2's diffuse control variate: off, and its two knobs (normal grid, quadrature).
-    InsertionOptions plain = train::insertion_options(production);
-    plain.diffuse_control_variate = false;
-    rows.push_back({"no_control_variate", plain});
-    for (int hn : {16, 32}) {
-      InsertionOptions o = train::insertion_options(production);
-      o.cv_normals_height = hn;
-      rows.push_back({"cv_normals" + std::to_string(hn), o});
-    }
-    InsertionOptions q2 = train::insertion_options(production);
-    q2.cv_quadrature_supersample = 2;
-    rows.push_back({"cv_quadrature2", q2});
-    // The object's probe grid: the former default (1 m, up to 4×3×4, 32×64 directions).
-    InsertionOptions coarse = train::insertion_options(production);
-    coarse.cache_spacing_m = 1.0;
-    coarse.cache_max_y = 3;
-    coarse.cache_height = 32;
-    coarse.cache_width = 64;
-    rows.push_back({"cache_4x3x4_1m", coarse});
-    for (int n : {8, 24}) {
-      InsertionOptions o = train::insertion_options(production);
-      o.light_samples = n;
-      rows.push_back({"cv_light" + std::to_string(n), o});
-    }
-    // Adaptive sampling and the residual filter: each off, and the former N = 16 with and without
-    // the filter; then the knobs (base N and average extra samples; the filter's radius).
-    InsertionOptions denoise_off = train::insertion_options(production);
-    denoise_off.denoise_radius = 0;
-    rows.push_back({"denoise_off", denoise_off});
-    InsertionOptions adaptive_off = train::insertion_options(production);
-    adaptive_off.adaptive_light_samples = 0;
-    rows.push_back({"adaptive_off", adaptive_off});
-    for (int radius : {0, 2}) {
-      InsertionOptions o = train::insertion_options(production);
-      o.light_samples = 16;
-      o.adaptive_light_samples = 0;
-      o.denoise_radius = radius;
-      rows.push_back({radius == 0 ? "light16_plain" : "light16_denoise", o});
-    }
-    for (const auto& [n, a] : std::vector<std::pair<int, int>>{{8, 2}, {8, 4}, {6, 4}, {12, 4}, {16, 8}}) {
-      InsertionOptions o = train::insertion_options(production);
-      o.light_samples = n;
-      o.adaptive_light_samples = a;
-      rows.push_back({"adaptive_light" + std::to_string(n) + "_plus" + std::to_string(a), o});
-    }
-    for (int radius : {1, 3}) {
-      InsertionOptions o = train::insertion_options(production);
-      o.denoise_radius = radius;
-      rows.push_back({"denoise_radius" + std::to_string(radius), o});
-    }
-    InsertionOptions no_variance_guide = train::insertion_options(production);
-    no_variance_guide.denoise_variance_sigma = 0;
-    rows.push_back({"denoise_no_variance_guide", no_variance_guide});
-  }
-  if (!quick) {
-    InsertionOptions exact = train::insertion_options(production);
-    exact.radiance_cache = false;
-    rows.push_back({"production_exact_queries", exact});
-    InsertionOptions texel_env = train::insertion_options(production);
-    texel_env.bilinear_env_sampling = false;
-    rows.push_back({"texel_env_sampling", texel_env});
-    InsertionOptions per_sample = train::insertion_options(production);
-    per_sample.stratify_per_pixel = false;
-    rows.push_back({"strata_per_primary_sample", per_sample});
-    for (int n : {8, 16, 32}) {
-      InsertionOptions o = train::insertion_options(production);
-      o.light_samples = n;
-      o.shadow_rays = 4 * n;
-      rows.push_back({"light" + std::to_string(n), o});
-    }
-    for (const auto& [h, w, sp] : std::vector<std::tuple<int, int, double>>{{64, 128, 2.0}, {32, 64, 1.0}, {64, 128, 1.0}}) {
-      InsertionOptions o = train::insertion_options(production);
-      o.cache_height = h;
-      o.cache_width = w;
-      o.cache_spacing_m = sp;
-      rows.push_back({"cache" + std::to_string(w) + "x" + std::to_string(h) + "_" + std::to_string(int(sp)) + "m", o});
-    }
-    // A finer probe grid over the object only (the light rays'), up to 8×4×8 probes 1 m apart.
-    for (const auto& [sp, xz, y] : std::vector<std::tuple<double, int, int>>{{1.0, 8, 4}, {0.5, 12, 6}}) {
-      InsertionOptions o = train::insertion_options(production);
-      o.cache_spacing_m = sp;
-      o.cache_max_xz = xz;
-      o.cache_max_y = y;
-      rows.push_back({"cache_object_" + std::to_string(xz) + "x" + std::to_string(y) + "x" + std::to_string(xz), o});
-    }
-    for (int n : {128, 256}) {  // shadow rays alone (the shadow term is mostly noise)
-      InsertionOptions o = train::insertion_options(production);
-      o.shadow_rays = n;
-      rows.push_back({"shadow" + std::to_string(n), o});
-    }
-    for (int rays : {64, 128, 256})  // the shadow rays' probe grid (default 2×2×2)
-      for (int xz : {4, 8}) {
-        InsertionOptions o = train::insertion_options(production);
-        o.shadow_rays = rays;
-        o.cache_shadow_max_xz = xz;
-        o.cache_spacing_m = 1.0;
-        rows.push_back({"shadow" + std::to_string(rays) + "_grid" + std::to_string(xz) + "x2x" + std::to_string(xz), o});
-      }
-    for (const auto& [xz, hs] : std::vector<std::pair<int, int>>{{4, 24}, {8, 6}, {8, 24}}) {  // the shadow grid
-      InsertionOptions o = train::insertion_options(production);
-      o.cache_shadow_max_xz = xz;
-      o.cache_shadow_height = hs;
-      rows.push_back({"shadow_grid" + std::to_string(xz) + "x2x" + std::to_string(xz) + "_dirs" + std::to_string(hs) +
-                          "x" + std::to_string(2 * hs),
-                      o});
-    }
-    {  // the measured knobs together: object probes 8×4×8, 256 shadow rays over a 4×2×4 grid
-      InsertionOptions o = train::insertion_options(production);
-      o.cache_spacing_m = 1.0;
-      o.cache_max_xz = 8;
-      o.cache_max_y = 4;
-      o.shadow_rays = 256;
-      o.cache_shadow_max_xz = 4;
-      rows.push_back({"object8x4x8_shadow256_grid4x2x4", o});
-    }
-  }
-  for (const Row& row : rows) {
+  const std::vector<InsertRow> rows = insert_rows(production, quick);
+  for (const InsertRow& row : rows) {
     if (!only.empty() && ("," + only + ",").find("," + row.name + ",") == std::string::npos) continue;
     InsertionResult r;
     double cpu_ms = 1e300;

@@ -19,12 +19,20 @@ int direct_levels(int64_t height) { return sky_levels(height); }
 
 }  // namespace
 
+std::array<int64_t, 2> backbone_grid_size(int64_t image_height, int64_t image_width) {
+  std::array<int64_t, 2> hw{image_height, image_width};
+  for (int64_t& v : hw)
+    for (int i = 0; i < 5; ++i) v = (v + 1) / 2;
+  return hw;
+}
+
 void validate(const LightingPredictorOptions& o) {
   SL_CHECK(o.sky_branch == "sky_decoder" || o.sky_branch == "direct" || o.sky_branch == "constant",
            "model.sky_branch must be \"sky_decoder\", \"direct\" or \"constant\", got \"", o.sky_branch, "\"");
   SL_CHECK(o.image_height >= 32 && o.image_width >= 32, "model.image: at least 32×32, got ", o.image_height, "×",
            o.image_width);
   SL_CHECK(o.head_hidden >= 1, "model.head_hidden must be positive, got ", o.head_hidden);
+  SL_CHECK(o.head_grid_channels >= 0, "model.head_grid_channels must be >= 0, got ", o.head_grid_channels);
   if (o.volume_branch) {
     const int64_t f = int64_t{1} << o.unet_depth;
     for (int a = 0; a < 3; ++a) {
@@ -41,7 +49,12 @@ LightingPredictor::LightingPredictor(const LightingPredictorOptions& options)
   validate(opt_);
   backbone_ = register_module("backbone", std::make_shared<nn::ResNet>(nn::ResNetOptions{
                                               .depth = opt_.backbone_depth, .base_width = opt_.backbone_width}));
-  const int64_t feat = backbone_->feature_dim();
+  int64_t feat = backbone_->feature_dim();
+  if (opt_.head_grid_channels > 0) {
+    const auto hw = backbone_grid_size(opt_.image_height, opt_.image_width);
+    head_grid_ = register_module("head_grid", std::make_shared<nn::Conv2d>(feat, opt_.head_grid_channels, 1));
+    feat += opt_.head_grid_channels * hw[0] * hw[1];
+  }
   const SkyAutoencoderOptions& sky = opt_.sky;
   if (opt_.sky_branch == "sky_decoder") {
     sky_head_ = register_module("sky_head", std::make_shared<nn::MLP>(nn::MlpOptions{
@@ -91,13 +104,25 @@ void LightingPredictor::set_training(bool on) {
   if (sky_decoder_) sky_decoder_->eval();
 }
 
-LightingPrediction LightingPredictor::predict(const Tensor& image, const Tensor& rgba) {
+Tensor LightingPredictor::head_features(const Tensor& image) {
   SL_CHECK(image.dim() == 4 && image.size(1) == 3 && image.size(2) == opt_.image_height &&
                image.size(3) == opt_.image_width,
            "LightingPredictor: expected image [N, 3, ", opt_.image_height, ", ", opt_.image_width, "], got ",
            image.describe());
+  const nn::ResNetOutput features = backbone_->forward_features(image);
+  if (!head_grid_) return features.pooled;  // [N, feat]
+  return concat({features.pooled, flatten(relu(head_grid_->forward(features.features.back())), 1)}, 1);
+}
+
+SkyCode LightingPredictor::predict_sky_code(const Tensor& image) {
+  SL_CHECK(opt_.sky_branch == "sky_decoder", "LightingPredictor: the '", opt_.sky_branch,
+           "' sky branch has no sky vector");
+  return sky_code_from_raw(sky_head_->forward(head_features(image)));
+}
+
+LightingPrediction LightingPredictor::predict(const Tensor& image, const Tensor& rgba) {
+  const Tensor g = head_features(image);
   const int64_t n = image.size(0);
-  const Tensor g = backbone_->forward_features(image).pooled;  // [N, feat]
   LightingPrediction out;
   const SkyAutoencoderOptions& sky = opt_.sky;
   if (opt_.sky_branch == "sky_decoder") {

@@ -1,6 +1,9 @@
 // The two-branch hybrid lighting predictor of Sec 3.2 / Fig. 2a.
 //
-//   image [N, 3, h, w] ─ ResNet backbone ─ pooled feature g [N, 8·width]
+//   image [N, 3, h, w] ─ ResNet backbone ─ feature g: the pooled vector [N, 8·width], and with
+//     head_grid_channels = r > 0 also layer4's map reduced by a 1×1 conv + ReLU to r channels and
+//     flattened ([N, r·h/32·w/32], "head_grid.*"), so the heads see WHERE things are in the image
+//     (the sun, the bright side of the sky, the shadows), which a global average discards
 //     (a) sky head: MLP(g) → raw f̂ → SkyCode → FROZEN sky decoder → HDR sky [N, 3, Hs, Ws]
 //     (b) volume: MLP(g) → coarse feature volume [N, C, X/s, Y/s, Z/s] → trilinear ×s,
 //         concatenated with the unprojected RGBα volume [N, 4, X, Y, Z] (unprojection.h),
@@ -19,7 +22,7 @@
 // Contract: forward(image, rgba) with image [N, 3, image_height, image_width] (LDR in [0, 1])
 // and rgba [N, 4, X, Y, Z] (ignored, may be undefined, without the volume branch). Outputs are
 // exposure-normalised radiance (sky_autoencoder.h). Shapes are checked, naming the input.
-// Parameter names: backbone.*, sky_head.*, sky_decoder.*, env_decoder.*, env_constant,
+// Parameter names: backbone.*, head_grid.* (with head_grid_channels > 0), sky_head.*, sky_decoder.*, env_decoder.*, env_constant,
 // volume_mlp.*, volume_unet.*. Deterministic init from options.seed.
 #pragma once
 #include <array>
@@ -37,6 +40,7 @@ struct LightingPredictorOptions {
   int backbone_depth = 18;
   int64_t backbone_width = 64;
   int64_t head_hidden = 256;
+  int64_t head_grid_channels = 0;  // 0: the pooled vector alone (the releases up to 2026-11-23)
   std::string sky_branch = "sky_decoder";  // "sky_decoder" | "direct" | "constant"
   bool volume_branch = true;
   std::array<int64_t, 3> vsg_dims{64, 64, 16};
@@ -59,6 +63,8 @@ class LightingPredictor : public nn::Module {
  public:
   explicit LightingPredictor(const LightingPredictorOptions& options);
   LightingPrediction predict(const Tensor& image, const Tensor& rgba);
+  // The sky vector alone (backbone and sky head; no decoding, no volume): "sky_decoder" only.
+  SkyCode predict_sky_code(const Tensor& image);
   const LightingPredictorOptions& options() const { return opt_; }
   // The frozen decoder (null unless sky_branch is "sky_decoder").
   const std::shared_ptr<SkyDecoder>& sky_decoder() const { return sky_decoder_; }
@@ -67,13 +73,18 @@ class LightingPredictor : public nn::Module {
   void set_training(bool on);
 
  private:
+  Tensor head_features(const Tensor& image);  // g of the figure above, after the shape check
+
   LightingPredictorOptions opt_;
   std::shared_ptr<nn::ResNet> backbone_;
-  std::shared_ptr<nn::Module> sky_head_, env_decoder_, volume_mlp_, volume_unet_;
+  std::shared_ptr<nn::Module> head_grid_, sky_head_, env_decoder_, volume_mlp_, volume_unet_;
   std::shared_ptr<SkyDecoder> sky_decoder_;
   std::array<int64_t, 3> coarse_{};
 };
 
 void validate(const LightingPredictorOptions& options);
+
+// Height and width of the backbone's last map (stride 32: five halvings, each rounding up).
+std::array<int64_t, 2> backbone_grid_size(int64_t image_height, int64_t image_width);
 
 }  // namespace sl::train

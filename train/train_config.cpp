@@ -50,6 +50,7 @@ json default_train_config() {
         {"backbone_depth", 18},
         {"backbone_width", 64},
         {"head_hidden", 256},
+        {"head_grid_channels", 0},
         {"sky_branch", "sky_decoder"},
         {"volume_branch", true},
         {"volume",
@@ -190,6 +191,8 @@ LightingPredictorOptions predictor_options(const json& c) {
   o.backbone_depth = m.at("backbone_depth").get<int>();
   o.backbone_width = m.at("backbone_width").get<int64_t>();
   o.head_hidden = m.at("head_hidden").get<int64_t>();
+  // Checkpoints written before the key existed pooled globally.
+  o.head_grid_channels = m.value("head_grid_channels", int64_t{0});
   o.sky_branch = m.at("sky_branch").get<std::string>();
   o.volume_branch = m.at("volume_branch").get<bool>();
   const auto dims = v.at("dims").get<std::vector<int64_t>>();

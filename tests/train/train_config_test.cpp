@@ -44,5 +44,15 @@ TEST(TrainConfig, TrainingInsertionUsesSkySamplingAndTheModelsEq1Options) {
   }
 }
 
+// The released model of 2026-11-22 was trained before model.head_grid_channels existed: its stored
+// config must still build the pooled-only predictor it holds weights for.
+TEST(TrainConfig, ConfigsWithoutTheGridHeadKeyBuildThePooledHead) {
+  nlohmann::json c = default_train_config();
+  c["model"]["head_grid_channels"] = 16;
+  EXPECT_EQ(train::predictor_options(c).head_grid_channels, 16);
+  c["model"].erase("head_grid_channels");
+  EXPECT_EQ(train::predictor_options(c).head_grid_channels, 0);
+}
+
 }  // namespace
 }  // namespace sl::test

@@ -350,8 +350,9 @@ Tensor render_truth(const Tensor& pano_hdr, const Camera& cam, double exposure) 
 
 json eval_lighting(const std::string& ckpt, const std::string& data, const std::string& split, int64_t limit,
                    int view_rows, std::vector<cli::PlotPoint>* plot, const std::string& label, const RealSkyData* real,
-                   bool oracle) {
+                   bool oracle, bool flip_average) {
   LightingEstimator est(ckpt);
+  est.set_flip_average(flip_average);
   // Every score carries its group for the bootstrap: the street's id, or the real crop's panorama.
   Grouped sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, oracle_psnr, oracle_ratio;
   std::vector<double> ms;
@@ -574,6 +575,7 @@ int run(int argc, char** argv) {
                {"--view-rows", "N", "rows at which novel views are rendered (default 32)"},
                {"--baseline-data", "DIR", "street dataset whose train split gives the constant baseline of street --data"},
                {"--no-budgets", "", "skip the error-against-time sweep"},
+               {"--flip-average", "", "average each crop's sun with its left-right mirror's (one more backbone pass)"},
                {"--out", "DIR", "write results.json, results.md and error_time.png here"},
                {"--json", "", "print the results as one JSON object on stdout"}});
   if (!a.parse(argc, argv)) return 0;
@@ -623,7 +625,7 @@ int run(int argc, char** argv) {
         // The oracle row depends only on the data: computed with the first lighting checkpoint.
         const bool want_oracle = street && !oracle_done;
         results.push_back(eval_lighting(ckpts[i], data, split, limit, rows, want_plot ? &plot : nullptr, names[i],
-                                        real.get(), want_oracle));
+                                        real.get(), want_oracle, a.has("--flip-average")));
         oracle_done = oracle_done || want_oracle;
         plotted = plotted || want_plot;
       }

@@ -9,6 +9,7 @@
 
 #include "autodiff/ops.h"
 #include "autodiff/tape.h"
+#include "data/augment.h"
 #include "data/panorama.h"
 #include "nn/checkpoint.h"
 #include "render/equirect.h"
@@ -149,6 +150,20 @@ LightingEstimator::Single LightingEstimator::predict_one(const InferenceView& v)
     rgba = unsqueeze(unproject_rgba(v.ldr, v.depth, s.camera, s.grid), 0);
   }
   s.pred = predictor_->predict(image, rgba);
+  if (flip_average_ && s.pred.code.dir.defined()) {
+    const SkyCode m = predictor_->predict_sky_code(unsqueeze(data::flip_horizontal(select(image, 0, 0).contiguous()), 0));
+    const std::vector<double> d = to_doubles(s.pred.code.dir), md = to_doubles(m.dir);
+    glm::dvec3 dir = glm::dvec3(d[0], d[1], d[2]) + glm::dvec3(-md[0], md[1], md[2]);
+    if (glm::length(dir) > 1e-9) {
+      dir = glm::normalize(dir);
+      s.pred.code.dir = Tensor::from_vector({dir.x, dir.y, dir.z}, {1, 3}).to(s.pred.code.dir.dtype());
+    }
+    std::vector<double> li = to_doubles(s.pred.code.log_intensity);
+    const std::vector<double> mli = to_doubles(m.log_intensity);
+    for (size_t i = 0; i < li.size(); ++i) li[i] = 0.5 * (li[i] + mli[i]);
+    s.pred.code.log_intensity =
+        Tensor::from_vector(li, s.pred.code.log_intensity.shape()).to(s.pred.code.log_intensity.dtype());
+  }
   return s;
 }
 

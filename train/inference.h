@@ -86,6 +86,12 @@ class LightingEstimator {
   int64_t step() const { return step_; }
   render::RadianceQueryOptions volume_query() const;  // model.volume: K of Eq. 1, its spacing and lookup
   LightingPredictor& predictor() { return *predictor_; }
+  // Flip averaging of the sun (sky-vector checkpoints): each view is also predicted mirrored
+  // left-right, and its sun direction and log intensity are averaged with the mirror image of the
+  // mirrored view's ((x, y, z) → (−x, y, z) in the canonical frame, exact for a level camera).
+  // The latent stays the unflipped view's. One more backbone pass per view; off by default.
+  void set_flip_average(bool on) { flip_average_ = on; }
+  bool flip_average() const { return flip_average_; }
 
  private:
   struct Single {
@@ -101,6 +107,7 @@ class LightingEstimator {
   nlohmann::json config_;
   std::shared_ptr<LightingPredictor> predictor_;
   render::VsgGrid grid_template_;
+  bool flip_average_ = false;
 };
 
 // The sun-strength scale that makes a fully sun-blocked ground point of this lighting as much

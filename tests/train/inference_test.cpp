@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "autodiff/ops.h"
+#include "data/augment.h"
 #include "render/bvh.h"
 #include "render/equirect.h"
 #include "render/primitives.h"
@@ -58,6 +59,26 @@ TEST(Inference, FusingAViewWithItselfChangesNothing) {
   EXPECT_NEAR(glm::length(one.sun_direction_canonical - two.sun_direction_canonical), 0.0, 1e-9);
   ASSERT_TRUE(two.vsg.defined());
   EXPECT_LT(max(abs(sub(one.vsg, two.vsg))).item(), 1e-4);
+}
+
+// Flip averaging makes the estimate mirror-equivariant: the mirrored photo gets the mirrored sun
+// and the same intensity, which a single pass of a (here random) network does not give.
+TEST(Inference, FlipAverageMirrorsTheSunWithThePhoto) {
+  const std::string dir = test::tool_dir("inference_flip");
+  LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  const InferenceView v = view_at(0.0);
+  InferenceView mirrored = v;
+  mirrored.ldr = data::flip_horizontal(v.ldr);
+  mirrored.depth = data::flip_horizontal(v.depth);
+  auto mirror = [](const glm::dvec3& d) { return glm::dvec3(-d.x, d.y, d.z); };
+  const double single_gap = glm::length(est.estimate({v}).sun_direction_canonical -
+                                        mirror(est.estimate({mirrored}).sun_direction_canonical));
+  EXPECT_GT(single_gap, 1e-4);
+  est.set_flip_average(true);
+  const EstimatedLighting a = est.estimate({v}), b = est.estimate({mirrored});
+  EXPECT_LT(glm::length(a.sun_direction_canonical - mirror(b.sun_direction_canonical)), 1e-6);
+  EXPECT_NEAR(glm::length(a.sun_direction_canonical), 1.0, 1e-6);
+  EXPECT_LT(glm::length(a.sun_intensity_rgb - b.sun_intensity_rgb), 1e-5 * glm::length(a.sun_intensity_rgb));
 }
 
 TEST(Inference, ResamplingOntoTheSameGridIsTheIdentity) {

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#if defined(__AVX512F__)
+#if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
 #include <immintrin.h>
 #endif
 
@@ -231,6 +231,150 @@ void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const floa
                              int64_t K, int64_t len, float* dw, int64_t items, int64_t dy_item, int64_t base_item) {
   if (items > 1) return weight_grad_kernel<true>(dy, ldy, M, base, row_offset, K, len, dw, items, dy_item, base_item);
   weight_grad_kernel<false>(dy, ldy, M, base, row_offset, K, len, dw, 1, 0, 0);
+}
+
+#elif defined(__AVX2__) && defined(__FMA__)
+
+// AVX2 + FMA: 16 vector registers of 8 floats, so the 8 × 48 tile is computed as four 4 × 24
+// sub-tiles of 12 accumulators (plus 3 B vectors and one broadcast). Every output element is the
+// same FMA sequence over k = 0..K-1 as with AVX-512, so both give the same bits.
+bool conv_gemm_available() { return true; }
+
+namespace {
+
+// Lanes [0, n) of a row of 8 (n <= 8).
+inline __m256i lane_mask(int64_t n) {
+  alignas(32) static const int32_t ramp[8] = {0, 1, 2, 3, 4, 5, 6, 7};
+  return _mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int32_t>(std::clamp<int64_t>(n, 0, 8))),
+                            _mm256_load_si256(reinterpret_cast<const __m256i*>(ramp)));
+}
+
+// Rows r0..r0+3 (of a packed block of 8) × columns c0..c0+23 of the tile.
+template <class Row>
+inline void sub_kernel(const float* a, const float* b, Row row, int64_t K, int64_t c0, int64_t n, int64_t rows,
+                       const float* bias, float* c, int64_t ldc, int64_t prefetch) {
+#define SL_ROW(i) __m256 c##i##0 = _mm256_setzero_ps(), c##i##1 = c##i##0, c##i##2 = c##i##0;
+  SL_ROW(0) SL_ROW(1) SL_ROW(2) SL_ROW(3)
+#undef SL_ROW
+  for (int64_t k = 0; k < K; ++k) {
+    const float* bk = b + row(k) + c0;
+    if (prefetch) {
+      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch), _MM_HINT_T0);
+      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch + 16), _MM_HINT_T0);
+      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch + 32), _MM_HINT_T0);
+    }
+    const __m256 b0 = _mm256_loadu_ps(bk);
+    const __m256 b1 = _mm256_loadu_ps(bk + 8);
+    const __m256 b2 = _mm256_loadu_ps(bk + 16);
+    const float* ak = a + k * kBlockRows;
+#define SL_FMA(i)                                  \
+  {                                                \
+    const __m256 ai = _mm256_broadcast_ss(ak + i); \
+    c##i##0 = _mm256_fmadd_ps(ai, b0, c##i##0);    \
+    c##i##1 = _mm256_fmadd_ps(ai, b1, c##i##1);    \
+    c##i##2 = _mm256_fmadd_ps(ai, b2, c##i##2);    \
+  }
+    SL_FMA(0) SL_FMA(1) SL_FMA(2) SL_FMA(3)
+#undef SL_FMA
+  }
+  const __m256i m0 = lane_mask(n - c0), m1 = lane_mask(n - c0 - 8), m2 = lane_mask(n - c0 - 16);
+#define SL_STORE(i)                                                            \
+  if (i < rows) {                                                              \
+    const __m256 bi = _mm256_set1_ps(bias ? bias[i] : 0.0f);                   \
+    float* ci = c + i * ldc + c0;                                              \
+    _mm256_maskstore_ps(ci, m0, _mm256_add_ps(c##i##0, bi));                   \
+    _mm256_maskstore_ps(ci + 8, m1, _mm256_add_ps(c##i##1, bi));               \
+    _mm256_maskstore_ps(ci + 16, m2, _mm256_add_ps(c##i##2, bi));              \
+  }
+  SL_STORE(0) SL_STORE(1) SL_STORE(2) SL_STORE(3)
+#undef SL_STORE
+}
+
+template <class Row>
+inline void micro_kernel(const float* a, const float* b, Row row, int64_t K, int64_t n, int64_t rows,
+                         const float* bias, float* c, int64_t ldc, int64_t prefetch = 0) {
+  for (int64_t h = 0; h < 2 && 4 * h < rows; ++h)
+    for (int64_t c0 = 0; c0 < n; c0 += 24)
+      sub_kernel(a + 4 * h, b, row, K, c0, n, rows - 4 * h, bias ? bias + 4 * h : nullptr, c + 4 * h * ldc, ldc,
+                 h == 0 && c0 == 0 ? prefetch : 0);
+}
+
+inline float hsum(__m256 v) {
+  const __m128 s = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+  const __m128 t = _mm_add_ps(s, _mm_movehl_ps(s, s));
+  return _mm_cvtss_f32(_mm_add_ss(t, _mm_shuffle_ps(t, t, 1)));
+}
+
+}  // namespace
+
+void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
+                     const float* bias, float* c, int64_t ldc, int64_t ldb) {
+  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
+    micro_kernel(packed_a + m0 * K, b_panel, [ldb](int64_t k) { return k * ldb; }, K, n,
+                 std::min(kBlockRows, M - m0), bias ? bias + m0 : nullptr, c + m0 * ldc, ldc);
+}
+
+void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
+                      float* tile) {
+  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
+    micro_kernel(packed_a + m0 * K, base, [row_offset](int64_t k) { return row_offset[k]; }, K, kPanelCols,
+                 std::min(kBlockRows, M - m0), nullptr, tile + m0 * kPanelCols, kPanelCols,
+                 m0 == 0 ? kPanelCols : 0);
+}
+
+// dw[o][k] += Σ_i dy[o][i] · base[row_offset[k] + i]: 4 rows of dy against 3 windows of the padded
+// input, 8 positions per step, 12 accumulators summed once at the end of the range.
+void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
+                             int64_t K, int64_t len, float* dw, int64_t items, int64_t dy_item, int64_t base_item) {
+  constexpr int64_t kRows = 4;
+  const int64_t full = len / 8 * 8;
+  const __m256i tail = lane_mask(len - full);
+  for (int64_t o0 = 0; o0 < M; o0 += kRows) {
+    const int64_t rows = std::min(kRows, M - o0);
+    const float* d0[kRows];
+    for (int64_t i = 0; i < kRows; ++i) d0[i] = dy + (o0 + std::min(i, rows - 1)) * ldy;  // extra rows dropped
+    for (int64_t k0 = 0; k0 < K; k0 += 3) {
+      const int64_t cols = std::min<int64_t>(3, K - k0);
+#define SL_ROW(i) __m256 a##i##0 = _mm256_setzero_ps(), a##i##1 = a##i##0, a##i##2 = a##i##0;
+      SL_ROW(0) SL_ROW(1) SL_ROW(2) SL_ROW(3)
+#undef SL_ROW
+#define SL_FMA(r, LOAD)                          \
+  {                                              \
+    const __m256 g = LOAD(d[r] + i);             \
+    a##r##0 = _mm256_fmadd_ps(g, v0, a##r##0);   \
+    a##r##1 = _mm256_fmadd_ps(g, v1, a##r##1);   \
+    a##r##2 = _mm256_fmadd_ps(g, v2, a##r##2);   \
+  }
+#define SL_STEP(LOAD)                                                  \
+  {                                                                    \
+    const __m256 v0 = LOAD(x0 + i);                                    \
+    const __m256 v1 = LOAD(x1 + i);                                    \
+    const __m256 v2 = LOAD(x2 + i);                                    \
+    SL_FMA(0, LOAD) SL_FMA(1, LOAD) SL_FMA(2, LOAD) SL_FMA(3, LOAD)    \
+  }
+#define SL_FULL(p) _mm256_loadu_ps(p)
+#define SL_TAIL(p) _mm256_maskload_ps(p, tail)
+      for (int64_t t = 0; t < items; ++t) {
+        const float* d[kRows];
+        for (int64_t r = 0; r < kRows; ++r) d[r] = d0[r] + t * dy_item;
+        const float* x0 = base + t * base_item + row_offset[k0];
+        const float* x1 = base + t * base_item + row_offset[k0 + std::min<int64_t>(1, cols - 1)];
+        const float* x2 = base + t * base_item + row_offset[k0 + std::min<int64_t>(2, cols - 1)];
+        int64_t i = 0;
+        for (; i < full; i += 8) SL_STEP(SL_FULL)
+        if (i < len) SL_STEP(SL_TAIL)
+      }
+#undef SL_TAIL
+#undef SL_FULL
+#undef SL_STEP
+#undef SL_FMA
+      const float sums[3][kRows] = {{hsum(a00), hsum(a10), hsum(a20), hsum(a30)},
+                                    {hsum(a01), hsum(a11), hsum(a21), hsum(a31)},
+                                    {hsum(a02), hsum(a12), hsum(a22), hsum(a32)}};
+      for (int64_t r = 0; r < rows; ++r)
+        for (int64_t j = 0; j < cols; ++j) dw[(o0 + r) * K + k0 + j] += sums[j][r];
+    }
+  }
 }
 
 #else

@@ -7,8 +7,10 @@
 // result does not depend on threads or on which panel it is computed in.
 // Why not Eigen here: im2col can write its panel directly in the layout the micro-kernel
 // streams, which saves Eigen's second packing copy of the column matrix, and the 8×48 tile keeps
-// 24 AVX-512 accumulators busy for the 16-64 output channels typical of these networks.
-// available() is false without AVX-512; conv.cpp then uses autodiff's Eigen GEMM.
+// 24 AVX-512 accumulators busy for the 16-64 output channels typical of these networks. With
+// AVX2 + FMA (no AVX-512) the same tile runs as four 4×24 sub-tiles of 12 accumulators, with the
+// same FMA sequence per output element, so the bits match. available() is false without either;
+// conv.cpp then uses autodiff's Eigen GEMM.
 #pragma once
 #include <cstdint>
 #include <memory>

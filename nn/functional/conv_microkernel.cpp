@@ -7,6 +7,7 @@
 #endif
 
 #include "nn/functional/transpose16.h"
+#include "nn/functional/transpose8.h"
 #include "nn/functional/work_grain.h"
 #include "util/parallel.h"
 
@@ -57,8 +58,21 @@ PackedWeights pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t
       for (int64_t o = 0; o < O; ++o) {  // the block's kernels of output channel o: rows × taps contiguous floats
         const float* src = w + (o * C + c0) * taps;
         float* d = dst + o * taps * kBlockRows;
-        for (int64_t t = 0; t < taps; ++t)
-          for (int64_t i = 0; i < kBlockRows; ++i) d[t * kBlockRows + i] = i < rows ? src[i * taps + taps - 1 - t] : 0.0f;
+        int64_t t0 = 0;  // source taps below t0 are done
+#if defined(__AVX2__)
+        static_assert(kBlockRows == 8);
+        // A full block is an 8 × taps matrix: 8 source taps at a time, one 8 × 8 transpose; source
+        // tap t0 + j lands at packed position taps − 1 − t0 − j. Moves the same bits as the loop below.
+        if (rows == kBlockRows)
+          for (; t0 + 8 <= taps; t0 += 8) {
+            __m256 r[8];
+            for (int i = 0; i < 8; ++i) r[i] = _mm256_loadu_ps(src + i * taps + t0);
+            transpose8(r);
+            for (int j = 0; j < 8; ++j) _mm256_storeu_ps(d + (taps - 1 - t0 - j) * kBlockRows, r[j]);
+          }
+#endif
+        for (int64_t s = t0; s < taps; ++s)
+          for (int64_t i = 0; i < kBlockRows; ++i) d[(taps - 1 - s) * kBlockRows + i] = i < rows ? src[i * taps + s] : 0.0f;
       }
     }
   });
@@ -136,21 +150,6 @@ inline void micro_kernel(const float* a, const float* b, Row row, int64_t K, int
 }
 
 }  // namespace
-
-void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                     const float* bias, float* c, int64_t ldc, int64_t ldb) {
-  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
-    micro_kernel(packed_a + m0 * K, b_panel, [ldb](int64_t k) { return k * ldb; }, K, n,
-                 std::min(kBlockRows, M - m0), bias ? bias + m0 : nullptr, c + m0 * ldc, ldc);
-}
-
-void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
-                      float* tile) {
-  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
-    micro_kernel(packed_a + m0 * K, base, [row_offset](int64_t k) { return row_offset[k]; }, K, kPanelCols,
-                 std::min(kBlockRows, M - m0), nullptr, tile + m0 * kPanelCols, kPanelCols,
-                 m0 == 0 ? kPanelCols : 0);
-}
 
 // {Σ lanes of v0, ..., Σ lanes of v7}: a shuffle tree (24 operations) instead of eight
 // independent horizontal reductions (about 64).
@@ -307,21 +306,6 @@ inline float hsum(__m256 v) {
 
 }  // namespace
 
-void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                     const float* bias, float* c, int64_t ldc, int64_t ldb) {
-  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
-    micro_kernel(packed_a + m0 * K, b_panel, [ldb](int64_t k) { return k * ldb; }, K, n,
-                 std::min(kBlockRows, M - m0), bias ? bias + m0 : nullptr, c + m0 * ldc, ldc);
-}
-
-void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
-                      float* tile) {
-  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
-    micro_kernel(packed_a + m0 * K, base, [row_offset](int64_t k) { return row_offset[k]; }, K, kPanelCols,
-                 std::min(kBlockRows, M - m0), nullptr, tile + m0 * kPanelCols, kPanelCols,
-                 m0 == 0 ? kPanelCols : 0);
-}
-
 // dw[o][k] += Σ_i dy[o][i] · base[row_offset[k] + i]: 4 rows of dy against 3 windows of the padded
 // input, 8 positions per step, 12 accumulators summed once at the end of the range.
 void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
@@ -414,6 +398,24 @@ void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const floa
     }
 }
 
+#endif
+
+#if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
+// The 8-row blocks of A, each through the micro-kernel of the branch above.
+void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
+                     const float* bias, float* c, int64_t ldc, int64_t ldb) {
+  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
+    micro_kernel(packed_a + m0 * K, b_panel, [ldb](int64_t k) { return k * ldb; }, K, n,
+                 std::min(kBlockRows, M - m0), bias ? bias + m0 : nullptr, c + m0 * ldc, ldc);
+}
+
+void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
+                      float* tile) {
+  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
+    micro_kernel(packed_a + m0 * K, base, [row_offset](int64_t k) { return row_offset[k]; }, K, kPanelCols,
+                 std::min(kBlockRows, M - m0), nullptr, tile + m0 * kPanelCols, kPanelCols,
+                 m0 == 0 ? kPanelCols : 0);
+}
 #endif
 
 }  // namespace sl::nn::detail

@@ -3,6 +3,7 @@
 #include "nn/functional/conv.h"
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include <gtest/gtest.h>
@@ -253,6 +254,33 @@ TEST(Conv, WeightGradientFromTheForwardsKeptCopyHasTheSameBitsAndDoesNotReadX) {
     double max_diff = 0;  // and both are the weight gradient: against the fused path's independent sum
     for (size_t i = 0; i < w.size(); ++i) max_diff = std::max(max_diff, double(std::abs(fresh[i] - dw_fused[i])));
     EXPECT_LT(max_diff, 1e-3);
+  }
+}
+
+TEST(Conv, FlippedWeightPackingIsTheTransposedReversedKernel) {
+  // pack_weights_flipped by its definition: row block b, packed column k = o·taps + t, lane i holds
+  // w[o][8b + i][taps − 1 − t], and 0 for channels past C. Full blocks go through 8 × 8 register
+  // transposes (8 source taps at a time) and the rest through the scalar loop; both must give
+  // exactly these bits, NaN payloads and signed zeros included.
+  for (const std::array<int64_t, 3> s : {std::array<int64_t, 3>{3, 8, 9}, {2, 16, 27}, {2, 13, 9}, {1, 8, 1},
+                                          {4, 24, 8}, {2, 8, 17}, {5, 3, 49}, {2, 7, 3}}) {
+    const int64_t O = s[0], C = s[1], taps = s[2], K = O * taps, blocks = (C + 7) / 8;
+    SCOPED_TRACE("O " + std::to_string(O) + " C " + std::to_string(C) + " taps " + std::to_string(taps));
+    const std::vector<double> wd = Tensor::normal({O * C * taps}, 0, 1, 7).to_vector();
+    std::vector<float> w(wd.begin(), wd.end());
+    w[0] = -0.0f, w[w.size() - 1] = std::numeric_limits<float>::quiet_NaN();
+    const nn::detail::PackedWeights packed = nn::detail::pack_weights_flipped(w.data(), O, C, taps);
+    size_t mismatches = 0;
+    for (int64_t b = 0; b < blocks; ++b)
+      for (int64_t o = 0; o < O; ++o)
+        for (int64_t t = 0; t < taps; ++t)
+          for (int64_t i = 0; i < 8; ++i) {
+            const int64_t c = 8 * b + i;
+            const float want = c < C ? w[(o * C + c) * taps + taps - 1 - t] : 0.0f;
+            const float got = packed.data()[(b * K + o * taps + t) * 8 + i];
+            mismatches += std::memcmp(&want, &got, sizeof(float)) != 0;
+          }
+    EXPECT_EQ(mismatches, 0u);
   }
 }
 

@@ -175,8 +175,10 @@ Padded pad_input(const ConvGeometry& g, const Order& order, const float* x) {
                   permute(g.pad, order), permute(padded, order));
 }
 
-// y = conv(x) + b from the padded copy. Tasks are (batch item, chunk of 8 panels, block of
-// outer planes), blocks fastest. When the outer storage axis is y's innermost one (a reordered
+// y = conv(x) + b from the padded copy. Tasks are (batch item, chunk of up to 8 panels, block of
+// outer planes), blocks fastest. Chunks shrink until there are at least kMinTasks tasks: tasks are
+// split statically, so 11 equal tasks (a 64×64×16 volume in 8-panel chunks) leave one of two
+// threads idle for a task's length (9% of the call); the panels and their bits do not change. When the outer storage axis is y's innermost one (a reordered
 // copy), a block of up to 16 planes is computed first and then stored with the planes
 // contiguous, so y is written in whole cache lines rather than one float per line.
 void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp, const std::vector<int64_t>& taps,
@@ -184,10 +186,13 @@ void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp,
   const int64_t R = g.rows(), P = g.out_plane(), Hp = xp.ext[1], Wp = xp.ext[2];
   const Axes out = permute(g.out, order), ys = permute(out_strides(g), order);
   const int64_t span = (out[1] - 1) * Wp + out[2];  // one output plane on the padded pitch
-  const int64_t chunk = 8 * kPanelCols, chunks = (span + chunk - 1) / chunk;
   const int64_t tile_floats = (g.O + kBlockRows) * kPanelCols;
   const int64_t block = ys[0] == 1 && out[0] > 1 ? std::clamp<int64_t>(65536 / tile_floats, 1, 16) : 1;
   const int64_t blocks = (out[0] + block - 1) / block;
+  constexpr int64_t kMinTasks = 32;
+  const int64_t panels = (span + kPanelCols - 1) / kPanelCols;
+  const int64_t chunk = std::clamp<int64_t>(panels * g.N * blocks / kMinTasks, 1, 8) * kPanelCols;
+  const int64_t chunks = (span + chunk - 1) / chunk;
   parallel_for(g.N * chunks * blocks, grain_for(g.O * R * chunk * block), [&](int64_t t0, int64_t t1) {
     std::vector<float> tiles(static_cast<size_t>(block * tile_floats));
     for (int64_t t = t0; t < t1; ++t) {

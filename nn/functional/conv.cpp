@@ -213,6 +213,7 @@ void conv_forward_kernels(const ConvGeometry& g, const float* x, const float* pa
                           detail::KeptInput* keep = nullptr) {
   if (g.out_plane() < kMinDirectPositions) return conv_forward_folded(g, x, packed, b, y);
   if (unit_stride(g)) return detail::direct_forward(g, x, packed, b, y, keep);
+  if (detail::direct_strided_supported(g)) return detail::direct_forward_strided(g, x, packed, b, y);
   conv_forward_panels(g, x, packed, b, y);
 }
 
@@ -272,6 +273,8 @@ void conv_backward_weight(const ConvGeometry& g, const T* x, const T* dy, T* dw,
   if constexpr (std::is_same_v<T, float>) {
     if (detail::conv_gemm_available() && unit_stride(g) && g.out_plane() >= kMinDirectPositions)
       return detail::direct_backward_weight(g, x, dy, dw, kept);
+    if (detail::conv_gemm_available() && detail::direct_strided_supported(g) && g.out_plane() >= kMinDirectPositions)
+      return detail::direct_backward_weight_strided(g, x, dy, dw);
   }
   const int64_t P = g.out_plane(), R = g.rows(), per = g.O * R;
   const ColumnBlocks cb = column_blocks<T>(g);

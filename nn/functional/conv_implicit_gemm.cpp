@@ -189,6 +189,59 @@ Padded pad_input(const ConvGeometry& g, const Order& order, const float* x) {
                   permute(g.pad, order), permute(padded, order));
 }
 
+// Strided 2-D convolutions (stride s on both image axes, dilation 1) on the same windows: the
+// zero-padded input is split into its s × s phases, phase (py, px) holding padded rows py, py + s, …
+// and columns px, px + s, … as a Hq × Wq plane (Hq, Wq = the padded size / s, rounded up). Output
+// (oy, ox) and tap (ky, kx) read padded (s·oy + ky, s·ox + kx), which is phase (ky mod s, kx mod s)
+// at (oy + ky div s, ox + kx div s): with outputs on the phase pitch Wq, every tap is again one
+// contiguous window. Layout per item: [C][s·s][Hq][Wq]; ext = {s·s, Hq, Wq} (the forward and the
+// weight gradient read only ext[1] and ext[2] of a 2-D geometry).
+int64_t phase_stride(const ConvGeometry& g) { return g.stride[1]; }
+
+Padded phase_copy(const ConvGeometry& g, const float* x) {
+  const int64_t s = phase_stride(g);
+  const int64_t Hq = (g.in[1] + 2 * g.pad[1] + s - 1) / s, Wq = (g.in[2] + 2 * g.pad[2] + s - 1) / s;
+  Padded out;
+  out.ext = {s * s, Hq, Wq};
+  out.volume = s * s * Hq * Wq;
+  const int64_t planes = g.N * g.C;
+  out.data = make_scratch(planes * out.volume + kSlack);
+  float* base = out.data.get();
+  std::fill(base + planes * out.volume, base + planes * out.volume + kSlack, 0.0f);
+  const int64_t H = g.in[1], W = g.in[2];
+  parallel_for(planes, grain_for(out.volume), [&](int64_t p0, int64_t p1) {
+    for (int64_t p = p0; p < p1; ++p) {
+      const float* src = x + p * H * W;
+      for (int64_t py = 0; py < s; ++py)
+        for (int64_t px = 0; px < s; ++px)
+          for (int64_t i = 0; i < Hq; ++i) {
+            float* dst = base + p * out.volume + ((py * s + px) * Hq + i) * Wq;
+            const int64_t y = i * s + py - g.pad[1];
+            if (y < 0 || y >= H) {
+              std::fill(dst, dst + Wq, 0.0f);
+              continue;
+            }
+            const float* row = src + y * W;
+            for (int64_t j = 0; j < Wq; ++j) {
+              const int64_t xx = j * s + px - g.pad[2];
+              dst[j] = xx >= 0 && xx < W ? row[xx] : 0.0f;
+            }
+          }
+    }
+  });
+  return out;
+}
+
+std::vector<int64_t> phase_tap_offsets(const ConvGeometry& g, const Padded& xp) {
+  const int64_t s = phase_stride(g), Hq = xp.ext[1], Wq = xp.ext[2];
+  std::vector<int64_t> off(static_cast<size_t>(g.rows()));
+  for (int64_t c = 0, r = 0; c < g.C; ++c)
+    for (int64_t ky = 0; ky < g.k[1]; ++ky)
+      for (int64_t kx = 0; kx < g.k[2]; ++kx, ++r)
+        off[r] = c * xp.volume + ((ky % s) * s + kx % s) * Hq * Wq + (ky / s) * Wq + kx / s;
+  return off;
+}
+
 // y = conv(x) + b from the padded copy. Tasks are (batch item, chunk of up to 8 panels, block of
 // outer planes), blocks fastest. Chunks shrink until there are at least kMinTasks tasks: tasks are
 // split statically, so 11 equal tasks (a 64×64×16 volume in 8-panel chunks) leave one of two
@@ -256,9 +309,9 @@ void input_grad_from(const ConvGeometry& g, const Order& order, const Padded& pa
 // own partial, and the partials are added in group order: the bits never depend on threads.
 // padded_dy, when given, is dy padded for the input gradient of a "same" convolution: it has
 // exactly the padded input's extents, with dy starting `pad` positions in on every axis.
-void weight_grad(const ConvGeometry& g, const Order& order, const Padded& xp, const float* dy, float* dw,
-                 const Padded* padded_dy) {
-  const std::vector<int64_t> taps = tap_offsets(g, order, xp);
+// taps: the offset of each kernel tap in xp (tap_offsets, or phase_tap_offsets for a strided copy).
+void weight_grad(const ConvGeometry& g, const Order& order, const Padded& xp, const std::vector<int64_t>& taps,
+                 const float* dy, float* dw, const Padded* padded_dy) {
   const int64_t R = g.rows(), Hp = xp.ext[1], Wp = xp.ext[2];
   const Axes out = permute(g.out, order);
   const int64_t flat = out[0] * Hp * Wp, len_total = (out[0] - 1) * Hp * Wp + (out[1] - 1) * Wp + out[2];
@@ -362,7 +415,8 @@ void direct_backward_weight(const ConvGeometry& g, const float* x, const float* 
                             const PaddedInput* kept) {
   const Order order = storage_order(g);
   Padded own;
-  weight_grad(g, order, padded_x(g, order, x, kept, own), dy, dw, nullptr);
+  const Padded& xp = padded_x(g, order, x, kept, own);
+  weight_grad(g, order, xp, tap_offsets(g, order, xp), dy, dw, nullptr);
 }
 
 // For a "same" convolution the padded dy made for the input gradient has exactly the padded
@@ -375,8 +429,27 @@ bool direct_backward_fused(const ConvGeometry& g, const float* x, const float* w
   const Padded padded_dy = pad_output_grad(g, order, dy);
   input_grad_from(g, order, padded_dy, w, dx);
   Padded own;
-  weight_grad(g, order, padded_x(g, order, x, kept, own), dy, dw, &padded_dy);
+  const Padded& xp = padded_x(g, order, x, kept, own);
+  weight_grad(g, order, xp, tap_offsets(g, order, xp), dy, dw, &padded_dy);
   return true;
+}
+
+bool direct_strided_supported(const ConvGeometry& g) {
+  const int64_t s = g.stride[1];
+  return g.in[0] == 1 && g.k[0] == 1 && g.stride[0] == 1 && g.pad[0] == 0 && s >= 2 && g.stride[2] == s &&
+         g.dil[1] == 1 && g.dil[2] == 1 && g.k[1] >= s && g.k[2] >= s;
+}
+
+void direct_forward_strided(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y) {
+  SL_CHECK(direct_strided_supported(g), "conv: the phase-split forward needs a 2-D stride >= 2 convolution");
+  const Padded xp = phase_copy(g, x);
+  forward_padded(g, Order{0, 1, 2}, xp, phase_tap_offsets(g, xp), packed_w, b, y);
+}
+
+void direct_backward_weight_strided(const ConvGeometry& g, const float* x, const float* dy, float* dw) {
+  SL_CHECK(direct_strided_supported(g), "conv: the phase-split weight gradient needs a 2-D stride >= 2 convolution");
+  const Padded xp = phase_copy(g, x);
+  weight_grad(g, Order{0, 1, 2}, xp, phase_tap_offsets(g, xp), dy, dw, nullptr);
 }
 
 }  // namespace sl::nn::detail

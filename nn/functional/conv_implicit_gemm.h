@@ -45,4 +45,13 @@ void direct_backward_weight(const ConvGeometry& g, const float* x, const float* 
 bool direct_backward_fused(const ConvGeometry& g, const float* x, const float* w, const float* dy, float* dx,
                            float* dw, const PaddedInput* kept = nullptr);
 
+// Strided 2-D convolutions (in[0] = k[0] = 1, the same stride s >= 2 on both image axes, dilation 1,
+// a kernel at least s wide): the forward and the weight gradient on the same window kernels, from a
+// copy of x split into its s × s phases (conv_implicit_gemm.cpp, "Strided"). The forward gives the
+// bits of the im2col panel path (the same FMA sequence per output); the weight gradient is summed in
+// fixed chunks of the phase pitch.
+bool direct_strided_supported(const ConvGeometry& g);
+void direct_forward_strided(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y);
+void direct_backward_weight_strided(const ConvGeometry& g, const float* x, const float* dy, float* dw);
+
 }  // namespace sl::nn::detail

@@ -135,6 +135,11 @@ TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
       {{2, 5, 24, 22}, {7, 5, 1, 1}, {1, 2, 2}, {0, 0, 0}, {1, 1, 1}},
       // A 7×7 stride-2 stem: im2col runs of several panels read as windows by the micro-kernel.
       {{2, 3, 40, 52}, {10, 3, 7, 7}, {1, 2, 2}, {0, 3, 3}, {1, 1, 1}},
+      // Strided 2-D, >= 96 positions: forward and weight gradient on the windows of a phase-split
+      // copy (odd sizes, stride 3, a kernel wider than the stride without padding).
+      {{2, 6, 25, 31}, {10, 6, 3, 3}, {1, 2, 2}, {0, 1, 1}, {1, 1, 1}},
+      {{1, 4, 30, 33}, {8, 4, 5, 5}, {1, 3, 3}, {0, 2, 2}, {1, 1, 1}},
+      {{1, 3, 26, 30}, {5, 3, 4, 4}, {1, 2, 2}, {0, 0, 0}, {1, 1, 1}},
       // Stride-1 items shorter than a weight-gradient chunk, summed on shared accumulators.
       {{5, 6, 10, 12}, {9, 6, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
   };
@@ -161,8 +166,8 @@ TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
 
 // Forward and all three gradients with 1 and with 2 threads, compared bit for bit, on every
 // kernel path: implicit GEMM (2-D, reordered 3-D; short items summed together in the weight
-// gradient), panels and reference (stride 2; one weight-gradient block split by rows), and the
-// batch-folded panels (few positions per image).
+// gradient), the phase-split windows of stride 2 (2-D), panels and reference (3-D stride 2; one
+// weight-gradient block split by rows), and the batch-folded panels (few positions per image).
 TEST(Conv, ForwardBackwardBitwiseIdenticalWithOneAndTwoThreads) {
   struct Run { std::vector<double> y, gx, gw, gb; };
   auto run = [](int threads, const Shape& xs, int64_t stride) {

@@ -44,11 +44,11 @@ Scratch make_scratch(int64_t floats) {
 
 // Storage order of the spatial axes, outermost first. Output positions run along the padded
 // row pitch, so part of the work on the innermost axis is wasted on dropped columns (pad / (in +
-// pad) since pad_input shares one zero margin between rows; the estimate below, dilation·(k − 1) /
+// pad), since pad_input shares one zero margin between rows; the estimate below, dilation·(k − 1) /
 // (in + 2·pad), is the two-margin figure it was tuned with) and, for the weight gradient, as much
-// on the middle axis. A 64×64×16 volume
-// stored as is wastes 11% along its 16-deep axis (33% at the 4-deep level of a UNet); stored
-// with a 64-long axis innermost it wastes 3%. The copy made for padding does the reordering,
+// on the middle axis. By that estimate a 64×64×16 volume stored as is wastes 11% along its
+// 16-deep axis (33% at the 4-deep level of a UNet); stored with a 64-long axis innermost it
+// wastes 3%. The copy made for padding does the reordering,
 // and the output is written back through the original strides, so reordering costs strided
 // gathers and scatters: it is used only when the innermost axis wastes over 5% and another
 // axis of at least 32 positions wastes less than half of that.
@@ -177,14 +177,14 @@ Axes out_strides(const ConvGeometry& g) { return plane_strides(g.out); }
 // as with zeros on both sides, while the positions dropped per row fall from 2·pad to pad: ResNet-18's
 // 16-wide stage wastes 6% of its work instead of 11%. Padding wider than the kernel's reach
 // (pad > dilation·(k − 1)) gives rows of more than in + pad outputs and keeps both margins, as do
-// the other axes.
+// the other axes. The last plane's windows then end pad − 1 floats past the copy, plus a panel's
+// overrun: the zero slack must hold both, else both margins are kept too.
 Padded pad_input(const ConvGeometry& g, const Order& order, const float* x) {
   Axes padded{};
   for (int a = 0; a < 3; ++a) {
-    const bool shared = a == order[2] && g.pad[a] <= g.dil[a] * (g.k[a] - 1);  // else out > in + pad
+    const bool shared = a == order[2] && g.pad[a] <= g.dil[a] * (g.k[a] - 1) && g.pad[a] + kPanelCols <= kSlack;
     padded[a] = g.in[a] + (shared ? 1 : 2) * g.pad[a];
   }
-  SL_CHECK(g.pad[order[2]] <= kSlack, "conv: padding ", g.pad[order[2]], " exceeds the padded copy's slack ", kSlack);
   return pad_copy(x, g.N * g.C, g.in_plane(), permute(g.in, order), permute(in_strides(g), order),
                   permute(g.pad, order), permute(padded, order));
 }
@@ -245,9 +245,10 @@ std::vector<int64_t> phase_tap_offsets(const ConvGeometry& g, const Padded& xp) 
 // y = conv(x) + b from the padded copy. Tasks are (batch item, chunk of up to 8 panels, block of
 // outer planes), blocks fastest. Chunks shrink until there are at least kMinTasks tasks: tasks are
 // split statically, so 11 equal tasks (a 64×64×16 volume in 8-panel chunks) leave one of two
-// threads idle for a task's length (9% of the call); the panels and their bits do not change. When the outer storage axis is y's innermost one (a reordered
-// copy), a block of up to 16 planes is computed first and then stored with the planes
-// contiguous, so y is written in whole cache lines rather than one float per line.
+// threads idle for a task's length (9% of the call); the panels and their bits do not change.
+// When the outer storage axis is y's innermost one (a reordered copy), a block of up to 16 planes
+// is computed first and then stored with the planes contiguous, so y is written in whole cache
+// lines rather than one float per line.
 void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp, const std::vector<int64_t>& taps,
                     const float* packed, const float* b, float* y) {
   const int64_t R = g.rows(), P = g.out_plane(), Hp = xp.ext[1], Wp = xp.ext[2];

@@ -221,7 +221,11 @@ void conv_forward_kernels(const ConvGeometry& g, const float* x, const float* pa
 template <class T>
 void conv_forward(const ConvGeometry& g, const T* x, const T* w, const T* b, T* y, detail::KeptInput* keep = nullptr) {
   if constexpr (std::is_same_v<T, float>) {
-    if (uses_kernels(g)) return conv_forward_kernels(g, x, detail::pack_weights(w, g.O, g.rows()).data(), b, y, keep);
+    if (uses_kernels(g)) {
+      if (g.out_plane() >= kMinDirectPositions && detail::direct_winograd_supported(g))
+        return detail::direct_forward_winograd(g, x, w, b, y, keep);
+      return conv_forward_kernels(g, x, detail::pack_weights(w, g.O, g.rows()).data(), b, y, keep);
+    }
   }
   const int64_t P = g.out_plane(), R = g.rows();
   const ColumnBlocks cb = column_blocks<T>(g);
@@ -442,6 +446,8 @@ void conv_backward_input(const ConvGeometry& g, const T* w, const T* dy, T* dx) 
   if (input_grad_is_conv(g)) {
     const ConvGeometry t = input_grad_geometry(g);
     if constexpr (std::is_same_v<T, float>) {
+      if (uses_kernels(t) && t.out_plane() >= kMinDirectPositions && detail::direct_winograd_supported(t))
+        return detail::direct_backward_input(g, w, dy, dx);
       if (uses_kernels(t))
         return conv_forward_kernels(t, dy, detail::pack_weights_flipped(w, g.O, g.C, g.taps()).data(), nullptr, dx);
     }

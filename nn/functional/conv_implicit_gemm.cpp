@@ -170,6 +170,19 @@ std::vector<int64_t> tap_offsets(const ConvGeometry& g, const Order& order, cons
 Axes in_strides(const ConvGeometry& g) { return plane_strides(g.in); }
 Axes out_strides(const ConvGeometry& g) { return plane_strides(g.out); }
 
+// Whether the forward runs as Winograd F(2, 3) along the innermost storage axis (see
+// forward_winograd): unit stride, 3 undilated taps on that axis, and enough work to pay for the
+// transforms. Rows shorter than 32 outputs waste too much of each 96-output step, and below 4096
+// output positions per call the four transformed, packed weight sets cost more than the third of
+// the multiply-adds saved (ResNet-18's 16×32 and 8×16 stages at batch 4: no gain and 2× slower).
+// A "same" convolution and its input gradient have the same kernel and output size, so they
+// agree, and the padded dy of the fused backward keeps the padded x's extents.
+bool winograd_applies(const ConvGeometry& g, const Order& order) {
+  const int a = order[2];
+  return g.stride[0] == 1 && g.stride[1] == 1 && g.stride[2] == 1 && g.k[a] == 3 && g.dil[a] == 1 &&
+         g.out[a] >= 32 && g.N * g.out_plane() >= 4096;
+}
+
 // The innermost storage axis gets its zeros on one side only: a row is [pad zeros][in values],
 // pitch in + pad. A valid output reads original columns −pad .. in − 1 + pad (stride 1, any kernel,
 // dilation and padding), and the right-hand ones land in the next row's leading zeros (the last
@@ -184,6 +197,7 @@ Padded pad_input(const ConvGeometry& g, const Order& order, const float* x) {
   for (int a = 0; a < 3; ++a) {
     const bool shared = a == order[2] && g.pad[a] <= g.dil[a] * (g.k[a] - 1) && g.pad[a] + kPanelCols <= kSlack;
     padded[a] = g.in[a] + (shared ? 1 : 2) * g.pad[a];
+    if (a == order[2] && winograd_applies(g, order)) padded[a] += padded[a] % 2;  // one more zero column
   }
   return pad_copy(x, g.N * g.C, g.in_plane(), permute(g.in, order), permute(in_strides(g), order),
                   permute(g.pad, order), permute(padded, order));
@@ -242,64 +256,279 @@ std::vector<int64_t> phase_tap_offsets(const ConvGeometry& g, const Padded& xp) 
   return off;
 }
 
-// y = conv(x) + b from the padded copy. Tasks are (batch item, chunk of up to 8 panels, block of
-// outer planes), blocks fastest. Chunks shrink until there are at least kMinTasks tasks: tasks are
-// split statically, so 11 equal tasks (a 64×64×16 volume in 8-panel chunks) leave one of two
-// threads idle for a task's length (9% of the call); the panels and their bits do not change.
-// When the outer storage axis is y's innermost one (a reordered copy), a block of up to 16 planes
-// is computed first and then stored with the planes contiguous, so y is written in whole cache
-// lines rather than one float per line.
+// Copies positions [q0, q1) of the padded pitch from the tiles into y: the runs whose column is
+// below out[2] (the others are dropped positions), plus the bias. tiles holds, for each of the nz
+// outer planes of a block, [O][cols] values of positions q0.. at tiles + j·tile_floats. When
+// block > 1 (ys[0] == 1: the planes of the block are contiguous in y) they are stored together.
+struct OutputRuns {
+  Axes out, ys;
+  int64_t Wp = 0, P = 0, O = 0, block = 1, cols = kPanelCols, tile_floats = 0;
+};
+
+void store_runs(const OutputRuns& r, const float* tiles, int64_t nz, int64_t q0, int64_t q1, const float* b,
+                float* yz) {
+  for (int64_t q = q0; q < q1;) {
+    const int64_t row = q / r.Wp, col = q % r.Wp, run_end = std::min(q1, row * r.Wp + r.out[2]);
+    if (col < r.out[2]) {
+      const int64_t len = run_end - q;
+      for (int64_t o = 0; o < r.O; ++o) {
+        const float bias = b ? b[o] : 0.0f;
+        const float* src = tiles + o * r.cols + (q - q0);
+        float* dst = yz + o * r.P + row * r.ys[1] + col * r.ys[2];
+        if (r.block > 1) {
+          for (int64_t i = 0; i < len; ++i)
+            for (int64_t j = 0; j < nz; ++j) dst[i * r.ys[2] + j] = src[j * r.tile_floats + i] + bias;
+        } else if (r.ys[2] == 1) {
+          int64_t i = 0;
+#if defined(__AVX512F__)
+          // Runs are a few dozen floats: masked vectors rather than a scalar tail of up to 15.
+          const __m512 bv = _mm512_set1_ps(bias);
+          for (; i + 16 <= len; i += 16) _mm512_storeu_ps(dst + i, _mm512_add_ps(_mm512_loadu_ps(src + i), bv));
+          if (i < len) {
+            const __mmask16 m = static_cast<__mmask16>((1u << (len - i)) - 1u);
+            _mm512_mask_storeu_ps(dst + i, m, _mm512_add_ps(_mm512_maskz_loadu_ps(m, src + i), bv));
+          }
+          i = len;
+#endif
+          for (; i < len; ++i) dst[i] = src[i] + bias;
+        } else {
+          for (int64_t i = 0; i < len; ++i) dst[i * r.ys[2]] = src[i] + bias;
+        }
+      }
+    }
+    q = (row + 1) * r.Wp;
+  }
+}
+
+// The task split shared by both forwards: tasks are (batch item, chunk of up to 8 steps of `cols`
+// positions, block of outer planes), blocks fastest. Chunks shrink until there are at least
+// kMinTasks tasks: tasks are split statically, so 11 equal tasks (a 64×64×16 volume in 8-panel
+// chunks) leave one of two threads idle for a task's length (9% of the call); the tiles and their
+// bits do not change. When the outer storage axis is y's innermost one (a reordered copy), a block
+// of up to 16 planes is computed first and then stored with the planes contiguous, so y is written
+// in whole cache lines rather than one float per line.
+struct ForwardTasks {
+  OutputRuns runs;
+  int64_t span = 0, chunk = 0, chunks = 0, blocks = 0, count = 0;
+};
+
+ForwardTasks forward_tasks(const ConvGeometry& g, const Order& order, const Padded& xp, int64_t cols) {
+  ForwardTasks t;
+  OutputRuns& r = t.runs;
+  r.out = permute(g.out, order);
+  r.ys = permute(out_strides(g), order);
+  r.Wp = xp.ext[2];
+  r.P = g.out_plane();
+  r.O = g.O;
+  r.cols = cols;
+  r.tile_floats = (g.O + kBlockRows) * cols;
+  r.block = r.ys[0] == 1 && r.out[0] > 1 ? std::clamp<int64_t>(65536 / r.tile_floats, 1, 16) : 1;
+  t.span = (r.out[1] - 1) * r.Wp + r.out[2];  // one output plane on the padded pitch
+  t.blocks = (r.out[0] + r.block - 1) / r.block;
+  constexpr int64_t kMinTasks = 32;
+  const int64_t steps = (t.span + cols - 1) / cols;
+  t.chunk = std::clamp<int64_t>(steps * g.N * t.blocks / kMinTasks, 1, 8) * cols;
+  t.chunks = (t.span + t.chunk - 1) / t.chunk;
+  t.count = g.N * t.chunks * t.blocks;
+  return t;
+}
+
+// y = conv(x) + b from the padded copy, one 48-position panel per micro-kernel call.
 void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp, const std::vector<int64_t>& taps,
                     const float* packed, const float* b, float* y) {
-  const int64_t R = g.rows(), P = g.out_plane(), Hp = xp.ext[1], Wp = xp.ext[2];
-  const Axes out = permute(g.out, order), ys = permute(out_strides(g), order);
-  const int64_t span = (out[1] - 1) * Wp + out[2];  // one output plane on the padded pitch
-  const int64_t tile_floats = (g.O + kBlockRows) * kPanelCols;
-  const int64_t block = ys[0] == 1 && out[0] > 1 ? std::clamp<int64_t>(65536 / tile_floats, 1, 16) : 1;
-  const int64_t blocks = (out[0] + block - 1) / block;
-  constexpr int64_t kMinTasks = 32;
-  const int64_t panels = (span + kPanelCols - 1) / kPanelCols;
-  const int64_t chunk = std::clamp<int64_t>(panels * g.N * blocks / kMinTasks, 1, 8) * kPanelCols;
-  const int64_t chunks = (span + chunk - 1) / chunk;
-  parallel_for(g.N * chunks * blocks, grain_for(g.O * R * chunk * block), [&](int64_t t0, int64_t t1) {
-    std::vector<float> tiles(static_cast<size_t>(block * tile_floats));
+  const int64_t R = g.rows(), Hp = xp.ext[1], Wp = xp.ext[2];
+  const ForwardTasks ft = forward_tasks(g, order, xp, kPanelCols);
+  const OutputRuns& r = ft.runs;
+  parallel_for(ft.count, grain_for(g.O * R * ft.chunk * r.block), [&](int64_t t0, int64_t t1) {
+    std::vector<float> tiles(static_cast<size_t>(r.block * r.tile_floats));
     for (int64_t t = t0; t < t1; ++t) {
-      const int64_t z0 = t % blocks * block, c0 = (t / blocks) % chunks * chunk, n = t / (blocks * chunks);
-      const int64_t nz = std::min(block, out[0] - z0);
+      const int64_t z0 = t % ft.blocks * r.block, c0 = (t / ft.blocks) % ft.chunks * ft.chunk;
+      const int64_t n = t / (ft.blocks * ft.chunks), nz = std::min(r.block, r.out[0] - z0);
       const float* xn = xp.data.get() + n * g.C * xp.volume;
-      float* yz = y + n * g.O * P + z0 * ys[0];
-      for (int64_t q0 = c0; q0 < std::min(span, c0 + chunk); q0 += kPanelCols) {
+      for (int64_t q0 = c0; q0 < std::min(ft.span, c0 + ft.chunk); q0 += kPanelCols) {
         for (int64_t j = 0; j < nz; ++j)
-          conv_gemm_window(packed, g.O, R, xn + (z0 + j) * Hp * Wp + q0, taps.data(),
-                           tiles.data() + j * tile_floats);
-        const int64_t q1 = std::min(span, q0 + kPanelCols);
-        for (int64_t q = q0; q < q1;) {  // copy the runs with column < out[2] into y, adding the bias
-          const int64_t row = q / Wp, col = q % Wp, run_end = std::min(q1, row * Wp + out[2]);
-          if (col < out[2]) {
-            const int64_t len = run_end - q;
-            for (int64_t o = 0; o < g.O; ++o) {
-              const float bias = b ? b[o] : 0.0f;
-              const float* src = tiles.data() + o * kPanelCols + (q - q0);
-              float* dst = yz + o * P + row * ys[1] + col * ys[2];
-              if (block > 1) {  // ys[0] == 1: the planes of the block are contiguous in y
-                for (int64_t i = 0; i < len; ++i)
-                  for (int64_t j = 0; j < nz; ++j) dst[i * ys[2] + j] = src[j * tile_floats + i] + bias;
-              } else if (ys[2] == 1) {
-                for (int64_t i = 0; i < len; ++i) dst[i] = src[i] + bias;
-              } else {
-                for (int64_t i = 0; i < len; ++i) dst[i * ys[2]] = src[i] + bias;
-              }
-            }
-          }
-          q = (row + 1) * Wp;
-        }
+          conv_gemm_window(packed, g.O, R, xn + (z0 + j) * Hp * Wp + q0, taps.data(), tiles.data() + j * r.tile_floats);
+        store_runs(r, tiles.data(), nz, q0, std::min(ft.span, q0 + kPanelCols), b, y + n * g.O * r.P + z0 * r.ys[0]);
       }
     }
   });
 }
 
+// Winograd F(2, 3) (Lavin and Gray, "Fast Algorithms for Convolutional Neural Networks", 2016)
+// along the innermost storage axis. Outputs come in pairs: with d0..d3 four consecutive padded
+// inputs and g0..g2 the axis' three taps,
+//   y0 = m1 + m2 + m3,  y1 = m2 − m3 − m4,  where
+//   m1 = (d0 − d2)·g0,  m2 = (d1 + d2)·(g0 + g1 + g2)/2,  m3 = (d2 − d1)·(g0 − g1 + g2)/2,  m4 = (d1 − d3)·g2:
+// four products per pair instead of six. Each m_i, summed over the channels and the other axes'
+// taps, is a GEMM on windows of one transformed copy U_i of the padded input (u1 = d0 − d2,
+// u2 = d1 + d2, u3 = d2 − d1, u4 = d1 − d3 at every even position, so U_i has half the pitch):
+// the same micro-kernel, with K a third as long and 96 outputs per call, so 2/3 of the direct
+// form's FMAs. The padded pitch is even (pad_input), so a row or plane step in d is a whole number
+// of pairs in U. y0 does not depend on d3, so a valid output never reads past its own row's
+// zeros. Rounding differs from the direct sum by the transforms' few extra additions (the tests
+// bound it against float64).
+struct WinogradInput {
+  int64_t half = 0;  // floats per (item, component, channel) plane: the padded volume / 2
+  Scratch data;      // [N][4][C][half], then kSlack zeros
+};
+
+WinogradInput winograd_input(const Padded& xp, int64_t N, int64_t C) {
+  WinogradInput u;
+  u.half = xp.volume / 2;
+  const int64_t half = u.half;
+  u.data = make_scratch(N * 4 * C * half + kSlack);
+  float* const base = u.data.get();
+  std::fill(base + N * 4 * C * half, base + N * 4 * C * half + kSlack, 0.0f);
+  // The last pair of the last plane reads d[volume + 1]: the padded copy's zero slack.
+  parallel_for(N * C, grain_for(2 * xp.volume), [&](int64_t p0, int64_t p1) {
+    for (int64_t p = p0; p < p1; ++p) {
+      const float* d = xp.data.get() + p * xp.volume;
+      float* u1 = base + ((p / C) * 4 * C + p % C) * half;
+      float* u2 = u1 + C * half;
+      float* u3 = u2 + C * half;
+      float* u4 = u3 + C * half;
+      int64_t j0 = 0;
+#if defined(__AVX512F__)
+      // 16 pairs per step: the even and odd lanes of d[2j .. 2j + 31] and of the same shifted by one pair.
+      const __m512i even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+      const __m512i odd = _mm512_add_epi32(even, _mm512_set1_epi32(1));
+      for (; j0 + 16 <= half; j0 += 16) {
+        const float* s0 = d + 2 * j0;
+        const __m512 a = _mm512_loadu_ps(s0), b = _mm512_loadu_ps(s0 + 16);
+        const __m512 a2 = _mm512_loadu_ps(s0 + 2), b2 = _mm512_loadu_ps(s0 + 18);
+        const __m512 d0 = _mm512_permutex2var_ps(a, even, b), d1 = _mm512_permutex2var_ps(a, odd, b);
+        const __m512 d2 = _mm512_permutex2var_ps(a2, even, b2), d3 = _mm512_permutex2var_ps(a2, odd, b2);
+        _mm512_storeu_ps(u1 + j0, _mm512_sub_ps(d0, d2));
+        _mm512_storeu_ps(u2 + j0, _mm512_add_ps(d1, d2));
+        _mm512_storeu_ps(u3 + j0, _mm512_sub_ps(d2, d1));
+        _mm512_storeu_ps(u4 + j0, _mm512_sub_ps(d1, d3));
+      }
+#endif
+      for (int64_t j = j0; j < half; ++j) {
+        const float d0 = d[2 * j], d1 = d[2 * j + 1], d2 = d[2 * j + 2], d3 = d[2 * j + 3];
+        u1[j] = d0 - d2;
+        u2[j] = d1 + d2;
+        u3[j] = d2 - d1;
+        u4[j] = d1 - d3;
+      }
+    }
+  });
+  return u;
+}
+
+// Rows of component i: V_i[o][r] for r = (c, the other axes' taps in weight order), packed.
+std::array<PackedWeights, 4> winograd_weights(const ConvGeometry& g, const Order& order, const float* w) {
+  const int a = order[2];
+  const Axes ws = {g.k[1] * g.k[2], g.k[2], 1};  // tap strides of each original axis in w
+  const int64_t R = g.rows() / 3, taps = g.taps();
+  std::vector<float> v(static_cast<size_t>(4 * g.O * R));
+  parallel_for(g.O, grain_for(taps * g.C), [&](int64_t o0, int64_t o1) {
+    for (int64_t o = o0; o < o1; ++o) {
+      int64_t r = 0;
+      for (int64_t c = 0; c < g.C; ++c)
+        for (int64_t k0 = 0; k0 < g.k[0]; ++k0)
+          for (int64_t k1 = 0; k1 < g.k[1]; ++k1)
+            for (int64_t k2 = 0; k2 < g.k[2]; ++k2) {
+              if ((a == 0 ? k0 : a == 1 ? k1 : k2) != 0) continue;
+              const float* t = w + (o * g.C + c) * taps + k0 * ws[0] + k1 * ws[1] + k2 * ws[2];
+              const float g0 = t[0], g1 = t[ws[a]], g2 = t[2 * ws[a]];
+              v[(0 * g.O + o) * R + r] = g0;
+              v[(1 * g.O + o) * R + r] = (g0 + g1 + g2) * 0.5f;
+              v[(2 * g.O + o) * R + r] = (g0 - g1 + g2) * 0.5f;
+              v[(3 * g.O + o) * R + r] = g2;
+              ++r;
+            }
+    }
+  });
+  return {pack_weights(v.data(), g.O, R), pack_weights(v.data() + g.O * R, g.O, R),
+          pack_weights(v.data() + 2 * g.O * R, g.O, R), pack_weights(v.data() + 3 * g.O * R, g.O, R)};
+}
+
+// Offset of row r = (c, other taps) of V_i in U_i: the channel plane plus the other axes' dilated
+// offsets, halved (they are whole rows or planes of the even pitch).
+std::vector<int64_t> winograd_tap_offsets(const ConvGeometry& g, const Order& order, const Padded& xp) {
+  const int a = order[2];
+  const Axes ps = plane_strides(xp.ext);
+  Axes stride_of{};
+  for (int i = 0; i < 3; ++i) stride_of[order[i]] = ps[i];
+  std::vector<int64_t> off;
+  off.reserve(static_cast<size_t>(g.rows() / 3));
+  for (int64_t c = 0; c < g.C; ++c)
+    for (int64_t k0 = 0; k0 < (a == 0 ? 1 : g.k[0]); ++k0)
+      for (int64_t k1 = 0; k1 < (a == 1 ? 1 : g.k[1]); ++k1)
+        for (int64_t k2 = 0; k2 < (a == 2 ? 1 : g.k[2]); ++k2)
+          off.push_back(c * (xp.volume / 2) +
+                        (k0 * g.dil[0] * stride_of[0] + k1 * g.dil[1] * stride_of[1] + k2 * g.dil[2] * stride_of[2]) / 2);
+  return off;
+}
+
+// y = conv(x) + b from the padded copy (even pitch) by Winograd F(2, 3): per step, four
+// micro-kernel tiles of 48 pairs, combined into 96 outputs. w: [O][C][taps], not packed.
+void forward_winograd(const ConvGeometry& g, const Order& order, const Padded& xp, const float* w, const float* b,
+                      float* y) {
+  SL_CHECK(winograd_applies(g, order) && xp.ext[2] % 2 == 0, "conv: Winograd forward on an unsupported geometry");
+  const std::array<PackedWeights, 4> v = winograd_weights(g, order, w);
+  const WinogradInput u = winograd_input(xp, g.N, g.C);
+  const std::vector<int64_t> taps = winograd_tap_offsets(g, order, xp);
+  const int64_t R = g.rows() / 3, plane = xp.ext[1] * xp.ext[2] / 2, comp = (g.O + kBlockRows) * kPanelCols;
+  constexpr int64_t kCols = 2 * kPanelCols;
+  const ForwardTasks ft = forward_tasks(g, order, xp, kCols);
+  const OutputRuns& r = ft.runs;
+  parallel_for(ft.count, grain_for(2 * g.O * R * ft.chunk * r.block), [&](int64_t t0, int64_t t1) {
+    std::vector<float> m(static_cast<size_t>(4 * comp)), tiles(static_cast<size_t>(r.block * r.tile_floats));
+    for (int64_t t = t0; t < t1; ++t) {
+      const int64_t z0 = t % ft.blocks * r.block, c0 = (t / ft.blocks) % ft.chunks * ft.chunk;
+      const int64_t n = t / (ft.blocks * ft.chunks), nz = std::min(r.block, r.out[0] - z0);
+      const float* un = u.data.get() + n * 4 * g.C * u.half;
+      for (int64_t q0 = c0; q0 < std::min(ft.span, c0 + ft.chunk); q0 += kCols) {
+        for (int64_t j = 0; j < nz; ++j) {
+          const float* base = un + (z0 + j) * plane + q0 / 2;
+          for (int64_t i = 0; i < 4; ++i)
+            conv_gemm_window(v[i].data(), g.O, R, base + i * g.C * u.half, taps.data(), m.data() + i * comp);
+          float* tile = tiles.data() + j * r.tile_floats;
+          for (int64_t o = 0; o < g.O; ++o) {
+            const float* m1 = m.data() + o * kPanelCols;
+            const float *m2 = m1 + comp, *m3 = m2 + comp, *m4 = m3 + comp;
+            float* dst = tile + o * kCols;
+            int64_t p0 = 0;
+#if defined(__AVX512F__)
+            const __m512i lo = _mm512_setr_epi32(0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23);
+            const __m512i hi = _mm512_add_epi32(lo, _mm512_set1_epi32(8));
+            for (; p0 < kPanelCols; p0 += 16) {
+              const __m512 a = _mm512_loadu_ps(m1 + p0), c = _mm512_loadu_ps(m2 + p0);
+              const __m512 e = _mm512_loadu_ps(m3 + p0), f = _mm512_loadu_ps(m4 + p0);
+              const __m512 y0 = _mm512_add_ps(_mm512_add_ps(a, c), e), y1 = _mm512_sub_ps(_mm512_sub_ps(c, e), f);
+              _mm512_storeu_ps(dst + 2 * p0, _mm512_permutex2var_ps(y0, lo, y1));
+              _mm512_storeu_ps(dst + 2 * p0 + 16, _mm512_permutex2var_ps(y0, hi, y1));
+            }
+#endif
+            for (int64_t p = p0; p < kPanelCols; ++p) {
+              dst[2 * p] = m1[p] + m2[p] + m3[p];
+              dst[2 * p + 1] = m2[p] - m3[p] - m4[p];
+            }
+          }
+        }
+        store_runs(r, tiles.data(), nz, q0, std::min(ft.span, q0 + kCols), b, y + n * g.O * r.P + z0 * r.ys[0]);
+      }
+    }
+  });
+}
+
+// w[c][o][taps − 1 − tap] = w[o][c][tap]: the kernel of the input gradient's convolution.
+std::vector<float> flipped_kernel(const ConvGeometry& g, const float* w) {
+  const int64_t taps = g.taps();
+  std::vector<float> wt(static_cast<size_t>(g.O * g.rows()));
+  parallel_for(g.C, grain_for(g.O * taps), [&](int64_t c0, int64_t c1) {
+    for (int64_t c = c0; c < c1; ++c)
+      for (int64_t o = 0; o < g.O; ++o)
+        for (int64_t k = 0; k < taps; ++k) wt[(c * g.O + o) * taps + (taps - 1 - k)] = w[(o * g.C + c) * taps + k];
+  });
+  return wt;
+}
+
 void input_grad_from(const ConvGeometry& g, const Order& order, const Padded& padded_dy, const float* w, float* dx) {
   const ConvGeometry t = input_grad_geometry(g);
+  if (winograd_applies(t, order)) return forward_winograd(t, order, padded_dy, flipped_kernel(g, w).data(), nullptr, dx);
   forward_padded(t, order, padded_dy, tap_offsets(t, order, padded_dy),
                  pack_weights_flipped(w, g.O, g.C, g.taps()).data(), nullptr, dx);
 }
@@ -404,6 +633,16 @@ void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w
   forward_padded(g, order, xp->copy, tap_offsets(g, order, xp->copy), packed_w, b, y);
   // Only a reordered copy is worth holding: it is a strided gather, while a plain padded copy is
   // a contiguous one that costs less than the memory it would pin (ResNet-18 ran 2% slower).
+  if (keep && order != Order{0, 1, 2}) *keep = std::move(xp);
+}
+
+bool direct_winograd_supported(const ConvGeometry& g) { return winograd_applies(g, storage_order(g)); }
+
+void direct_forward_winograd(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y,
+                             KeptInput* keep) {
+  const Order order = storage_order(g);
+  auto xp = std::make_shared<PaddedInput>(PaddedInput{pad_input(g, order, x)});
+  forward_winograd(g, order, xp->copy, w, b, y);
   if (keep && order != Order{0, 1, 2}) *keep = std::move(xp);
 }
 

@@ -38,6 +38,13 @@ bool direct_input_grad_supported(const ConvGeometry& g);
 // keep (optional): receives the padded copy of x for the backward calls below.
 void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y,
                     KeptInput* keep = nullptr);
+// Winograd F(2, 3) along the innermost storage axis (stride 1, 3 undilated taps on that axis;
+// conv_implicit_gemm.cpp, "Winograd"): the same contract as direct_forward, from unpacked weights
+// w [O, C·taps], with 2/3 of its multiply-adds and slightly different rounding. The fused and
+// input-gradient backward calls below use it by themselves where it applies.
+bool direct_winograd_supported(const ConvGeometry& g);
+void direct_forward_winograd(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y,
+                             KeptInput* keep = nullptr);
 void direct_backward_input(const ConvGeometry& g, const float* w, const float* dy, float* dx);
 // kept (optional): direct_forward's copy of this x for this g; x is then not read.
 void direct_backward_weight(const ConvGeometry& g, const float* x, const float* dy, float* dw,

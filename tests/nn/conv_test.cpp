@@ -105,6 +105,27 @@ TEST(Conv3d, Float32MatchesFloat64) {
   for (size_t i = 0; i < a.size(); ++i) ASSERT_NEAR(a[i], c[i], 1e-4);
 }
 
+// The output and all three gradients of one convolution in float32 against float64, within
+// 1e-4 relative (plus 1e-4 absolute). 2-D shapes take the last two entries of s, p and d.
+void expect_float32_matches_float64(const Shape& xs, const Shape& ws, const std::array<int64_t, 3>& s,
+                                    const std::array<int64_t, 3>& p, const std::array<int64_t, 3>& d, uint64_t seed) {
+  std::vector<std::vector<double>> results[2];
+  for (int f32 = 0; f32 < 2; ++f32) {
+    const DType dt = f32 ? DType::F32 : DType::F64;
+    Tensor x = rand64(xs, seed).to(dt), w = rand64(ws, seed + 1).to(dt), b = rand64({ws[0]}, seed + 2).to(dt);
+    for (Tensor* t : {&x, &w, &b}) t->set_requires_grad(true);
+    Tensor y = xs.size() == 4 ? conv2d(x, w, b, {s[1], s[2]}, {p[1], p[2]}, {d[1], d[2]}) : conv3d(x, w, b, s, p, d);
+    backward(y, rand64(y.shape(), seed + 3).to(dt));
+    results[f32] = {y.to_vector(), x.grad().to_vector(), w.grad().to_vector(), b.grad().to_vector()};
+  }
+  for (size_t k = 0; k < 4; ++k) {
+    ASSERT_EQ(results[0][k].size(), results[1][k].size());
+    for (size_t i = 0; i < results[0][k].size(); ++i)
+      ASSERT_NEAR(results[1][k][i], results[0][k][i], 1e-4 * (1 + std::abs(results[0][k][i])))
+          << "tensor " << k << " (y, dx, dw, db) element " << i;
+  }
+}
+
 // The float32 kernels (implicit GEMM on padded windows for stride 1, im2col panels otherwise)
 // against the float64 path, for the output and all three gradients.
 TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
@@ -145,28 +166,14 @@ TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
   };
 
   for (const Case& c : cases) {
-    std::vector<std::vector<double>> results[2];
-    for (int f32 = 0; f32 < 2; ++f32) {
-      const DType dt = f32 ? DType::F32 : DType::F64;
-      Tensor x = rand64(c.x, 31).to(dt), w = rand64(c.w, 32).to(dt), b = rand64({c.w[0]}, 33).to(dt);
-      for (Tensor* t : {&x, &w, &b}) t->set_requires_grad(true);
-      Tensor y = c.x.size() == 4 ? conv2d(x, w, b, {c.s[1], c.s[2]}, {c.p[1], c.p[2]}, {c.d[1], c.d[2]})
-                                 : conv3d(x, w, b, c.s, c.p, c.d);
-      backward(y, rand64(y.shape(), 34).to(dt));
-      results[f32] = {y.to_vector(), x.grad().to_vector(), w.grad().to_vector(), b.grad().to_vector()};
-    }
-    for (size_t k = 0; k < 4; ++k) {
-      ASSERT_EQ(results[0][k].size(), results[1][k].size());
-      for (size_t i = 0; i < results[0][k].size(); ++i)
-        ASSERT_NEAR(results[1][k][i], results[0][k][i], 1e-4 * (1 + std::abs(results[0][k][i])))
-            << "tensor " << k << " element " << i << " of case with input " << shape_str(c.x);
-    }
+    SCOPED_TRACE(shape_str(c.x));
+    expect_float32_matches_float64(c.x, c.w, c.s, c.p, c.d, 31);
   }
 }
 
 // Forward and all three gradients with 1 and with 2 threads, compared bit for bit, on every
 // kernel path: implicit GEMM (2-D, reordered 3-D; short items summed together in the weight
-// gradient), the phase-split windows of stride 2 (2-D), panels and reference (3-D stride 2; one
+// gradient; Winograd in 2-D and along a reordered 3-D axis), the phase-split windows of stride 2 (2-D), panels and reference (3-D stride 2; one
 // weight-gradient block split by rows), and the batch-folded panels (few positions per image).
 TEST(Conv, ForwardBackwardBitwiseIdenticalWithOneAndTwoThreads) {
   struct Run { std::vector<double> y, gx, gw, gb; };
@@ -186,7 +193,7 @@ TEST(Conv, ForwardBackwardBitwiseIdenticalWithOneAndTwoThreads) {
     return r;
   };
   for (const Shape& xs : {Shape{3, 8, 40, 33}, Shape{2, 8, 34, 12, 4}, Shape{6, 8, 6, 7}, Shape{5, 8, 24, 20},
-                          Shape{3, 8, 10, 12}})
+                          Shape{3, 8, 10, 12}, Shape{2, 8, 40, 64}, Shape{1, 8, 34, 12, 12}})
     for (int64_t stride : {1, 2}) {
       const Run a = run(1, xs, stride), c = run(2, xs, stride);
       EXPECT_EQ(a.y, c.y) << shape_str(xs) << " stride " << stride;
@@ -199,8 +206,8 @@ TEST(Conv, ForwardBackwardBitwiseIdenticalWithOneAndTwoThreads) {
 // The implicit GEMM's padded input copy is large and the same size on every call, so it comes
 // from the buffer cache (autodiff/buffer_cache.h). Otherwise its fresh pages fault and are zeroed
 // on every call, which cost a quarter of this forward's time at 2 threads. A repeated forward
-// therefore serves two large blocks from the cache (the output and the padded copy) and allocates
-// none, and it gives the same bits.
+// (Winograd here) therefore serves three large blocks from the cache (the output, the padded copy
+// and its transform) and allocates none, and it gives the same bits.
 TEST(Conv, RepeatedForwardTakesItsPaddedCopyFromTheBufferCache) {
   if (buffer_cache_limit_bytes() == 0) GTEST_SKIP() << "buffer cache disabled (STREETLIGHT_BUFFER_CACHE_MB=0)";
   const Tensor x = Tensor::normal({2, 32, 96, 96}, 0, 1, 31).to(DType::F32);  // padded copy 2.4 MB
@@ -212,7 +219,7 @@ TEST(Conv, RepeatedForwardTakesItsPaddedCopyFromTheBufferCache) {
   const Tensor y = conv2d(x, w, Tensor(), {1, 1}, {1, 1});
   const BufferCacheStats after = buffer_cache_stats();
   EXPECT_EQ(after.misses, before.misses);
-  EXPECT_EQ(after.hits - before.hits, 2) << "the output and the padded copy";
+  EXPECT_EQ(after.hits - before.hits, 3) << "the output, the padded copy and its Winograd transform";
   EXPECT_EQ(first, y.to_vector());
 }
 
@@ -260,6 +267,82 @@ TEST(Conv, WeightGradientFromTheForwardsKeptCopyHasTheSameBitsAndDoesNotReadX) {
     for (size_t i = 0; i < w.size(); ++i) max_diff = std::max(max_diff, double(std::abs(fresh[i] - dw_fused[i])));
     EXPECT_LT(max_diff, 1e-3);
   }
+}
+
+// Winograd F(2, 3) along the innermost storage axis (conv_implicit_gemm.cpp): the forward and all
+// three gradients against float64, on shapes that take it (checked): 2-D with an even and an odd
+// row (the padded pitch gets one more zero column), a dilated other axis, a 3-D volume, one stored
+// with its first axis innermost (the taps transformed are then not the weights' last axis), a
+// kernel of 1 on the other axes, and a convolution that is not "same" (its input gradient pads by
+// 2 and is not fused). Then a sun: a few inputs 10^5 times the rest, where the transforms'
+// differences of large and small values must cost no more than float rounding of Σ|x|·Σ|g| (the
+// row sums of the kernel along the transformed axis: Winograd's error bound, looser than the
+// direct sum's Σ|x|·|g| where one tap is near zero).
+TEST(Conv, WinogradForwardAndGradientsMatchFloat64) {
+  if (!nn::detail::conv_gemm_available()) GTEST_SKIP() << "no implicit-GEMM kernels on this CPU";
+  struct Case { Shape x, w; std::array<int64_t, 3> p, d; };
+  const std::vector<Case> cases = {
+      {{2, 5, 36, 64}, {9, 5, 3, 3}, {0, 1, 1}, {1, 1, 1}},
+      {{2, 5, 36, 63}, {9, 5, 3, 3}, {0, 1, 1}, {1, 1, 1}},
+      {{2, 3, 40, 64}, {4, 3, 5, 3}, {0, 4, 1}, {1, 2, 1}},
+      {{1, 3, 6, 20, 40}, {4, 3, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}},
+      {{1, 2, 40, 36, 4}, {3, 2, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}},
+      {{1, 2, 4, 40, 40}, {3, 2, 1, 1, 3}, {0, 0, 1}, {1, 1, 1}},
+      {{1, 4, 50, 90}, {6, 4, 3, 3}, {0, 0, 0}, {1, 1, 1}},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(shape_str(c.x));
+    const bool two_d = c.x.size() == 4;
+    nn::detail::ConvGeometry g;
+    g.N = c.x[0], g.C = c.x[1], g.O = c.w[0];
+    for (int a = 0; a < 3; ++a) {
+      const size_t i = two_d ? a + 1 : a + 2;  // 2-D: depth 1
+      g.in[a] = two_d && a == 0 ? 1 : c.x[i];
+      g.k[a] = two_d && a == 0 ? 1 : c.w[i];
+      g.stride[a] = 1, g.pad[a] = c.p[a], g.dil[a] = c.d[a];
+      g.out[a] = g.in[a] + 2 * g.pad[a] - g.dil[a] * (g.k[a] - 1);
+    }
+    ASSERT_TRUE(nn::detail::direct_winograd_supported(g));
+    expect_float32_matches_float64(c.x, c.w, {1, 1, 1}, c.p, c.d, 51);
+  }
+
+  // The sun: x ~ U(0, 1) with 10^5 at a few pixels, and the error bound from |w| * |x| in float64.
+  std::vector<double> xv = rand64({2, 4, 40, 64}, 55, 0, 1).to_vector();
+  for (size_t i = 0; i < xv.size(); i += 997) xv[i] = 1e5;
+  const Tensor x64 = Tensor::from_vector(xv, {2, 4, 40, 64}, DType::F64), w64 = rand64({6, 4, 3, 3}, 56);
+  Tensor x32 = x64.to(DType::F32), w32 = w64.to(DType::F32);
+  x32.set_requires_grad(true);
+  const Tensor dy64 = rand64({2, 6, 40, 64}, 57, 0, 1);
+  Tensor y32 = conv2d(x32, w32, Tensor(), {1, 1}, {1, 1});
+  backward(y32, dy64.to(DType::F32));
+  const std::vector<double> y = y32.to_vector(), dx = x32.grad().to_vector();
+  const std::vector<double> y_ref = conv2d(x64, w64, Tensor(), {1, 1}, {1, 1}).to_vector();
+  // Winograd's bound: a tap's error scales with its row's Σ|g| (the transformed weights mix the
+  // three taps), not with its own |g|, so |w| is replaced by each 3-tap row's sum of magnitudes.
+  std::vector<double> wrow = w64.to_vector();
+  for (size_t r = 0; r < wrow.size(); r += 3) {
+    const double m = std::abs(wrow[r]) + std::abs(wrow[r + 1]) + std::abs(wrow[r + 2]);
+    wrow[r] = wrow[r + 1] = wrow[r + 2] = m;
+  }
+  const std::vector<double> y_abs =
+      conv2d(abs(x64), Tensor::from_vector(wrow, w64.shape(), DType::F64), Tensor(), {1, 1}, {1, 1}).to_vector();
+  Tensor x64g = x64.detach();
+  x64g.set_requires_grad(true);
+  backward(conv2d(x64g, w64, Tensor(), {1, 1}, {1, 1}), dy64);
+  const std::vector<double> dx_ref = x64g.grad().to_vector();
+  double worst = 0;
+  for (size_t i = 0; i < y.size(); ++i) {
+    ASSERT_TRUE(std::isfinite(y[i]));
+    worst = std::max(worst, std::abs(y[i] - y_ref[i]) / y_abs[i]);
+  }
+  EXPECT_LT(worst, 8 * std::ldexp(1.0, -24)) << "forward error / (row sums of |w| * |x|)";
+  double worst_dx = 0, scale = 0;
+  for (size_t i = 0; i < dx.size(); ++i) {
+    ASSERT_TRUE(std::isfinite(dx[i]));
+    worst_dx = std::max(worst_dx, std::abs(dx[i] - dx_ref[i]));
+    scale = std::max(scale, std::abs(dx_ref[i]));
+  }
+  EXPECT_LT(worst_dx, 1e-5 * scale) << "input gradient";
 }
 
 TEST(Conv, FlippedWeightPackingIsTheTransposedReversedKernel) {

@@ -9,6 +9,7 @@
 #include "nn/functional/conv_geometry.h"
 #include "nn/functional/conv_implicit_gemm.h"
 #include "nn/functional/conv_microkernel.h"
+#include "nn/functional/conv_winograd.h"
 #include "nn/functional/work_grain.h"
 #include "util/parallel.h"
 
@@ -207,6 +208,13 @@ bool uses_kernels(const ConvGeometry& g) {
   return detail::conv_gemm_available() && (g.out_plane() >= kMinDirectPositions || !is_pointwise(g));
 }
 
+// Winograd F(2, 3) (conv_winograd.h): on the implicit GEMM's windows for large rows and volumes,
+// else on gathered row pairs for 2-D convolutions with 3 undilated taps along the rows.
+bool uses_winograd_windows(const ConvGeometry& g) {
+  return g.out_plane() >= kMinDirectPositions && detail::direct_winograd_supported(g);
+}
+bool uses_winograd_rows(const ConvGeometry& g) { return !uses_winograd_windows(g) && detail::winograd_rows_supported(g); }
+
 // The micro-kernel forward passes (uses_kernels(g)) on weights packed by pack_weights. `keep`
 // (optional) receives the implicit GEMM's padded copy of x, for the weight gradient.
 void conv_forward_kernels(const ConvGeometry& g, const float* x, const float* packed, const float* b, float* y,
@@ -222,8 +230,8 @@ template <class T>
 void conv_forward(const ConvGeometry& g, const T* x, const T* w, const T* b, T* y, detail::KeptInput* keep = nullptr) {
   if constexpr (std::is_same_v<T, float>) {
     if (uses_kernels(g)) {
-      if (g.out_plane() >= kMinDirectPositions && detail::direct_winograd_supported(g))
-        return detail::direct_forward_winograd(g, x, w, b, y, keep);
+      if (uses_winograd_windows(g)) return detail::direct_forward_winograd(g, x, w, b, y, keep);
+      if (uses_winograd_rows(g)) return detail::winograd_rows_forward(g, x, w, b, y);
       return conv_forward_kernels(g, x, detail::pack_weights(w, g.O, g.rows()).data(), b, y, keep);
     }
   }
@@ -446,8 +454,9 @@ void conv_backward_input(const ConvGeometry& g, const T* w, const T* dy, T* dx) 
   if (input_grad_is_conv(g)) {
     const ConvGeometry t = input_grad_geometry(g);
     if constexpr (std::is_same_v<T, float>) {
-      if (uses_kernels(t) && t.out_plane() >= kMinDirectPositions && detail::direct_winograd_supported(t))
-        return detail::direct_backward_input(g, w, dy, dx);
+      if (uses_kernels(t) && uses_winograd_windows(t)) return detail::direct_backward_input(g, w, dy, dx);
+      if (uses_kernels(t) && uses_winograd_rows(t))
+        return detail::winograd_rows_forward(t, dy, w, nullptr, dx, true);
       if (uses_kernels(t))
         return conv_forward_kernels(t, dy, detail::pack_weights_flipped(w, g.O, g.C, g.taps()).data(), nullptr, dx);
     }
@@ -497,9 +506,11 @@ void conv_backward_input(const ConvGeometry& g, const T* w, const T* dy, T* dx) 
 }
 
 // Float, stride 1, both gradients of a "same" convolution: one padded copy of dy serves both.
+// Not where the input gradient runs as Winograd on gathered row pairs (faster than sharing the copy).
 bool conv_backward_fused(const ConvGeometry& g, const float* x, const float* w, const float* dy, float* dx, float* dw,
                          const detail::PaddedInput* kept) {
   return detail::conv_gemm_available() && g.out_plane() >= kMinDirectPositions &&
+         !(input_grad_is_conv(g) && uses_winograd_rows(detail::input_grad_geometry(g))) &&
          detail::direct_backward_fused(g, x, w, dy, dx, dw, kept);
 }
 

@@ -12,6 +12,7 @@
 
 #include "autodiff/buffer_cache.h"
 #include "nn/functional/conv_microkernel.h"
+#include "nn/functional/conv_winograd.h"
 #include "nn/functional/transpose16.h"
 #include "nn/functional/work_grain.h"
 #include "util/error.h"
@@ -25,22 +26,13 @@ using Order = std::array<int, 3>;  // order[i]: the original spatial axis stored
 
 Axes permute(const Axes& v, const Order& order) { return {v[order[0]], v[order[1]], v[order[2]]}; }
 
-// 64-byte aligned scratch, so that rows whose pitch is a multiple of 16 floats load without
-// splitting cache lines (it made the weight-gradient kernel 1.7× faster on 2-D shapes). Large
-// blocks come from the buffer cache (autodiff/buffer_cache.h): the padded copies of every call
-// have the same sizes step after step, and fresh pages would fault and be zeroed on each call.
-struct BufferDeleter {
-  size_t capacity = 0;
-  void operator()(float* p) const { release_buffer({p, capacity}); }
-};
-using Scratch = std::unique_ptr<float[], BufferDeleter>;
+// 64-byte aligned scratch (conv_microkernel.h), so that rows whose pitch is a multiple of 16
+// floats load without splitting cache lines (it made the weight-gradient kernel 1.7× faster on 2-D
+// shapes); large blocks come from the buffer cache.
+using Scratch = CachedFloats;
 constexpr int64_t kSlack = 2 * kPanelCols;  // windows of dropped columns may run past the end
 
-Scratch make_scratch(int64_t floats) {
-  const size_t bytes = (static_cast<size_t>(floats) * sizeof(float) + 63) / 64 * 64;
-  const Buffer b = acquire_buffer(bytes == 0 ? 64 : bytes);  // throws when memory runs out
-  return Scratch(static_cast<float*>(b.data), BufferDeleter{b.capacity});
-}
+Scratch make_scratch(int64_t floats) { return cached_floats(floats); }
 
 // Storage order of the spatial axes, outermost first. Output positions run along the padded
 // row pitch, so part of the work on the innermost axis is wasted on dropped columns (pad / (in +
@@ -354,19 +346,11 @@ void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp,
   });
 }
 
-// Winograd F(2, 3) (Lavin and Gray, "Fast Algorithms for Convolutional Neural Networks", 2016)
-// along the innermost storage axis. Outputs come in pairs: with d0..d3 four consecutive padded
-// inputs and g0..g2 the axis' three taps,
-//   y0 = m1 + m2 + m3,  y1 = m2 − m3 − m4,  where
-//   m1 = (d0 − d2)·g0,  m2 = (d1 + d2)·(g0 + g1 + g2)/2,  m3 = (d2 − d1)·(g0 − g1 + g2)/2,  m4 = (d1 − d3)·g2:
-// four products per pair instead of six. Each m_i, summed over the channels and the other axes'
-// taps, is a GEMM on windows of one transformed copy U_i of the padded input (u1 = d0 − d2,
-// u2 = d1 + d2, u3 = d2 − d1, u4 = d1 − d3 at every even position, so U_i has half the pitch):
-// the same micro-kernel, with K a third as long and 96 outputs per call, so 2/3 of the direct
-// form's FMAs. The padded pitch is even (pad_input), so a row or plane step in d is a whole number
-// of pairs in U. y0 does not depend on d3, so a valid output never reads past its own row's
-// zeros. Rounding differs from the direct sum by the transforms' few extra additions (the tests
-// bound it against float64).
+// Winograd F(2, 3) (conv_winograd.h) along the innermost storage axis. Each m_i is a GEMM on
+// windows of one transformed copy U_i of the padded input, at half its pitch: the same
+// micro-kernel, with K a third as long and 96 outputs per call, so 2/3 of the direct form's FMAs.
+// The padded pitch is even (pad_input), so a row or plane step in d is a whole number of pairs in
+// U. y0 does not depend on d3, so a valid output never reads past its own row's zeros.
 struct WinogradInput {
   int64_t half = 0;  // floats per (item, component, channel) plane: the padded volume / 2
   Scratch data;      // [N][4][C][half], then kSlack zeros
@@ -379,69 +363,14 @@ WinogradInput winograd_input(const Padded& xp, int64_t N, int64_t C) {
   u.data = make_scratch(N * 4 * C * half + kSlack);
   float* const base = u.data.get();
   std::fill(base + N * 4 * C * half, base + N * 4 * C * half + kSlack, 0.0f);
-  // The last pair of the last plane reads d[volume + 1]: the padded copy's zero slack.
+  // The last plane's pairs read up to 34 floats past it: the padded copy's zero slack.
   parallel_for(N * C, grain_for(2 * xp.volume), [&](int64_t p0, int64_t p1) {
     for (int64_t p = p0; p < p1; ++p) {
       const float* d = xp.data.get() + p * xp.volume;
-      float* u1 = base + ((p / C) * 4 * C + p % C) * half;
-      float* u2 = u1 + C * half;
-      float* u3 = u2 + C * half;
-      float* u4 = u3 + C * half;
-      int64_t j0 = 0;
-#if defined(__AVX512F__)
-      // 16 pairs per step: the even and odd lanes of d[2j .. 2j + 31] and of the same shifted by one pair.
-      const __m512i even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
-      const __m512i odd = _mm512_add_epi32(even, _mm512_set1_epi32(1));
-      for (; j0 + 16 <= half; j0 += 16) {
-        const float* s0 = d + 2 * j0;
-        const __m512 a = _mm512_loadu_ps(s0), b = _mm512_loadu_ps(s0 + 16);
-        const __m512 a2 = _mm512_loadu_ps(s0 + 2), b2 = _mm512_loadu_ps(s0 + 18);
-        const __m512 d0 = _mm512_permutex2var_ps(a, even, b), d1 = _mm512_permutex2var_ps(a, odd, b);
-        const __m512 d2 = _mm512_permutex2var_ps(a2, even, b2), d3 = _mm512_permutex2var_ps(a2, odd, b2);
-        _mm512_storeu_ps(u1 + j0, _mm512_sub_ps(d0, d2));
-        _mm512_storeu_ps(u2 + j0, _mm512_add_ps(d1, d2));
-        _mm512_storeu_ps(u3 + j0, _mm512_sub_ps(d2, d1));
-        _mm512_storeu_ps(u4 + j0, _mm512_sub_ps(d1, d3));
-      }
-#endif
-      for (int64_t j = j0; j < half; ++j) {
-        const float d0 = d[2 * j], d1 = d[2 * j + 1], d2 = d[2 * j + 2], d3 = d[2 * j + 3];
-        u1[j] = d0 - d2;
-        u2[j] = d1 + d2;
-        u3[j] = d2 - d1;
-        u4[j] = d1 - d3;
-      }
+      winograd_pairs(d, half, base + ((p / C) * 4 * C + p % C) * half, C * half);
     }
   });
   return u;
-}
-
-// Rows of component i: V_i[o][r] for r = (c, the other axes' taps in weight order), packed.
-std::array<PackedWeights, 4> winograd_weights(const ConvGeometry& g, const Order& order, const float* w) {
-  const int a = order[2];
-  const Axes ws = {g.k[1] * g.k[2], g.k[2], 1};  // tap strides of each original axis in w
-  const int64_t R = g.rows() / 3, taps = g.taps();
-  std::vector<float> v(static_cast<size_t>(4 * g.O * R));
-  parallel_for(g.O, grain_for(taps * g.C), [&](int64_t o0, int64_t o1) {
-    for (int64_t o = o0; o < o1; ++o) {
-      int64_t r = 0;
-      for (int64_t c = 0; c < g.C; ++c)
-        for (int64_t k0 = 0; k0 < g.k[0]; ++k0)
-          for (int64_t k1 = 0; k1 < g.k[1]; ++k1)
-            for (int64_t k2 = 0; k2 < g.k[2]; ++k2) {
-              if ((a == 0 ? k0 : a == 1 ? k1 : k2) != 0) continue;
-              const float* t = w + (o * g.C + c) * taps + k0 * ws[0] + k1 * ws[1] + k2 * ws[2];
-              const float g0 = t[0], g1 = t[ws[a]], g2 = t[2 * ws[a]];
-              v[(0 * g.O + o) * R + r] = g0;
-              v[(1 * g.O + o) * R + r] = (g0 + g1 + g2) * 0.5f;
-              v[(2 * g.O + o) * R + r] = (g0 - g1 + g2) * 0.5f;
-              v[(3 * g.O + o) * R + r] = g2;
-              ++r;
-            }
-    }
-  });
-  return {pack_weights(v.data(), g.O, R), pack_weights(v.data() + g.O * R, g.O, R),
-          pack_weights(v.data() + 2 * g.O * R, g.O, R), pack_weights(v.data() + 3 * g.O * R, g.O, R)};
 }
 
 // Offset of row r = (c, other taps) of V_i in U_i: the channel plane plus the other axes' dilated
@@ -463,11 +392,12 @@ std::vector<int64_t> winograd_tap_offsets(const ConvGeometry& g, const Order& or
 }
 
 // y = conv(x) + b from the padded copy (even pitch) by Winograd F(2, 3): per step, four
-// micro-kernel tiles of 48 pairs, combined into 96 outputs. w: [O][C][taps], not packed.
+// micro-kernel tiles of 48 pairs, combined into 96 outputs. w: [O][C][taps] (flipped: see
+// winograd_weights), not packed.
 void forward_winograd(const ConvGeometry& g, const Order& order, const Padded& xp, const float* w, const float* b,
-                      float* y) {
+                      float* y, bool flipped = false) {
   SL_CHECK(winograd_applies(g, order) && xp.ext[2] % 2 == 0, "conv: Winograd forward on an unsupported geometry");
-  const std::array<PackedWeights, 4> v = winograd_weights(g, order, w);
+  const WinogradWeights v = winograd_weights(g, order[2], w, flipped);
   const WinogradInput u = winograd_input(xp, g.N, g.C);
   const std::vector<int64_t> taps = winograd_tap_offsets(g, order, xp);
   const int64_t R = g.rows() / 3, plane = xp.ext[1] * xp.ext[2] / 2, comp = (g.O + kBlockRows) * kPanelCols;
@@ -484,7 +414,7 @@ void forward_winograd(const ConvGeometry& g, const Order& order, const Padded& x
         for (int64_t j = 0; j < nz; ++j) {
           const float* base = un + (z0 + j) * plane + q0 / 2;
           for (int64_t i = 0; i < 4; ++i)
-            conv_gemm_window(v[i].data(), g.O, R, base + i * g.C * u.half, taps.data(), m.data() + i * comp);
+            conv_gemm_window(v.data(i), g.O, R, base + i * g.C * u.half, taps.data(), m.data() + i * comp);
           float* tile = tiles.data() + j * r.tile_floats;
           for (int64_t o = 0; o < g.O; ++o) {
             const float* m1 = m.data() + o * kPanelCols;
@@ -514,21 +444,9 @@ void forward_winograd(const ConvGeometry& g, const Order& order, const Padded& x
   });
 }
 
-// w[c][o][taps − 1 − tap] = w[o][c][tap]: the kernel of the input gradient's convolution.
-std::vector<float> flipped_kernel(const ConvGeometry& g, const float* w) {
-  const int64_t taps = g.taps();
-  std::vector<float> wt(static_cast<size_t>(g.O * g.rows()));
-  parallel_for(g.C, grain_for(g.O * taps), [&](int64_t c0, int64_t c1) {
-    for (int64_t c = c0; c < c1; ++c)
-      for (int64_t o = 0; o < g.O; ++o)
-        for (int64_t k = 0; k < taps; ++k) wt[(c * g.O + o) * taps + (taps - 1 - k)] = w[(o * g.C + c) * taps + k];
-  });
-  return wt;
-}
-
 void input_grad_from(const ConvGeometry& g, const Order& order, const Padded& padded_dy, const float* w, float* dx) {
   const ConvGeometry t = input_grad_geometry(g);
-  if (winograd_applies(t, order)) return forward_winograd(t, order, padded_dy, flipped_kernel(g, w).data(), nullptr, dx);
+  if (winograd_applies(t, order)) return forward_winograd(t, order, padded_dy, w, nullptr, dx, true);
   forward_padded(t, order, padded_dy, tap_offsets(t, order, padded_dy),
                  pack_weights_flipped(w, g.O, g.C, g.taps()).data(), nullptr, dx);
 }

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "autodiff/buffer_cache.h"
+
 #if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
 #include <immintrin.h>
 #endif
@@ -13,9 +15,17 @@
 
 namespace sl::nn::detail {
 
+void CachedFloatsDeleter::operator()(float* p) const { release_buffer({p, capacity}); }
+
+CachedFloats cached_floats(int64_t floats) {
+  const size_t bytes = (static_cast<size_t>(floats) * sizeof(float) + 63) / 64 * 64;
+  const Buffer b = acquire_buffer(bytes == 0 ? 64 : bytes);  // throws when memory runs out
+  return CachedFloats(static_cast<float*>(b.data), CachedFloatsDeleter{b.capacity});
+}
+
 PackedWeights pack_weights(const float* a, int64_t M, int64_t K) {
   const int64_t blocks = (M + kBlockRows - 1) / kBlockRows;
-  PackedWeights packed{std::make_unique_for_overwrite<float[]>(static_cast<size_t>(blocks * K * kBlockRows))};
+  PackedWeights packed{cached_floats(blocks * K * kBlockRows)};
   parallel_for(blocks, grain_for(K * kBlockRows), [&](int64_t b0, int64_t b1) {
     for (int64_t blk = b0; blk < b1; ++blk) {
       float* dst = packed.buffer.get() + blk * K * kBlockRows;
@@ -50,7 +60,7 @@ PackedWeights pack_weights(const float* a, int64_t M, int64_t K) {
 
 PackedWeights pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t taps) {
   const int64_t blocks = (C + kBlockRows - 1) / kBlockRows, K = O * taps;
-  PackedWeights packed{std::make_unique_for_overwrite<float[]>(static_cast<size_t>(blocks * K * kBlockRows))};
+  PackedWeights packed{cached_floats(blocks * K * kBlockRows)};
   parallel_for(blocks, grain_for(K * kBlockRows), [&](int64_t b0, int64_t b1) {
     for (int64_t blk = b0; blk < b1; ++blk) {
       const int64_t c0 = blk * kBlockRows, rows = std::min(kBlockRows, C - c0);
@@ -81,7 +91,7 @@ PackedWeights pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t
 
 PackedWeights pack_weights_transposed(const float* w, int64_t O, int64_t R) {
   const int64_t blocks = (R + kBlockRows - 1) / kBlockRows;
-  PackedWeights packed{std::make_unique_for_overwrite<float[]>(static_cast<size_t>(blocks * O * kBlockRows))};
+  PackedWeights packed{cached_floats(blocks * O * kBlockRows)};
   parallel_for(blocks, grain_for(O * kBlockRows), [&](int64_t b0, int64_t b1) {
     for (int64_t blk = b0; blk < b1; ++blk) {
       const int64_t r0 = blk * kBlockRows, rows = std::min(kBlockRows, R - r0);

@@ -23,11 +23,22 @@ constexpr int64_t kPanelCols = 48;
 
 bool conv_gemm_available();
 
+// 64-byte aligned float scratch (contents unspecified). Blocks of 1 MiB and more come from the
+// buffer cache (autodiff/buffer_cache.h): the packed weights and padded copies of every call have
+// the same sizes step after step, and fresh pages would fault and be zeroed on each call (a
+// quarter of the transform of ResNet-18's 512-channel weights).
+struct CachedFloatsDeleter {
+  size_t capacity = 0;
+  void operator()(float* p) const;
+};
+using CachedFloats = std::unique_ptr<float[], CachedFloatsDeleter>;
+CachedFloats cached_floats(int64_t floats);
+
 // Zero-padded row blocks of A [M, K] (row-major, leading dim K). The storage is written once,
 // block by block in parallel, without a zero fill first: deep layers have megabytes of weights
 // and only a few dozen positions per weight to amortise the packing over.
 struct PackedWeights {
-  std::unique_ptr<float[]> buffer;
+  CachedFloats buffer;
   const float* data() const { return buffer.get(); }
 };
 PackedWeights pack_weights(const float* a, int64_t M, int64_t K);

@@ -12,6 +12,7 @@
 #include "autodiff/buffer_cache.h"
 #include "nn/functional/conv_implicit_gemm.h"
 #include "nn/functional/conv_microkernel.h"
+#include "nn/functional/conv_winograd.h"
 #include "support/test_util.h"
 
 namespace sl::test {
@@ -269,26 +270,32 @@ TEST(Conv, WeightGradientFromTheForwardsKeptCopyHasTheSameBitsAndDoesNotReadX) {
   }
 }
 
-// Winograd F(2, 3) along the innermost storage axis (conv_implicit_gemm.cpp): the forward and all
-// three gradients against float64, on shapes that take it (checked): 2-D with an even and an odd
-// row (the padded pitch gets one more zero column), a dilated other axis, a 3-D volume, one stored
-// with its first axis innermost (the taps transformed are then not the weights' last axis), a
-// kernel of 1 on the other axes, and a convolution that is not "same" (its input gradient pads by
-// 2 and is not fused). Then a sun: a few inputs 10^5 times the rest, where the transforms'
-// differences of large and small values must cost no more than float rounding of Σ|x|·Σ|g| (the
-// row sums of the kernel along the transformed axis: Winograd's error bound, looser than the
-// direct sum's Σ|x|·|g| where one tap is near zero).
+// Winograd F(2, 3) (conv_winograd.h): the forward and all three gradients against float64, on
+// shapes that take it (checked). On the implicit GEMM's windows: 2-D with an even and an odd row
+// (the padded pitch gets one more zero column), a dilated other axis, a 3-D volume, one stored with
+// its first axis innermost (the taps transformed are then not the weights' last axis), a kernel of
+// 1 on the other axes, and a convolution that is not "same" (its input gradient pads by 2 and is
+// not fused). On gathered row pairs (small 2-D images): a ResNet-like 8 × 16 stage, one panel
+// exactly, an odd row (the last pair's second output dropped), and a dilated, not "same" one whose
+// input gradient (flipped kernel) pads differently. Then a sun: a few inputs 10^5 times the rest,
+// where the transforms' differences of large and small values must cost no more than float
+// rounding of Σ|x|·Σ|g| (the row sums of the kernel along the transformed axis: Winograd's error
+// bound, looser than the direct sum's Σ|x|·|g| where one tap is near zero).
 TEST(Conv, WinogradForwardAndGradientsMatchFloat64) {
   if (!nn::detail::conv_gemm_available()) GTEST_SKIP() << "no implicit-GEMM kernels on this CPU";
-  struct Case { Shape x, w; std::array<int64_t, 3> p, d; };
+  struct Case { Shape x, w; std::array<int64_t, 3> p, d; bool windows; };
   const std::vector<Case> cases = {
-      {{2, 5, 36, 64}, {9, 5, 3, 3}, {0, 1, 1}, {1, 1, 1}},
-      {{2, 5, 36, 63}, {9, 5, 3, 3}, {0, 1, 1}, {1, 1, 1}},
-      {{2, 3, 40, 64}, {4, 3, 5, 3}, {0, 4, 1}, {1, 2, 1}},
-      {{1, 3, 6, 20, 40}, {4, 3, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}},
-      {{1, 2, 40, 36, 4}, {3, 2, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}},
-      {{1, 2, 4, 40, 40}, {3, 2, 1, 1, 3}, {0, 0, 1}, {1, 1, 1}},
-      {{1, 4, 50, 90}, {6, 4, 3, 3}, {0, 0, 0}, {1, 1, 1}},
+      {{2, 5, 36, 64}, {9, 5, 3, 3}, {0, 1, 1}, {1, 1, 1}, true},
+      {{2, 5, 36, 63}, {9, 5, 3, 3}, {0, 1, 1}, {1, 1, 1}, true},
+      {{2, 3, 40, 64}, {4, 3, 5, 3}, {0, 4, 1}, {1, 2, 1}, true},
+      {{1, 3, 6, 20, 40}, {4, 3, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}, true},
+      {{1, 2, 40, 36, 4}, {3, 2, 3, 3, 3}, {1, 1, 1}, {1, 1, 1}, true},
+      {{1, 2, 4, 40, 40}, {3, 2, 1, 1, 3}, {0, 0, 1}, {1, 1, 1}, true},
+      {{1, 4, 50, 90}, {6, 4, 3, 3}, {0, 0, 0}, {1, 1, 1}, true},
+      {{4, 16, 8, 16}, {24, 16, 3, 3}, {0, 1, 1}, {1, 1, 1}, false},
+      {{3, 16, 4, 8}, {8, 16, 3, 3}, {0, 1, 1}, {1, 1, 1}, false},
+      {{2, 5, 9, 15}, {7, 5, 3, 3}, {0, 1, 1}, {1, 1, 1}, false},
+      {{2, 3, 12, 24}, {4, 3, 3, 3}, {0, 2, 0}, {1, 2, 1}, false},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(shape_str(c.x));
@@ -302,7 +309,13 @@ TEST(Conv, WinogradForwardAndGradientsMatchFloat64) {
       g.stride[a] = 1, g.pad[a] = c.p[a], g.dil[a] = c.d[a];
       g.out[a] = g.in[a] + 2 * g.pad[a] - g.dil[a] * (g.k[a] - 1);
     }
-    ASSERT_TRUE(nn::detail::direct_winograd_supported(g));
+    if (c.windows) {
+      ASSERT_TRUE(nn::detail::direct_winograd_supported(g));
+    } else {
+      ASSERT_FALSE(nn::detail::direct_winograd_supported(g) && g.out_plane() >= 96);
+      ASSERT_TRUE(nn::detail::winograd_rows_supported(g));
+      ASSERT_TRUE(nn::detail::winograd_rows_supported(nn::detail::input_grad_geometry(g)));
+    }
     expect_float32_matches_float64(c.x, c.w, {1, 1, 1}, c.p, c.d, 51);
   }
 

@@ -1,0 +1,185 @@
+#include "nn/functional/conv_winograd.h"
+
+#include <algorithm>
+#include <vector>
+
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
+
+#include "nn/functional/work_grain.h"
+#include "util/parallel.h"
+
+namespace sl::nn::detail {
+
+// Written straight in pack_weights' layout (row blocks [O / 8][R][8]), one block of 8 output
+// channels per task: a separate transform pass and four packings took 11 ms for ResNet-18's
+// 512-channel layer, four times its GEMM.
+WinogradWeights winograd_weights(const ConvGeometry& g, int axis, const float* w, bool flipped) {
+  const std::array<int64_t, 3> ws = {g.k[1] * g.k[2], g.k[2], 1};  // tap strides of each axis in w
+  const int64_t R = g.rows() / 3, taps = g.taps(), blocks = (g.O + kBlockRows - 1) / kBlockRows;
+  WinogradWeights v;
+  v.stride = blocks * R * kBlockRows;
+  v.storage = cached_floats(4 * v.stride);
+  // Tap m of row r of output channel o is w[o·o_stride + row_at[r] + m·step]. Flipped, w holds
+  // [C][O][taps] and tap k of (o, c) is w[c][o][taps − 1 − k].
+  std::vector<int64_t> row_at;
+  row_at.reserve(static_cast<size_t>(R));
+  for (int64_t c = 0; c < g.C; ++c)
+    for (int64_t k0 = 0; k0 < (axis == 0 ? 1 : g.k[0]); ++k0)
+      for (int64_t k1 = 0; k1 < (axis == 1 ? 1 : g.k[1]); ++k1)
+        for (int64_t k2 = 0; k2 < (axis == 2 ? 1 : g.k[2]); ++k2) {
+          const int64_t k = k0 * ws[0] + k1 * ws[1] + k2 * ws[2];
+          row_at.push_back(flipped ? c * g.O * taps + taps - 1 - k : c * taps + k);
+        }
+  const int64_t step = flipped ? -ws[axis] : ws[axis], o_stride = flipped ? taps : g.C * taps;
+  parallel_for(blocks, grain_for(R * kBlockRows * 3), [&](int64_t b0, int64_t b1) {
+    for (int64_t blk = b0; blk < b1; ++blk) {
+      const int64_t rows = std::min(kBlockRows, g.O - blk * kBlockRows);
+      const float* wo[kBlockRows];
+      for (int64_t i = 0; i < kBlockRows; ++i) wo[i] = w + (blk * kBlockRows + std::min(i, rows - 1)) * o_stride;
+      float* d0 = v.storage.get() + 0 * v.stride + blk * R * kBlockRows;
+      float* d1 = v.storage.get() + 1 * v.stride + blk * R * kBlockRows;
+      float* d2 = v.storage.get() + 2 * v.stride + blk * R * kBlockRows;
+      float* d3 = v.storage.get() + 3 * v.stride + blk * R * kBlockRows;
+      for (int64_t r = 0; r < R; ++r) {
+        const int64_t at = row_at[r];
+        for (int64_t i = 0; i < kBlockRows; ++i) {
+          const float* t = wo[i] + at;
+          const bool real = i < rows;  // rows past O: zeros, as pack_weights pads them
+          const float g0 = real ? t[0] : 0.0f, g1 = real ? t[step] : 0.0f, g2 = real ? t[2 * step] : 0.0f;
+          d0[r * kBlockRows + i] = g0;
+          d1[r * kBlockRows + i] = (g0 + g1 + g2) * 0.5f;
+          d2[r * kBlockRows + i] = (g0 - g1 + g2) * 0.5f;
+          d3[r * kBlockRows + i] = g2;
+        }
+      }
+    }
+  });
+  return v;
+}
+
+namespace {
+
+// Columns: q = (n·Ho + oy)·Wo2 + j, the pair (2j, 2j + 1) of output row oy of item n.
+struct RowPairs {
+  int64_t Wo2 = 0, Q = 0, panels = 0, K = 0;
+  explicit RowPairs(const ConvGeometry& g)
+      : Wo2((g.out[2] + 1) / 2), Q(g.N * g.out[1] * Wo2), panels((Q + kPanelCols - 1) / kPanelCols), K(g.C * g.k[1]) {}
+  // Components are kSkew floats more than their panels apart: at a whole number of 4 KiB pages
+  // (K·48 floats often is) the four stores of each pair alias in the store buffer, which made
+  // gathering cost as much as the GEMM.
+  static constexpr int64_t kSkew = 80;
+  int64_t comp() const { return panels * K * kPanelCols + kSkew; }
+  int64_t floats() const { return 4 * comp(); }
+};
+
+}  // namespace
+
+void winograd_pairs(const float* d, int64_t pairs, float* u, int64_t comp) {
+  float *u1 = u, *u2 = u + comp, *u3 = u + 2 * comp, *u4 = u + 3 * comp;
+  int64_t j0 = 0;
+#if defined(__AVX512F__)
+  // 16 pairs per step: the even and odd lanes of d[2j .. 2j + 31] and of the same shifted by one pair.
+  const __m512i even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+  const __m512i odd = _mm512_add_epi32(even, _mm512_set1_epi32(1));
+  for (; j0 < pairs; j0 += 16) {
+    const __mmask16 m = static_cast<__mmask16>(pairs - j0 >= 16 ? 0xffffu : (1u << (pairs - j0)) - 1u);
+    const float* s0 = d + 2 * j0;
+    const __m512 a = _mm512_loadu_ps(s0), b = _mm512_loadu_ps(s0 + 16);
+    const __m512 a2 = _mm512_loadu_ps(s0 + 2), b2 = _mm512_loadu_ps(s0 + 18);
+    const __m512 d0 = _mm512_permutex2var_ps(a, even, b), d1 = _mm512_permutex2var_ps(a, odd, b);
+    const __m512 d2 = _mm512_permutex2var_ps(a2, even, b2), d3 = _mm512_permutex2var_ps(a2, odd, b2);
+    _mm512_mask_storeu_ps(u1 + j0, m, _mm512_sub_ps(d0, d2));
+    _mm512_mask_storeu_ps(u2 + j0, m, _mm512_add_ps(d1, d2));
+    _mm512_mask_storeu_ps(u3 + j0, m, _mm512_sub_ps(d2, d1));
+    _mm512_mask_storeu_ps(u4 + j0, m, _mm512_sub_ps(d1, d3));
+  }
+#endif
+  for (int64_t j = j0; j < pairs; ++j) {
+    const float d0 = d[2 * j], d1 = d[2 * j + 1], d2 = d[2 * j + 2], d3 = d[2 * j + 3];
+    u1[j] = d0 - d2;
+    u2[j] = d1 + d2;
+    u3[j] = d2 - d1;
+    u4[j] = d1 - d3;
+  }
+}
+
+bool winograd_rows_supported(const ConvGeometry& g) {
+  if (!conv_gemm_available() || g.in[0] != 1 || g.k[0] != 1 || g.k[2] != 3 || g.dil[2] != 1) return false;
+  for (int a = 0; a < 3; ++a)
+    if (g.stride[a] != 1) return false;
+  const RowPairs rp(g);
+  return rp.floats() <= (int64_t{64} << 20) / 4 && (rp.panels * kPanelCols - rp.Q) * 100 <= 15 * rp.panels * kPanelCols;
+}
+
+void winograd_rows_forward(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y,
+                           bool flipped) {
+  const RowPairs rp(g);
+  const int64_t H = g.in[1], W = g.in[2], Ho = g.out[1], Wo = g.out[2], KY = g.k[1], K = rp.K;
+  const int64_t panel_floats = K * kPanelCols, comp = rp.comp();
+  const WinogradWeights v = winograd_weights(g, 2, w, flipped);
+  // cols[i][p][k][48]: component i of panel p, k = (c, ky). Each (n, c) task fills its own rows
+  // k of its own columns; the columns past Q (the last panel's tail) are zeros.
+  const CachedFloats cols = cached_floats(rp.floats());
+  for (int64_t i = 0; i < 4; ++i)
+    for (int64_t k = 0; k < K; ++k) {
+      float* row = cols.get() + i * comp + (rp.panels - 1) * panel_floats + k * kPanelCols;
+      std::fill(row + rp.Q - (rp.panels - 1) * kPanelCols, row + kPanelCols, 0.0f);
+    }
+  // Per (n, c) plane: the zero-padded plane (Hp rows of Wp floats, plus a vector's slack), its
+  // four transforms row by row (Hp rows of Wo2 pairs), then each (oy, ky) row copied into the panels.
+  const int64_t Hp = H + 2 * g.pad[1], Wp = 2 * rp.Wo2 + 2;
+  parallel_for(g.N * g.C, grain_for(Ho * KY * W * 4), [&](int64_t t0, int64_t t1) {
+    std::vector<float> plane(static_cast<size_t>(Hp * Wp + 32), 0.0f), u(static_cast<size_t>(4 * Hp * rp.Wo2));
+    for (int64_t t = t0; t < t1; ++t) {
+      const int64_t n = t / g.C, c = t % g.C;
+      const float* xc = x + t * H * W;
+      const int64_t lo = std::min(g.pad[2], Wp), hi = std::clamp(g.pad[2] + W, lo, Wp);
+      for (int64_t yy = 0; yy < H; ++yy)  // the borders stay zero from the first plane
+        std::copy(xc + yy * W + (lo - g.pad[2]), xc + yy * W + (hi - g.pad[2]), plane.data() + (yy + g.pad[1]) * Wp + lo);
+      for (int64_t yp = 0; yp < Hp; ++yp)
+        winograd_pairs(plane.data() + yp * Wp, rp.Wo2, u.data() + yp * rp.Wo2, Hp * rp.Wo2);
+      for (int64_t oy = 0; oy < Ho; ++oy)
+        for (int64_t ky = 0; ky < KY; ++ky) {
+          const float* src = u.data() + (oy + ky * g.dil[1]) * rp.Wo2;
+          const int64_t k = c * KY + ky, q0 = (n * Ho + oy) * rp.Wo2;
+          for (int64_t j0 = 0; j0 < rp.Wo2;) {  // runs of the row within one panel
+            const int64_t q = q0 + j0, len = std::min(rp.Wo2 - j0, kPanelCols - q % kPanelCols);
+            float* dst = cols.get() + (q / kPanelCols) * panel_floats + k * kPanelCols + q % kPanelCols;
+            for (int64_t i = 0; i < 4; ++i) copy_run(src + i * Hp * rp.Wo2 + j0, dst + i * comp, len);
+            j0 += len;
+          }
+        }
+    }
+  });
+  // Tasks (block of output rows, panel): few panels, so the rows are split as well (>= 16 tasks).
+  const int64_t row_blocks = (g.O + kBlockRows - 1) / kBlockRows;
+  const int64_t parts = std::min(row_blocks, (16 + rp.panels - 1) / rp.panels);
+  parallel_for(parts * rp.panels, grain_for(4 * g.O * K * kPanelCols / parts), [&](int64_t t0, int64_t t1) {
+    std::vector<float> m(static_cast<size_t>(4 * g.O * kPanelCols));
+    for (int64_t t = t0; t < t1; ++t) {
+      const int64_t part = t / rp.panels, p = t % rp.panels;
+      const int64_t o0 = part * row_blocks / parts * kBlockRows;
+      const int64_t o1 = std::min(g.O, (part + 1) * row_blocks / parts * kBlockRows);
+      const int64_t n_cols = std::min(kPanelCols, rp.Q - p * kPanelCols), tile = (o1 - o0) * kPanelCols;
+      for (int64_t i = 0; i < 4; ++i)
+        conv_gemm_panel(v.data(i) + o0 * K, o1 - o0, K, cols.get() + i * comp + p * panel_floats, n_cols, nullptr,
+                        m.data() + i * tile, kPanelCols);
+      for (int64_t col = 0; col < n_cols; ++col) {
+        const int64_t q = p * kPanelCols + col, j = q % rp.Wo2, row = q / rp.Wo2;  // row = n·Ho + oy
+        const int64_t n = row / Ho, oy = row % Ho;
+        for (int64_t o = o0; o < o1; ++o) {
+          const float* m1 = m.data() + (o - o0) * kPanelCols + col;
+          const float m2 = m1[tile], m3 = m1[2 * tile], m4 = m1[3 * tile];
+          const float bias = b ? b[o] : 0.0f;
+          float* yo = y + ((n * g.O + o) * Ho + oy) * Wo + 2 * j;
+          yo[0] = m1[0] + m2 + m3 + bias;
+          if (2 * j + 1 < Wo) yo[1] = m2 - m3 - m4 + bias;
+        }
+      }
+    }
+  });
+}
+
+}  // namespace sl::nn::detail

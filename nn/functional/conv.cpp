@@ -10,6 +10,8 @@
 #include "nn/functional/conv_implicit_gemm.h"
 #include "nn/functional/conv_microkernel.h"
 #include "nn/functional/conv_winograd.h"
+#include "nn/functional/group_sums.h"
+#include "nn/functional/transpose16.h"
 #include "nn/functional/work_grain.h"
 #include "util/parallel.h"
 
@@ -202,6 +204,60 @@ void conv_forward_folded(const ConvGeometry& g, const float* x, const float* pac
 
 bool unit_stride(const ConvGeometry& g) { return g.stride[0] == 1 && g.stride[1] == 1 && g.stride[2] == 1; }
 
+// Float on the micro-kernel, fewer than kMinDirectPositions positions per image (a ResNet's 4 × 8
+// stage: 32 positions, 4608 taps): dW[O][R] = dY[O][N·P] · colᵀ[N·P][R], with the positions of all
+// items as the GEMM's inner dimension. dY is gathered and packed like weights; im2col's panels (as
+// the folded forward builds them) are transposed into colᵀ, whose 48-tap column blocks the
+// micro-kernel streams (ldb = R) straight into dW (ldc = R). Each dW element is one fixed FMA
+// sequence over the N·P positions, so the bits do not depend on threads. Returns false (nothing
+// written) when colᵀ would pass 64 MiB.
+bool conv_backward_weight_folded(const ConvGeometry& g, const float* x, const float* dy, float* dw) {
+  constexpr int64_t kCols = detail::kPanelCols, kRows = detail::kBlockRows;
+  const int64_t P = g.out_plane(), R = g.rows(), NP = g.N * P, panels = (NP + kCols - 1) / kCols;
+  if (NP * R > (int64_t{16} << 20)) return false;
+  const detail::CachedFloats col_t = detail::cached_floats(NP * R + kCols);  // + a panel row's overrun
+  const PhasedInput<float> phased = phase_input(g, x);
+  const detail::PhasedRows& ph = phased.rows;
+  parallel_for(panels, detail::grain_for(R * kCols), [&](int64_t p0, int64_t p1) {
+    std::vector<float> panel(static_cast<size_t>(R * kCols));
+    for (int64_t p = p0; p < p1; ++p) {
+      const int64_t c1 = std::min(NP, (p + 1) * kCols);
+      for (int64_t c = p * kCols; c < c1;) {  // one run of positions of item n per step
+        const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
+        if (ph.stride > 1) {
+          detail::im2col_tile_phased(phased.data.data() + n * phased.rows_per_item * ph.row_pitch(), g, ph, q, cnt,
+                                     panel.data() + (c - p * kCols), kCols);
+        } else {
+          detail::im2col_tile(x + n * g.C * g.in_plane(), g, q, cnt, panel.data() + (c - p * kCols), kCols);
+        }
+        c += cnt;
+      }
+      float* dst = col_t.get() + p * kCols * R;  // colᵀ rows p·48 .. c1 − 1
+#if defined(__AVX512F__)
+      detail::transpose_copy(panel.data(), kCols, R, c1 - p * kCols, dst, R);
+#else
+      for (int64_t r = 0; r < R; ++r)
+        for (int64_t j = 0; j < c1 - p * kCols; ++j) dst[j * R + r] = panel[r * kCols + j];
+#endif
+    }
+  });
+  std::vector<float> a(static_cast<size_t>(g.O * NP));  // dY as [O][N·P]
+  for (int64_t n = 0; n < g.N; ++n)
+    for (int64_t o = 0; o < g.O; ++o) std::copy_n(dy + (n * g.O + o) * P, P, a.data() + o * NP + n * P);
+  const detail::PackedWeights packed = detail::pack_weights(a.data(), g.O, NP);
+  // Tasks: (48-tap panel, 8-row block), rows fastest, so that one panel of colᵀ (N·P × 48 floats)
+  // stays in cache across all row blocks.
+  const int64_t row_blocks = (g.O + kRows - 1) / kRows, tap_panels = (R + kCols - 1) / kCols;
+  parallel_for(tap_panels * row_blocks, detail::grain_for(kRows * NP * kCols), [&](int64_t t0, int64_t t1) {
+    for (int64_t t = t0; t < t1; ++t) {
+      const int64_t o0 = t % row_blocks * kRows, r0 = t / row_blocks * kCols;
+      detail::conv_gemm_panel(packed.data() + o0 * NP, std::min(kRows, g.O - o0), NP, col_t.get() + r0,
+                              std::min(kCols, R - r0), nullptr, dw + o0 * R + r0, R, R);
+    }
+  });
+  return true;
+}
+
 // Whether a float convolution runs on the micro-kernel (AVX-512): all but pointwise layers with
 // few positions, which stay on Eigen's GEMM.
 bool uses_kernels(const ConvGeometry& g) {
@@ -287,6 +343,8 @@ void conv_backward_weight(const ConvGeometry& g, const T* x, const T* dy, T* dw,
       return detail::direct_backward_weight(g, x, dy, dw, kept);
     if (detail::conv_gemm_available() && detail::direct_strided_supported(g) && g.out_plane() >= kMinDirectPositions)
       return detail::direct_backward_weight_strided(g, x, dy, dw);
+    if (detail::conv_gemm_available() && g.out_plane() < kMinDirectPositions && conv_backward_weight_folded(g, x, dy, dw))
+      return;
   }
   const int64_t P = g.out_plane(), R = g.rows(), per = g.O * R;
   const ColumnBlocks cb = column_blocks<T>(g);
@@ -347,12 +405,7 @@ void conv_backward_weight(const ConvGeometry& g, const T* x, const T* dy, T* dw,
         sl::detail::gemm<T>(false, true, g.O, R, cols, T(1), A, lda, B, ldb, first ? T(0) : T(1), sums + grp * per, R);
       }
   });
-  if (groups == 1) return;
-  for (int64_t i = 0; i < per; ++i) {
-    T acc = 0;
-    for (int64_t grp = 0; grp < groups; ++grp) acc += partial[grp * per + i];
-    dw[i] = acc;
-  }
+  if (groups > 1) detail::sum_groups(partial.data(), groups, per, dw);
 }
 
 // db[o] = Σ dy[:, o] in a fixed order per channel (independent of threads).

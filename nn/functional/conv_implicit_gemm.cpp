@@ -13,6 +13,7 @@
 #include "autodiff/buffer_cache.h"
 #include "nn/functional/conv_microkernel.h"
 #include "nn/functional/conv_winograd.h"
+#include "nn/functional/group_sums.h"
 #include "nn/functional/transpose16.h"
 #include "nn/functional/work_grain.h"
 #include "util/error.h"
@@ -70,26 +71,6 @@ struct Padded {
   Scratch data;
 };
 
-#if defined(__AVX512F__)
-// dst[j·dst_step + i] = src[i·src_step + j] for i < ni, j < nj, in 16 × 16 register blocks: the
-// reordered copy of a volume whose original innermost axis is stored outermost. Element-wise, it
-// is one store per element to a different row and was 10% of a 3-D convolution's time.
-void transpose_copy(const float* src, int64_t src_step, int64_t ni, int64_t nj, float* dst, int64_t dst_step) {
-  for (int64_t i0 = 0; i0 < ni; i0 += 16) {
-    const int64_t bi = std::min<int64_t>(16, ni - i0);
-    const __mmask16 mi = static_cast<__mmask16>((1u << bi) - 1u);
-    for (int64_t j0 = 0; j0 < nj; j0 += 16) {
-      const int64_t bj = std::min<int64_t>(16, nj - j0);
-      const __mmask16 mj = static_cast<__mmask16>((1u << bj) - 1u);
-      __m512 r[16];
-      for (int64_t a = 0; a < 16; ++a)
-        r[a] = a < bi ? _mm512_maskz_loadu_ps(mj, src + (i0 + a) * src_step + j0) : _mm512_setzero_ps();
-      transpose16(r);
-      for (int64_t b = 0; b < bj; ++b) _mm512_mask_storeu_ps(dst + (j0 + b) * dst_step + i0, mi, r[b]);
-    }
-  }
-}
-#endif
 
 Padded pad_copy(const float* src, int64_t planes, int64_t src_plane, const Axes& src_ext, const Axes& src_stride,
                 const Axes& lo, const Axes& ext) {
@@ -507,12 +488,7 @@ void weight_grad(const ConvGeometry& g, const Order& order, const Padded& xp, co
       }
     }
   });
-  if (groups == 1) return;
-  for (int64_t i = 0; i < g.O * R; ++i) {
-    float acc = 0;
-    for (int64_t grp = 0; grp < groups; ++grp) acc += partial[grp * g.O * R + i];
-    dw[i] = acc;
-  }
+  if (groups > 1) sum_groups(partial.data(), groups, g.O * R, dw);
 }
 
 Padded pad_output_grad(const ConvGeometry& g, const Order& order, const float* dy) {

@@ -116,9 +116,12 @@ namespace {
 // prefetch > 0 touches, for every k, the window `prefetch` floats ahead (the next panel's), so
 // that its lines come from L3 while this panel computes: a padded 3-D input has one stream per
 // (channel, kz, ky), too many for the hardware prefetchers to follow.
-template <class Row>
+// V: column vectors of 16 (3: the 8 × 48 tile; 2: an 8 × 32 one for narrow panels, whose third
+// accumulators, loads and stores the compiler drops).
+template <class Row, int V = 3>
 inline void micro_kernel(const float* a, const float* b, Row row, int64_t K, int64_t n, int64_t rows,
                          const float* bias, float* c, int64_t ldc, int64_t prefetch = 0) {
+  static_assert(V == 2 || V == 3);
 #define SL_ROW(i) __m512 c##i##0 = _mm512_setzero_ps(), c##i##1 = c##i##0, c##i##2 = c##i##0;
   SL_ROW(0) SL_ROW(1) SL_ROW(2) SL_ROW(3) SL_ROW(4) SL_ROW(5) SL_ROW(6) SL_ROW(7)
 #undef SL_ROW
@@ -131,21 +134,21 @@ inline void micro_kernel(const float* a, const float* b, Row row, int64_t K, int
     }
     const __m512 b0 = _mm512_loadu_ps(bk);
     const __m512 b1 = _mm512_loadu_ps(bk + 16);
-    const __m512 b2 = _mm512_loadu_ps(bk + 32);
+    const __m512 b2 = V == 3 ? _mm512_loadu_ps(bk + 32) : _mm512_setzero_ps();
     const float* ak = a + k * kBlockRows;
-#define SL_FMA(i)                                  \
-  {                                                \
-    const __m512 ai = _mm512_set1_ps(ak[i]);       \
-    c##i##0 = _mm512_fmadd_ps(ai, b0, c##i##0);    \
-    c##i##1 = _mm512_fmadd_ps(ai, b1, c##i##1);    \
-    c##i##2 = _mm512_fmadd_ps(ai, b2, c##i##2);    \
+#define SL_FMA(i)                                               \
+  {                                                             \
+    const __m512 ai = _mm512_set1_ps(ak[i]);                    \
+    c##i##0 = _mm512_fmadd_ps(ai, b0, c##i##0);                 \
+    c##i##1 = _mm512_fmadd_ps(ai, b1, c##i##1);                 \
+    if constexpr (V == 3) c##i##2 = _mm512_fmadd_ps(ai, b2, c##i##2); \
   }
     SL_FMA(0) SL_FMA(1) SL_FMA(2) SL_FMA(3) SL_FMA(4) SL_FMA(5) SL_FMA(6) SL_FMA(7)
 #undef SL_FMA
   }
   __mmask16 mask[3];
   for (int j = 0; j < 3; ++j) {
-    const int64_t cols = std::clamp<int64_t>(n - 16 * j, 0, 16);
+    const int64_t cols = j < V ? std::clamp<int64_t>(n - 16 * j, 0, 16) : 0;
     mask[j] = static_cast<__mmask16>((1u << cols) - 1u);
   }
 #define SL_STORE(i)                                                                  \
@@ -153,7 +156,7 @@ inline void micro_kernel(const float* a, const float* b, Row row, int64_t K, int
     const __m512 bi = _mm512_set1_ps(bias ? bias[i] : 0.0f);                         \
     _mm512_mask_storeu_ps(c + i * ldc, mask[0], _mm512_add_ps(c##i##0, bi));         \
     _mm512_mask_storeu_ps(c + i * ldc + 16, mask[1], _mm512_add_ps(c##i##1, bi));    \
-    _mm512_mask_storeu_ps(c + i * ldc + 32, mask[2], _mm512_add_ps(c##i##2, bi));    \
+    if constexpr (V == 3) _mm512_mask_storeu_ps(c + i * ldc + 32, mask[2], _mm512_add_ps(c##i##2, bi)); \
   }
   SL_STORE(0) SL_STORE(1) SL_STORE(2) SL_STORE(3) SL_STORE(4) SL_STORE(5) SL_STORE(6) SL_STORE(7)
 #undef SL_STORE
@@ -299,7 +302,9 @@ inline void sub_kernel(const float* a, const float* b, Row row, int64_t K, int64
 #undef SL_STORE
 }
 
-template <class Row>
+// V is the AVX-512 kernel's column-vector count; here the sub-tiles of 24 columns cover n (a
+// narrow 32-column panel reads 48 columns per row: conv_gemm_panel_narrow's contract).
+template <class Row, int V = 3>
 inline void micro_kernel(const float* a, const float* b, Row row, int64_t K, int64_t n, int64_t rows,
                          const float* bias, float* c, int64_t ldc, int64_t prefetch = 0) {
   for (int64_t h = 0; h < 2 && 4 * h < rows; ++h)
@@ -386,6 +391,11 @@ void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b
     }
 }
 
+void conv_gemm_panel_narrow(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
+                            const float* bias, float* c, int64_t ldc, int64_t ldb) {
+  conv_gemm_panel(packed_a, M, K, b_panel, n, bias, c, ldc, ldb);
+}
+
 void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
                       float* tile) {
   for (int64_t m = 0; m < M; ++m)
@@ -411,12 +421,24 @@ void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const floa
 #endif
 
 #if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
+struct RowPitch {  // row k of a packed panel
+  int64_t ldb;
+  int64_t operator()(int64_t k) const { return k * ldb; }
+};
+
 // The 8-row blocks of A, each through the micro-kernel of the branch above.
 void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
                      const float* bias, float* c, int64_t ldc, int64_t ldb) {
   for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
     micro_kernel(packed_a + m0 * K, b_panel, [ldb](int64_t k) { return k * ldb; }, K, n,
                  std::min(kBlockRows, M - m0), bias ? bias + m0 : nullptr, c + m0 * ldc, ldc);
+}
+
+void conv_gemm_panel_narrow(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
+                            const float* bias, float* c, int64_t ldc, int64_t ldb) {
+  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
+    micro_kernel<RowPitch, 2>(packed_a + m0 * K, b_panel, RowPitch{ldb}, K, n, std::min(kBlockRows, M - m0),
+                              bias ? bias + m0 : nullptr, c + m0 * ldc, ldc);
 }
 
 void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,

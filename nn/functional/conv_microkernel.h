@@ -55,6 +55,12 @@ PackedWeights pack_weights_transposed(const float* w, int64_t O, int64_t R);
 void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
                      const float* bias, float* c, int64_t ldc, int64_t ldb = kPanelCols);
 
+// conv_gemm_panel for a narrow panel of n <= 32 columns, on an 8 × 32 tile: two thirds of the
+// 48-column tile's work where only 32 columns exist (the same FMA sequence per output, so the same
+// bits). Reads 48 floats per row of B with AVX2 (give the panel 16 floats of slack), 32 with AVX-512.
+void conv_gemm_panel_narrow(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
+                            const float* bias, float* c, int64_t ldc, int64_t ldb);
+
 // Implicit GEMM for stride-1 convolutions: B[k][j] = base[row_offset[k] + j] for j < 48, i.e.
 // every row of B is a shifted window of a zero-padded input, so no column matrix is built.
 // Writes all 48 columns of tile [M][48] (the caller keeps the valid ones).

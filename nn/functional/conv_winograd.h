@@ -40,8 +40,9 @@ void winograd_pairs(const float* d, int64_t pairs, float* u, int64_t comp);
 // 2-D convolutions (depth 1) with stride 1 and 3 undilated taps along the image's last axis, of
 // at most 64 MiB of gathered pairs: y = conv(x, w) + b (b may be null) with every pair of one
 // image row's outputs a column of dense 48-column panels (items, rows and pairs folded together),
-// so an 8 × 16 stage of a ResNet wastes no columns on row padding. Supported where the last panel
-// leaves at most 15% of the columns empty (not a 4 × 8 stage at batch 4: 64 pairs in 96 columns).
+// so a ResNet's 8 × 16 stage wastes no columns on row padding. Panels are 48 columns, or 32 where
+// that fits better (a 4 × 8 stage at batch 4: 64 pairs); supported where the last panel leaves at
+// most 15% of the columns empty.
 // w: [O][C][kh][3] (flipped: see winograd_weights), not packed. Each output is one fixed sequence
 // of operations whatever the thread count.
 bool winograd_rows_supported(const ConvGeometry& g);

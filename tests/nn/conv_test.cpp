@@ -174,7 +174,8 @@ TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
 
 // Forward and all three gradients with 1 and with 2 threads, compared bit for bit, on every
 // kernel path: implicit GEMM (2-D, reordered 3-D; short items summed together in the weight
-// gradient; Winograd in 2-D and along a reordered 3-D axis), the phase-split windows of stride 2 (2-D), panels and reference (3-D stride 2; one
+// gradient; Winograd in 2-D and along a reordered 3-D axis, and on gathered row pairs in 48- and
+// 32-column panels), the phase-split windows of stride 2 (2-D), panels and reference (3-D stride 2; one
 // weight-gradient block split by rows), and the batch-folded panels (few positions per image).
 TEST(Conv, ForwardBackwardBitwiseIdenticalWithOneAndTwoThreads) {
   struct Run { std::vector<double> y, gx, gw, gb; };
@@ -194,7 +195,7 @@ TEST(Conv, ForwardBackwardBitwiseIdenticalWithOneAndTwoThreads) {
     return r;
   };
   for (const Shape& xs : {Shape{3, 8, 40, 33}, Shape{2, 8, 34, 12, 4}, Shape{6, 8, 6, 7}, Shape{5, 8, 24, 20},
-                          Shape{3, 8, 10, 12}, Shape{2, 8, 40, 64}, Shape{1, 8, 34, 12, 12}})
+                          Shape{3, 8, 10, 12}, Shape{2, 8, 40, 64}, Shape{1, 8, 34, 12, 12}, Shape{4, 8, 4, 8}})
     for (int64_t stride : {1, 2}) {
       const Run a = run(1, xs, stride), c = run(2, xs, stride);
       EXPECT_EQ(a.y, c.y) << shape_str(xs) << " stride " << stride;
@@ -276,7 +277,7 @@ TEST(Conv, WeightGradientFromTheForwardsKeptCopyHasTheSameBitsAndDoesNotReadX) {
 // its first axis innermost (the taps transformed are then not the weights' last axis), a kernel of
 // 1 on the other axes, and a convolution that is not "same" (its input gradient pads by 2 and is
 // not fused). On gathered row pairs (small 2-D images): a ResNet-like 8 × 16 stage, one panel
-// exactly, an odd row (the last pair's second output dropped), and a dilated, not "same" one whose
+// exactly, a 4 × 8 stage on narrow 32-column panels, an odd row (the last pair's second output dropped), and a dilated, not "same" one whose
 // input gradient (flipped kernel) pads differently. Then a sun: a few inputs 10^5 times the rest,
 // where the transforms' differences of large and small values must cost no more than float
 // rounding of Σ|x|·Σ|g| (the row sums of the kernel along the transformed axis: Winograd's error
@@ -294,6 +295,7 @@ TEST(Conv, WinogradForwardAndGradientsMatchFloat64) {
       {{1, 4, 50, 90}, {6, 4, 3, 3}, {0, 0, 0}, {1, 1, 1}, true},
       {{4, 16, 8, 16}, {24, 16, 3, 3}, {0, 1, 1}, {1, 1, 1}, false},
       {{3, 16, 4, 8}, {8, 16, 3, 3}, {0, 1, 1}, {1, 1, 1}, false},
+      {{4, 16, 4, 8}, {12, 16, 3, 3}, {0, 1, 1}, {1, 1, 1}, false},  // 64 pairs: two 32-column panels
       {{2, 5, 9, 15}, {7, 5, 3, 3}, {0, 1, 1}, {1, 1, 1}, false},
       {{2, 3, 12, 24}, {4, 3, 3, 3}, {0, 2, 0}, {1, 2, 1}, false},
   };

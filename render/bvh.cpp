@@ -337,11 +337,11 @@ inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const flo
 template <bool kAnyHit, class SimdRay>
 inline bool hit_leaf(const Bvh::TriangleBlock* blocks, uint32_t ref, const PreparedRay& r, const SimdRay& s,
                      float& tmax, Hit& hit, uint32_t& slot) {
-  const uint32_t block = BvhNode::leaf_block(ref), count = BvhNode::leaf_count(ref);
+  const uint32_t first = BvhNode::leaf_block(ref) * kB + BvhNode::leaf_lane(ref), end = first + BvhNode::leaf_count(ref);
   bool found = false;
-  for (uint32_t i = 0; i < count; i += kB) {
-    const unsigned lanes = count - i >= static_cast<uint32_t>(kB) ? (1u << kB) - 1 : (1u << (count - i)) - 1;
-    const uint32_t b = block + i / kB;
+  for (uint32_t b = first / kB; b * kB < end; ++b) {  // the leaf's slots [first, end), block by block
+    const uint32_t lo = std::max(first, b * kB) - b * kB, hi = std::min(end, (b + 1) * kB) - b * kB;
+    const unsigned lanes = ((1u << hi) - 1u) & ~((1u << lo) - 1u);
     BlockHits h;
     unsigned mask = hit_block(blocks[b], r, s, tmax, lanes, h);
     if (!mask) continue;

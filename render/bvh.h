@@ -9,7 +9,8 @@
 // out depth-first: nodes store their children's boxes as structure-of-arrays, so one node is
 // tested against a ray with a few 8-wide vector instructions. Leaves hold at most kMaxLeafSize
 // triangles, stored as vertex copies in blocks of kBlockWidth (structure-of-arrays), so a leaf
-// is one contiguous read and its triangles are tested together.
+// is one contiguous read and its triangles are tested together; a node's small leaves share
+// blocks (a leaf starts at any lane), so the lanes hold triangles rather than padding.
 // Intersection (bvh.cpp): watertight ray-triangle test (Woop, Benthin & Wald, JCGT 2013): a ray
 // through an edge or vertex shared by two triangles hits at least one of them, never slips
 // between. Every lane of the vector test performs the same IEEE operations, in the same order,
@@ -68,9 +69,11 @@ struct alignas(64) BvhNode {
   uint32_t child[kWidth];
   uint32_t reserved[kWidth];  // pads the node to four cache lines
 
-  // A leaf ref packs its first triangle block and its triangle count (1..kMaxLeafSize).
+  // A leaf ref packs its first triangle block, its first lane in that block and its triangle
+  // count (1..kMaxLeafSize): leaf triangles are the consecutive slots block·8 + lane onwards.
   static bool is_leaf(uint32_t ref) { return (ref & kLeafBit) != 0; }
-  static uint32_t leaf_block(uint32_t ref) { return (ref & ~kLeafBit) >> 4; }
+  static uint32_t leaf_block(uint32_t ref) { return (ref & ~kLeafBit) >> 7; }
+  static uint32_t leaf_lane(uint32_t ref) { return (ref >> 4) & 7u; }
   static uint32_t leaf_count(uint32_t ref) { return (ref & 15u) + 1; }
 };
 static_assert(sizeof(BvhNode) == 256, "BvhNode must stay four cache lines");

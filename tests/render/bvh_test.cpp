@@ -1,4 +1,6 @@
 // BVH queries against brute force, plus the edge cases the header promises.
+#include <algorithm>
+
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -376,6 +378,37 @@ TEST(Bvh, NodesAreCompactAndLeavesSmall) {
   EXPECT_EQ(interior_refs, bvh.node_count() - 1);  // every node but the root has one parent
   EXPECT_GT(children, 4 * bvh.node_count());  // wide nodes are mostly full
   EXPECT_LE(bvh.depth(), 64);
+}
+
+// Leaves share triangle blocks (bvh_build.cpp, BvhLayout::leaf): every triangle has one slot,
+// no two leaves overlap, a leaf of at most 8 triangles never crosses a block boundary, and the
+// blocks are fuller than one block per leaf would make them (a random soup: at least 80% of the
+// lanes hold triangles, where blocks of their own leave about a third empty).
+TEST(Bvh, LeavesShareBlocksWithoutOverlap) {
+  const sl::render::Mesh m = random_soup(20000, 12);
+  const sl::render::Bvh bvh(m);
+  constexpr uint32_t kB = sl::render::Bvh::kBlockWidth;
+  std::vector<std::pair<uint32_t, uint32_t>> ranges;  // [first slot, end slot) per leaf
+  size_t own_blocks = 0;
+  for (const auto& n : bvh.nodes())
+    for (int i = 0; i < sl::render::BvhNode::kWidth; ++i) {
+      const uint32_t ref = n.child[i];
+      if (ref == sl::render::BvhNode::kEmpty || !sl::render::BvhNode::is_leaf(ref)) continue;
+      const uint32_t first = sl::render::BvhNode::leaf_block(ref) * kB + sl::render::BvhNode::leaf_lane(ref);
+      const uint32_t count = sl::render::BvhNode::leaf_count(ref);
+      if (count <= kB) {
+        EXPECT_EQ(first / kB, (first + count - 1) / kB) << "a small leaf crosses a block boundary";
+      } else {
+        EXPECT_EQ(first % kB, 0u) << "a large leaf starts mid-block";
+      }
+      ranges.emplace_back(first, first + count);
+      own_blocks += (count + kB - 1) / kB;
+    }
+  std::sort(ranges.begin(), ranges.end());
+  for (size_t i = 1; i < ranges.size(); ++i) ASSERT_LE(ranges[i - 1].second, ranges[i].first) << "leaves overlap";
+  const size_t blocks = (ranges.back().second + kB - 1) / kB;
+  EXPECT_LT(blocks, own_blocks);
+  EXPECT_GE(static_cast<double>(bvh.triangle_count()) / static_cast<double>(blocks * kB), 0.8);
 }
 
 TEST(Bvh, TreeDoesNotDependOnThreadCount) {

@@ -147,6 +147,24 @@ void conv_forward_panels(const ConvGeometry& g, const float* x, const float* pac
   });
 }
 
+// Panel p of the batch-folded column matrix: im2col columns p·48 .. of all items' positions in
+// order (column n·P + q), [R][48], one run of positions of one item per call.
+void folded_panel(const ConvGeometry& g, const float* x, const PhasedInput<float>& phased, int64_t p, float* panel) {
+  constexpr int64_t kCols = detail::kPanelCols;
+  const int64_t P = g.out_plane(), c1 = std::min(g.N * P, (p + 1) * kCols);
+  const detail::PhasedRows& ph = phased.rows;
+  for (int64_t c = p * kCols; c < c1;) {
+    const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
+    if (ph.stride > 1) {
+      detail::im2col_tile_phased(phased.data.data() + n * phased.rows_per_item * ph.row_pitch(), g, ph, q, cnt,
+                                 panel + (c - p * kCols), kCols);
+    } else {
+      detail::im2col_tile(x + n * g.C * g.in_plane(), g, q, cnt, panel + (c - p * kCols), kCols);
+    }
+    c += cnt;
+  }
+}
+
 // Float on AVX-512, fewer than kMinDirectPositions positions per image (a ResNet's deep stages:
 // 4×8 positions, 512 channels, 4608 taps): the batch-folded GEMM on the micro-kernel. Columns are
 // the positions of all items in order (column n·P + p), cut into 48-column panels that may hold
@@ -158,7 +176,6 @@ void conv_forward_folded(const ConvGeometry& g, const float* x, const float* pac
   constexpr int64_t kCols = detail::kPanelCols, kRows = detail::kBlockRows;
   const int64_t P = g.out_plane(), R = g.rows(), cols = g.N * P, panels = (cols + kCols - 1) / kCols;
   const PhasedInput<float> phased = phase_input(g, x);
-  const detail::PhasedRows& ph = phased.rows;
   // Panels are built and consumed in rounds of at most 16 MiB of columns (large batches).
   const int64_t per_round = std::clamp<int64_t>((int64_t{4} << 20) / (R * kCols), 1, panels);
   std::vector<float> col(static_cast<size_t>(per_round * R * kCols));
@@ -167,18 +184,7 @@ void conv_forward_folded(const ConvGeometry& g, const float* x, const float* pac
     const int64_t count = std::min(per_round, panels - first);
     parallel_for(count, detail::grain_for(R * kCols), [&](int64_t p0, int64_t p1) {
       for (int64_t p = first + p0; p < first + p1; ++p) {
-        float* panel = col.data() + (p - first) * R * kCols;
-        const int64_t c1 = std::min(cols, (p + 1) * kCols);
-        for (int64_t c = p * kCols; c < c1;) {  // one run of positions of item n per step
-          const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
-          if (ph.stride > 1) {
-            detail::im2col_tile_phased(phased.data.data() + n * phased.rows_per_item * ph.row_pitch(), g, ph, q, cnt,
-                                       panel + (c - p * kCols), kCols);
-          } else {
-            detail::im2col_tile(x + n * g.C * g.in_plane(), g, q, cnt, panel + (c - p * kCols), kCols);
-          }
-          c += cnt;
-        }
+        folded_panel(g, x, phased, p, col.data() + (p - first) * R * kCols);
       }
     });
     const int64_t parts = std::min(row_blocks, (16 + count - 1) / count);  // >= 16 tasks: even over 2-4 threads
@@ -217,21 +223,11 @@ bool conv_backward_weight_folded(const ConvGeometry& g, const float* x, const fl
   if (NP * R > (int64_t{16} << 20)) return false;
   const detail::CachedFloats col_t = detail::cached_floats(NP * R + kCols);  // + a panel row's overrun
   const PhasedInput<float> phased = phase_input(g, x);
-  const detail::PhasedRows& ph = phased.rows;
   parallel_for(panels, detail::grain_for(R * kCols), [&](int64_t p0, int64_t p1) {
     std::vector<float> panel(static_cast<size_t>(R * kCols));
     for (int64_t p = p0; p < p1; ++p) {
       const int64_t c1 = std::min(NP, (p + 1) * kCols);
-      for (int64_t c = p * kCols; c < c1;) {  // one run of positions of item n per step
-        const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
-        if (ph.stride > 1) {
-          detail::im2col_tile_phased(phased.data.data() + n * phased.rows_per_item * ph.row_pitch(), g, ph, q, cnt,
-                                     panel.data() + (c - p * kCols), kCols);
-        } else {
-          detail::im2col_tile(x + n * g.C * g.in_plane(), g, q, cnt, panel.data() + (c - p * kCols), kCols);
-        }
-        c += cnt;
-      }
+      folded_panel(g, x, phased, p, panel.data());
       float* dst = col_t.get() + p * kCols * R;  // colᵀ rows p·48 .. c1 − 1
 #if defined(__AVX512F__)
       detail::transpose_copy(panel.data(), kCols, R, c1 - p * kCols, dst, R);

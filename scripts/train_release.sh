@@ -3,7 +3,10 @@
 # with its model card (models/README.md). Steps, each resumable (a killed run continues where it
 # stopped, bit-identically for the training stages):
 #   1. the synthetic streets (configs/release_datagen.json), a third of them lit by the training
-#      panoramas of configs/hdri_split.json, rendered by two processes;
+#      panoramas of configs/hdri_split.json, rendered by two processes; then 320 held-out test
+#      streets (configs/release_datagen_test.json: another seed, all in the test split) for a
+#      synthetic sun error whose interval is narrow enough to read (the run's own test split
+#      holds only a tenth of its streets);
 #   2. stage 1, the sky autoencoder (configs/release_sky.json) on the split's training panoramas
 #      and sky-model skies;
 #   3. stage 2, the lighting predictor (configs/release_lighting.json) on the streets mixed with
@@ -57,28 +60,29 @@ train_stage() {  # train_stage NAME CONFIG [--set ...]
     > "$runs/$name.json" 2> >(tee -a "$runs/$name.log" >&2)
 }
 
-datagen() {
-  say "1/6 synthetic streets (configs/release_datagen.json), 2 processes"
+datagen() {  # datagen CONFIG OUT_NAME: two processes, one shard each
   local pids=()
   for k in 0 1; do
-    OMP_NUM_THREADS=1 "$bin/streetlight-datagen" --config configs/release_datagen.json \
+    OMP_NUM_THREADS=1 "$bin/streetlight-datagen" --config "$1" \
       --set "sky.hdri_folder=$hdri" --set sky.hdri_split=configs/hdri_split.json \
-      --out "$runs/street" --shard "$k/2" --skip-existing --json > "$runs/datagen_$k.json" 2> "$runs/datagen_$k.log" &
+      --out "$runs/$2" --shard "$k/2" --skip-existing --json > "$runs/${2}_datagen_$k.json" 2> "$runs/${2}_datagen_$k.log" &
     pids+=($!)
   done
-  for p in "${pids[@]}"; do wait "$p"; done
+  for p in "${pids[@]}"; do wait "$p" || { echo "error: streetlight-datagen failed, see $runs/${2}_datagen_*.log" >&2; exit 1; }; done
 }
-timed datagen datagen
+say "1/6 synthetic streets (configs/release_datagen.json, configs/release_datagen_test.json), 2 processes"
+timed datagen datagen configs/release_datagen.json street
+timed test_streets datagen configs/release_datagen_test.json test_street
 timed sky train_stage sky configs/release_sky.json --set "data.hdri_dir=$hdri"
 timed lighting train_stage lighting configs/release_lighting.json --set "data.hdri_dir=$hdri" \
   --set "data.dataset=$runs/street" --set "init.sky_checkpoint=$runs/sky/best.safetensors"
 timed adversarial train_stage adversarial configs/release_adversarial.json --set "data.hdri_dir=$hdri" \
   --set "data.dataset=$runs/street" --set "init.checkpoint=$runs/lighting/best.safetensors"
 
-say "5/6 evaluating stages 2 and 3 (real-sky test split, 8 crops per panorama; synthetic test split)"
+say "5/6 evaluating stages 2 and 3 (real-sky test split, 8 crops per panorama; the held-out test streets)"
 evaluate() {
   "$bin/streetlight-eval" --data "$hdri" --hdri-split configs/hdri_split.json --split test --crops 8 \
-    --data "$runs/street" --no-budgets --out "$runs/eval" \
+    --data "$runs/test_street" --baseline-data "$runs/street" --no-budgets --out "$runs/eval" \
     --checkpoint "$runs/lighting/best.safetensors" --name "stage 2 (lighting)" \
     --checkpoint "$runs/adversarial/best.safetensors" --name "stage 3 (adversarial)" > /dev/null
 }

@@ -10,7 +10,7 @@ runs=${1:?usage: scripts/write_model_card.sh RUN_DIR}
 chosen=$(cat "$runs/chosen")
 secs() { cat "$runs/$1.done" 2>/dev/null || echo "?"; }
 total=0
-for s in datagen sky lighting adversarial eval; do v=$(secs $s); [ "$v" != "?" ] && total=$(( total + v )); done
+for s in datagen test_streets sky lighting adversarial eval; do v=$(secs $s); [ "$v" != "?" ] && total=$(( total + v )); done
 steps() { sed -n 's/.*"steps": *\([0-9]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
 commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
 size=$(du -h models/streetlight.safetensors 2>/dev/null | cut -f1)
@@ -40,6 +40,7 @@ validation sun error; stage 3 is the end-to-end fine-tuning through object inser
 | step | config | steps | wall time |
 |---|---|---|---|
 | synthetic streets | \`configs/release_datagen.json\` | $(sed -n 's/.*"samples": *\([0-9]*\).*/\1/p' configs/release_datagen.json) samples | $(secs datagen) s |
+| held-out test streets | \`configs/release_datagen_test.json\` | $(sed -n 's/.*"samples": *\([0-9]*\).*/\1/p' configs/release_datagen_test.json) samples | $(secs test_streets) s |
 | stage 1, sky autoencoder | \`configs/release_sky.json\` | $(steps sky) | $(secs sky) s |
 | stage 2, lighting | \`configs/release_lighting.json\` | $(steps lighting) | $(secs lighting) s |
 | stage 3, adversarial | \`configs/release_adversarial.json\` | $(steps adversarial) | $(secs adversarial) s |
@@ -51,14 +52,17 @@ were measured while other jobs shared the machine unless the closing note of the
 
 ## Metrics (test splits, never trained or selected on)
 Command: \`streetlight-eval --data ../shared/data/hdri --hdri-split configs/hdri_split.json --split test
---crops 8 --data RUN/street --checkpoint RUN/lighting/best.safetensors --checkpoint RUN/adversarial/best.safetensors\`.
+--crops 8 --data RUN/test_street --baseline-data RUN/street --checkpoint RUN/lighting/best.safetensors
+--checkpoint RUN/adversarial/best.safetensors\`. The generated test streets are a separate set
+(\`configs/release_datagen_test.json\`: its own seed, same generator settings), never trained or
+selected on; the constant baseline comes from the training streets.
 Sun errors in degrees. The constant baseline always answers the mean sun direction of the training
 panoramas' crops (in the camera's frame); a model that does not beat it has learned nothing.
 
 $(cat "$runs/eval/results.md")
 
 ## Known limits
-- Trained on 26 real panoramas (9 with a hard sun) and a few hundred synthetic streets: far less than
+- Trained on 26 real panoramas (9 with a hard sun) and about a thousand synthetic streets: far less than
   the paper's HoliCity crops. Expect errors on skies unlike these (night, heavy overcast, snow).
 - Where the sun is soft (overcast), the sun direction has no meaning and was not supervised.
 - The real crops have no depth, so the volume branch learns geometry only from the synthetic streets.

@@ -62,7 +62,7 @@ panoramas' crops (in the camera's frame); a model that does not beat it has lear
 $(cat "$runs/eval/results.md")
 
 ## Known limits
-- Trained on 26 real panoramas (9 with a hard sun) and about a thousand synthetic streets: far less than
+- Trained on 26 real panoramas (9 with a hard sun) and a few hundred synthetic streets: far less than
   the paper's HoliCity crops. Expect errors on skies unlike these (night, heavy overcast, snow).
 - Where the sun is soft (overcast), the sun direction has no meaning and was not supervised.
 - The real crops have no depth, so the volume branch learns geometry only from the synthetic streets.

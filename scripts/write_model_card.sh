@@ -12,6 +12,7 @@ secs() { cat "$runs/$1.done" 2>/dev/null || echo "?"; }
 total=0
 for s in datagen test_streets sky lighting adversarial eval; do v=$(secs $s); [ "$v" != "?" ] && total=$(( total + v )); done
 steps() { sed -n 's/.*"steps": *\([0-9]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
+samples() { sed -n 's/.*"samples": *\([0-9]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
 commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
 size=$(du -h models/streetlight.safetensors 2>/dev/null | cut -f1)
 cat <<EOF
@@ -39,8 +40,8 @@ validation sun error; stage 3 is the end-to-end fine-tuning through object inser
 ## Training (configs, steps, wall time on this machine)
 | step | config | steps | wall time |
 |---|---|---|---|
-| synthetic streets | \`configs/release_datagen.json\` | $(sed -n 's/.*"samples": *\([0-9]*\).*/\1/p' configs/release_datagen.json) samples | $(secs datagen) s |
-| held-out test streets | \`configs/release_datagen_test.json\` | $(sed -n 's/.*"samples": *\([0-9]*\).*/\1/p' configs/release_datagen_test.json) samples | $(secs test_streets) s |
+| synthetic streets | \`configs/release_datagen.json\` | $(samples datagen) samples | $(secs datagen) s |
+| held-out test streets | \`configs/release_datagen_test.json\` | $(samples datagen_test) samples | $(secs test_streets) s |
 | stage 1, sky autoencoder | \`configs/release_sky.json\` | $(steps sky) | $(secs sky) s |
 | stage 2, lighting | \`configs/release_lighting.json\` | $(steps lighting) | $(secs lighting) s |
 | stage 3, adversarial | \`configs/release_adversarial.json\` | $(steps adversarial) | $(secs adversarial) s |

@@ -1,5 +1,6 @@
 #include "nn/optim.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "autodiff/tape.h"
@@ -42,6 +43,44 @@ void Optimizer::step() {
     int64_t& t = steps_[i].data<int64_t>()[0];
     ++t;
     update(i, g, t);
+    if (averaging()) update_average(i, t);
+  }
+}
+
+void Optimizer::enable_average(double decay) {
+  SL_CHECK(std::isfinite(decay) && decay > 0 && decay < 1, type_name_, ": average decay must lie in (0, 1), got ", decay);
+  SL_CHECK(!averaging(), type_name_, ": weight averaging is already on");
+  average_decay_ = decay;
+  average_slot_ = slot_names_.size();
+  slot_names_.push_back("average");
+  state_.emplace_back();
+  for (const auto& [name, p] : params_) state_.back().push_back(Tensor::zeros(p.shape(), p.dtype()));
+}
+
+void Optimizer::update_average(size_t i, int64_t t) {
+  const Tensor& p = params_[i].second;
+  Tensor& a = state_[average_slot_][i];
+  const double d = t == 1 ? 0.0 : std::min(average_decay_, (1.0 + double(t)) / (10.0 + double(t)));
+  SL_DISPATCH_FLOAT(p.dtype(), "weight average", [&] {
+    using T = scalar_t;
+    const T* pp = p.data<T>();
+    T* pa = a.data<T>();
+    parallel_for(p.numel(), kGrain, [&](int64_t b, int64_t e) {
+      for (int64_t k = b; k < e; ++k) pa[k] = T(d * double(pa[k]) + (1.0 - d) * double(pp[k]));
+    });
+  });
+}
+
+void Optimizer::swap_average() {
+  SL_CHECK(averaging(), type_name_, ".swap_average: weight averaging is off");
+  NoGradGuard no_grad;
+  for (size_t i = 0; i < params_.size(); ++i) {
+    if (steps_[i].data<int64_t>()[0] == 0) continue;
+    const Tensor& p = params_[i].second;
+    Tensor& a = state_[average_slot_][i];
+    SL_DISPATCH_FLOAT(p.dtype(), "swap_average", [&] {
+      std::swap_ranges(p.data<scalar_t>(), p.data<scalar_t>() + p.numel(), a.data<scalar_t>());
+    });
   }
 }
 

@@ -18,7 +18,16 @@
 //   "exp_avg.x", "exp_avg_sq.x" (Adam/AdamW), and "step.x" (I64 scalar, every optimiser).
 //   load_state_dict() checks all names, shapes and dtypes and throws ONE sl::Error listing
 //   what is missing, unexpected or mismatched; it copies in place.
-// - Bad hyperparameters (lr < 0, betas outside [0, 1), eps <= 0, momentum < 0) throw.
+// - Weight averaging (off unless enable_average(decay), 0 < decay < 1): after each update of
+//   a parameter, its exponential moving average a ← d·a + (1 − d)·p with
+//   d = min(decay, (1 + t)/(10 + t)) (the short-run ramp of TensorFlow's ExponentialMovingAverage
+//   num_updates), and a = p at t = 1. The averages are the state slot "average"
+//   ("average.<param>"), so checkpoints carry them and a resumed run averages bit-identically;
+//   enable it before loading a checkpoint. swap_average() swaps every parameter that has been
+//   stepped with its average, in place (so modules see the averaged weights); a second call
+//   swaps back. Parameters never stepped (frozen) keep their values.
+// - Bad hyperparameters (lr < 0, betas outside [0, 1), eps <= 0, momentum < 0, decay outside
+//   (0, 1)) throw.
 #pragma once
 #include <string>
 #include <vector>
@@ -38,6 +47,9 @@ class Optimizer {
   const std::string& type_name() const { return type_name_; }
   StateDict state_dict() const;
   void load_state_dict(const StateDict& state);
+  void enable_average(double decay);
+  bool averaging() const { return average_decay_ > 0; }
+  void swap_average();
 
  protected:
   Optimizer(std::string type_name, NamedTensors params, double lr, std::vector<std::string> slots);
@@ -52,6 +64,9 @@ class Optimizer {
   std::vector<std::string> slot_names_;
   std::vector<std::vector<Tensor>> state_;  // [slot][param]
   std::vector<Tensor> steps_;               // I64 scalars, one per parameter
+  double average_decay_ = 0.0;              // > 0 when weight averaging is on
+  size_t average_slot_ = 0;
+  void update_average(size_t i, int64_t t);
 };
 
 struct SgdOptions {

@@ -85,6 +85,7 @@ json default_train_config() {
         {"min_lr", 1e-5},
         {"warmup_steps", 20},
         {"weight_decay", 0.0},
+        {"ema_decay", 0.0},
         {"clip_grad_norm", 10.0},
         {"discriminator_lr", 2e-4}}},
       {"train",
@@ -128,6 +129,8 @@ void check_train_config(const json& c) {
            "train.batch_size), got ", c.at("train").at("global_batch").get<int64_t>());
   positive(c, "optim", "lr");
   SL_CHECK(c.at("optim").at("min_lr").get<double>() >= 0, "optim.min_lr must be >= 0");
+  const double ema = c.at("optim").at("ema_decay").get<double>();
+  SL_CHECK(ema >= 0 && ema < 1, "optim.ema_decay must lie in [0, 1) (0: off), got ", ema);
   SL_CHECK(c.at("seed").get<int64_t>() >= 0, "seed must be >= 0, got ", c.at("seed").get<int64_t>());
   const double frac = c.at("data").at("hdri_fraction").get<double>();
   SL_CHECK(frac >= 0 && frac <= 1, "data.hdri_fraction must lie in [0, 1], got ", frac);

@@ -100,6 +100,10 @@ RunResult run_training(Stage& stage, const nlohmann::json& config, const RunOpti
   if (const int swept = sweep_stale_temp_files(options.out_dir); swept > 0)
     log(cat("removed ", swept, " stale temporary file(s) of killed runs from ", options.out_dir));
 
+  // Weight averaging (optim.ema_decay > 0, nn/optim.h): enabled before a resume loads its state.
+  const double ema_decay = o.value("ema_decay", 0.0);
+  if (ema_decay > 0 && !stage.optimizer().averaging()) stage.optimizer().enable_average(ema_decay);
+
   int64_t step = 0;
   double best = std::numeric_limits<double>::infinity();
   if (!options.resume.empty()) {
@@ -154,6 +158,9 @@ RunResult run_training(Stage& stage, const nlohmann::json& config, const RunOpti
       append_line(metrics_path, line);
     }
     if (root && (step % val_every == 0 || step == total)) {
+      // With weight averaging, validation and best.safetensors see the averaged weights.
+      const bool averaged = stage.optimizer().averaging();
+      if (averaged) stage.optimizer().swap_average();
       result.last_validation = stage.validate();
       nlohmann::json line = metrics_json(result.last_validation);
       line["step"] = step;
@@ -165,6 +172,7 @@ RunResult run_training(Stage& stage, const nlohmann::json& config, const RunOpti
         save(best_path);
         log(cat("step ", step, ": new best ", stage.best_metric(), " = ", best, " -> ", best_path));
       }
+      if (averaged) stage.optimizer().swap_average();
     }
     if (root && (step % image_every == 0 || step == total))
       stage.write_strip((fs::path(options.out_dir) / cat("strip_", step, ".png")).string());

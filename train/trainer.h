@@ -13,6 +13,9 @@
 //   with "split": "val") and best.safetensors when the stage's best metric improved; every
 //   checkpoint_every steps and at the end last.safetensors (atomic); every image_every steps
 //   a PNG strip <out>/strip_<step>.png.
+// - optim.ema_decay > 0 turns on the optimiser's weight averaging (nn/optim.h): validation runs
+//   on the averaged weights, and best.safetensors holds them as the model (its "optim.average.*"
+//   then holds the raw weights; resume from last.safetensors, which holds the raw ones).
 // - SIGINT / SIGTERM: the handler only sets a flag; the loop checks it after each step, saves
 //   last.safetensors and returns with interrupted = true.
 // - A non-finite loss or gradient throws NonFiniteError naming the loss or parameter and the

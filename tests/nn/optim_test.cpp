@@ -1,6 +1,7 @@
 // Optimisers, gradient clipping and learning-rate schedules.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -135,12 +136,64 @@ TEST(Optimizer, LoadStateRejectsMismatchInOneMessage) {
   }
 }
 
+// The average follows a ← d·a + (1 − d)·p, d = min(decay, (1 + t)/(10 + t)), a = p at t = 1,
+// computed here by hand beside plain SGD, whose parameter values are p0 − lr·Σg.
+TEST(Optimizer, WeightAverageFollowsTheRampedMovingAverageAndSwapsBack) {
+  Tensor p = Tensor::from_vector(kP0, {3}, DType::F64).set_requires_grad(true);
+  Tensor frozen = Tensor::from_vector({7.0}, {1}, DType::F64).set_requires_grad(true);
+  SGD opt({{"p", p}, {"frozen", frozen}}, {.lr = 0.5});
+  opt.enable_average(0.2);
+  std::vector<double> w = kP0, avg;
+  for (size_t s = 0; s < kGrads.size(); ++s) {
+    p.set_grad(Tensor::from_vector(kGrads[s], {3}, DType::F64));
+    opt.step();
+    const double t = double(s + 1), d = s == 0 ? 0.0 : std::min(0.2, (1 + t) / (10 + t));
+    for (size_t k = 0; k < 3; ++k) w[k] -= 0.5 * kGrads[s][k];
+    if (s == 0) avg = w;
+    else
+      for (size_t k = 0; k < 3; ++k) avg[k] = d * avg[k] + (1 - d) * w[k];
+  }
+  ASSERT_TRUE(opt.state_dict().count("average.p"));
+  expect_near(opt.state_dict().at("average.p").to_vector(), avg, 1e-15);
+  opt.swap_average();
+  expect_near(p.to_vector(), avg, 1e-15);
+  EXPECT_EQ(frozen.to_vector()[0], 7.0);  // never stepped: its (zero) average is not swapped in
+  opt.swap_average();
+  expect_near(p.to_vector(), w, 1e-15);
+  EXPECT_THROW(opt.enable_average(0.5), Error);  // already on
+}
+
+TEST(Optimizer, WeightAverageIsStateSoAResumedRunAveragesIdentically) {
+  auto make_param = [] { return Tensor::from_vector(kP0, {3}).set_requires_grad(true); };
+  Tensor p1 = make_param(), p2 = make_param();
+  Adam a({{"w", p1}}, {.lr = 0.01});
+  a.enable_average(0.9);
+  for (int i = 0; i < 2; ++i) {
+    p1.set_grad(Tensor::from_vector(kGrads[i], {3}));
+    a.step();
+  }
+  p2.copy_(p1);
+  Adam b({{"w", p2}}, {.lr = 0.01});
+  EXPECT_THROW(b.load_state_dict(a.state_dict()), Error);  // "average.w" unexpected while off
+  b.enable_average(0.9);
+  b.load_state_dict(a.state_dict());
+  p1.set_grad(Tensor::from_vector(kGrads[2], {3}));
+  p2.set_grad(Tensor::from_vector(kGrads[2], {3}));
+  a.step();
+  b.step();
+  EXPECT_EQ(a.state_dict().at("average.w").to_vector(), b.state_dict().at("average.w").to_vector());
+}
+
 TEST(Optimizer, BadHyperparametersThrow) {
   Tensor p = Tensor::zeros({1}).set_requires_grad(true);
   EXPECT_THROW(SGD({{"p", p}}, {.lr = -1}), Error);
   EXPECT_THROW(Adam({{"p", p}}, {.beta1 = 1.0}), Error);
   EXPECT_THROW(Adam({{"p", p}}, {.eps = 0}), Error);
   EXPECT_THROW(SGD({{"p", p}}, {.nesterov = true}), Error);
+  SGD ok({{"p", p}}, {.lr = 0.1});
+  EXPECT_THROW(ok.enable_average(1.0), Error);
+  EXPECT_THROW(ok.enable_average(0.0), Error);
+  EXPECT_THROW(ok.swap_average(), Error);  // averaging is off
 }
 
 TEST(ClipGradNorm, ScalesToMaxNormAndReturnsTheNormBefore) {

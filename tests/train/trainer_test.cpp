@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "nn/safetensors.h"
 #include "support/tiny_stage.h"
 #include "train/lighting_stage.h"
 #include "train/sky_stage.h"
@@ -79,6 +80,38 @@ TEST(Trainer, LightingResumeIsBitIdentical) {
   ASSERT_EQ(tail.size(), 2u);
   EXPECT_EQ(tail[0], all[2]);
   EXPECT_EQ(tail[1], all[3]);
+}
+
+// optim.ema_decay: a resumed run ends with the same weights and averages, and best.safetensors
+// (written at the one validation, the last step) holds the averages as its model and the raw
+// weights as "optim.average.*": last.safetensors the other way round.
+TEST(Trainer, WeightAverageResumesBitIdenticallyAndBestHoldsTheAverage) {
+  nlohmann::json c = tiny_config(kStageSky);
+  c["optim"]["ema_decay"] = 0.5;
+  c["train"]["val_every"] = c["train"]["steps"];
+  const std::string a = temp_dir("ema_sky_a"), b = temp_dir("ema_sky_b");
+  SkyStage full(c);
+  run_losses(full, c, a, "", 0);
+  SkyStage first(c);
+  run_losses(first, c, b, "", 2);
+  SkyStage second(c);
+  run_losses(second, c, b, b + "/last.safetensors", 0);
+  const nn::SafetensorsFile la = nn::read_safetensors(a + "/last.safetensors");
+  const nn::SafetensorsFile lb = nn::read_safetensors(b + "/last.safetensors");
+  const nn::SafetensorsFile best = nn::read_safetensors(a + "/best.safetensors");
+  size_t averaged = 0, differ = 0;
+  for (const auto& [name, p] : full.model().named_parameters()) {
+    const std::string avg = "optim.average." + name;
+    ASSERT_TRUE(la.tensors.count(avg)) << avg;
+    EXPECT_EQ(la.tensors.at(name).to_vector(), lb.tensors.at(name).to_vector()) << name;
+    EXPECT_EQ(la.tensors.at(avg).to_vector(), lb.tensors.at(avg).to_vector()) << avg;
+    EXPECT_EQ(best.tensors.at(name).to_vector(), la.tensors.at(avg).to_vector()) << name;
+    EXPECT_EQ(best.tensors.at(avg).to_vector(), la.tensors.at(name).to_vector()) << avg;
+    ++averaged;
+    differ += la.tensors.at(name).to_vector() != la.tensors.at(avg).to_vector();
+  }
+  EXPECT_GT(averaged, 0u);
+  EXPECT_GT(differ, 0u);  // the average is not the last weights
 }
 
 TEST(Trainer, NonFiniteLossNamesTheLossAndStepAndKeepsTheCheckpoint) {

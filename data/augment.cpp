@@ -79,6 +79,33 @@ Tensor flip_panorama(const Tensor& pano) {
   return flip_horizontal(pano);
 }
 
+StreetSample flip_sample(const StreetSample& s) {
+  const auto mirror = [](const glm::dvec3& p) { return glm::dvec3(-p.x, p.y, p.z); };
+  const auto flip_pano = [](const Tensor& t) { return t.defined() ? flip_panorama(t) : t; };
+  StreetSample out;
+  out.id = s.id;
+  out.sky_hdr = flip_pano(s.sky_hdr);
+  out.pano_hdr = flip_pano(s.pano_hdr);
+  out.pano_ldr = flip_pano(s.pano_ldr);
+  out.pano_sky_mask = flip_pano(s.pano_sky_mask);
+  out.pano_position = mirror(s.pano_position);
+  out.sun_direction = mirror(s.sun_direction);
+  out.sun_known = s.sun_known;
+  out.exposure = s.exposure;
+  out.insert_light_probe_hdr = flip_pano(s.insert_light_probe_hdr);
+  out.light_probe_position = mirror(s.light_probe_position);
+  for (const StreetView& v : s.views) {
+    StreetView f = flip_view(v);  // pixels and principal point; the pose is set below
+    glm::dmat3 r = v.camera.rotation();
+    r[0] = -mirror(r[0]);  // columns are the camera axes: (−M·x, M·y, M·z)
+    r[1] = mirror(r[1]);
+    r[2] = mirror(r[2]);
+    f.camera = Camera(f.camera.intrinsics(), r, mirror(v.camera.position()));
+    out.views.push_back(std::move(f));
+  }
+  return out;
+}
+
 double random_exposure_factor(uint64_t seed, uint64_t stream, double stops) {
   SL_CHECK(std::isfinite(stops) && stops >= 0.0, "random_exposure_factor: stops must be finite and >= 0, got ", stops);
   return std::exp2(Rng(seed, stream).uniform(-stops, stops));

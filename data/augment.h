@@ -51,6 +51,15 @@ glm::dvec3 mirror_direction(const glm::dvec3& d, const glm::dvec3& unit_normal);
 // `world_direction` is given (e.g. the sun), it is mirrored across the same plane.
 StreetView flip_view(const StreetView& view, glm::dvec3* world_direction = nullptr);
 
+// Mirrors a whole street sample across the world plane x = 0 (every view, panorama, position
+// and the sun), so that several views stay consistent with one another: a world point X seen by
+// view v at pixel (u, y) becomes (−X.x, X.y, X.z), seen by the flipped view v at (W − u, y).
+// Each camera becomes R' = M·R·D, t' = M·t (M = D = diag(−1, 1, 1): a proper rotation again)
+// with cx' = W − cx; panoramas are flip_panorama'd. The insertion data is dropped
+// (has_insertion = false, box2d/box3d zeroed): a mirrored object is not the .glb's object.
+// Flipping twice gives the sample back.
+StreetSample flip_sample(const StreetSample& sample);
+
 // Panorama flip: pixels mirrored (φ → −φ) and directions (x, y, z) → (−x, y, z).
 Tensor flip_panorama(const Tensor& pano);
 inline glm::dvec3 flip_panorama_direction(const glm::dvec3& d) { return {-d.x, d.y, d.z}; }

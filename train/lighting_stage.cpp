@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "autodiff/ops.h"
+#include "data/augment.h"
 #include "data/hdri_folder.h"
 #include "data/hdri_split.h"
 #include "data/panorama.h"
@@ -77,6 +78,7 @@ LightingStage::LightingStage(const nlohmann::json& config, SampleSource train, S
   batch_size_ = config.at("train").at("batch_size").get<int64_t>();
   clip_ = config.at("optim").at("clip_grad_norm").get<double>();
   best_metric_ = config.at("train").value("best_metric", std::string("val_loss"));
+  flip_ = config.at("data").value("flip", false);
   SL_CHECK(train_.size > 0, "stage ", name(), ": the training split is empty");
   const LightingPredictorOptions po = predictor_options(config);
   batch_opt_ = StreetBatchOptions{.image_height = po.image_height,
@@ -167,6 +169,9 @@ LightingStage::Batch LightingStage::train_batch(int64_t step) const {
     Rng rng(seed_, global);
     // Stage 3 inserts into view 0 (the view with the path-traced ground truth).
     views.push_back(adversarial_ ? 0 : static_cast<size_t>(rng.randint(static_cast<int64_t>(samples.back().views.size()))));
+    // data.flip: the whole sample mirrored with probability 1/2 (stage 2 only: the mirrored
+    // scene's object is not the .glb's, so stage 3's insertion keeps the world as it is).
+    if (flip_ && !adversarial_ && rng.uniform() < 0.5) samples.back() = data::flip_sample(samples.back());
   }
   return make_batch(std::move(samples), views, seed_, first);
 }

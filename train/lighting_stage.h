@@ -19,7 +19,8 @@
 // input view and the rays come from Rng(seed, step·B + i): resume is bit-identical. Sources
 // (train/sample_source.h): the street dataset, mixed with real-panorama crops at
 // data.real_fraction; samples whose sun is not a usable label (sun_known = false) get no
-// direction loss. The next step's batch is built on a background thread while the current
+// direction loss. data.flip (stage 2): each training sample is mirrored with probability 1/2
+// (data/augment.h flip_sample, drawn from the same Rng after the view). The next step's batch is built on a background thread while the current
 // step computes; it is the same pure function of the step, so prefetching changes nothing.
 // Each step reports its phases' wall time (time_data_ms, time_forward_ms, time_render_ms,
 // time_backward_ms, time_optimizer_ms); time_data_ms is the time spent WAITING for data.
@@ -95,7 +96,7 @@ class LightingStage : public Stage {
   Metrics supervised_step(int64_t step);
 
   nlohmann::json config_;
-  bool adversarial_ = false;
+  bool adversarial_ = false, flip_ = false;
   uint64_t seed_;
   int64_t batch_size_;
   double clip_, lr_ = 0.0;

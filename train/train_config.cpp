@@ -30,6 +30,7 @@ json default_train_config() {
         {"hdri_train_split", "train"},
         {"hdri_val_split", "val"},
         {"real_fraction", 0.0},
+        {"flip", false},
         {"real_val_crops", 4},
         {"real_fov_deg", {50.0, 80.0}},
         {"real_pitch_deg", 10.0},

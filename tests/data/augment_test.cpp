@@ -56,6 +56,49 @@ TEST(Augment, FlippedViewSeesTheMirroredWorld) {
   EXPECT_NEAR(glm::length(back - sun0), 0.0, 1e-12);
 }
 
+// flip_sample mirrors the world across x = 0 for every view at once: each view sees the
+// mirrored point at (W − u, v) with the same depth, the sun and the panorama follow, the
+// insertion is dropped and a second flip gives the sample back.
+TEST(Augment, FlippedSampleMirrorsEveryViewAndThePanoramaConsistently) {
+  sl::data::StreetSample s;
+  s.id = "x";
+  s.sun_direction = glm::normalize(glm::dvec3(0.3, 0.8, -0.5));
+  s.pano_position = {0.7, 1.6, -3.0};
+  s.pano_ldr = Tensor::zeros({3, 16, 32});
+  s.pano_ldr.data<float>()[4 * 32 + 3] = 1.0f;
+  s.has_insertion = true;
+  for (const auto& [yaw, roll] : {std::pair{0.4, 0.0}, std::pair{-1.9, 0.15}}) {
+    StreetView v;
+    v.camera = Camera(intrinsics_from_fov(1.2, 40, 20), rotation_from_yaw_pitch_roll(yaw, 0.1, roll), {1, 1.6, -2});
+    v.ldr = Tensor::zeros({3, 20, 40});
+    v.depth = Tensor::zeros({20, 40});
+    s.views.push_back(v);
+  }
+  const sl::data::StreetSample f = sl::data::flip_sample(s);
+  ASSERT_EQ(f.views.size(), 2u);
+  EXPECT_FALSE(f.has_insertion);
+  for (size_t k = 0; k < 2; ++k) {
+    const Camera& c = s.views[k].camera;
+    const glm::dvec3 p = c.unproject(7.5, 5.5, 12.0);
+    const Projection pr = f.views[k].camera.project({-p.x, p.y, p.z});
+    EXPECT_NEAR(pr.pixel.x, 40 - 7.5, 1e-9) << "view " << k;
+    EXPECT_NEAR(pr.pixel.y, 5.5, 1e-9) << "view " << k;
+    EXPECT_NEAR(pr.depth, 12.0, 1e-9) << "view " << k;
+    EXPECT_NEAR(glm::determinant(f.views[k].camera.rotation()), 1.0, 1e-12);
+  }
+  EXPECT_EQ(f.sun_direction, glm::dvec3(-s.sun_direction.x, s.sun_direction.y, s.sun_direction.z));
+  EXPECT_EQ(f.pano_position, glm::dvec3(-0.7, 1.6, -3.0));
+  EXPECT_EQ(f.pano_ldr.data<float>()[4 * 32 + (32 - 1 - 3)], 1.0f);
+  const sl::data::StreetSample back = sl::data::flip_sample(f);
+  EXPECT_EQ(back.sun_direction, s.sun_direction);
+  EXPECT_EQ(back.pano_ldr.to_vector(), s.pano_ldr.to_vector());
+  for (size_t k = 0; k < 2; ++k) {
+    EXPECT_EQ(back.views[k].camera.position(), s.views[k].camera.position());
+    EXPECT_NEAR(glm::length(back.views[k].camera.rotation()[0] - s.views[k].camera.rotation()[0]), 0.0, 1e-15);
+    EXPECT_NEAR(back.views[k].camera.intrinsics().cx, s.views[k].camera.intrinsics().cx, 1e-12);
+  }
+}
+
 TEST(Augment, PanoramaFlipMirrorsAzimuth) {
   Tensor pano = Tensor::zeros({3, 16, 32});
   const glm::dvec3 d = glm::normalize(glm::dvec3(0.6, 0.3, -0.4));

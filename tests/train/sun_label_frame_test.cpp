@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "data/augment.h"
 #include "data/panorama.h"
 #include "data/panorama_sample.h"
 #include "data/sky_model.h"
@@ -53,6 +54,44 @@ TEST(SunLabelFrame, LabelLandsOnTheCropsBrightestPixel) {
     EXPECT_GT(glm::dot(peak, it.sun_direction), std::cos(3.0 * kPi / 180.0));
   }
   EXPECT_GT(seen, 2);
+}
+
+// data.flip's mirrored sample gives the mirrored training item: in the canonical frame the sun
+// label's x flips, the input image is the mirror image, and the label lands at (W − u, v).
+TEST(SunLabelFrame, FlippedSampleGivesTheMirroredItem) {
+  data::SkyParams p;
+  p.sun_elevation_rad = 8.0 * kPi / 180.0;
+  p.sun_azimuth_rad = -0.4;
+  const Tensor pano = data::PreethamSky(p).render(128, 256);
+  data::PanoramaSampleOptions o;
+  o.crop.width = 64;
+  o.crop.height = 32;
+  o.pano_width = 128;
+  o.pano_height = 64;
+  render::VsgGrid grid;
+  grid.dims = {8, 8, 4};
+  train::StreetBatchOptions bo;
+  bo.need_volume = false;
+  bo.image_height = 32;
+  bo.image_width = 64;
+  int in_front = 0;
+  for (uint64_t stream = 0; stream < 8; ++stream) {
+    const data::StreetSample s = data::panorama_street_sample(pano, "p", 3, stream, o);
+    const train::StreetItem a = train::make_street_item(s, 0, grid, bo, 1, stream);
+    const train::StreetItem b = train::make_street_item(data::flip_sample(s), 0, grid, bo, 1, stream);
+    EXPECT_NEAR(b.sun_direction.x, -a.sun_direction.x, 1e-9) << stream;
+    EXPECT_NEAR(b.sun_direction.y, a.sun_direction.y, 1e-9) << stream;
+    EXPECT_NEAR(b.sun_direction.z, a.sun_direction.z, 1e-9) << stream;
+    EXPECT_EQ(b.image.to_vector(), data::flip_horizontal(a.image).to_vector()) << stream;
+    const render::Projection pa = a.camera.project(a.camera.position() + a.sun_direction * 1e4);
+    const render::Projection pb = b.camera.project(b.camera.position() + b.sun_direction * 1e4);
+    ASSERT_EQ(pb.in_front, pa.in_front) << stream;
+    if (!pa.in_front) continue;
+    ++in_front;
+    EXPECT_NEAR(pb.pixel.x, 64 - pa.pixel.x, 1e-6) << stream;
+    EXPECT_NEAR(pb.pixel.y, pa.pixel.y, 1e-6) << stream;
+  }
+  EXPECT_GT(in_front, 0);
 }
 
 }  // namespace

@@ -5,7 +5,9 @@
 //     predicted dome for branches without a sky vector); novel-view LDR PSNR and si-PSNR (all
 //     pixels, and pixels whose ray points into the upper hemisphere); on the generator's data,
 //     insertion against the path-traced ground truth (PSNR over the object and its shadow
-//     region, mean absolute shadow-ratio error); lighting inference time per image.
+//     region, mean absolute shadow-ratio error); lighting inference time per image; and
+//     "sun_per_image": each labelled image's id (a street sample, or "<panorama>#<crop>"), its
+//     sun error and the predicted and true directions in the input camera's canonical frame.
 //   sky-autoencoder checkpoints: sky log-L2 = mean (ln(1 + L̂) − ln(1 + L))² of the
 //     reconstructed exposure-normalised dome, and the sun angular error of f_dir.
 // Error against run time (--out): the first lighting checkpoint is re-run at several insertion
@@ -355,6 +357,13 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   est.set_flip_average(flip_average);
   // Every score carries its group for the bootstrap: the street's id, or the real crop's panorama.
   Grouped sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, oracle_psnr, oracle_ratio;
+  // One entry per image with a sun label: which image, the error and both directions (in the
+  // input camera's canonical frame), so failures can be found and looked at.
+  json per_image = json::array();
+  const auto add_image = [&](const std::string& id, const glm::dvec3& predicted, const glm::dvec3& truth, double e) {
+    per_image.push_back({{"id", id}, {"sun_error_deg", e}, {"predicted", {predicted.x, predicted.y, predicted.z}},
+                         {"truth", {truth.x, truth.y, truth.z}}});
+  };
   std::vector<double> ms;
   size_t sun_unknown = 0;  // samples whose sun label is not usable (soft sun): no sun error
   std::map<std::string, std::vector<double>> budget_err, budget_ms;
@@ -375,8 +384,14 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
       glm::dvec3 dir = l.sun_direction_canonical;
       if (!l.has_sky_code) dir = extract_sun(l.env.contiguous()).direction;
       // As on real skies (and in training), a soft sun's direction is no label.
-      if (s.sun_known) sun_err.add(angular_error_deg(dir, l.frame.direction(s.sun_direction)), s.id);
-      else ++sun_unknown;
+      if (s.sun_known) {
+        const glm::dvec3 truth = l.frame.direction(s.sun_direction);
+        const double e = angular_error_deg(dir, truth);
+        sun_err.add(e, s.id);
+        add_image(s.id, dir, truth, e);
+      } else {
+        ++sun_unknown;
+      }
       for (size_t k = 1; k < s.views.size(); ++k) {
         NoGradGuard ng;
         const auto [pred, upper] = render_view(l, s.views[k].camera, view_rows, est.volume_query());
@@ -439,6 +454,8 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         const double e = angular_error_deg(dir, c.sun_canonical);
         sun_err.add(e, c.panorama);
         (c.sun_in_crop ? sun_in : sun_out).add(e, c.panorama);
+        add_image(cat(c.panorama, "#", i), dir, c.sun_canonical, e);
+        per_image.back()["sun_in_crop"] = c.sun_in_crop;
       } else {
         ++sun_unknown;
       }
@@ -472,7 +489,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
             {"sun", sun_stats_json(sun_err, sun_in, sun_out, real != nullptr)},
             {"psnr", mean_of(ps.v)}, {"si_psnr", mean_of(sps.v)},
             {"psnr_upper", mean_of(ups.v)}, {"si_psnr_upper", mean_of(usps.v)},
-            {"inference_ms", mean_of(ms)}};
+            {"inference_ms", mean_of(ms)}, {"sun_per_image", per_image}};
   json ci = {{"sun_error_median_deg", ci_json(sun_err.v, sun_err.g, Statistic::Median)},
              {"sun_error_mean_deg", ci_json(sun_err.v, sun_err.g, Statistic::Mean)},
              {"psnr", ci_json(ps.v, ps.g, Statistic::Mean)}, {"si_psnr", ci_json(sps.v, sps.g, Statistic::Mean)},

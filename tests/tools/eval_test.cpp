@@ -42,6 +42,24 @@ TEST(EvalTool, ReportsTheMetricsOfTables1And2WithARowPerCheckpoint) {
   EXPECT_TRUE(fs::exists(dir + "/out/results.md"));
   EXPECT_TRUE(fs::exists(dir + "/out/error_time.png"));
   EXPECT_EQ(j["results"][0]["sun_error_median_deg"], j["results"][1]["sun_error_median_deg"]);  // deterministic
+  // Per image: one entry per labelled image, whose errors are the ones the median is taken of,
+  // and each error is the angle between the two directions it lists.
+  const auto& per = j["results"][0]["sun_per_image"];
+  ASSERT_EQ(per.size(), j["results"][0]["images"].get<size_t>() - j["results"][0]["sun_unknown"].get<size_t>());
+  ASSERT_FALSE(per.empty());
+  std::vector<double> errors;
+  for (const auto& e : per) {
+    const glm::dvec3 p(e["predicted"][0], e["predicted"][1], e["predicted"][2]);
+    const glm::dvec3 t(e["truth"][0], e["truth"][1], e["truth"][2]);
+    const double angle = std::acos(std::clamp(glm::dot(glm::normalize(p), glm::normalize(t)), -1.0, 1.0)) * 180.0 / kPi;
+    EXPECT_NEAR(e["sun_error_deg"].get<double>(), angle, 1e-6) << e.dump();
+    EXPECT_FALSE(e["id"].get<std::string>().empty());
+    errors.push_back(e["sun_error_deg"].get<double>());
+  }
+  std::sort(errors.begin(), errors.end());
+  const size_t n = errors.size();
+  const double med = n % 2 ? errors[n / 2] : 0.5 * (errors[n / 2 - 1] + errors[n / 2]);
+  EXPECT_NEAR(med, j["results"][0]["sun_error_median_deg"].get<double>(), 1e-9);
   // Insertion error, also by part of the region, and the oracle row naming the light it used
   // (the tiny dataset has no light probe at the object).
   const auto& first = j["results"][0];
@@ -145,6 +163,12 @@ TEST(EvalTool, RealSkyBenchmarkReportsTable1BesideTheBaselineOfTheTrainingSplit)
     for (const char* m : {"count", "median_deg", "mean_deg", "within_15", "within_30", "within_45"})
       EXPECT_TRUE(sun[k].contains(m)) << k << "." << m;
   EXPECT_EQ(sun["all"]["count"].get<int>(), sun["sun_in_crop"]["count"].get<int>() + sun["sun_outside_crop"]["count"].get<int>());
+  const auto& per = d["results"][0]["sun_per_image"];
+  ASSERT_EQ(per.size(), sun["all"]["count"].get<size_t>());
+  for (const auto& e : per) {
+    EXPECT_EQ(e["id"].get<std::string>().rfind("c_1k.exr#", 0), 0u) << e.dump();  // the test panorama's crops
+    EXPECT_TRUE(e.contains("sun_in_crop"));
+  }
   // The baseline comes from the training split only, computed as the library does.
   const auto& b = d["baseline"];
   EXPECT_EQ(b["from_panoramas"], nlohmann::json({"a_1k.hdr", "b_1k.hdr"}));

@@ -481,7 +481,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
     std::sort(line.begin(), line.end());
     for (const auto& [t, e] : line) plot->push_back({label, t, e});
   }
-  json r = {{"checkpoint", ckpt}, {"stage", est.stage()}, {"step", est.step()},
+  json r = {{"checkpoint", ckpt}, {"stage", est.stage()}, {"step", est.step()}, {"flip_average", flip_average},
             {"sky_branch", est.predictor().options().sky_branch},
             {"volume_branch", est.predictor().options().volume_branch},
             {"images", count}, {"sun_unknown", sun_unknown},
@@ -592,7 +592,8 @@ int run(int argc, char** argv) {
                {"--view-rows", "N", "rows at which novel views are rendered (default 32)"},
                {"--baseline-data", "DIR", "street dataset whose train split gives the constant baseline of street --data"},
                {"--no-budgets", "", "skip the error-against-time sweep"},
-               {"--flip-average", "", "average each crop's sun with its left-right mirror's (one more backbone pass)"},
+               {"--no-flip-average", "", "one network pass per image for the sun, instead of averaging it with the left-right\n"
+                                         "mirrored image's (the estimator's default)"},
                {"--out", "DIR", "write results.json, results.md and error_time.png here"},
                {"--json", "", "print the results as one JSON object on stdout"}});
   if (!a.parse(argc, argv)) return 0;
@@ -642,7 +643,7 @@ int run(int argc, char** argv) {
         // The oracle row depends only on the data: computed with the first lighting checkpoint.
         const bool want_oracle = street && !oracle_done;
         results.push_back(eval_lighting(ckpts[i], data, split, limit, rows, want_plot ? &plot : nullptr, names[i],
-                                        real.get(), want_oracle, a.has("--flip-average")));
+                                        real.get(), want_oracle, !a.has("--no-flip-average")));
         oracle_done = oracle_done || want_oracle;
         plotted = plotted || want_plot;
       }

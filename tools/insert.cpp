@@ -279,6 +279,7 @@ int single(const cli::Args& a) {
   Refinement refine = refinement_from_args(a, checkpoint);
   AtomicDirectory out(a.get("--out"));
   LightingEstimator est(checkpoint);
+  est.set_flip_average(!a.has("--no-flip-average"));
   std::vector<InferenceView> views;
   for (const Photo& p : photos) views.push_back({p.ldr, p.depth, p.camera});
   std::optional<ShadowSunLighting> shadow;
@@ -594,6 +595,7 @@ int batch(const cli::Args& a) {
     }
   }
   LightingEstimator est(a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path());
+  est.set_flip_average(!a.has("--no-flip-average"));
   for (const char* d : {"image_2", "label_2", "calib"}) fs::create_directories(out / d);
   write_file_atomic((out / "batch.json").string(), marker.dump(2) + "\n");
   for (const char* d : {"image_2", "label_2", "calib"}) sweep_stale_temp_files((out / d).string());
@@ -648,6 +650,8 @@ int run(int argc, char** argv) {
                {"--scale", "S", "uniform object scale (default 1)"},
                {"--checkpoint", "CKPT", "lighting or adversarial stage checkpoint (default: the released model, models/streetlight.safetensors)"},
                {"--out", "DIR", "output folder (written atomically)"},
+               {"--no-flip-average", "", "take the sun from one pass of the network instead of averaging it with the\n"
+                                         "mirrored photo's (saves one backbone pass)"},
                {"--exr", "", "also write the composite as linear EXR"},
                {"--sun-azimuth", "DEG", "edit the sun: world azimuth (Sec 3.2 sky vector)"},
                {"--sun-elevation", "DEG", "edit the sun: elevation above the horizon"},

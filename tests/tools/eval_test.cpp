@@ -42,6 +42,7 @@ TEST(EvalTool, ReportsTheMetricsOfTables1And2WithARowPerCheckpoint) {
   EXPECT_TRUE(fs::exists(dir + "/out/results.md"));
   EXPECT_TRUE(fs::exists(dir + "/out/error_time.png"));
   EXPECT_EQ(j["results"][0]["sun_error_median_deg"], j["results"][1]["sun_error_median_deg"]);  // deterministic
+  EXPECT_EQ(j["results"][0]["flip_average"], true);  // the estimator's default (--no-flip-average: off)
   // Per image: one entry per labelled image, whose errors are the ones the median is taken of,
   // and each error is the angle between the two directions it lists.
   const auto& per = j["results"][0]["sun_per_image"];

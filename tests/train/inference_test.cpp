@@ -66,6 +66,8 @@ TEST(Inference, FusingAViewWithItselfChangesNothing) {
 TEST(Inference, FlipAverageMirrorsTheSunWithThePhoto) {
   const std::string dir = test::tool_dir("inference_flip");
   LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  EXPECT_TRUE(est.flip_average());  // the default
+  est.set_flip_average(false);
   const InferenceView v = view_at(0.0);
   InferenceView mirrored = v;
   mirrored.ldr = data::flip_horizontal(v.ldr);

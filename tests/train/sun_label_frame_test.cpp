@@ -17,26 +17,39 @@
 namespace sl::test {
 namespace {
 
-TEST(SunLabelFrame, LabelLandsOnTheCropsBrightestPixel) {
-  data::SkyParams p;
-  p.sun_elevation_rad = 6.0 * kPi / 180.0;
-  p.sun_azimuth_rad = 0.7;
-  const Tensor pano = data::PreethamSky(p).render(256, 512);
-  data::PanoramaSampleOptions o;
-  o.crop.width = 128;
-  o.crop.height = 64;
-  o.pano_width = 256;
-  o.pano_height = 128;
+// A sky-model panorama with its sun at (elevation, azimuth), and crops of width × width/2 made
+// into training items without the volume.
+struct CropSetup {
+  Tensor pano;
+  data::PanoramaSampleOptions crop;
   render::VsgGrid grid;
-  grid.dims = {8, 8, 4};
-  train::StreetBatchOptions bo;
-  bo.need_volume = false;
-  bo.image_height = 64;
-  bo.image_width = 128;
+  train::StreetBatchOptions batch;
+  CropSetup(double elevation_deg, double azimuth_rad, int width) {
+    data::SkyParams p;
+    p.sun_elevation_rad = elevation_deg * kPi / 180.0;
+    p.sun_azimuth_rad = azimuth_rad;
+    pano = data::PreethamSky(p).render(2 * width, 4 * width);
+    crop.crop.width = width;
+    crop.crop.height = width / 2;
+    crop.pano_width = 2 * width;
+    crop.pano_height = width;
+    grid.dims = {8, 8, 4};
+    batch.need_volume = false;
+    batch.image_height = width / 2;
+    batch.image_width = width;
+  }
+  data::StreetSample sample(uint64_t stream) const { return data::panorama_street_sample(pano, "p", 3, stream, crop); }
+  train::StreetItem item(const data::StreetSample& s, uint64_t stream) const {
+    return train::make_street_item(s, 0, grid, batch, 1, stream);
+  }
+};
+
+TEST(SunLabelFrame, LabelLandsOnTheCropsBrightestPixel) {
+  const CropSetup c(6.0, 0.7, 128);
   int seen = 0;
   for (uint64_t stream = 0; stream < 400 && seen < 6; ++stream) {
-    const data::StreetSample s = data::panorama_street_sample(pano, "p", 3, stream, o);
-    const train::StreetItem it = train::make_street_item(s, 0, grid, bo, 1, stream);
+    const data::StreetSample s = c.sample(stream);
+    const train::StreetItem it = c.item(s, stream);
     const render::Projection pr = it.camera.project(it.camera.position() + it.sun_direction * 1e4);
     const Tensor hdr = s.views[0].hdr.contiguous();
     const int64_t h = hdr.size(1), w = hdr.size(2);
@@ -59,26 +72,12 @@ TEST(SunLabelFrame, LabelLandsOnTheCropsBrightestPixel) {
 // data.flip's mirrored sample gives the mirrored training item: in the canonical frame the sun
 // label's x flips, the input image is the mirror image, and the label lands at (W − u, v).
 TEST(SunLabelFrame, FlippedSampleGivesTheMirroredItem) {
-  data::SkyParams p;
-  p.sun_elevation_rad = 8.0 * kPi / 180.0;
-  p.sun_azimuth_rad = -0.4;
-  const Tensor pano = data::PreethamSky(p).render(128, 256);
-  data::PanoramaSampleOptions o;
-  o.crop.width = 64;
-  o.crop.height = 32;
-  o.pano_width = 128;
-  o.pano_height = 64;
-  render::VsgGrid grid;
-  grid.dims = {8, 8, 4};
-  train::StreetBatchOptions bo;
-  bo.need_volume = false;
-  bo.image_height = 32;
-  bo.image_width = 64;
+  const CropSetup c(8.0, -0.4, 64);
   int in_front = 0;
   for (uint64_t stream = 0; stream < 8; ++stream) {
-    const data::StreetSample s = data::panorama_street_sample(pano, "p", 3, stream, o);
-    const train::StreetItem a = train::make_street_item(s, 0, grid, bo, 1, stream);
-    const train::StreetItem b = train::make_street_item(data::flip_sample(s), 0, grid, bo, 1, stream);
+    const data::StreetSample s = c.sample(stream);
+    const train::StreetItem a = c.item(s, stream);
+    const train::StreetItem b = c.item(data::flip_sample(s), stream);
     EXPECT_NEAR(b.sun_direction.x, -a.sun_direction.x, 1e-9) << stream;
     EXPECT_NEAR(b.sun_direction.y, a.sun_direction.y, 1e-9) << stream;
     EXPECT_NEAR(b.sun_direction.z, a.sun_direction.z, 1e-9) << stream;

@@ -80,7 +80,8 @@ Tensor flip_panorama(const Tensor& pano) {
 }
 
 StreetSample flip_sample(const StreetSample& s) {
-  const auto mirror = [](const glm::dvec3& p) { return glm::dvec3(-p.x, p.y, p.z); };
+  // The world mirror x → −x is the panorama flip's, for positions as for directions.
+  const auto mirror = flip_panorama_direction;
   const auto flip_pano = [](const Tensor& t) { return t.defined() ? flip_panorama(t) : t; };
   StreetSample out;
   out.id = s.id;

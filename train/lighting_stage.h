@@ -20,8 +20,9 @@
 // (train/sample_source.h): the street dataset, mixed with real-panorama crops at
 // data.real_fraction; samples whose sun is not a usable label (sun_known = false) get no
 // direction loss. data.flip (stage 2): each training sample is mirrored with probability 1/2
-// (data/augment.h flip_sample, drawn from the same Rng after the view). The next step's batch is built on a background thread while the current
-// step computes; it is the same pure function of the step, so prefetching changes nothing.
+// (data/augment.h flip_sample, drawn from the same Rng after the view). The next step's batch
+// is built on a background thread while the current step computes; it is the same pure
+// function of the step, so prefetching changes nothing.
 // Each step reports its phases' wall time (time_data_ms, time_forward_ms, time_render_ms,
 // time_backward_ms, time_optimizer_ms); time_data_ms is the time spent WAITING for data.
 // Validation on the val split (view 0 as input, fixed rays): val_loss, sun angular error

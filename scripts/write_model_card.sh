@@ -50,13 +50,18 @@ validation sun error; stage 3 is the end-to-end fine-tuning through object inser
 
 Reproduce: \`bash scripts/train_release.sh\` (resumable; \`--runs DIR\` for the run folder). Wall times
 were measured while other jobs shared the machine unless the closing note of the release says otherwise.
+The release configs pin what this model was trained with, even where later defaults changed:
+- \`model.volume.spacing = "metric"\`;
+- in stage 3, \`insertion.importance_sampling = false\` and \`insertion.real = "path_traced"\`.
 
 ## Metrics (test splits, never trained or selected on)
 Command: \`streetlight-eval --data ../shared/data/hdri --hdri-split configs/hdri_split.json --split test
 --crops 8 --data RUN/test_street --baseline-data RUN/street --checkpoint RUN/lighting/best.safetensors
 --checkpoint RUN/adversarial/best.safetensors\`. The generated test streets are a separate set
 (\`configs/release_datagen_test.json\`: its own seed, same generator settings), never trained or
-selected on; the constant baseline comes from the training streets.
+selected on; the constant baseline comes from the training streets. Each image's sun is the
+average of the network's answer for the image and for its mirror image (the estimator's default;
+\`--no-flip-average\` gives one pass).
 Sun errors in degrees. The constant baseline always answers the mean sun direction of the training
 panoramas' crops (in the camera's frame); a model that does not beat it has learned nothing.
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <vector>
 
@@ -78,6 +79,47 @@ TEST(Config, BadFilesAreErrorsNamingTheFile) {
   const std::string e = error_of([&] { c.merge_file(path); });
   EXPECT_NE(e.find(path), std::string::npos) << e;
   EXPECT_NE(e.find("not valid JSON"), std::string::npos) << e;
+}
+
+TEST(Config, ExtendsMergesTheBaseFileFirstRelativeToTheExtendingFile) {
+  const std::string dir = ::testing::TempDir() + "/config_extends";
+  std::filesystem::create_directories(dir + "/sub");
+  std::ofstream(dir + "/base.json") << "{\"seed\": 7, \"model\": {\"base_channels\": 32, \"norm\": \"group\"}}";
+  std::ofstream(dir + "/sub/middle.json") << "{\"extends\": \"../base.json\", \"model\": {\"base_channels\": 48}}";
+  std::ofstream(dir + "/sub/top.json") << "{\"extends\": \"middle.json\", \"seed\": 9}";
+  Config c(defaults());
+  c.merge_file(dir + "/sub/top.json");
+  EXPECT_EQ(c.integer("seed"), 9);                  // the extending file wins
+  EXPECT_EQ(c.integer("model.base_channels"), 48);  // the middle file over the base
+  EXPECT_EQ(c.string("model.norm"), "group");       // the base where nothing overrides it
+  EXPECT_EQ(c.integer("train.steps"), 100);         // the defaults where no file sets it
+  EXPECT_FALSE(c.tree().contains("extends"));       // not a key of the effective config
+}
+
+TEST(Config, ExtendsCyclesMissingBasesAndNonStringsAreErrorsNamingTheFile) {
+  const std::string dir = ::testing::TempDir() + "/config_extends_bad";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir + "/a.json") << "{\"extends\": \"b.json\"}";
+  std::ofstream(dir + "/b.json") << "{\"extends\": \"a.json\"}";
+  std::ofstream(dir + "/self.json") << "{\"extends\": \"self.json\"}";
+  std::ofstream(dir + "/missing.json") << "{\"extends\": \"nowhere.json\"}";
+  std::ofstream(dir + "/number.json") << "{\"extends\": 3}";
+  Config c(defaults());
+  std::string e = error_of([&] { c.merge_file(dir + "/a.json"); });
+  EXPECT_NE(e.find("cycle"), std::string::npos) << e;
+  EXPECT_NE(e.find("b.json"), std::string::npos) << e;
+  e = error_of([&] { c.merge_file(dir + "/self.json"); });
+  EXPECT_NE(e.find("cycle"), std::string::npos) << e;
+  e = error_of([&] { c.merge_file(dir + "/missing.json"); });
+  EXPECT_NE(e.find("nowhere.json"), std::string::npos) << e;
+  e = error_of([&] { c.merge_file(dir + "/number.json"); });
+  EXPECT_NE(e.find("number.json"), std::string::npos) << e;
+  EXPECT_NE(e.find("extends"), std::string::npos) << e;
+  // After the errors, a good file still merges (no stale chain is left behind).
+  std::ofstream(dir + "/good.json") << "{\"seed\": 5}";
+  std::ofstream(dir + "/child.json") << "{\"extends\": \"good.json\"}";
+  c.merge_file(dir + "/child.json");
+  EXPECT_EQ(c.integer("seed"), 5);
 }
 
 TEST(Config, NumberPastDoubleIsACleanError) {

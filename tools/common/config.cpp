@@ -1,6 +1,7 @@
 #include "tools/common/config.h"
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 
 #include "util/error.h"
@@ -122,6 +123,28 @@ void Config::merge_file(const std::string& path) {
     j = json::parse(in, nullptr, true, /*ignore_comments=*/true);
   } catch (const json::exception& e) {  // parse_error, and out_of_range for a number past double
     fail("config file '", path, "' is not valid JSON: ", e.what());
+  }
+  if (j.is_object() && j.contains("extends")) {
+    const json& base = j["extends"];
+    SL_CHECK(base.is_string() && !base.get<std::string>().empty(), "config file '", path,
+             "': \"extends\" expects the path of another config file, got ", base.dump());
+    const std::string base_path =
+        (std::filesystem::path(path).parent_path() / base.get<std::string>()).lexically_normal().string();
+    const std::string self = std::filesystem::path(path).lexically_normal().string();
+    SL_CHECK(extending_.size() < 16, "config file '", path, "': \"extends\" chains deeper than 16 files");
+    SL_CHECK(base_path != self && std::find(extending_.begin(), extending_.end(), base_path) == extending_.end(),
+             "config file '", path, "' extends '", base_path, "', which is already being read (a cycle)");
+    SL_CHECK(std::ifstream(base_path).good(), "config file '", path, "' extends '", base_path,
+             "', which cannot be opened");
+    extending_.push_back(self);
+    try {
+      merge_file(base_path);
+    } catch (...) {
+      extending_.pop_back();
+      throw;
+    }
+    extending_.pop_back();
+    j.erase("extends");
   }
   merge(j, "config file '" + path + "'");
 }

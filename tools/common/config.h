@@ -6,6 +6,10 @@
 // type differs from the default's is an error naming the key path and both types. Integers are
 // accepted where a float is expected, not the reverse. --set values parse as JSON, falling back
 // to a plain string ("--set model.norm=batch"). Typed getters throw naming the key path.
+// A config file may start from another: a top-level "extends": "base.json" (a path relative to
+// the extending file's folder) merges the base file first, then the rest of the file over it.
+// Chains are allowed; a cycle, a missing base or a non-string "extends" is an error naming the
+// file. "extends" itself is not a config key and is not stored.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -19,7 +23,7 @@ class Config {
  public:
   explicit Config(nlohmann::json defaults);
 
-  void merge_file(const std::string& path);                 // errors name the file
+  void merge_file(const std::string& path);                 // errors name the file; follows "extends"
   void merge(const nlohmann::json& overrides, const std::string& origin);
   void set(const std::string& assignment);                  // "a.b.c=value"
 
@@ -34,6 +38,7 @@ class Config {
  private:
   nlohmann::json defaults_;
   nlohmann::json value_;
+  std::vector<std::string> extending_;  // the files whose "extends" chain is being followed
 };
 
 // Every key path of a JSON object ("a", "a.b", ...), for suggestions and documentation.

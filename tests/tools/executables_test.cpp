@@ -9,6 +9,9 @@
 #include <filesystem>
 #include <string>
 
+#include "tools/common/cli.h"
+#include "util/error.h"
+
 namespace sl::test {
 
 namespace {
@@ -57,6 +60,38 @@ TEST(Executables, EveryToolAnswersHelpAndRejectsBadFlagsWithExitCode2) {
     EXPECT_EQ(bad.code, 2) << exe << "\n" << bad.out;
     EXPECT_EQ(bad.out.rfind("error: ", 0), 0u) << exe << " printed:\n" << bad.out;
     EXPECT_EQ(std::count(bad.out.begin(), bad.out.end(), '\n'), 1) << exe << " printed:\n" << bad.out;
+  }
+}
+
+// The streetlight-bench subcommands parse their counts by hand; a count that is not a whole
+// integer in range is the same one-line error naming the flag and the value, exit 2.
+TEST(Executables, BenchCountsThatAreNotIntegersAreOneLineErrors) {
+  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
+  if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
+  for (const std::string& args : {std::string("train-step --config x.json --steps 12abc"),
+                                  std::string("train-step --config x.json --warmup -1"),
+                                  std::string("predictor-step --batch two"),
+                                  std::string("gen-mesh --triangles 0 --out never_written.glb")}) {
+    const ProcessResult r = run(bench + " " + args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
+    EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << args << "\n" << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find("must be an integer in ["), std::string::npos) << args << "\n" << r.out;
+  }
+}
+
+TEST(CliParseInteger, TakesTheWholeValueInRangeOrNamesIt) {
+  EXPECT_EQ(cli::parse_integer("x: --n", "42", 1, 100), 42);
+  EXPECT_EQ(cli::parse_integer("x: --n", "-3", -5, 5), -3);
+  for (const char* bad : {"", "4.5", "12abc", "101", "0", " 7"}) {
+    try {
+      cli::parse_integer("x: --n", bad, 1, 100);
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("x: --n must be an integer in [1, 100], got '" + std::string(bad) + "'"),
+                std::string::npos)
+          << e.what();
+    }
   }
 }
 

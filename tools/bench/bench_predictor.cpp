@@ -13,6 +13,7 @@
 #include "nn/optim.h"
 #include "tools/bench/bench.h"
 #include "tools/bench/timing.h"
+#include "tools/common/cli.h"
 #include "train/lighting_predictor.h"
 
 namespace sl::bench {
@@ -23,7 +24,7 @@ int run_predictor_step(const std::vector<std::string>& args) {
   int64_t batch = 2;
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--json") json = true;
-    else if (args[i] == "--batch" && i + 1 < args.size()) batch = std::stoll(args[++i]);
+    else if (args[i] == "--batch" && i + 1 < args.size()) batch = cli::parse_integer("predictor-step: --batch", args[++i], 1, 4096);
     else if (args[i] == "--help" || args[i] == "-h") {
       std::printf("usage: streetlight-bench predictor-step [--batch N] [--json]\n"
                   "  One AdamW training step of the default lighting predictor without the renderer.\n");

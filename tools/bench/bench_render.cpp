@@ -34,6 +34,7 @@
 #include "render/primitives.h"
 #include "tools/bench/bench.h"
 #include "tools/bench/timing.h"
+#include "tools/common/cli.h"
 #include "tools/common/plot.h"
 #include "util/error.h"
 #include "util/file.h"
@@ -88,16 +89,7 @@ std::vector<std::string> split_commas(const std::string& v) {
 }
 
 int to_int(const std::string& key, const std::string& v, int lo, int hi) {
-  size_t used = 0;
-  long long x = 0;
-  try {
-    x = std::stoll(v, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  SL_CHECK(used == v.size() && !v.empty() && x >= lo && x <= hi, "render: ", key, " must be an integer in [", lo, ", ",
-           hi, "], got '", v, "'");
-  return static_cast<int>(x);
+  return static_cast<int>(cli::parse_integer("render: " + key, v, lo, hi));
 }
 
 Args parse(const std::vector<std::string>& a) {

@@ -23,6 +23,7 @@
 #include "render/gltf_writer.h"
 #include "render/ray_file.h"
 #include "tools/bench/bench.h"
+#include "tools/common/cli.h"
 #include "util/error.h"
 #include "util/math.h"
 #include "util/parallel.h"
@@ -68,17 +69,7 @@ struct Options {
     return it->second;
   }
   int64_t integer(const std::string& command, const std::string& k, int64_t lo, int64_t hi) const {
-    const std::string s = get(command, k);
-    size_t used = 0;
-    long long v = 0;
-    try {
-      v = std::stoll(s, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    SL_CHECK(used == s.size() && !s.empty() && v >= lo && v <= hi, command, ": ", k, " must be an integer in [", lo,
-             ", ", hi, "], got '", s, "'");
-    return v;
+    return cli::parse_integer(command + ": " + k, get(command, k), lo, hi);
   }
 };
 

@@ -1,5 +1,6 @@
 #include "tools/common/cli.h"
 
+#include <cctype>
 #include <cstdlib>
 #include <filesystem>
 
@@ -98,6 +99,20 @@ int64_t Args::integer(const std::string& name, int64_t fallback) const {
   } catch (const std::exception&) {
   }
   fail(program_, ": option ", name, " expects an integer, got '", v, "'");
+}
+
+int64_t parse_integer(const std::string& what, const std::string& value, int64_t lo, int64_t hi) {
+  size_t used = 0;
+  long long v = 0;
+  try {
+    v = std::stoll(value, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  const bool whole = !value.empty() && !std::isspace(static_cast<unsigned char>(value.front())) && used == value.size();
+  SL_CHECK(whole && v >= lo && v <= hi, what, " must be an integer in [", lo, ", ",
+           hi, "], got '", value, "'");
+  return v;
 }
 
 int run_main(const std::function<int()>& body) {

@@ -12,6 +12,9 @@
 //   sl::Error listing where it looked when none exists.
 // - Progress: on a terminal, one self-overwriting bar with rate and ETA; otherwise a plain line
 //   at most every `plain_interval_s` seconds (and at the end), so logs stay short.
+// - parse_integer(what, value, lo, hi): the whole of `value` as an integer in [lo, hi], else
+//   sl::Error "<what> must be an integer in [lo, hi], got '<value>'" (for hand-parsed flags such
+//   as the streetlight-bench subcommands').
 #pragma once
 #include <chrono>
 #include <cstdint>
@@ -23,6 +26,8 @@
 namespace sl::cli {
 
 std::string released_model_path();
+
+int64_t parse_integer(const std::string& what, const std::string& value, int64_t lo, int64_t hi);
 
 struct Flag {
   std::string name;        // "--config"

@@ -4,8 +4,9 @@
 // initialise() and `--warmup` steps, then reports the mean of `--steps` steps with the 95%
 // interval of that mean and the fastest and slowest step. Steps differ: a lighting batch may or
 // may not hold real crops, so 5 steps could mislead by 10-20% (session 17: width 48 read 503 ms
-// over 5 steps and 584 ms over 30, against 587 ms per step in the real run); the default is 20. "data" is
-// the time a step WAITS for its batch: the lighting stages build the next batch in the background.
+// over 5 steps and 584 ms over 30, against 587 ms per step in the real run); the default is 20.
+// "data" is the time a step WAITS for its batch: the lighting stages build the next batch in the
+// background.
 #include <omp.h>
 
 #include <algorithm>
@@ -32,8 +33,8 @@ int run_train_step(const std::vector<std::string>& args) {
     if (args[i] == "--json") json = true;
     else if (args[i] == "--config" && i + 1 < args.size()) config_file = args[++i];
     else if (args[i] == "--set" && i + 1 < args.size()) sets.push_back(args[++i]);
-    else if (args[i] == "--steps" && i + 1 < args.size()) steps = cli::parse_integer("train-step: --steps", args[++i], 1, 1000000);
-    else if (args[i] == "--warmup" && i + 1 < args.size()) warmup = cli::parse_integer("train-step: --warmup", args[++i], 0, 1000000);
+    else if (args[i] == "--steps" && i + 1 < args.size()) steps = cli::parse_integer("train-step: --steps", args[++i], 1, 1'000'000);
+    else if (args[i] == "--warmup" && i + 1 < args.size()) warmup = cli::parse_integer("train-step: --warmup", args[++i], 0, 1'000'000);
     else if (args[i] == "--help" || args[i] == "-h") {
       std::printf("usage: streetlight-bench train-step --config FILE.json [--set key=value ...] [--steps N] [--warmup N] [--json]\n"
                   "  Mean wall time of one training step of the config's stage, split into data (waiting for the batch),\n"
@@ -66,22 +67,23 @@ int run_train_step(const std::vector<std::string>& args) {
   }
   const double n = static_cast<double>(steps);
   auto get = [&](const char* k) { return sum.count(k) ? sum[k] / n : 0.0; };
+  const double mean = get("total");
   double var = 0.0;
-  for (double t : totals) var += (t - get("total")) * (t - get("total"));
+  for (double t : totals) var += (t - mean) * (t - mean);
   const double ci95 = steps > 1 ? 1.96 * std::sqrt(var / (n - 1) / n) : 0.0;
   const auto [lo, hi] = std::minmax_element(totals.begin(), totals.end());
   const int64_t batch = config.tree().at("train").at("batch_size").get<int64_t>();
   if (json) {
     std::printf("{\"bench\": \"train_step\", \"stage\": \"%s\", \"batch\": %lld, \"threads\": %d, \"steps\": %lld, "
-                "\"ms\": %.1f, \"ms_ci95\": %.1f, \"ms_min\": %.1f, \"ms_max\": %.1f, \"data_ms\": %.1f, \"forward_ms\": %.1f, \"render_ms\": %.1f, \"backward_ms\": %.1f, "
-                "\"optimizer_ms\": %.1f}\n",
-                stage->name().c_str(), (long long)batch, omp_get_max_threads(), (long long)steps, get("total"),
+                "\"ms\": %.1f, \"ms_ci95\": %.1f, \"ms_min\": %.1f, \"ms_max\": %.1f, \"data_ms\": %.1f, "
+                "\"forward_ms\": %.1f, \"render_ms\": %.1f, \"backward_ms\": %.1f, \"optimizer_ms\": %.1f}\n",
+                stage->name().c_str(), (long long)batch, omp_get_max_threads(), (long long)steps, mean,
                 ci95, *lo, *hi, get("time_data_ms"), get("time_forward_ms"), get("time_render_ms"),
                 get("time_backward_ms"), get("time_optimizer_ms"));
   } else {
-    std::printf("%s step (batch %lld, %d threads, mean of %lld): %.1f ms ± %.1f (95%%; steps %.1f-%.1f) = data %.1f + forward %.1f + renderer %.1f + "
-                "backward %.1f + optimizer %.1f (+ bookkeeping)\n",
-                stage->name().c_str(), (long long)batch, omp_get_max_threads(), (long long)steps, get("total"),
+    std::printf("%s step (batch %lld, %d threads, mean of %lld): %.1f ms ± %.1f (95%%; steps %.1f-%.1f) = data %.1f + "
+                "forward %.1f + renderer %.1f + backward %.1f + optimizer %.1f (+ bookkeeping)\n",
+                stage->name().c_str(), (long long)batch, omp_get_max_threads(), (long long)steps, mean,
                 ci95, *lo, *hi, get("time_data_ms"), get("time_forward_ms"), get("time_render_ms"),
                 get("time_backward_ms"), get("time_optimizer_ms"));
   }

@@ -77,6 +77,21 @@ std::vector<std::string> Args::all(const std::string& name) const {
   return it == values_.end() ? std::vector<std::string>{} : it->second;
 }
 
+namespace {
+
+// True when std::stoll reads the whole of `v` (which may start with white space).
+bool whole_integer(const std::string& v, long long* out) {
+  try {
+    size_t used = 0;
+    *out = std::stoll(v, &used);
+    return used == v.size();
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+}  // namespace
+
 double Args::number(const std::string& name, double fallback) const {
   if (!has(name)) return fallback;
   const std::string v = get(name);
@@ -92,26 +107,16 @@ double Args::number(const std::string& name, double fallback) const {
 int64_t Args::integer(const std::string& name, int64_t fallback) const {
   if (!has(name)) return fallback;
   const std::string v = get(name);
-  try {
-    size_t used = 0;
-    const long long d = std::stoll(v, &used);
-    if (used == v.size()) return d;
-  } catch (const std::exception&) {
-  }
-  fail(program_, ": option ", name, " expects an integer, got '", v, "'");
+  long long d = 0;
+  if (!whole_integer(v, &d)) fail(program_, ": option ", name, " expects an integer, got '", v, "'");
+  return d;
 }
 
 int64_t parse_integer(const std::string& what, const std::string& value, int64_t lo, int64_t hi) {
-  size_t used = 0;
   long long v = 0;
-  try {
-    v = std::stoll(value, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  const bool whole = !value.empty() && !std::isspace(static_cast<unsigned char>(value.front())) && used == value.size();
-  SL_CHECK(whole && v >= lo && v <= hi, what, " must be an integer in [", lo, ", ",
-           hi, "], got '", value, "'");
+  const bool whole = !value.empty() && !std::isspace(static_cast<unsigned char>(value.front())) &&
+                     whole_integer(value, &v);
+  SL_CHECK(whole && v >= lo && v <= hi, what, " must be an integer in [", lo, ", ", hi, "], got '", value, "'");
   return v;
 }
 

@@ -13,6 +13,20 @@ total=0
 for s in datagen test_streets sky lighting adversarial eval; do v=$(secs $s); [ "$v" != "?" ] && total=$(( total + v )); done
 steps() { sed -n 's/.*"steps": *\([0-9]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
 samples() { sed -n 's/.*"samples": *\([0-9]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
+fraction() { sed -n 's/.*"real_fraction": *\([0-9.]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
+real_fraction=$(fraction lighting)
+# Whether stages 2-3 saw real crops decides the card's mixing sentence and its depth limit.
+if awk -v f="${real_fraction:-0}" 'BEGIN { exit !(f + 0 > 0) }'; then
+  mixing="- Mixed in stages 2-3 at \`data.real_fraction = $real_fraction\` (crops of real panoramas: random azimuth
+  rotation, flips, white balance and exposure jitter)."
+  depth_limit="- The real crops have no depth, so the volume branch learns geometry only from the synthetic streets."
+else
+  mixing="- Stages 2-3 train on the synthetic streets alone (\`data.real_fraction = 0\`). The mechanism that
+  mixes in crops of real panoramas (random azimuth rotation, flips, white balance and exposure
+  jitter) is in the recipe's configs and off."
+  depth_limit="- Stages 2-3 never see a real photograph: real panoramas reach them only as the light of a third
+  of the synthetic streets, so real photos are outside the training distribution."
+fi
 commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
 size=$(du -h models/streetlight.safetensors 2>/dev/null | cut -f1)
 cat <<EOF
@@ -32,10 +46,9 @@ validation sun error; stage 3 is the end-to-end fine-tuning through object inser
 - **Synthetic streets**: \`configs/release_datagen.json\`, rendered by \`streetlight-datagen\` (path
   traced, 16 spp); a third of them lit by the training panoramas, the rest by the Preetham sky model.
   Objects inserted by the generator are procedural cars.
-- Mixed in stages 2-3 at \`data.real_fraction\` (crops of real panoramas: random azimuth rotation,
-  flips, white balance and exposure jitter). The sun direction is supervised only where the sun is
-  hard (data/panorama_sample.h: ≥ 25% of the panorama's light within 5° of its peak, above the
-  horizon).
+$mixing
+- The sun direction is supervised only where the sun is hard (data/panorama_sample.h: ≥ 25% of the
+  panorama's light within 5° of its peak, above the horizon).
 
 ## Training (configs, steps, wall time on this machine)
 | step | config | steps | wall time |
@@ -68,9 +81,9 @@ panoramas' crops (in the camera's frame); a model that does not beat it has lear
 $(cat "$runs/eval/results.md")
 
 ## Known limits
-- Trained on 26 real panoramas (9 with a hard sun) and a few hundred synthetic streets: far less than
+- Its real data are 26 panoramas (9 with a hard sun), beside $(samples datagen) synthetic streets: far less than
   the paper's HoliCity crops. Expect errors on skies unlike these (night, heavy overcast, snow).
 - Where the sun is soft (overcast), the sun direction has no meaning and was not supervised.
-- The real crops have no depth, so the volume branch learns geometry only from the synthetic streets.
+$depth_limit
 - Sizes are the CPU-scale defaults (dome 32×128, input 128×256, VSG 64×64×16), not the paper's.
 EOF

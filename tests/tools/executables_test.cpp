@@ -63,6 +63,32 @@ TEST(Executables, EveryToolAnswersHelpAndRejectsBadFlagsWithExitCode2) {
   }
 }
 
+// Every command that `streetlight-bench --help` lists answers its own --help with its usage and
+// exit 0.
+TEST(Executables, EveryBenchCommandAnswersHelp) {
+  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
+  if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
+  const ProcessResult list = run(bench + " --help");
+  ASSERT_EQ(list.code, 0) << list.out;
+  std::vector<std::string> commands;
+  const size_t start = list.out.find("commands:\n");
+  ASSERT_NE(start, std::string::npos) << list.out;
+  size_t line = start + 10;
+  while (line < list.out.size()) {
+    const size_t end = std::min(list.out.find('\n', line), list.out.size());
+    const std::string text = list.out.substr(line, end - line);
+    const size_t first = text.find_first_not_of(' ');
+    if (first != std::string::npos) commands.push_back(text.substr(first, text.find(' ', first) - first));
+    line = end + 1;
+  }
+  EXPECT_GE(commands.size(), 10u) << list.out;
+  for (const std::string& command : commands) {
+    const ProcessResult help = run(bench + " " + command + " --help");
+    EXPECT_EQ(help.code, 0) << command << "\n" << help.out;
+    EXPECT_NE(help.out.find("usage: streetlight-bench " + command), std::string::npos) << command << "\n" << help.out;
+  }
+}
+
 // The streetlight-bench subcommands parse their counts by hand; a count that is not a whole
 // integer in range is the same one-line error naming the flag and the value, exit 2.
 TEST(Executables, BenchCountsThatAreNotIntegersAreOneLineErrors) {

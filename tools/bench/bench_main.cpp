@@ -1,4 +1,5 @@
 // streetlight-bench: benchmarks as a tool, never as timed tests. See bench.h.
+#include <algorithm>
 #include <cstdio>
 #include <map>
 #include <string>
@@ -19,7 +20,9 @@ std::map<std::string, Entry>& registry() {
 }
 void usage(FILE* out) {
   std::fprintf(out, "usage: streetlight-bench COMMAND [options]   (COMMAND --help for its options)\n\ncommands:\n");
-  for (const auto& [name, e] : registry()) std::fprintf(out, "  %-10s %s\n", name.c_str(), e.summary.c_str());
+  int width = 0;  // the longest command name, so that every summary starts in one column
+  for (const auto& [name, e] : registry()) width = std::max(width, static_cast<int>(name.size()));
+  for (const auto& [name, e] : registry()) std::fprintf(out, "  %-*s  %s\n", width, name.c_str(), e.summary.c_str());
 }
 }  // namespace
 

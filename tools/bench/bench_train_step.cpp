@@ -36,10 +36,11 @@ int run_train_step(const std::vector<std::string>& args) {
     else if (args[i] == "--steps" && i + 1 < args.size()) steps = cli::parse_integer("train-step: --steps", args[++i], 1, 1'000'000);
     else if (args[i] == "--warmup" && i + 1 < args.size()) warmup = cli::parse_integer("train-step: --warmup", args[++i], 0, 1'000'000);
     else if (args[i] == "--help" || args[i] == "-h") {
-      std::printf("usage: streetlight-bench train-step --config FILE.json [--set key=value ...] [--steps N] [--warmup N] [--json]\n"
-                  "  Mean wall time of one training step of the config's stage, split into data (waiting for the batch),\n"
-                  "  forward, renderer (stage 3's insertion), backward and optimizer, with the 95% interval of the mean and the\n"
-                  "  fastest and slowest step. Default 20 steps after 2 warm-up steps.\n");
+      std::fputs("usage: streetlight-bench train-step --config FILE.json [--set key=value ...] [--steps N] [--warmup N] [--json]\n"
+                 "  Mean wall time of one training step of the config's stage, split into data (waiting for the batch),\n"
+                 "  forward, renderer (stage 3's insertion), backward and optimizer, with the 95% interval of the mean and the\n"
+                 "  fastest and slowest step. Default 20 steps after 2 warm-up steps.\n",
+                 stdout);
       return 0;
     } else {
       fail("train-step: unknown option '", args[i], "' (try --help)");

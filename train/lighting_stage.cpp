@@ -396,7 +396,8 @@ std::unique_ptr<Stage> make_lighting_stage(const nlohmann::json& config) {
   const auto& d = config.at("data");
   const std::string dir = d.at("dataset").get<std::string>();
   const uint64_t seed = config.at("seed").get<uint64_t>();
-  SampleSource train = dataset_source(dir, d.at("train_split").get<std::string>());
+  const auto cache_bytes = static_cast<size_t>(d.at("cache_mb").get<int64_t>()) << 20;  // checked in train_config
+  SampleSource train = dataset_source(dir, d.at("train_split").get<std::string>(), 0, cache_bytes);
   SampleSource val = dataset_source(dir, d.at("val_split").get<std::string>(),
                                     static_cast<size_t>(d.at("val_size").get<int64_t>()));
   const double real = d.value("real_fraction", 0.0);

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <mutex>
+#include <unordered_map>
 
 #include "data/hdri_folder.h"
 #include "data/hdri_split.h"
@@ -15,13 +17,56 @@ using sl::data::PanoramaSampleOptions;
 using sl::data::read_hdri_split;
 using sl::data::sanitized_panorama;
 using sl::data::StreetDataset;
+using sl::data::StreetSample;
 
 namespace sl::train {
 
-SampleSource dataset_source(const std::string& dir, const std::string& split, size_t max_items) {
+size_t sample_bytes(const StreetSample& sample) {
+  size_t bytes = 0;
+  const auto add = [&](const Tensor& t) {
+    if (t.defined()) bytes += static_cast<size_t>(t.numel()) * dtype_size(t.dtype());
+  };
+  for (const Tensor* t : {&sample.sky_hdr, &sample.pano_hdr, &sample.pano_ldr, &sample.pano_sky_mask,
+                          &sample.insert_with_object_hdr, &sample.insert_without_object_hdr, &sample.insert_object_mask,
+                          &sample.insert_light_probe_hdr})
+    add(*t);
+  for (const auto& v : sample.views)
+    for (const Tensor* t : {&v.ldr, &v.hdr, &v.depth, &v.sky_mask}) add(*t);
+  return bytes;
+}
+
+namespace {
+
+// The decoded samples of dataset_source. Tensors share their storage when a StreetSample is
+// copied, so a hit costs no copy; nothing downstream writes into a loaded sample's tensors (the
+// flip and the batch build new ones), which the bit-identity test of tests/train checks.
+struct SampleCache {
+  std::mutex mutex;
+  std::unordered_map<size_t, StreetSample> samples;
+  size_t bytes = 0;
+  size_t capacity = 0;
+};
+
+}  // namespace
+
+SampleSource dataset_source(const std::string& dir, const std::string& split, size_t max_items, size_t cache_bytes) {
   auto ds = std::make_shared<StreetDataset>(dir, split);
   const size_t n = max_items > 0 ? std::min(max_items, ds->size()) : ds->size();
-  return SampleSource{n, [ds](size_t i, uint64_t) { return ds->load(i); }};
+  if (cache_bytes == 0) return SampleSource{n, [ds](size_t i, uint64_t) { return ds->load(i); }};
+  auto cache = std::make_shared<SampleCache>();
+  cache->capacity = cache_bytes;
+  return SampleSource{n, [ds, cache](size_t i, uint64_t) {
+                        {
+                          std::lock_guard<std::mutex> lock(cache->mutex);
+                          const auto it = cache->samples.find(i);
+                          if (it != cache->samples.end()) return it->second;
+                        }
+                        StreetSample s = ds->load(i);  // decoded outside the lock
+                        const size_t b = sample_bytes(s);
+                        std::lock_guard<std::mutex> lock(cache->mutex);
+                        if (cache->bytes + b <= cache->capacity && cache->samples.emplace(i, s).second) cache->bytes += b;
+                        return s;
+                      }};
 }
 
 SampleSource panorama_source(const std::vector<std::string>& paths, const PanoramaSampleOptions& options, uint64_t seed,

@@ -31,7 +31,16 @@ struct SampleSource {
   std::function<data::StreetSample(size_t index, uint64_t draw)> load;
 };
 
-SampleSource dataset_source(const std::string& dir, const std::string& split, size_t max_items = 0);
+// A generated street dataset's split (its first max_items items; 0: all). With cache_bytes > 0,
+// each decoded sample is kept in memory after its first load while the kept samples fit in
+// cache_bytes (none is evicted; later ones are decoded on every load). load() is a pure function
+// of the index either way, so the cache changes speed, never results (data.cache_mb; a training
+// epoch otherwise decodes every EXR and PNG of the split again).
+SampleSource dataset_source(const std::string& dir, const std::string& split, size_t max_items = 0,
+                            size_t cache_bytes = 0);
+
+// Bytes of the decoded tensors of a sample (what the cache above charges for it).
+size_t sample_bytes(const data::StreetSample& sample);
 
 // Real panoramas (paths: e.g. HdriSplit::split_paths), read once. Training: item i is panorama
 // i mod n with augmentation stream `draw`. Fixed (vary_with_draw = false, for validation and

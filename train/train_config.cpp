@@ -39,6 +39,7 @@ json default_train_config() {
         {"exposure_stops", 1.0},
         {"ldr_key", 0.25},
         {"val_size", 16},
+        {"cache_mb", 4096},
         {"pano_rays", 512},
         {"view_rays", 512},
         {"val_view_height", 32}}},
@@ -135,6 +136,9 @@ void check_train_config(const json& c) {
   SL_CHECK(c.at("seed").get<int64_t>() >= 0, "seed must be >= 0, got ", c.at("seed").get<int64_t>());
   const double frac = c.at("data").at("hdri_fraction").get<double>();
   SL_CHECK(frac >= 0 && frac <= 1, "data.hdri_fraction must lie in [0, 1], got ", frac);
+  const int64_t cache_mb = c.at("data").at("cache_mb").get<int64_t>();
+  SL_CHECK(cache_mb >= 0 && cache_mb <= (int64_t{1} << 24), "data.cache_mb must lie in [0, 16777216] (0: off), got ",
+           cache_mb);
   const double real = c.at("data").value("real_fraction", 0.0);
   SL_CHECK(real >= 0 && real < 1, "data.real_fraction must lie in [0, 1), got ", real);
   SL_CHECK(real == 0 || !c.at("data").at("hdri_dir").get<std::string>().empty(),

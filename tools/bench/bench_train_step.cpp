@@ -39,7 +39,9 @@ int run_train_step(const std::vector<std::string>& args) {
       std::fputs("usage: streetlight-bench train-step --config FILE.json [--set key=value ...] [--steps N] [--warmup N] [--json]\n"
                  "  Mean wall time of one training step of the config's stage, split into data (waiting for the batch),\n"
                  "  forward, renderer (stage 3's insertion), backward and optimizer, with the 95% interval of the mean and the\n"
-                 "  fastest and slowest step. Default 20 steps after 2 warm-up steps.\n",
+                 "  fastest and slowest step. Default 20 steps after 2 warm-up steps. The decoded-sample cache\n"
+                 "  (data.cache_mb) fills during the first epoch, so on a dataset larger than (warm-up + steps) x batch\n"
+                 "  this times first-epoch steps; --set data.cache_mb=0 times every step's decoding.\n",
                  stdout);
       return 0;
     } else {

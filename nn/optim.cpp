@@ -206,7 +206,8 @@ double clip_grad_norm(const std::vector<Tensor>& params, double max_norm) {
     Tensor g = p.grad().contiguous();
     SL_DISPATCH_FLOAT(g.dtype(), "clip_grad_norm", [&] {
       scalar_t* pg = g.data<scalar_t>();
-      for (int64_t k = 0; k < g.numel(); ++k) pg[k] = scalar_t(double(pg[k]) * coef);
+      const int64_t n = g.numel();  // once: numel() walks the shape on every call
+      for (int64_t k = 0; k < n; ++k) pg[k] = scalar_t(double(pg[k]) * coef);
     });
     Tensor handle = p;  // shares autograd state with p
     handle.set_grad(g);

@@ -30,7 +30,8 @@ void reduce_bucket(std::vector<float>& bucket, const std::vector<std::pair<Tenso
     Tensor g = in_place ? own : Tensor::empty(p.shape(), DType::F32);
     float* d = g.data<float>();
     const float* s = bucket.data() + offset;
-    for (int64_t i = 0; i < g.numel(); ++i) d[i] = s[i] * inv;
+    const int64_t n = g.numel();  // once: numel() walks the shape on every call
+    for (int64_t i = 0; i < n; ++i) d[i] = s[i] * inv;
     if (!in_place) const_cast<Tensor&>(p).set_grad(p.dtype() == DType::F32 ? g : g.to(p.dtype()));
   }
   bucket.clear();
@@ -62,7 +63,8 @@ double allreduce_gradients(const nn::NamedTensors& params) {
       Tensor g = p.grad().defined() ? p.grad().contiguous().clone() : Tensor::zeros(p.shape(), DType::F64);
       w.allreduce_sum(g.data<double>(), g.numel());
       double* d = g.data<double>();
-      for (int64_t k = 0; k < g.numel(); ++k) d[k] /= static_cast<double>(w.size());
+      const int64_t n = g.numel();
+      for (int64_t k = 0; k < n; ++k) d[k] /= static_cast<double>(w.size());
       const_cast<Tensor&>(p).set_grad(g);
       continue;
     }

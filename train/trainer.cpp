@@ -63,9 +63,10 @@ void check_finite_gradients(const nn::NamedTensors& params, int64_t step) {
     const bool ok = SL_DISPATCH_FLOAT(g.dtype(), "check_finite_gradients", [&] {
       const Tensor c = g.contiguous();
       const scalar_t* d = c.data<scalar_t>();
-      for (int64_t i = 0; i < c.numel(); ++i)
-        if (!std::isfinite(d[i])) return false;
-      return true;
+      const int64_t n = c.numel();  // once: numel() walks the shape on every call
+      bool finite = true;
+      for (int64_t i = 0; i < n; ++i) finite &= static_cast<bool>(std::isfinite(d[i]));  // no early exit: vectorises
+      return finite;
     });
     if (!ok)
       throw NonFiniteError(cat("gradient of parameter '", name, "' has NaN or Inf at step ", step,

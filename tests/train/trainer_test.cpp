@@ -19,6 +19,7 @@ namespace sl::test {
 using train::LightingStage;
 using train::Metrics;
 using train::NonFiniteError;
+using train::check_finite_gradients;
 using train::RunOptions;
 using train::RunResult;
 using train::SkyStage;
@@ -112,6 +113,31 @@ TEST(Trainer, WeightAverageResumesBitIdenticallyAndBestHoldsTheAverage) {
   }
   EXPECT_GT(averaged, 0u);
   EXPECT_GT(differ, 0u);  // the average is not the last weights
+}
+
+// The gradient check reads every element (a NaN or Inf anywhere, in float and double) and names
+// the first parameter that holds one.
+TEST(Trainer, NonFiniteGradientAnywhereNamesItsParameter) {
+  const auto with_grad = [](DType dtype, int64_t bad_at, double bad) {
+    Tensor p = Tensor::zeros({1001}, dtype).set_requires_grad(true);
+    std::vector<double> g(1001, 0.5);
+    if (bad_at >= 0) g[static_cast<size_t>(bad_at)] = bad;
+    p.set_grad(Tensor::from_vector(g, {1001}, dtype));
+    return p;
+  };
+  for (const DType dtype : {DType::F32, DType::F64}) {
+    EXPECT_NO_THROW(check_finite_gradients({{"fine", with_grad(dtype, -1, 0)}}, 3));
+    for (const int64_t at : {int64_t{0}, int64_t{517}, int64_t{1000}})
+      for (const double bad : {std::numeric_limits<double>::quiet_NaN(), -std::numeric_limits<double>::infinity()}) {
+        try {
+          check_finite_gradients({{"fine", with_grad(dtype, -1, 0)}, {"head.w", with_grad(dtype, at, bad)}}, 3);
+          ADD_FAILURE() << "missed " << bad << " at " << at;
+        } catch (const NonFiniteError& e) {
+          EXPECT_NE(std::string(e.what()).find("'head.w'"), std::string::npos) << e.what();
+          EXPECT_NE(std::string(e.what()).find("step 3"), std::string::npos) << e.what();
+        }
+      }
+  }
 }
 
 TEST(Trainer, NonFiniteLossNamesTheLossAndStepAndKeepsTheCheckpoint) {

@@ -7,6 +7,7 @@
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <sstream>
 #include <string>
 
 #include "tools/common/cli.h"
@@ -70,17 +71,12 @@ TEST(Executables, EveryBenchCommandAnswersHelp) {
   if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
   const ProcessResult list = run(bench + " --help");
   ASSERT_EQ(list.code, 0) << list.out;
-  std::vector<std::string> commands;
   const size_t start = list.out.find("commands:\n");
   ASSERT_NE(start, std::string::npos) << list.out;
-  size_t line = start + 10;
-  while (line < list.out.size()) {
-    const size_t end = std::min(list.out.find('\n', line), list.out.size());
-    const std::string text = list.out.substr(line, end - line);
-    const size_t first = text.find_first_not_of(' ');
-    if (first != std::string::npos) commands.push_back(text.substr(first, text.find(' ', first) - first));
-    line = end + 1;
-  }
+  std::vector<std::string> commands;  // the first word of every line after "commands:"
+  std::istringstream lines(list.out.substr(start + 10));
+  for (std::string line, word; std::getline(lines, line);)
+    if (std::istringstream(line) >> word) commands.push_back(word);
   EXPECT_GE(commands.size(), 10u) << list.out;
   for (const std::string& command : commands) {
     const ProcessResult help = run(bench + " " + command + " --help");

@@ -216,8 +216,10 @@ StreetSample StreetDataset::load(size_t index) const {
     if (f.is_object() && f.contains("hdr") && fs::exists(d / file_name(f, "hdr", meta_path)))
       view.hdr = read_float(d, file_name(f, "hdr", meta_path), 3);
     const std::string depth = file_name(f, "depth", meta_path);
+    // A named copy: C++20 lambdas may not capture a structured binding (clang 14 refuses it).
+    const fs::path depth_path = d / depth;
     view.depth = reshape(in_sample(d, depth,
-                                   [&] { return read_depth((d / depth).string(), MissingDepth::Zero, k.width, k.height); })
+                                   [&] { return read_depth(depth_path.string(), MissingDepth::Zero, k.width, k.height); })
                              .contiguous(),
                          {k.height, k.width});
     view.sky_mask = read_mask(d, file_name(f, "sky_mask", meta_path));

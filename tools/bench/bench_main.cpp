@@ -1,11 +1,15 @@
 // streetlight-bench: benchmarks as a tool, never as timed tests. See bench.h.
+#include <omp.h>
+
 #include <algorithm>
 #include <cstdio>
+#include <fstream>
 #include <map>
 #include <string>
 #include <vector>
 
 #include "tools/bench/bench.h"
+#include "util/compiled_isa.h"
 #include "util/error.h"
 
 namespace sl::bench {
@@ -23,6 +27,16 @@ void usage(FILE* out) {
   int width = 0;  // the longest command name, so that every summary starts in one column
   for (const auto& [name, e] : registry()) width = std::max(width, static_cast<int>(name.size()));
   for (const auto& [name, e] : registry()) std::fprintf(out, "  %-*s  %s\n", width, name.c_str(), e.summary.c_str());
+}
+// The CPU's model name as lscpu prints it (/proc/cpuinfo), so that every figure names its machine.
+std::string cpu_model_name() {
+  std::ifstream f("/proc/cpuinfo");
+  for (std::string line; std::getline(f, line);)
+    if (line.rfind("model name", 0) == 0) {
+      const size_t colon = line.find(':');
+      if (colon != std::string::npos) return line.substr(line.find_first_not_of(" \t", colon + 1));
+    }
+  return "unknown CPU";
 }
 }  // namespace
 
@@ -43,8 +57,17 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "error: unknown command '%s' (try streetlight-bench --help)\n", argv[1]);
     return 2;
   }
+  const std::vector<std::string> args(argv + 2, argv + argc);
+  const bool help = std::find_if(args.begin(), args.end(), [](const std::string& a) {
+                      return a == "--help" || a == "-h";
+                    }) != args.end();
   try {
-    return it->second.command(std::vector<std::string>(argv + 2, argv + argc));
+    const int code = it->second.command(args);
+    // After the figures (a bad-input error stays one line): the machine they were measured on.
+    if (code == 0 && !help)
+      std::fprintf(stderr, "streetlight-bench %s ran on: %s, %s kernels, %d OpenMP threads\n", argv[1],
+                   cpu_model_name().c_str(), sl::compiled_isa(), omp_get_max_threads());
+    return code;
   } catch (const sl::Error& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 2;

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Installs Streetlight's build and test dependencies from Debian 12 packages. Idempotent: it
-# only calls apt-get when a package is missing. Usage: scripts/install_deps.sh [--anchors] [--mpi]
+# only calls apt-get when a package is missing. Usage: scripts/install_deps.sh [--anchors] [--mpi] [--clang]
 #   --anchors  also install the comparison anchors (python3-torch, libembree-dev, numpy)
 #   --mpi      also install Open MPI (data-parallel training, docs/DISTRIBUTED.md)
+#   --clang    also install clang 14 and its sanitizer and libFuzzer runtimes (scripts/fuzz.sh)
 set -euo pipefail
 
 packages=(cmake g++ make ccache pkg-config
@@ -12,7 +13,8 @@ for arg in "$@"; do
   case "$arg" in
     --anchors) packages+=(python3-torch python3-numpy libembree-dev) ;;
     --mpi) packages+=(libopenmpi-dev openmpi-bin) ;;
-    -h|--help) sed -n '2,5p' "$0"; exit 0 ;;
+    --clang) packages+=(clang libclang-rt-14-dev) ;;
+    -h|--help) sed -n '2,6p' "$0"; exit 0 ;;
     *) echo "error: unknown option '$arg' (try --help)" >&2; exit 2 ;;
   esac
 done

@@ -1,0 +1,186 @@
+// The committed scene-disjoint splits of the shared real panoramas (configs/hdri_split.json for
+// ../shared/data/hdri, configs/pano_ldr_split.json for ../shared/data/pano_ldr): the split reader
+// accepts them, every file of each folder is in exactly one split, and the places MANIFEST.md
+// names never straddle two splits.
+#include "data/hdri_split.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <set>
+
+#include "data/sun_labels.h"
+#include "support/test_files.h"
+#include "util/error.h"
+
+using sl::data::HdriSplit;
+using sl::data::read_hdri_split;
+
+namespace sl::test {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string config(const std::string& name) { return std::string(STREETLIGHT_SOURCE_DIR) + "/configs/" + name; }
+
+// file name → its split.
+std::map<std::string, std::string> split_of(const HdriSplit& s) {
+  std::map<std::string, std::string> m;
+  for (const auto& [split, names] : s.splits)
+    for (const auto& n : names) m[n] = split;
+  return m;
+}
+
+std::set<std::string> images_in(const std::string& folder, const std::set<std::string>& extensions) {
+  std::set<std::string> out;
+  for (const auto& e : fs::directory_iterator(folder))
+    if (e.is_regular_file() && extensions.count(e.path().extension().string())) out.insert(e.path().filename().string());
+  return out;
+}
+
+// Every file of `folder` is listed once (the reader refuses a name in two splits) and every listed
+// name is a file of the folder; split_paths finds each.
+void expect_covers_exactly(const HdriSplit& s, const std::string& folder, const std::set<std::string>& files) {
+  const auto m = split_of(s);
+  for (const auto& f : files) EXPECT_TRUE(m.count(f)) << f << " is in no split of " << s.file;
+  for (const auto& [name, split] : m) EXPECT_TRUE(files.count(name)) << name << " (" << split << ") is not in " << folder;
+  size_t listed = 0;
+  for (const char* split : {"train", "val", "test"}) {
+    ASSERT_TRUE(s.has(split)) << split;
+    listed += s.split_paths(folder, split).size();
+  }
+  EXPECT_EQ(listed, files.size());
+  EXPECT_EQ(s.splits.size(), 3u);
+}
+
+// Each group's files share one split.
+void expect_groups_whole(const std::map<std::string, std::string>& split, const std::map<std::string, std::set<std::string>>& groups) {
+  for (const auto& [group, files] : groups) {
+    std::set<std::string> splits;
+    for (const auto& f : files) {
+      ASSERT_TRUE(split.count(f)) << f;
+      splits.insert(split.at(f));
+    }
+    EXPECT_EQ(splits.size(), 1u) << "place '" << group << "' straddles splits";
+  }
+}
+
+}  // namespace
+
+TEST(HdriSplit, TheHdriSplitCoversAll64PanoramasAndKeepsTheFirst40WhereTheyWere) {
+  const HdriSplit s = read_hdri_split(config("hdri_split.json"));
+  const auto split = split_of(s);
+  EXPECT_EQ(split.size(), 64u);
+  // The assignment of the first 40 files before issue 39 (earlier results stay comparable).
+  const std::map<std::string, std::vector<std::string>> before = {
+      {"val", {"hilly_terrain_01_1k.hdr", "garden_nook_1k.hdr", "skidpan_1k.hdr", "dikhololo_night_1k.hdr"}},
+      {"test", {"wide_street_01_1k.exr", "rooitou_park_1k.hdr", "quarry_02_1k.hdr", "autumn_field_puresky_1k.hdr",
+                "ulmer_muenster_1k.exr", "palermo_sidewalk_1k.hdr", "palermo_square_1k.hdr", "potsdamer_platz_1k.hdr",
+                "dresden_square_1k.hdr", "forest_slope_1k.hdr"}},
+      {"train", {"adams_place_bridge_1k.hdr", "aristea_wreck_puresky_1k.hdr", "chinese_garden_1k.hdr",
+                 "crystal_falls_1k.hdr", "dry_cracked_lake_1k.hdr", "immenstadter_horn_1k.hdr",
+                 "industrial_sunset_02_1k.hdr", "kiara_1_dawn_1k.hdr", "kloofendal_48d_partly_cloudy_puresky_1k.hdr",
+                 "kloppenheim_05_1k.hdr", "kloppenheim_06_puresky_1k.hdr", "modern_buildings_2_1k.hdr",
+                 "narrow_moonlit_road_1k.hdr", "noon_grass_1k.hdr", "peppermint_powerplant_1k.hdr",
+                 "phalzer_forest_01_1k.hdr", "rainforest_trail_1k.hdr", "round_platform_1k.exr",
+                 "rustig_koppie_puresky_1k.hdr", "schadowplatz_1k.hdr", "spree_bank_1k.hdr",
+                 "st_peters_square_night_1k.hdr", "urban_street_01_1k.hdr", "venice_sunset_1k.hdr",
+                 "wasteland_clouds_puresky_1k.hdr", "evening_road_01_puresky_1k.hdr"}}};
+  size_t old = 0;
+  for (const auto& [want, names] : before)
+    for (const auto& n : names) {
+      ASSERT_TRUE(split.count(n)) << n;
+      EXPECT_EQ(split.at(n), want) << n;
+      ++old;
+    }
+  EXPECT_EQ(old, 40u);
+  // One place (or possibly one place) per group; the new hard suns (MANIFEST: sun5 >= 0.25, peak
+  // above the horizon) are spread, and the test split has several hard suns in all.
+  expect_groups_whole(split, {{"kloppenheim", {"kloppenheim_01_puresky_1k.hdr", "kloppenheim_05_1k.hdr",
+                                               "kloppenheim_06_puresky_1k.hdr", "kloppenheim_07_1k.hdr"}},
+                              {"kloofendal", {"kloofendal_43d_clear_puresky_1k.hdr", "kloofendal_48d_partly_cloudy_puresky_1k.hdr"}},
+                              {"industrial_sunset", {"industrial_sunset_02_1k.hdr", "industrial_sunset_puresky_1k.hdr"}},
+                              {"palermo", {"palermo_sidewalk_1k.hdr", "palermo_square_1k.hdr", "piazza_bologni_1k.hdr"}},
+                              {"meadow", {"meadow_2_1k.hdr", "evening_meadow_1k.hdr"}},
+                              {"garden", {"garden_nook_1k.hdr", "studio_garden_1k.hdr"}}});
+  std::map<std::string, int> hard;
+  for (const char* f : {"wide_street_01_1k.exr", "rooitou_park_1k.hdr", "quarry_02_1k.hdr", "autumn_field_puresky_1k.hdr",
+                        "ulmer_muenster_1k.exr", "kloofendal_43d_clear_puresky_1k.hdr",
+                        "lonely_road_afternoon_puresky_1k.hdr", "meadow_2_1k.hdr", "mpumalanga_veld_puresky_1k.hdr",
+                        "rural_asphalt_road_1k.hdr", "san_giuseppe_bridge.exr", "studio_garden_1k.hdr",
+                        "sunny_vondelpark_1k.hdr", "syferfontein_18d_clear_1k.hdr", "table_mountain_2_puresky_1k.hdr"})
+    ++hard[split.at(f)];
+  EXPECT_GE(hard["test"], 8);
+  EXPECT_GE(hard["val"], 2);
+  EXPECT_GE(hard["train"], 4);
+  const std::string folder = shared_data("hdri");
+  if (!fs::is_directory(folder)) GTEST_SKIP() << "needs ../shared/data/hdri (not in a fresh clone) for the folder check";
+  expect_covers_exactly(s, folder, images_in(folder, {".hdr", ".exr"}));
+}
+
+TEST(HdriSplit, TheLdrPanoramaSplitKeepsEveryPlaceInOneSplit) {
+  const HdriSplit s = read_hdri_split(config("pano_ldr_split.json"));
+  const auto split = split_of(s);
+  EXPECT_EQ(split.size(), 69u);
+  // Places: a repository is one place (forks of one repository name are one), except those
+  // MANIFEST says hold several (googlearchive, All4Gis, pchen66: one place per file, All4Gis'
+  // two commits of image.jpg together); VGiudicelli1/TSI_panoramax by capture (Strasbourg, Lyon,
+  // the car-mounted uuid files).
+  const std::regex uuid("^[0-9a-f]{8}-[0-9a-f]{4}-.*");
+  std::map<std::string, std::set<std::string>> places;
+  for (const auto& [file, sp] : split) {
+    const size_t a = file.find("__"), b = file.find("__", a + 2);
+    ASSERT_TRUE(a != std::string::npos && b != std::string::npos) << file << " is not owner__repository__name";
+    const std::string owner = file.substr(0, a), repo = file.substr(a + 2, b - a - 2), name = file.substr(b + 2);
+    std::string place = repo;
+    if (owner == "googlearchive" || owner == "pchen66") place = file;
+    if (owner == "All4Gis") place = name.rfind("image", 0) == 0 ? "All4Gis image" : file;
+    if (owner == "VGiudicelli1")
+      place = name.rfind("lyon_", 0) == 0 ? "Lyon" : std::regex_match(name, uuid) ? "water tower" : "Strasbourg";
+    places[place].insert(file);
+  }
+  expect_groups_whole(split, places);
+  // The near-duplicates MANIFEST names, explicitly.
+  const std::string t = "VGiudicelli1__TSI_panoramax__", p = "proysm__Univ-Street-View__";
+  expect_groups_whole(split, {{"lyon_1", {t + "lyon_1_1.jpg", t + "lyon_1_2.jpg", t + "lyon_1_3.jpg"}},
+                              {"stra_3", {t + "stra_3_2.jpg", t + "stra_3_3.jpg", t + "stra_3_4.jpg"}},
+                              {"street_view", {p + "Street_View_3602_1.jpg", p + "Street_View_360_1.jpg"}}});
+  std::map<std::string, size_t> count;
+  for (const auto& [f, sp] : split) ++count[sp];
+  EXPECT_GE(count["train"], 38u);  // about 60 / 15 / 25
+  EXPECT_GE(count["val"], 8u);
+  EXPECT_GE(count["test"], 15u);
+  const std::string folder = shared_data("pano_ldr");
+  if (!fs::is_directory(folder)) GTEST_SKIP() << "needs ../shared/data/pano_ldr (not in a fresh clone) for the folder check";
+  expect_covers_exactly(s, folder, images_in(folder, {".jpg"}));
+  // The test split has enough labelled suns and streets to report on (data/sun_labels.h).
+  const sl::data::SunLabels labels = sl::data::read_sun_labels(folder + "/sun_labels.csv");
+  size_t visible = 0, street = 0, scored = 0;
+  for (const auto& l : labels.rows) {
+    if (split.at(l.file) != "test") continue;
+    visible += l.sun == sl::data::SunVisibility::Visible;
+    street += l.scene == sl::data::SceneKind::Street;
+    scored += l.has_position;
+  }
+  EXPECT_GE(visible, 6u);
+  EXPECT_GE(street, 12u);
+  EXPECT_GE(scored, 12u);
+}
+
+TEST(HdriSplit, ANameInTwoSplitsIsRefusedNamingTheFileAndTheName) {
+  const std::string path = scratch("twice_split.json");
+  std::ofstream(path) << R"({"train": ["a.jpg", "b.jpg"], "test": ["b.jpg"]})";
+  try {
+    read_hdri_split(path);
+    ADD_FAILURE() << "accepted a name in two splits";
+  } catch (const sl::Error& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("b.jpg"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace sl::test

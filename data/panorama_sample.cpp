@@ -51,6 +51,19 @@ SunHardness sun_hardness(const Tensor& pano, double radius_deg, double min_share
   return h;
 }
 
+PanoramaSampleDraw draw_panorama_sample(uint64_t seed, uint64_t stream, int64_t width, const PanoramaSampleOptions& o) {
+  SL_CHECK(width > 0, "draw_panorama_sample: width must be positive, got ", width);
+  Rng rng(seed, stream);
+  PanoramaSampleDraw d;
+  const int64_t shift = rng.randint(width);
+  d.shift_columns = o.rotate ? shift : 0;
+  d.flip = rng.uniform() < 0.5 && o.flip;
+  for (double& g : d.gain) g = std::exp2(rng.uniform(-1.0, 1.0) * o.white_balance_stops);
+  d.exposure_jitter = std::exp2(rng.uniform(-1.0, 1.0) * o.exposure_stops);
+  d.crop_stream = rng.next_u64();
+  return d;
+}
+
 StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id, uint64_t seed, uint64_t stream,
                                     const PanoramaSampleOptions& o) {
   SL_CHECK(o.pano_width == 2 * o.pano_height && o.pano_height > 0, "panorama_street_sample: pano size must be 2:1, got ",
@@ -58,18 +71,15 @@ StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id
   SL_CHECK(o.ldr_median > 0.0 && o.ldr_median < 1.0 && o.exposure_stops >= 0.0 && o.white_balance_stops >= 0.0,
            "panorama_street_sample: need 0 < ldr_median < 1 and non-negative jitter ranges");
   Tensor pano = sanitized_panorama(pano_in, id);
-  Rng rng(seed, stream);
-  // Draw every number unconditionally so each choice is independent of the others' flags.
   const int64_t W = pano.size(2);
-  const int64_t shift = rng.randint(W);
-  const bool flip = rng.uniform() < 0.5 && o.flip;
-  double gain[3];
-  for (double& g : gain) g = std::exp2(rng.uniform(-1.0, 1.0) * o.white_balance_stops);
-  const double exposure_jitter = std::exp2(rng.uniform(-1.0, 1.0) * o.exposure_stops);
-  const uint64_t crop_stream = rng.next_u64();
+  const PanoramaSampleDraw draw = draw_panorama_sample(seed, stream, W, o);
+  const double* gain = draw.gain;
+  const double exposure_jitter = draw.exposure_jitter;
+  const uint64_t crop_stream = draw.crop_stream;
 
-  if (o.rotate && shift != 0) pano = rotate_azimuth(pano, 2.0 * kPi * static_cast<double>(shift) / static_cast<double>(W));
-  if (flip) pano = flip_panorama(pano);
+  if (draw.shift_columns != 0)
+    pano = rotate_azimuth(pano, 2.0 * kPi * static_cast<double>(draw.shift_columns) / static_cast<double>(W));
+  if (draw.flip) pano = flip_panorama(pano);
   {
     const double grey = luminance(gain[0], gain[1], gain[2]);
     float* p = pano.data<float>();

@@ -63,6 +63,22 @@ SunHardness sun_hardness(const Tensor& pano, double radius_deg = 5.0, double min
 // `name` is used in errors.
 Tensor sanitized_panorama(const Tensor& pano, const std::string& name);
 
+// The random draws of sample (seed, stream) of a panorama `width` columns wide, in the order
+// panorama_street_sample makes them (every one unconditionally, so each choice is independent of
+// the others' flags): the azimuth shift in whole columns (0 when !options.rotate), the flip, the
+// white-balance gains, the exposure jitter and the stream of the crop camera
+// (random_perspective_crop). The real-sky benchmark's LDR panoramas take their crops from it too
+// (train/real_sky_benchmark.h), so an LDR and an HDR panorama of one width get the same crops.
+struct PanoramaSampleDraw {
+  int64_t shift_columns = 0;
+  bool flip = false;
+  double gain[3] = {1.0, 1.0, 1.0};
+  double exposure_jitter = 1.0;
+  uint64_t crop_stream = 0;
+};
+PanoramaSampleDraw draw_panorama_sample(uint64_t seed, uint64_t stream, int64_t width,
+                                        const PanoramaSampleOptions& options = {});
+
 StreetSample panorama_street_sample(const Tensor& pano_hdr, const std::string& id, uint64_t seed, uint64_t stream,
                                     const PanoramaSampleOptions& options = {});
 

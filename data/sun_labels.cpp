@@ -79,6 +79,13 @@ std::vector<Record> parse_csv(const std::string& text, const std::string& path) 
   return out;
 }
 
+// A value as shown in a message: on one line (a quoted field may hold line breaks).
+std::string shown(std::string v) {
+  for (char& c : v)
+    if (c == '\n' || c == '\r') c = ' ';
+  return v;
+}
+
 std::string allowed(const std::map<std::string, int>& m) {
   std::string s;
   for (const auto& [k, v] : m) s += (s.empty() ? "" : ", ") + k;
@@ -89,7 +96,7 @@ template <class E>
 E parse_enum(const std::string& value, const std::map<std::string, int>& names, const char* column,
              const std::string& where) {
   const auto it = names.find(value);
-  SL_CHECK(it != names.end(), "sun labels '", where, "': unknown ", column, " '", value, "' (expected one of ",
+  SL_CHECK(it != names.end(), "sun labels '", where, "': unknown ", column, " '", shown(value), "' (expected one of ",
            allowed(names), ")");
   return static_cast<E>(it->second);
 }
@@ -163,17 +170,17 @@ SunLabels read_sun_labels(const std::string& path, int frame_width, int frame_he
     l.line = rec.line;
     l.file = get("file");
     SL_CHECK(!l.file.empty(), "sun labels '", where, "': empty file name");
-    SL_CHECK(seen.insert(l.file).second, "sun labels '", where, "': '", l.file, "' is labelled twice");
+    SL_CHECK(seen.insert(l.file).second, "sun labels '", where, "': '", shown(l.file), "' is labelled twice");
     l.sun = parse_enum<SunVisibility>(get("sun"), kSun, "sun", where);
     l.confidence = parse_enum<LabelConfidence>(get("confidence"), kConf, "confidence", where);
     l.scene = parse_enum<SceneKind>(get("scene"), kScene, "scene", where);
     if (col.count("note")) l.note = get("note");
     const std::string &us = get("u"), &vs = get("v");
     if (!us.empty() || !vs.empty()) {
-      SL_CHECK(!us.empty() && !vs.empty(), "sun labels '", where, "': give both u and v or neither (u '", us,
-               "', v '", vs, "')");
-      SL_CHECK(parse_number(us, &l.u), "sun labels '", where, "': u '", us, "' is not a number");
-      SL_CHECK(parse_number(vs, &l.v), "sun labels '", where, "': v '", vs, "' is not a number");
+      SL_CHECK(!us.empty() && !vs.empty(), "sun labels '", where, "': give both u and v or neither (u '", shown(us),
+               "', v '", shown(vs), "')");
+      SL_CHECK(parse_number(us, &l.u), "sun labels '", where, "': u '", shown(us), "' is not a number");
+      SL_CHECK(parse_number(vs, &l.v), "sun labels '", where, "': v '", shown(vs), "' is not a number");
       SL_CHECK(l.u >= 0.0 && l.u <= frame_width && l.v >= 0.0 && l.v <= frame_height, "sun labels '", where,
                "': (u, v) = (", us, ", ", vs, ") lies outside the ", frame_width, "x", frame_height, " image");
       l.has_position = true;

@@ -8,12 +8,19 @@
 //     region, mean absolute shadow-ratio error); lighting inference time per image; and
 //     "sun_per_image": each labelled image's id (a street sample, or "<panorama>#<crop>"), its
 //     sun error and the predicted and true directions in the input camera's canonical frame.
+//   folders of LDR panoramas (8-bit JPEG/PNG with a sun_labels.csv, data/sun_labels.h; e.g.
+//     ../shared/data/pano_ldr with configs/pano_ldr_split.json): the same crops as the HDR skies
+//     with the true sun from the label (train/real_sky_benchmark.h ldr_panorama_crops), reported
+//     apart ("kind": "ldr_panoramas") and split by the label's scene (street / other) and with the
+//     low-confidence labels apart, each beside the constant baseline; panoramas without a sun
+//     position (none, or occluded without one) are counted and listed, not scored.
 //   sky-autoencoder checkpoints: sky log-L2 = mean (ln(1 + L̂) − ln(1 + L))² of the
 //     reconstructed exposure-normalised dome, and the sun angular error of f_dir.
 // Error against run time (--out): the first lighting checkpoint is re-run at several insertion
 // budgets (light samples of Eq. 2, shadow rays of Eq. 4); error_time.png plots its shadow-ratio
 // error against the ground truth against lighting + insertion time in ms (one line per checkpoint).
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -21,6 +28,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <sstream>
 
@@ -36,6 +44,7 @@
 #include "data/panorama_dataset.h"
 #include "data/street_dataset.h"
 #include "data/sun_extraction.h"
+#include "data/sun_labels.h"
 #include "nn/checkpoint.h"
 #include "render/environment_map.h"
 #include "render/equirect.h"
@@ -214,11 +223,18 @@ struct RealSkyData {
   bool has_baseline = false;
   glm::dvec3 baseline{0.0, 1.0, 0.0};
   std::vector<std::string> baseline_from;  // training panoramas
+  // LDR panoramas with sun labels (ldr_panorama_crops): the labels file, and the test panoramas
+  // scored, not scored (no sun position) and scored with a low-confidence label.
+  bool ldr = false;
+  std::string labels;
+  json scored = json::array(), not_scored = json::array(), low_confidence = json::array();
 };
+
+constexpr uint64_t kRealSkySeed = 0x7265616c736b79ULL;  // one fixed set of crops for every run
 
 RealSkyData load_real_sky(const std::string& folder, const std::string& split_file, const std::string& split,
                           int crops, int64_t limit) {
-  constexpr uint64_t kSeed = 0x7265616c736b79ULL;  // one fixed set of crops for every run
+  constexpr uint64_t kSeed = kRealSkySeed;
   RealSkyData r;
   std::vector<std::string> test_paths;
   if (split_file.empty()) {
@@ -235,6 +251,70 @@ RealSkyData load_real_sky(const std::string& folder, const std::string& split_fi
   }
   if (limit > 0 && static_cast<size_t>(limit) < test_paths.size()) test_paths.resize(static_cast<size_t>(limit));
   r.test = real_sky_crops(test_paths, crops, kSeed);
+  return r;
+}
+
+bool has_extension(const fs::path& p, std::initializer_list<const char*> extensions) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  for (const char* e : extensions)
+    if (ext == e) return true;
+  return false;
+}
+
+// A folder of LDR panoramas: it has a sun_labels.csv, or holds 8-bit images and no HDR ones.
+bool is_ldr_folder(const std::string& dir) {
+  if (fs::exists(fs::path(dir) / "sun_labels.csv")) return true;
+  bool ldr = false;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    if (!e.is_regular_file(ec)) continue;
+    if (has_extension(e.path(), {".hdr", ".exr"})) return false;
+    ldr = ldr || has_extension(e.path(), {".jpg", ".jpeg", ".png"});
+  }
+  return ldr;
+}
+
+std::string labels_file_for(const std::string& dir, const std::string& sun_labels) {
+  return sun_labels.empty() ? (fs::path(dir) / "sun_labels.csv").string() : sun_labels;
+}
+
+RealSkyData load_ldr_panoramas(const std::string& folder, const std::string& labels_file, const std::string& split_file,
+                               const std::string& split, int crops, int64_t limit) {
+  SL_CHECK(fs::exists(labels_file), "LDR panorama folder '", folder, "': no sun labels '", labels_file,
+           "' (give --sun-labels FILE)");
+  const data::SunLabels labels = data::read_sun_labels(labels_file);
+  RealSkyData r;
+  r.ldr = true;
+  r.labels = labels_file;
+  std::vector<std::string> test_paths;
+  if (split_file.empty()) {
+    for (const auto& e : fs::directory_iterator(folder))
+      if (e.is_regular_file() && has_extension(e.path(), {".jpg", ".jpeg", ".png"})) test_paths.push_back(e.path().string());
+    std::sort(test_paths.begin(), test_paths.end());
+    SL_CHECK(!test_paths.empty(), "LDR panorama folder '", folder, "' holds no .jpg, .jpeg or .png files");
+  } else {
+    const HdriSplit hs = read_hdri_split(split_file);
+    test_paths = hs.split_paths(folder, split);
+    if (hs.has("train")) {
+      // Only the crops' cameras and label suns are needed: the images are dropped at once.
+      const LdrPanoramaCrops train =
+          ldr_panorama_crops(hs.split_paths(folder, "train"), labels, crops, kRealSkySeed, real_sky_crop_options(), false);
+      r.baseline = constant_baseline_direction(train.crops);
+      r.has_baseline = !train.scored.empty();
+      for (const auto* l : train.scored) r.baseline_from.push_back(l->file);
+    }
+  }
+  if (limit > 0 && static_cast<size_t>(limit) < test_paths.size()) test_paths.resize(static_cast<size_t>(limit));
+  LdrPanoramaCrops test = ldr_panorama_crops(test_paths, labels, crops, kRealSkySeed);
+  r.test = std::move(test.crops);
+  for (const auto* l : test.scored) {
+    r.scored.push_back(l->file);
+    if (l->confidence == data::LabelConfidence::Low) r.low_confidence.push_back(l->file);
+  }
+  for (const auto* l : test.not_scored)
+    r.not_scored.push_back({{"file", l->file}, {"sun", data::to_string(l->sun)},
+                            {"confidence", data::to_string(l->confidence)}, {"scene", data::to_string(l->scene)}});
   return r;
 }
 
@@ -264,6 +344,34 @@ json sun_stats_json(const Grouped& all, const Grouped& in, const Grouped& out, b
   if (split_by_crop) j["sun_in_crop"] = stats_json(in), j["sun_outside_crop"] = stats_json(out);
   return j;
 }
+
+// Sun errors of real crops: all, sun inside the crop, sun outside; for LDR panoramas also by the
+// label's scene (street / other) and for the low-confidence labels apart.
+struct SunSplit {
+  Grouped all, in, out;
+  void add(double e, const std::string& group, bool in_crop) {
+    all.add(e, group);
+    (in_crop ? in : out).add(e, group);
+  }
+  json to_json() const { return sun_stats_json(all, in, out, true); }
+};
+struct LdrSunSplits {
+  std::map<std::string, SunSplit> scene;  // "street", "other"
+  SunSplit low_confidence;
+  void add(const RealSkyCrop& c, double e) {
+    scene[c.scene].add(e, c.panorama, c.sun_in_crop);
+    if (c.label_confidence == "low") low_confidence.add(e, c.panorama, c.sun_in_crop);
+  }
+  void write(json& j) const {
+    json s = json::object();
+    for (const char* k : {"street", "other"}) {
+      const auto it = scene.find(k);
+      s[k] = it == scene.end() ? SunSplit().to_json() : it->second.to_json();
+    }
+    j["sun_by_scene"] = s;
+    j["sun_low_confidence"] = low_confidence.to_json();
+  }
+};
 
 // The constant baseline of a generated street dataset: the normalised mean of the canonical sun
 // directions (view 0's frame) of its TRAIN split's samples whose sun is hard. Read from meta.json
@@ -317,18 +425,22 @@ json street_baseline_json(const StreetBaseline& b, const std::string& data, cons
 // The baseline row: the constant direction scored on the same test crops.
 json baseline_json(const RealSkyData& r) {
   Grouped all, in, out;
+  LdrSunSplits ldr;
   for (const auto& c : r.test) {
     if (!c.sun_known) continue;
     const double e = angular_error_deg(r.baseline, c.sun_canonical);
     all.add(e, c.panorama);
     (c.sun_in_crop ? in : out).add(e, c.panorama);
+    if (r.ldr) ldr.add(c, e);
   }
-  return {{"name", "constant baseline (mean training sun)"}, {"direction", {r.baseline.x, r.baseline.y, r.baseline.z}},
-          {"from_panoramas", r.baseline_from}, {"sun_error_median_deg", median(all.v)},
-          {"sun_error_mean_deg", mean_of(all.v)},
-          {"ci95", {{"sun_error_median_deg", ci_json(all.v, all.g, Statistic::Median)},
-                    {"sun_error_mean_deg", ci_json(all.v, all.g, Statistic::Mean)}}},
-          {"sun", sun_stats_json(all, in, out, true)}};
+  json j = {{"name", "constant baseline (mean training sun)"}, {"direction", {r.baseline.x, r.baseline.y, r.baseline.z}},
+            {"from_panoramas", r.baseline_from}, {"sun_error_median_deg", median(all.v)},
+            {"sun_error_mean_deg", mean_of(all.v)},
+            {"ci95", {{"sun_error_median_deg", ci_json(all.v, all.g, Statistic::Median)},
+                      {"sun_error_mean_deg", ci_json(all.v, all.g, Statistic::Mean)}}},
+            {"sun", sun_stats_json(all, in, out, true)}};
+  if (r.ldr) ldr.write(j);
+  return j;
 }
 
 // The LDR a camera at the panorama's centre sees (bilinear, render/equirect.h convention).
@@ -369,6 +481,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   std::map<std::string, std::vector<double>> budget_err, budget_ms;
   int64_t oracle_probes = 0;  // oracle samples lit by the light probe at the object
   PartScores ins_parts, oracle_parts;
+  LdrSunSplits ldr_splits;
   const bool street = fs::exists(fs::path(data) / "index.json");
   size_t count = 0;
   if (street) {
@@ -456,6 +569,12 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         (c.sun_in_crop ? sun_in : sun_out).add(e, c.panorama);
         add_image(cat(c.panorama, "#", i), dir, c.sun_canonical, e);
         per_image.back()["sun_in_crop"] = c.sun_in_crop;
+        if (real->ldr) {
+          ldr_splits.add(c, e);
+          per_image.back()["label"] = c.label_sun;
+          per_image.back()["confidence"] = c.label_confidence;
+          per_image.back()["scene"] = c.scene;
+        }
       } else {
         ++sun_unknown;
       }
@@ -490,6 +609,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
             {"psnr", mean_of(ps.v)}, {"si_psnr", mean_of(sps.v)},
             {"psnr_upper", mean_of(ups.v)}, {"si_psnr_upper", mean_of(usps.v)},
             {"inference_ms", mean_of(ms)}, {"sun_per_image", per_image}};
+  if (real && real->ldr) ldr_splits.write(r);
   json ci = {{"sun_error_median_deg", ci_json(sun_err.v, sun_err.g, Statistic::Median)},
              {"sun_error_mean_deg", ci_json(sun_err.v, sun_err.g, Statistic::Mean)},
              {"psnr", ci_json(ps.v, ps.g, Statistic::Mean)}, {"si_psnr", ci_json(sps.v, sps.g, Statistic::Mean)},
@@ -536,9 +656,11 @@ json eval_sky(const std::string& ckpt, const std::string& data, const std::strin
     const auto t0 = std::chrono::steady_clock::now();
     const SkyAutoencoder::Output o = ae.run(in);
     ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-    const Tensor truth = resize_area(true_hdr.contiguous(), static_cast<int>(so.height), static_cast<int>(so.width));
-    const Tensor d = sub(log(add_scalar(select(o.sky.hdr, 0, 0), 1.0)), log(add_scalar(truth, 1.0)));
-    log_l2.push_back(mean(mul(d, d)).item());
+    if (true_hdr.defined()) {  // LDR panoramas have no HDR truth: no log-L2
+      const Tensor truth = resize_area(true_hdr.contiguous(), static_cast<int>(so.height), static_cast<int>(so.width));
+      const Tensor d = sub(log(add_scalar(select(o.sky.hdr, 0, 0), 1.0)), log(add_scalar(truth, 1.0)));
+      log_l2.push_back(mean(mul(d, d)).item());
+    }
     const Tensor dir = o.code.dir.to(DType::F64).contiguous();
     sun_err.push_back(angular_error_deg({dir.data<double>()[0], dir.data<double>()[1], dir.data<double>()[2]}, sun));
   };
@@ -555,19 +677,46 @@ json eval_sky(const std::string& ckpt, const std::string& data, const std::strin
     SL_CHECK(real != nullptr, "eval: internal: no real-sky panoramas for '", data, "'");
     for (const auto& c : real->test) {  // the whole (rotated) panorama of every crop with a known sun
       if (!c.sun_known) continue;
-      score(c.sample.pano_ldr, mul_scalar(c.sample.pano_hdr.contiguous(), c.sample.exposure), c.sample.sun_direction);
+      score(c.sample.pano_ldr, real->ldr ? Tensor() : mul_scalar(c.sample.pano_hdr.contiguous(), c.sample.exposure),
+            c.sample.sun_direction);
       ++count;
     }
   }
   return {{"checkpoint", ckpt}, {"stage", info.stage}, {"step", info.step}, {"images", count},
-          {"sky_log_l2", mean_of(log_l2)}, {"sun_error_median_deg", median(sun_err)},
+          {"sky_log_l2", log_l2.empty() ? json() : json(mean_of(log_l2))}, {"sun_error_median_deg", median(sun_err)},
           {"sun_error_mean_deg", mean_of(sun_err)}, {"inference_ms", mean_of(ms)}};
+}
+
+// The LDR panoramas' sun tables: all labelled crops, then street and other scenes and the
+// low-confidence labels, each with the baseline row; then the panoramas that were not scored.
+std::string ldr_markdown(const std::vector<json>& results, const json& baseline, const RealSkyData& r) {
+  std::string md = "\nSun direction on real LDR panoramas (hand-labelled suns, all scenes):\n\n" +
+                   cli::real_sky_markdown(results, baseline, "labelled crops");
+  auto subset = [&](const std::string& title, auto pick) {
+    std::vector<json> rows;
+    for (const auto& res : results)
+      if (res.contains("sun_by_scene")) rows.push_back({{"name", res.at("name")}, {"sun", pick(res)}});
+    json b;
+    if (!baseline.is_null()) b = {{"name", baseline.at("name")}, {"sun", pick(baseline)}};
+    md += "\n" + title + ":\n\n" + cli::real_sky_markdown(rows, b, "labelled crops");
+  };
+  subset("Street scenes", [](const json& j) { return j.at("sun_by_scene").at("street"); });
+  subset("Other scenes", [](const json& j) { return j.at("sun_by_scene").at("other"); });
+  subset("Low-confidence labels (also counted above)", [](const json& j) { return j.at("sun_low_confidence"); });
+  md += "\nScored panoramas: " + std::to_string(r.scored.size()) + "; not scored (no sun position): " +
+        std::to_string(r.not_scored.size());
+  std::string sep = " — ";
+  for (const auto& n : r.not_scored) {
+    md += sep + n.at("file").get<std::string>() + " (" + n.at("sun").get<std::string>() + ")";
+    sep = ", ";
+  }
+  return md + "\n";
 }
 
 int run(int argc, char** argv) {
   cli::Args a("streetlight-eval",
               "streetlight-eval [--checkpoint CKPT ...] --data DIR [--data DIR2 ...] [--split test] [--hdri-split FILE]\n"
-              "                 [--crops K] [--baseline-data DIR] [--out DIR] [--json]\n\n"
+              "                 [--ldr-split FILE] [--sun-labels FILE] [--crops K] [--baseline-data DIR] [--out DIR] [--json]\n\n"
               "Evaluates checkpoints with the metrics of Wang et al. ECCV 2022 (Tables 1-2): sun direction angular\n"
               "error, novel-view LDR PSNR / si-PSNR (also upper hemisphere only), sky log-L2 (sky autoencoder),\n"
               "insertion error against the generator's path-traced ground truth (also under oracle lighting: the\n"
@@ -581,12 +730,18 @@ int run(int argc, char** argv) {
               "the train split of --baseline-data (default: of the same DIR, when it has one). Samples whose sun\n"
               "is soft carry no sun error. Every metric has a 95% bootstrap interval ([lo, hi]; 2000 resamples,\n"
               "a real panorama's crops resampled together). Without --checkpoint: the released model\n"
-              "(models/streetlight.safetensors).",
+              "(models/streetlight.safetensors).\n"
+              "A folder of LDR panoramas (8-bit .jpg/.jpeg/.png beside a sun_labels.csv, e.g. ../shared/data/pano_ldr):\n"
+              "the same crops, read as the photo's own 8-bit values, with the true sun from the hand label; split by\n"
+              "--ldr-split (e.g. configs/pano_ldr_split.json), reported apart and also by the label's scene (street,\n"
+              "other) and for the low-confidence labels alone; panoramas without a sun position are listed, not scored.",
               {{"--checkpoint", "CKPT", "checkpoint to evaluate (one table row each; default: the released model)", true},
                {"--name", "NAME", "row name for the matching --checkpoint (default: its file path)", true},
                {"--data", "DIR", "street dataset (index.json) or folder of .hdr/.exr panoramas", true},
                {"--split", "NAME", "dataset split, or the split of --hdri-split (default test)"},
-               {"--hdri-split", "FILE", "split file for panorama folders (e.g. configs/hdri_split.json)"},
+               {"--hdri-split", "FILE", "split file for HDR panorama folders (e.g. configs/hdri_split.json)"},
+               {"--ldr-split", "FILE", "split file for LDR panorama folders (e.g. configs/pano_ldr_split.json)"},
+               {"--sun-labels", "FILE", "sun labels of the LDR panorama folders (default: DIR/sun_labels.csv)"},
                {"--crops", "K", "perspective crops per real panorama (default 8)"},
                {"--limit", "N", "evaluate at most N images (panorama folders: N panoramas)"},
                {"--view-rows", "N", "rows at which novel views are rendered (default 32)"},
@@ -616,6 +771,9 @@ int run(int argc, char** argv) {
   const int crops = static_cast<int>(a.integer("--crops", 8));
   SL_CHECK(crops > 0, "--crops must be positive, got ", crops);
   if (!hdri_split.empty()) (void)read_hdri_split(hdri_split);  // fail early on a bad file
+  const std::string ldr_split = a.get("--ldr-split", ""), sun_labels = a.get("--sun-labels", "");
+  if (!ldr_split.empty()) (void)read_hdri_split(ldr_split);
+  if (!sun_labels.empty()) (void)data::read_sun_labels(sun_labels);
   for (const auto& c : ckpts) nn::read_checkpoint_info(c);     // fail early on a bad file
   const std::string baseline_data = a.get("--baseline-data", "");
   if (!baseline_data.empty()) {
@@ -630,8 +788,13 @@ int run(int argc, char** argv) {
   bool plotted = false;
   for (const auto& data : datas) {
     const bool street = fs::exists(fs::path(data) / "index.json");
+    const bool ldr = !street && is_ldr_folder(data);
     std::unique_ptr<RealSkyData> real;
-    if (!street) real = std::make_unique<RealSkyData>(load_real_sky(data, hdri_split, split, crops, limit));
+    if (ldr)
+      real = std::make_unique<RealSkyData>(
+          load_ldr_panoramas(data, labels_file_for(data, sun_labels), ldr_split, split, crops, limit));
+    else if (!street)
+      real = std::make_unique<RealSkyData>(load_real_sky(data, hdri_split, split, crops, limit));
     std::vector<json> results;
     bool oracle_done = false;
     for (size_t i = 0; i < ckpts.size(); ++i) {
@@ -649,23 +812,36 @@ int run(int argc, char** argv) {
       }
       results.back()["name"] = names[i];
     }
-    json entry = {{"data", data}, {"kind", street ? "street" : "real_panoramas"}, {"split", split}, {"results", results}};
+    json entry = {{"data", data}, {"kind", street ? "street" : ldr ? "ldr_panoramas" : "real_panoramas"}, {"split", split},
+                  {"results", results}};
     json baseline;
     if (street) {
       const StreetBaseline b = street_baseline(baseline_data.empty() ? data : baseline_data);
       if (b.has) baseline = entry["baseline"] = street_baseline_json(b, data, split, limit);
     }
     if (real) {
-      entry["hdri_split"] = hdri_split;
+      if (ldr) {
+        entry["ldr_split"] = ldr_split;
+        entry["sun_labels"] = real->labels;
+        entry["panoramas"] = {{"scored", real->scored}, {"not_scored", real->not_scored},
+                              {"low_confidence", real->low_confidence}};
+      } else {
+        entry["hdri_split"] = hdri_split;
+      }
       entry["crops_per_panorama"] = crops;
       if (real->has_baseline) baseline = entry["baseline"] = baseline_json(*real);
     }
+    const std::string& split_file = ldr ? ldr_split : hdri_split;
     md += "## " + data + (street ? " (generated streets, split " + split + ")\n\n"
-                                 : " (real panoramas" + (hdri_split.empty() ? std::string() : ", " + hdri_split + " split " + split) +
+                                 : std::string(ldr ? " (real LDR panoramas" : " (real panoramas") +
+                                       (split_file.empty() ? std::string() : ", " + split_file + " split " + split) +
                                        ", " + std::to_string(crops) + " crops each)\n\n");
     md += cli::eval_markdown(results, names, street ? baseline : json());
     if (street && baseline.is_null()) md += "\n(no baseline row: the data has no train split; give --baseline-data)\n";
-    if (real) {
+    if (ldr) {
+      md += ldr_markdown(results, baseline, *real);
+      if (baseline.is_null()) md += "\n(no baseline row: give --ldr-split with a \"train\" list)\n";
+    } else if (real) {
       md += "\nSun direction on real skies (crops whose sun is hard):\n\n" + cli::real_sky_markdown(results, baseline);
       if (baseline.is_null()) md += "\n(no baseline row: give --hdri-split with a \"train\" list)\n";
     }

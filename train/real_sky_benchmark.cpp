@@ -1,13 +1,26 @@
 // The real-sky benchmark. See real_sky_benchmark.h.
 #include "train/real_sky_benchmark.h"
 
+#include <algorithm>
 #include <filesystem>
 
+#include "autodiff/ops.h"
+#include "data/augment.h"
 #include "data/hdri_folder.h"
+#include "data/image_io.h"
+#include "data/panorama.h"
 #include "train/metrics.h"
 #include "train/street_batch.h"
 
 using sl::data::HdriFolder;
+using sl::data::ImageReadOptions;
+using sl::data::read_image;
+using sl::data::resize_area;
+using sl::data::rotate_azimuth;
+using sl::data::rotate_direction_azimuth;
+using sl::data::StreetSample;
+using sl::data::StreetView;
+using sl::data::Transfer;
 using sl::data::panorama_street_sample;
 using sl::data::PanoramaSampleOptions;
 using sl::data::sanitized_panorama;
@@ -46,6 +59,72 @@ std::vector<RealSkyCrop> real_sky_crops(const std::vector<std::string>& paths, i
       const Projection p = cam.project(cam.position() + 1e3 * c.sample.sun_direction);
       c.sun_in_crop = p.in_image;
       out.push_back(std::move(c));
+    }
+  }
+  return out;
+}
+
+LdrPanoramaCrops ldr_panorama_crops(const std::vector<std::string>& paths, const data::SunLabels& labels,
+                                    int crops_per_panorama, uint64_t seed, const PanoramaSampleOptions& options,
+                                    bool keep_images, int working_width) {
+  SL_CHECK(crops_per_panorama > 0, "real-sky benchmark: crops per panorama must be positive, got ", crops_per_panorama);
+  SL_CHECK(working_width >= 2 && working_width % 2 == 0, "real-sky benchmark: LDR working width must be even, got ",
+           working_width);
+  LdrPanoramaCrops out;
+  std::vector<std::string> sorted = paths;
+  std::sort(sorted.begin(), sorted.end());
+  const glm::dvec3 centre(0.0, options.camera_height_m, 0.0);
+  for (const std::string& path : sorted) {
+    const std::string name = std::filesystem::path(path).filename().string();
+    const data::PanoramaSunLabel* label = labels.find(name);
+    SL_CHECK(label != nullptr, "LDR panorama '", path, "' has no row in the sun labels '", labels.path, "'");
+    if (!label->has_position) {
+      out.not_scored.push_back(label);
+      continue;
+    }
+    out.scored.push_back(label);
+    ImageReadOptions ro;
+    ro.transfer = Transfer::Linear;  // codes / 255: the estimator's LDR (see the header)
+    ro.channels = 3;
+    const Tensor full = read_image(path, ro);
+    SL_CHECK(full.size(2) == 2 * full.size(1), "LDR panorama '", path, "' is ", full.size(2), "x", full.size(1),
+             "; an equirectangular panorama is 2:1 (width = 2 x height)");
+    const int fw = static_cast<int>(full.size(2)), fh = static_cast<int>(full.size(1));
+    const glm::dvec3 sun = labels.direction(*label, fw, fh);
+    const Tensor pano = resize_area(full, working_width / 2, working_width).contiguous();
+    const Tensor small = resize_area(full, options.pano_height, options.pano_width).contiguous();
+    for (int k = 0; k < crops_per_panorama; ++k) {
+      const data::PanoramaSampleDraw draw = data::draw_panorama_sample(seed, static_cast<uint64_t>(k), working_width, options);
+      const double delta = 2.0 * kPi * static_cast<double>(draw.shift_columns) / working_width;
+      const Tensor rotated = draw.shift_columns ? rotate_azimuth(pano, delta) : pano;
+      const data::RandomCrop rc = data::random_perspective_crop(rotated, seed, draw.crop_stream, options.crop, centre);
+      RealSkyCrop c;
+      c.panorama = name;
+      c.label_sun = data::to_string(label->sun);
+      c.label_confidence = data::to_string(label->confidence);
+      c.scene = data::to_string(label->scene);
+      StreetSample& s = c.sample;
+      s.id = "ldr:" + name + "#" + std::to_string(k);
+      s.exposure = 1.0;
+      s.sun_direction = rotate_direction_azimuth(sun, delta);
+      s.sun_known = true;
+      s.pano_position = centre;
+      StreetView v;
+      v.camera = rc.crop.camera;
+      if (keep_images) {
+        const Tensor small_rot = draw.shift_columns ? rotate_azimuth(small, delta) : small;
+        s.pano_ldr = small_rot.contiguous();
+        s.pano_hdr = pow_scalar(s.pano_ldr, 2.2).contiguous();
+        s.sky_hdr = s.pano_hdr;
+        v.ldr = rc.crop.image.contiguous();
+        v.depth = Tensor::zeros({options.crop.height, options.crop.width}, DType::F32);
+      }
+      s.views.push_back(std::move(v));
+      const Camera& cam = s.views[0].camera;
+      c.sun_canonical = canonical_frame(cam).direction(s.sun_direction);
+      c.sun_known = true;
+      c.sun_in_crop = cam.project(cam.position() + 1e3 * s.sun_direction).in_image;
+      out.crops.push_back(std::move(c));
     }
   }
   return out;

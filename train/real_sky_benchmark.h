@@ -11,6 +11,21 @@
 // listed with sun_known = false. sun_in_crop: the sun projects inside the crop's image.
 // SunErrorStats: count, median and mean (degrees), and the share within 15°, 30° and 45°.
 // Throws: sl::Error naming the panorama (unreadable, not 2:1).
+//
+// LDR panoramas (ldr_panorama_crops; ../shared/data/pano_ldr, 8-bit sRGB-encoded JPEGs whose sun
+// is hand-labelled in sun_labels.csv, data/sun_labels.h): the same crops as the HDR skies — the
+// panorama area-resized to ldr_working_width × width/2 (the HDR skies' 1024 × 512, so a crop's
+// pixels are as sharp), the azimuth shift and crop stream of draw_panorama_sample (data/
+// panorama_sample.h) and random_perspective_crop — and the true sun from the label, rotated with
+// the panorama (data/panorama.h rotate_direction_azimuth). The image is the 8-bit codes / 255
+// (Transfer::Linear): the estimator's input is "an 8-bit photo read without an sRGB curve"
+// (train/inference.h), as streetlight-insert reads a photo, and it is not re-exposed (a photo is
+// scored at the exposure its camera chose). pano_hdr holds the codes^2.2 at pano_width × pano_height
+// and exposure is 1, so to_ldr(pano_hdr, exposure) gives the codes back for the novel-view PSNR.
+// Panoramas labelled none, or occluded without a position, give no crops and are listed in
+// not_scored; each crop carries its label's class, confidence and scene.
+// Throws: sl::Error naming the panorama (unreadable, not 2:1) or, for a panorama without a label,
+// the panorama and the labels file.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -19,6 +34,7 @@
 #include <glm/glm.hpp>
 
 #include "data/panorama_sample.h"
+#include "data/sun_labels.h"
 
 namespace sl::train {
 
@@ -27,12 +43,26 @@ struct RealSkyCrop {
   data::StreetSample sample;  // one view: the crop (its camera at the panorama's centre)
   glm::dvec3 sun_canonical{0.0, 1.0, 0.0};
   bool sun_known = false, sun_in_crop = false;
+  // LDR panoramas only: the label's sun class, confidence and scene (data/sun_labels.h names).
+  std::string label_sun, label_confidence, scene;
 };
 
 data::PanoramaSampleOptions real_sky_crop_options(int width = 256, int height = 128);
 
 std::vector<RealSkyCrop> real_sky_crops(const std::vector<std::string>& paths, int crops_per_panorama, uint64_t seed,
                                         const data::PanoramaSampleOptions& options = real_sky_crop_options());
+
+struct LdrPanoramaCrops {
+  std::vector<RealSkyCrop> crops;  // K per scored panorama, panoramas in sorted path order
+  std::vector<const data::PanoramaSunLabel*> scored, not_scored;  // into the labels given
+};
+inline constexpr int kLdrWorkingWidth = 1024;
+// keep_images = false drops each crop's images once its camera and sun are known (enough for the
+// constant baseline).
+LdrPanoramaCrops ldr_panorama_crops(const std::vector<std::string>& paths, const data::SunLabels& labels,
+                                    int crops_per_panorama, uint64_t seed,
+                                    const data::PanoramaSampleOptions& options = real_sky_crop_options(),
+                                    bool keep_images = true, int ldr_working_width = kLdrWorkingWidth);
 
 // Normalised mean of sun_canonical over the crops with a known sun (+Y when there is none).
 glm::dvec3 constant_baseline_direction(const std::vector<RealSkyCrop>& training_crops);

@@ -11,10 +11,13 @@
 #include <nlohmann/json.hpp>
 
 #include "data/image_io.h"
+#include "data/panorama.h"
 #include "data/sky_model.h"
 #include "support/street_fixture.h"
 #include "support/tool_fixture.h"
 #include "data/street_dataset.h"
+#include "data/sun_labels.h"
+#include "render/equirect.h"
 #include "train/real_sky_benchmark.h"
 #include "train/street_batch.h"
 #include "util/math.h"
@@ -216,6 +219,200 @@ TEST(EvalTool, BadPanoramaInputIsOneLineNamingTheFileAndWritesNothing) {
   fs::create_directories(odd);
   sl::data::write_image(odd + "/square_1k.hdr", sl::Tensor::uniform({3, 32, 32}, 0.1, 1.0, 3));
   expect_error("--data " + odd, "square_1k.hdr");
+}
+
+}  // namespace sl::test
+
+namespace sl::test {
+
+namespace {
+
+// A tiny folder of LDR panoramas (8-bit JPEGs, 128×64): grey ground, lighter sky and, where the
+// panorama is labelled with a position, a white 3×3 sun at the label. sun_labels.csv beside them
+// (label frame 2048×1024, 16× the image) and a split file. Test: a (visible, street, high),
+// b (occluded with a position, other, low), c (none), d (occluded without a position); train:
+// t1 (visible street), t2 (visible other).
+struct LdrSun {
+  const char* file;
+  const char* sun;
+  int col, row;  // the sun texel (−1: no position)
+  const char* confidence;
+  const char* scene;
+};
+constexpr LdrSun kLdrSuns[] = {{"a.jpg", "visible", 30, 27, "high", "street"},
+                               {"b.jpg", "occluded", 90, 25, "low", "other"},
+                               {"c.jpg", "none", -1, -1, "high", "street"},
+                               {"d.jpg", "occluded", -1, -1, "medium", "street"},
+                               {"t1.jpg", "visible", 70, 25, "high", "street"},
+                               {"t2.jpg", "visible", 110, 8, "medium", "other"}};
+
+std::string tiny_ldr_folder(const std::string& dir) {
+  const std::string folder = dir + "/ldr";
+  fs::create_directories(folder);
+  std::ofstream labels(folder + "/sun_labels.csv");
+  labels << "file,sun,u,v,confidence,scene,note\n";
+  for (const LdrSun& s : kLdrSuns) {
+    sl::Tensor img = sl::Tensor::empty({3, 64, 128});
+    float* p = img.data<float>();
+    for (int c = 0; c < 3; ++c)
+      for (int r = 0; r < 64; ++r)
+        for (int x = 0; x < 128; ++x) {
+          const bool sun = s.col >= 0 && std::abs(x - s.col) <= 1 && std::abs(r - s.row) <= 1;
+          p[(c * 64 + r) * 128 + x] = sun ? 1.0f : r < 32 ? 0.55f + 0.1f * c : 0.25f;
+        }
+    sl::data::ImageWriteOptions wo;
+    wo.transfer = sl::data::Transfer::Linear;  // the values are the 8-bit codes
+    sl::data::write_image(folder + "/" + s.file, img, wo);
+    labels << s.file << "," << s.sun << ",";
+    if (s.col >= 0) labels << (s.col + 0.5) * 16 << "," << (s.row + 0.5) * 16;
+    else labels << ",";
+    labels << "," << s.confidence << "," << s.scene << ",\"note, with a comma\"\n";
+  }
+  std::ofstream(dir + "/ldr_split.json")
+      << R"({"train": ["t1.jpg", "t2.jpg"], "test": ["a.jpg", "b.jpg", "c.jpg", "d.jpg"]})";
+  return folder;
+}
+
+}  // namespace
+
+TEST(EvalTool, LdrPanoramaCropsShowTheLabelledSunWhereTheirCameraProjectsIt) {
+  const std::string dir = sl::test::tool_dir("eval_ldr_crops");
+  const std::string folder = tiny_ldr_folder(dir);
+  const sl::data::SunLabels labels = sl::data::read_sun_labels(folder + "/sun_labels.csv");
+  const auto set = sl::train::ldr_panorama_crops({folder + "/a.jpg", folder + "/b.jpg", folder + "/c.jpg"}, labels, 16, 7);
+  ASSERT_EQ(set.crops.size(), 32u);  // c has no sun position
+  ASSERT_EQ(set.not_scored.size(), 1u);
+  EXPECT_EQ(set.not_scored[0]->file, "c.jpg");
+  int inside = 0;
+  for (const auto& c : set.crops) {
+    const auto& v = c.sample.views[0];
+    const sl::render::Projection p = v.camera.project(v.camera.position() + 1e3 * c.sample.sun_direction);
+    ASSERT_EQ(p.in_image, c.sun_in_crop);
+    EXPECT_NEAR(glm::length(sl::train::canonical_frame(v.camera).direction(c.sample.sun_direction) - c.sun_canonical), 0.0,
+                1e-12);
+    if (!p.in_image) continue;
+    ++inside;
+    // The crop holds the 8-bit codes: white (1.0) at the projected sun, not decoded to linear.
+    const sl::Tensor img = v.ldr.contiguous();
+    const int w = static_cast<int>(img.size(2)), h = static_cast<int>(img.size(1));
+    float peak = 0.0f;
+    for (int dy = -2; dy <= 2; ++dy)
+      for (int dx = -2; dx <= 2; ++dx) {
+        const int x = std::clamp(static_cast<int>(p.pixel.x) + dx, 0, w - 1);
+        const int y = std::clamp(static_cast<int>(p.pixel.y) + dy, 0, h - 1);
+        peak = std::max(peak, img.data<float>()[y * w + x]);
+      }
+    EXPECT_GT(peak, 0.95f) << c.sample.id;
+  }
+  EXPECT_GT(inside, 0) << "no crop contained a sun";
+  // The rotated panorama's sun texel is at the rotated label: pano_ldr (codes) is white there.
+  for (const auto& c : set.crops) {
+    const sl::Tensor& pano = c.sample.pano_ldr;
+    const glm::dvec3 d = c.sample.sun_direction;
+    const auto uv = sl::render::equirect::direction_to_uv(d.x, d.y, d.z, static_cast<int>(pano.size(2)),
+                                                          static_cast<int>(pano.size(1)));
+    float rgb[3];
+    sl::data::sample_bilinear(pano.data<float>(), 3, static_cast<int>(pano.size(1)), static_cast<int>(pano.size(2)),
+                              uv.u, uv.v, rgb);
+    EXPECT_GT(rgb[0], 0.9f) << c.sample.id;  // the 3×3 sun (sky 0.55, ground 0.25), area-resized to 256×128
+  }
+}
+
+TEST(EvalTool, LdrPanoramasAreReportedApartBySceneBesideTheirBaselineAndListWhatIsNotScored) {
+  if (!sl::test::tool_built("streetlight-eval")) GTEST_SKIP() << "streetlight-eval not built";
+  const std::string dir = sl::test::tool_dir("eval_ldr");
+  const std::string folder = tiny_ldr_folder(dir);
+  const std::string ckpt = sl::test::tiny_lighting_checkpoint(dir);
+  const auto r = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --name tiny --data " + folder +
+                                                          " --ldr-split " + dir + "/ldr_split.json --crops 3 --view-rows 8 --out " +
+                                                          dir + "/out");
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream jf(dir + "/out/results.json");
+  const auto j = nlohmann::json::parse(jf);
+  const auto& d = j["datasets"][0];
+  EXPECT_EQ(d["kind"], "ldr_panoramas");
+  EXPECT_EQ(d["sun_labels"], folder + "/sun_labels.csv");  // the default: beside the images
+  EXPECT_EQ(d["panoramas"]["scored"], nlohmann::json({"a.jpg", "b.jpg"}));
+  EXPECT_EQ(d["panoramas"]["low_confidence"], nlohmann::json({"b.jpg"}));
+  ASSERT_EQ(d["panoramas"]["not_scored"].size(), 2u);
+  EXPECT_EQ(d["panoramas"]["not_scored"][0]["file"], "c.jpg");
+  EXPECT_EQ(d["panoramas"]["not_scored"][0]["sun"], "none");
+  EXPECT_EQ(d["panoramas"]["not_scored"][1]["file"], "d.jpg");
+  EXPECT_EQ(d["panoramas"]["not_scored"][1]["sun"], "occluded");
+  const auto& res = d["results"][0];
+  EXPECT_EQ(res["images"], 6);  // 3 crops of each scored test panorama
+  for (const auto* row : {&res, &d["baseline"]}) {
+    const auto& sun = (*row)["sun"];
+    EXPECT_EQ(sun["all"]["count"], 6) << row->dump();
+    EXPECT_EQ(sun["all"]["count"].get<int>(), sun["sun_in_crop"]["count"].get<int>() + sun["sun_outside_crop"]["count"].get<int>());
+    // a is a street, b another scene; b's label is the low-confidence one.
+    EXPECT_EQ((*row)["sun_by_scene"]["street"]["all"]["count"], 3) << row->dump();
+    EXPECT_EQ((*row)["sun_by_scene"]["other"]["all"]["count"], 3) << row->dump();
+    EXPECT_EQ((*row)["sun_low_confidence"]["all"]["count"], 3) << row->dump();
+    for (const char* k : {"street", "other"})
+      for (const char* part : {"all", "sun_in_crop", "sun_outside_crop"})
+        EXPECT_TRUE((*row)["sun_by_scene"][k].contains(part)) << k << "." << part;
+  }
+  // Per crop: the label's class, confidence and scene, and the true sun of the library's crops.
+  const sl::data::SunLabels labels = sl::data::read_sun_labels(folder + "/sun_labels.csv");
+  const auto crops = sl::train::ldr_panorama_crops({folder + "/a.jpg", folder + "/b.jpg"}, labels, 3, 0x7265616c736b79ULL);
+  const auto& per = res["sun_per_image"];
+  ASSERT_EQ(per.size(), 6u);
+  for (size_t i = 0; i < per.size(); ++i) {
+    const bool a = per[i]["id"].get<std::string>().rfind("a.jpg#", 0) == 0;
+    EXPECT_EQ(per[i]["scene"], a ? "street" : "other") << per[i].dump();
+    EXPECT_EQ(per[i]["label"], a ? "visible" : "occluded") << per[i].dump();
+    EXPECT_EQ(per[i]["confidence"], a ? "high" : "low") << per[i].dump();
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(per[i]["truth"][k].get<double>(), crops.crops[i].sun_canonical[k], 1e-9);
+  }
+  // The baseline: the training split's labelled suns, as the library computes it.
+  const auto& b = d["baseline"];
+  EXPECT_EQ(b["from_panoramas"], nlohmann::json({"t1.jpg", "t2.jpg"}));
+  const auto train = sl::train::ldr_panorama_crops({folder + "/t1.jpg", folder + "/t2.jpg"}, labels, 3, 0x7265616c736b79ULL,
+                                                   sl::train::real_sky_crop_options(), false);
+  const glm::dvec3 expect = sl::train::constant_baseline_direction(train.crops);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(b["direction"][k].get<double>(), expect[k], 1e-9);
+  std::ifstream mf(dir + "/out/results.md");
+  const std::string md((std::istreambuf_iterator<char>(mf)), std::istreambuf_iterator<char>());
+  for (const char* s : {"real LDR panoramas", "Street scenes", "Other scenes", "Low-confidence", "constant baseline",
+                        "not scored (no sun position): 2", "c.jpg (none)"})
+    EXPECT_NE(md.find(s), std::string::npos) << s << " in\n" << md;
+  // An explicit --sun-labels is read instead of the one beside the images.
+  fs::copy_file(folder + "/sun_labels.csv", dir + "/other_labels.csv");
+  const auto r2 = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --data " + folder + " --ldr-split " + dir +
+                                                           "/ldr_split.json --sun-labels " + dir +
+                                                           "/other_labels.csv --crops 1 --view-rows 8 --json");
+  ASSERT_EQ(r2.code, 0) << r2.out;
+  const auto j2 = nlohmann::json::parse(r2.out.substr(r2.out.find('{')));
+  EXPECT_EQ(j2["datasets"][0]["sun_labels"], dir + "/other_labels.csv");
+  EXPECT_EQ(j2["datasets"][0]["results"][0]["images"], 2);
+}
+
+TEST(EvalTool, BadSunLabelsAreOneLineNamingTheFileAndLine) {
+  if (!sl::test::tool_built("streetlight-eval")) GTEST_SKIP();
+  const std::string dir = sl::test::tool_dir("eval_ldr_bad");
+  const std::string folder = tiny_ldr_folder(dir);
+  const std::string ckpt = sl::test::tiny_lighting_checkpoint(dir);
+  auto run = [&](const std::string& labels_body, const std::string& needle, const std::string& extra = "") {
+    std::ofstream(dir + "/bad.csv") << labels_body;
+    const auto r = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --data " + folder + " --ldr-split " +
+                                                            dir + "/ldr_split.json --sun-labels " + dir + "/bad.csv " +
+                                                            extra + "--out " + dir + "/res");
+    sl::test::expect_clean_error(r, dir + "/res", needle);
+  };
+  const std::string h = "file,sun,u,v,confidence,scene,note\n";
+  run(h + "a.jpg,visible,488,328,high,street,\nb.jpg,sunny,1,1,high,street,\n", dir + "/bad.csv:3");
+  run(h + "a.jpg,visible,4000,328,high,street,\n", dir + "/bad.csv:2");
+  run(h + "a.jpg,visible,488,328,certain,street,\n", "unknown confidence 'certain'");
+  run(h + "a.jpg,visible,488,328,high,beach,\n", "unknown scene 'beach'");
+  run("file,sun,u,v,scene\na.jpg,none,,,street\n", dir + "/bad.csv:1");
+  run(h + "a.jpg,visible,488,328,high\n", "missing column 'scene'");
+  // A test panorama without a label names the panorama and the labels file.
+  run(h + "a.jpg,visible,488,328,high,street,\nt1.jpg,none,,,high,street,\nt2.jpg,none,,,high,street,\n", "b.jpg");
+  // A missing labels file.
+  const auto r = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --data " + folder +
+                                                          " --sun-labels " + dir + "/gone.csv --out " + dir + "/out/res");
+  sl::test::expect_clean_error(r, dir + "/res", "gone.csv");
 }
 
 }  // namespace sl::test

@@ -10,7 +10,7 @@ using nlohmann::json;
 namespace {
 
 std::string fmt(const json& r, const char* key, int prec = 2) {
-  if (!r.contains(key)) return "—";
+  if (!r.contains(key) || r.at(key).is_null()) return "—";
   char b[64];
   std::snprintf(b, sizeof b, "%.*f", prec, r.at(key).get<double>());
   return b;
@@ -81,12 +81,16 @@ std::string eval_markdown(const std::vector<json>& rows, const std::vector<std::
 }
 
 // Table 1 on real skies: one row per lighting checkpoint and the constant baseline.
-std::string real_sky_markdown(const std::vector<json>& rows, const json& baseline) {
+std::string real_sky_markdown(const std::vector<json>& rows, const json& baseline, const std::string& count_title) {
   std::ostringstream md;
-  md << "| model | crops with a hard sun | median ° [95% CI] | mean ° [95% CI] | ≤15° | ≤30° | ≤45° | "
+  md << "| model | " << count_title << " | median ° [95% CI] | mean ° [95% CI] | ≤15° | ≤30° | ≤45° | "
         "sun in crop: median ° (n) | sun outside: median ° (n) |\n|---|---|---|---|---|---|---|---|---|\n";
   auto row = [&](const std::string& name, const json& sun) {
     const json& a = sun.at("all");
+    if (a.at("count").get<size_t>() == 0) {  // an empty subset has no statistics
+      md << "| " << name << " | 0 | — | — | — | — | — | — (0) | — (0) |\n";
+      return;
+    }
     char b[640];
     std::snprintf(b, sizeof b, "| %s | %zu | %s | %s | %.2f | %.2f | %.2f | %.1f (%zu) | %.1f (%zu) |\n", name.c_str(),
                   a.at("count").get<size_t>(), fmt_ci(a, "median_deg", 1).c_str(), fmt_ci(a, "mean_deg", 1).c_str(),

@@ -16,7 +16,9 @@ namespace sl::cli {
 // The main table of one data set. baseline: the constant-baseline row, or null for none.
 std::string eval_markdown(const std::vector<nlohmann::json>& rows, const std::vector<std::string>& names,
                           const nlohmann::json& baseline);
-// The real-sky sun table (rows with a "sun" object split by crop), with the baseline row if any.
-std::string real_sky_markdown(const std::vector<nlohmann::json>& rows, const nlohmann::json& baseline);
+// The real-sky sun table (rows with a "sun" object split by crop), with the baseline row if any;
+// count_title heads the count column. A row whose count is 0 prints "—" for its statistics.
+std::string real_sky_markdown(const std::vector<nlohmann::json>& rows, const nlohmann::json& baseline,
+                              const std::string& count_title = "crops with a hard sun");
 
 }  // namespace sl::cli

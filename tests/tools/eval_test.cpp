@@ -377,6 +377,7 @@ TEST(EvalTool, LdrPanoramasAreReportedApartBySceneBesideTheirBaselineAndListWhat
   for (const char* s : {"real LDR panoramas", "Street scenes", "Other scenes", "Low-confidence", "constant baseline",
                         "not scored (no sun position): 2", "c.jpg (none)"})
     EXPECT_NE(md.find(s), std::string::npos) << s << " in\n" << md;
+  EXPECT_EQ(md.find("0.0 (0)"), std::string::npos) << "an empty part prints a dash, not a median of 0\n" << md;
   // An explicit --sun-labels is read instead of the one beside the images.
   fs::copy_file(folder + "/sun_labels.csv", dir + "/other_labels.csv");
   const auto r2 = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --data " + folder + " --ldr-split " + dir +

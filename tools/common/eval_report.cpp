@@ -92,12 +92,17 @@ std::string real_sky_markdown(const std::vector<json>& rows, const json& baselin
       return;
     }
     char b[640];
-    std::snprintf(b, sizeof b, "| %s | %zu | %s | %s | %.2f | %.2f | %.2f | %.1f (%zu) | %.1f (%zu) |\n", name.c_str(),
+    auto part = [](const json& p) {  // "median (n)", a dash for an empty part
+      const size_t n = p.at("count").get<size_t>();
+      char c[64];
+      if (n == 0) return std::string("— (0)");
+      std::snprintf(c, sizeof c, "%.1f (%zu)", p.at("median_deg").get<double>(), n);
+      return std::string(c);
+    };
+    std::snprintf(b, sizeof b, "| %s | %zu | %s | %s | %.2f | %.2f | %.2f | %s | %s |\n", name.c_str(),
                   a.at("count").get<size_t>(), fmt_ci(a, "median_deg", 1).c_str(), fmt_ci(a, "mean_deg", 1).c_str(),
                   a.at("within_15").get<double>(), a.at("within_30").get<double>(), a.at("within_45").get<double>(),
-                  sun.at("sun_in_crop").at("median_deg").get<double>(), sun.at("sun_in_crop").at("count").get<size_t>(),
-                  sun.at("sun_outside_crop").at("median_deg").get<double>(),
-                  sun.at("sun_outside_crop").at("count").get<size_t>());
+                  part(sun.at("sun_in_crop")).c_str(), part(sun.at("sun_outside_crop")).c_str());
     md << b;
   };
   for (const auto& r : rows)

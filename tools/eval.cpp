@@ -14,6 +14,9 @@
 //     apart ("kind": "ldr_panoramas") and split by the label's scene (street / other) and with the
 //     low-confidence labels apart, each beside the constant baseline; panoramas without a sun
 //     position (none, or occluded without one) are counted and listed, not scored.
+//   confidence: each labelled image's flip spread (train/inference.h sun_flip_spread_deg) in
+//     "sun_per_image", and "sun_confidence": the median sun error of the most confident half of
+//     the images against the rest's (does a small spread mean a small error?).
 //   sky-autoencoder checkpoints: sky log-L2 = mean (ln(1 + L̂) − ln(1 + L))² of the
 //     reconstructed exposure-normalised dome, and the sun angular error of f_dir.
 // Error against run time (--out): the first lighting checkpoint is re-run at several insertion
@@ -373,6 +376,51 @@ struct LdrSunSplits {
   }
 };
 
+// Does the network know when it is right? Each labelled image's sun error beside its confidence,
+// the flip spread (train/inference.h sun_flip_spread_deg): the median error of the most confident
+// half (the floor(n/2) smallest spreads) against that of the rest. null when the spread was not
+// measured (--no-flip-average, or a checkpoint without a sky vector) or fewer than 2 images.
+struct Confidence {
+  std::vector<std::pair<double, double>> spread_error;
+  bool complete = true;
+  void add(double spread, double error) {
+    if (std::isfinite(spread)) spread_error.emplace_back(spread, error);
+    else complete = false;
+  }
+  json to_json() const {
+    if (!complete || spread_error.size() < 2) return json();
+    std::vector<std::pair<double, double>> v = spread_error;
+    std::stable_sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    const size_t half = v.size() / 2;
+    std::vector<double> confident, uncertain, spreads;
+    for (size_t i = 0; i < v.size(); ++i) (i < half ? confident : uncertain).push_back(v[i].second), spreads.push_back(v[i].first);
+    return {{"measure", "sun_flip_spread_deg"}, {"spread_median_deg", median(spreads)},
+            {"confident_half", {{"count", confident.size()}, {"sun_error_median_deg", median(confident)},
+                                {"spread_max_deg", v[half - 1].first}}},
+            {"uncertain_half", {{"count", uncertain.size()}, {"sun_error_median_deg", median(uncertain)},
+                                {"spread_min_deg", v[half].first}}}};
+  }
+};
+
+// One markdown line per result row with a confidence split.
+std::string confidence_markdown(const std::vector<json>& results) {
+  std::string md;
+  for (const auto& r : results) {
+    if (!r.contains("sun_confidence") || r.at("sun_confidence").is_null()) continue;
+    const json& c = r.at("sun_confidence");
+    char b[512];
+    std::snprintf(b, sizeof b,
+                  "- %s: sun error median %.1f° on the most confident half (%zu images, flip spread ≤ %.1f°) against "
+                  "%.1f° on the rest (%zu, spread ≥ %.1f°)\n",
+                  r.at("name").get<std::string>().c_str(), c["confident_half"]["sun_error_median_deg"].get<double>(),
+                  c["confident_half"]["count"].get<size_t>(), c["confident_half"]["spread_max_deg"].get<double>(),
+                  c["uncertain_half"]["sun_error_median_deg"].get<double>(), c["uncertain_half"]["count"].get<size_t>(),
+                  c["uncertain_half"]["spread_min_deg"].get<double>());
+    md += b;
+  }
+  return md.empty() ? md : "\nConfidence (the angle between the sun of the photo and of its mirror image, train/inference.h):\n\n" + md;
+}
+
 // The constant baseline of a generated street dataset: the normalised mean of the canonical sun
 // directions (view 0's frame) of its TRAIN split's samples whose sun is hard. Read from meta.json
 // alone. has = false when the split is missing or holds no such sample.
@@ -472,9 +520,13 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   // One entry per image with a sun label: which image, the error and both directions (in the
   // input camera's canonical frame), so failures can be found and looked at.
   json per_image = json::array();
-  const auto add_image = [&](const std::string& id, const glm::dvec3& predicted, const glm::dvec3& truth, double e) {
+  Confidence confidence;
+  const auto add_image = [&](const std::string& id, const glm::dvec3& predicted, const glm::dvec3& truth, double e,
+                             double spread) {
     per_image.push_back({{"id", id}, {"sun_error_deg", e}, {"predicted", {predicted.x, predicted.y, predicted.z}},
-                         {"truth", {truth.x, truth.y, truth.z}}});
+                         {"truth", {truth.x, truth.y, truth.z}},
+                         {"sun_flip_spread_deg", std::isfinite(spread) ? json(spread) : json()}});
+    confidence.add(spread, e);
   };
   std::vector<double> ms;
   size_t sun_unknown = 0;  // samples whose sun label is not usable (soft sun): no sun error
@@ -501,7 +553,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         const glm::dvec3 truth = l.frame.direction(s.sun_direction);
         const double e = angular_error_deg(dir, truth);
         sun_err.add(e, s.id);
-        add_image(s.id, dir, truth, e);
+        add_image(s.id, dir, truth, e, l.sun_flip_spread_deg);
       } else {
         ++sun_unknown;
       }
@@ -567,7 +619,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         const double e = angular_error_deg(dir, c.sun_canonical);
         sun_err.add(e, c.panorama);
         (c.sun_in_crop ? sun_in : sun_out).add(e, c.panorama);
-        add_image(cat(c.panorama, "#", i), dir, c.sun_canonical, e);
+        add_image(cat(c.panorama, "#", i), dir, c.sun_canonical, e, l.sun_flip_spread_deg);
         per_image.back()["sun_in_crop"] = c.sun_in_crop;
         if (real->ldr) {
           ldr_splits.add(c, e);
@@ -610,6 +662,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
             {"psnr_upper", mean_of(ups.v)}, {"si_psnr_upper", mean_of(usps.v)},
             {"inference_ms", mean_of(ms)}, {"sun_per_image", per_image}};
   if (real && real->ldr) ldr_splits.write(r);
+  r["sun_confidence"] = confidence.to_json();
   json ci = {{"sun_error_median_deg", ci_json(sun_err.v, sun_err.g, Statistic::Median)},
              {"sun_error_mean_deg", ci_json(sun_err.v, sun_err.g, Statistic::Mean)},
              {"psnr", ci_json(ps.v, ps.g, Statistic::Mean)}, {"si_psnr", ci_json(sps.v, sps.g, Statistic::Mean)},
@@ -845,6 +898,7 @@ int run(int argc, char** argv) {
       md += "\nSun direction on real skies (crops whose sun is hard):\n\n" + cli::real_sky_markdown(results, baseline);
       if (baseline.is_null()) md += "\n(no baseline row: give --hdri-split with a \"train\" list)\n";
     }
+    md += confidence_markdown(results);
     md += "\n";
     datasets.push_back(entry);
   }

@@ -5,7 +5,8 @@
 // Outputs (single image) in --out DIR, written to a temporary sibling folder first and renamed
 // only when everything succeeded, so bad input leaves nothing behind:
 //   composite.png (+ composite.exr with --exr), object_mask.png, shadow_map.png, sky.exr,
-//   sky.png (tone-mapped, world azimuths), depth.exr (the depth used), result.json (sun, placement,
+//   sky.png (tone-mapped, world azimuths), depth.exr (the depth used), result.json (sun, with
+//   flip_spread_deg: the network's confidence, train/inference.h sun_flip_spread_deg; placement,
 //   boxes, KITTI label line, timings; with --refine N > 0 the discriminator loss and the sun
 //   before and after refinement), label.txt (the KITTI line).
 // --refine N (paper Fig. 7): N Adam steps on the sky vector (and with --refine-volume the volume)
@@ -144,12 +145,18 @@ PhotoInsertionOptions insertion_options(const cli::Args& a, const RadianceQueryO
 
 json vec_json(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
 
+// The network's sun confidence (train/inference.h sun_flip_spread_deg), null when not measured.
+json spread_json(const EstimatedLighting& light) {
+  return std::isfinite(light.sun_flip_spread_deg) ? json(light.sun_flip_spread_deg) : json();
+}
+
 json sun_json(const EstimatedLighting& light) {
   const glm::dvec3 sun = light.sun_direction_world();
   return {{"direction_world", vec_json(sun)},
           {"azimuth_deg", azimuth_deg_of(sun)},
           {"elevation_deg", elevation_deg_of(sun)},
-          {"intensity_rgb", vec_json(light.sun_intensity_rgb)}};
+          {"intensity_rgb", vec_json(light.sun_intensity_rgb)},
+          {"flip_spread_deg", spread_json(light)}};
 }
 
 // --sun-from-shadows without a confident fit: say so on stderr (the network's sun stays).
@@ -343,6 +350,7 @@ int single(const cli::Args& a) {
                      {"elevation_deg", elevation_deg_of(sun)},
                      {"intensity_rgb", vec_json(light.sun_intensity_rgb)},
                      {"from_sky_vector", light.has_sky_code},
+                     {"flip_spread_deg", spread_json(light)},
                      {"edited", edit.active() || (shadow && shadow->fit.found)}}},
             {"placement", {{"at_camera_ground_xz", {ax, az}},
                            {"world_x_m", pose.x_m},

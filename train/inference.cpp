@@ -153,7 +153,10 @@ LightingEstimator::Single LightingEstimator::predict_one(const InferenceView& v)
   if (flip_average_ && s.pred.code.dir.defined()) {
     const SkyCode m = predictor_->predict_sky_code(unsqueeze(data::flip_horizontal(select(image, 0, 0).contiguous()), 0));
     const std::vector<double> d = to_doubles(s.pred.code.dir), md = to_doubles(m.dir);
-    glm::dvec3 dir = glm::dvec3(d[0], d[1], d[2]) + glm::dvec3(-md[0], md[1], md[2]);
+    const glm::dvec3 own(d[0], d[1], d[2]), mirrored(-md[0], md[1], md[2]);
+    if (glm::length(own) > 1e-12 && glm::length(mirrored) > 1e-12)  // atan2 form: exact near 0° and 180°
+      s.flip_spread_deg = std::atan2(glm::length(glm::cross(own, mirrored)), glm::dot(own, mirrored)) * 180.0 / kPi;
+    glm::dvec3 dir = own + mirrored;
     if (glm::length(dir) > 1e-9) {
       dir = glm::normalize(dir);
       s.pred.code.dir = Tensor::from_vector({dir.x, dir.y, dir.z}, {1, 3}).to(s.pred.code.dir.dtype());
@@ -175,6 +178,7 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
   for (const auto& v : views) singles.push_back(predict_one(v));
   const Single& ref = singles[0];
   EstimatedLighting out;
+  for (const Single& s : singles) out.sun_flip_spread_deg = std::fmax(out.sun_flip_spread_deg, s.flip_spread_deg);
   out.frame = ref.frame;
   out.camera = ref.camera;
   out.grid = ref.grid;

@@ -27,6 +27,7 @@
 //   branch (throws otherwise). The volume is left as predicted.
 // - Deterministic; no tape (runs under NoGradGuard).
 #pragma once
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -68,6 +69,13 @@ struct EstimatedLighting {
   glm::dvec3 sun_intensity_rgb{0.0};  // f_intensity (0 without a sky code: see sun_from_env)
   SkyCode sky_code;                   // the sky vector decoded into env ([1, ·] F32; has_sky_code only)
   double inference_ms = 0.0;          // predictor forward(s) + decoding, wall clock
+  // A per-estimate confidence of the network's sun (flip averaging, sky-vector checkpoints): the
+  // angle in degrees between the sun of the photo's pass and the mirror image of the mirrored
+  // photo's pass, before the two are averaged. A network that reads the sun from the photo
+  // finds it in both; a guess need not agree with its mirror image. The largest over the views;
+  // the network's own even when a SunEdit replaces the direction. NaN when not measured (flip
+  // averaging off, or no sky vector).
+  double sun_flip_spread_deg = std::numeric_limits<double>::quiet_NaN();
 
   glm::dvec3 world_direction(const glm::dvec3& canonical) const;
   glm::dvec3 world_point(const glm::dvec3& canonical) const;
@@ -103,6 +111,7 @@ class LightingEstimator {
     render::Camera camera;
     render::VsgGrid grid;
     LightingPrediction pred;
+    double flip_spread_deg = std::numeric_limits<double>::quiet_NaN();  // see EstimatedLighting
   };
   Single predict_one(const InferenceView& view);
 

@@ -365,6 +365,19 @@ TEST(EvalTool, LdrPanoramasAreReportedApartBySceneBesideTheirBaselineAndListWhat
     EXPECT_EQ(per[i]["confidence"], a ? "high" : "low") << per[i].dump();
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(per[i]["truth"][k].get<double>(), crops.crops[i].sun_canonical[k], 1e-9);
   }
+  // Confidence: the median error of the half with the smallest flip spreads against the rest's.
+  std::vector<std::pair<double, double>> spread_error;
+  for (const auto& e : per) spread_error.emplace_back(e["sun_flip_spread_deg"].get<double>(), e["sun_error_deg"].get<double>());
+  std::stable_sort(spread_error.begin(), spread_error.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  auto median3 = [](std::vector<double> v) { std::sort(v.begin(), v.end()); return v[1]; };
+  const auto& conf = res["sun_confidence"];
+  EXPECT_EQ(conf["confident_half"]["count"], 3);
+  EXPECT_EQ(conf["uncertain_half"]["count"], 3);
+  EXPECT_NEAR(conf["confident_half"]["sun_error_median_deg"].get<double>(),
+              median3({spread_error[0].second, spread_error[1].second, spread_error[2].second}), 1e-9);
+  EXPECT_NEAR(conf["uncertain_half"]["sun_error_median_deg"].get<double>(),
+              median3({spread_error[3].second, spread_error[4].second, spread_error[5].second}), 1e-9);
+  EXPECT_LE(conf["confident_half"]["spread_max_deg"].get<double>(), conf["uncertain_half"]["spread_min_deg"].get<double>());
   // The baseline: the training split's labelled suns, as the library computes it.
   const auto& b = d["baseline"];
   EXPECT_EQ(b["from_panoramas"], nlohmann::json({"t1.jpg", "t2.jpg"}));
@@ -375,7 +388,7 @@ TEST(EvalTool, LdrPanoramasAreReportedApartBySceneBesideTheirBaselineAndListWhat
   std::ifstream mf(dir + "/out/results.md");
   const std::string md((std::istreambuf_iterator<char>(mf)), std::istreambuf_iterator<char>());
   for (const char* s : {"real LDR panoramas", "Street scenes", "Other scenes", "Low-confidence", "constant baseline",
-                        "not scored (no sun position): 2", "c.jpg (none)"})
+                        "not scored (no sun position): 2", "c.jpg (none)", "most confident half"})
     EXPECT_NE(md.find(s), std::string::npos) << s << " in\n" << md;
   EXPECT_EQ(md.find("0.0 (0)"), std::string::npos) << "an empty part prints a dash, not a median of 0\n" << md;
   // An explicit --sun-labels is read instead of the one beside the images.
@@ -387,6 +400,13 @@ TEST(EvalTool, LdrPanoramasAreReportedApartBySceneBesideTheirBaselineAndListWhat
   const auto j2 = nlohmann::json::parse(r2.out.substr(r2.out.find('{')));
   EXPECT_EQ(j2["datasets"][0]["sun_labels"], dir + "/other_labels.csv");
   EXPECT_EQ(j2["datasets"][0]["results"][0]["images"], 2);
+  // Without flip averaging there is no spread, so no confidence split.
+  const auto r3 = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --data " + folder + " --ldr-split " + dir +
+                                                           "/ldr_split.json --crops 1 --view-rows 8 --no-flip-average --json");
+  ASSERT_EQ(r3.code, 0) << r3.out;
+  const auto j3 = nlohmann::json::parse(r3.out.substr(r3.out.find('{')));
+  EXPECT_TRUE(j3["datasets"][0]["results"][0]["sun_confidence"].is_null());
+  EXPECT_TRUE(j3["datasets"][0]["results"][0]["sun_per_image"][0]["sun_flip_spread_deg"].is_null());
 }
 
 TEST(EvalTool, BadSunLabelsAreOneLineNamingTheFileAndLine) {

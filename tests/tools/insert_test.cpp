@@ -49,6 +49,10 @@ TEST(InsertTool, WritesEveryOutputWithTheGroundPlaneFallback) {
   EXPECT_EQ(j["depth_source"], "ground-plane");
   const glm::dvec3 sun(j["sun"]["direction_world"][0], j["sun"]["direction_world"][1], j["sun"]["direction_world"][2]);
   EXPECT_NEAR(glm::length(sun), 1.0, 1e-6);
+  // The network's confidence: the angle between its sun and its mirror pass's (train/inference.h).
+  ASSERT_TRUE(j["sun"]["flip_spread_deg"].is_number()) << j["sun"].dump();
+  EXPECT_GE(j["sun"]["flip_spread_deg"].get<double>(), 0.0);
+  EXPECT_LE(j["sun"]["flip_spread_deg"].get<double>(), 180.0);
   EXPECT_NEAR(j["box3d"]["z"].get<double>(), 8.0, 1e-6);  // 8 m ahead in the camera frame
   EXPECT_GT(j["box2d"][2].get<double>(), j["box2d"][0].get<double>());
   EXPECT_EQ(j["kitti_label"].get<std::string>().rfind("Car ", 0), 0u);

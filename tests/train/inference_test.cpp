@@ -83,6 +83,33 @@ TEST(Inference, FlipAverageMirrorsTheSunWithThePhoto) {
   EXPECT_LT(glm::length(a.sun_intensity_rgb - b.sun_intensity_rgb), 1e-5 * glm::length(a.sun_intensity_rgb));
 }
 
+// The confidence of an estimate is the angle between the sun of the photo's pass and the mirror
+// image of the mirrored photo's pass: what the two single passes give, the same for the photo and
+// its mirror image, the larger of two views', and not measured without flip averaging.
+TEST(Inference, FlipSpreadIsTheAngleBetweenAPassAndItsMirroredPass) {
+  const std::string dir = test::tool_dir("inference_spread");
+  LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  const InferenceView v = view_at(0.0);
+  InferenceView mirrored = v;
+  mirrored.ldr = data::flip_horizontal(v.ldr);
+  mirrored.depth = data::flip_horizontal(v.depth);
+  est.set_flip_average(false);
+  const EstimatedLighting one = est.estimate({v}), other = est.estimate({mirrored});
+  EXPECT_TRUE(std::isnan(one.sun_flip_spread_deg));
+  const glm::dvec3 a = one.sun_direction_canonical, b = other.sun_direction_canonical;
+  const glm::dvec3 mb(-b.x, b.y, b.z);
+  const double expect = std::atan2(glm::length(glm::cross(a, mb)), glm::dot(a, mb)) * 180.0 / kPi;
+  ASSERT_GT(expect, 1e-3);  // a random network does not agree with its mirror image
+  est.set_flip_average(true);
+  const EstimatedLighting l = est.estimate({v}), lm = est.estimate({mirrored});
+  EXPECT_NEAR(l.sun_flip_spread_deg, expect, 1e-3);
+  EXPECT_NEAR(lm.sun_flip_spread_deg, expect, 1e-3);
+  InferenceView turned = view_at(0.0);
+  turned.ldr = Tensor::uniform({3, 32, 64}, 0.0, 1.0, 11);
+  const double s2 = est.estimate({turned}).sun_flip_spread_deg;
+  EXPECT_NEAR(est.estimate({v, turned}).sun_flip_spread_deg, std::max(expect, s2), 1e-9);
+}
+
 TEST(Inference, ResamplingOntoTheSameGridIsTheIdentity) {
   VsgGrid g;
   g.dims = {8, 8, 4};

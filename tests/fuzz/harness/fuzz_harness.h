@@ -27,6 +27,7 @@ void fuzz_dataset(const uint8_t* data, size_t size);           // data/street_da
 void fuzz_config(const uint8_t* data, size_t size);            // tools/common/config + train_config, --set
 void fuzz_rays(const uint8_t* data, size_t size);              // streetlight-bench trace --rays file
 void fuzz_batch_list(const uint8_t* data, size_t size);        // streetlight-insert --batch LIST.json
+void fuzz_sun_labels(const uint8_t* data, size_t size);        // data/sun_labels (pano_ldr/sun_labels.csv)
 
 struct Target {
   const char* name;  // the corpus folder: tests/fuzz/corpus/<name>/

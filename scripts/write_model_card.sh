@@ -27,6 +27,9 @@ else
   depth_limit="- Stages 2-3 never see a real photograph: real panoramas reach them only as the light of a third
   of the synthetic streets, so real photos are outside the training distribution."
 fi
+# The HDRI split's sizes, read from the file the release configs name.
+split_count() { python3 -c "import json,sys; print(len(json.load(open('configs/hdri_split.json'))[sys.argv[1]]))" "$1"; }
+n_train=$(split_count train) n_val=$(split_count val) n_test=$(split_count test)
 commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
 size=$(du -h models/streetlight.safetensors 2>/dev/null | cut -f1)
 cat <<EOF
@@ -40,8 +43,8 @@ validation sun error; stage 3 is the end-to-end fine-tuning through object inser
 ($size); it loads into the float32 model. Made at commit \`$commit\`.
 
 ## Data
-- **Real panoramas**: the 26 training panoramas of \`configs/hdri_split.json\` (\`../shared/data/hdri\`,
-  Poly Haven, CC0). 4 are validation, 10 test; the split is scene-disjoint and no validation or test
+- **Real panoramas**: the $n_train training panoramas of \`configs/hdri_split.json\` (\`../shared/data/hdri\`,
+  Poly Haven, CC0). $n_val are validation, $n_test test; the split is scene-disjoint and no validation or test
   sky is ever trained on (stage 1, stage-2/3 crops, or the light of generated streets).
 - **Synthetic streets**: \`configs/release_datagen.json\`, rendered by \`streetlight-datagen\` (path
   traced, 16 spp); a third of them lit by the training panoramas, the rest by the Preetham sky model.
@@ -81,7 +84,7 @@ panoramas' crops (in the camera's frame); a model that does not beat it has lear
 $(cat "$runs/eval/results.md")
 
 ## Known limits
-- Its real data are 26 panoramas (9 with a hard sun), beside $(samples datagen) synthetic streets: far less than
+- Its real data are $n_train panoramas, beside $(samples datagen) synthetic streets: far less than
   the paper's HoliCity crops. Expect errors on skies unlike these (night, heavy overcast, snow).
 - Where the sun is soft (overcast), the sun direction has no meaning and was not supervised.
 $depth_limit

@@ -45,7 +45,7 @@ CC=clang CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Debug -DCMA
   -DSTREETLIGHT_FUZZ=ON -DSTREETLIGHT_TESTS=OFF -DSTREETLIGHT_NATIVE=OFF >/dev/null
 if [[ $build_only -eq 1 ]]; then
   # Everything: the libraries, the tools and the harnesses (the suites are GCC's, STREETLIGHT_TESTS=OFF).
-  log="$build.build.log"
+  log="$build/build-all.log"
   nice -n 5 cmake --build "$build" -j"$(nproc)" > "$log" 2>&1 || { grep -E 'error|Error' "$log" | head -40 >&2; exit 1; }
   echo "fuzz.sh: clang built the libraries, the tools and ${#all[@]} harnesses in $build" >&2
   exit 0

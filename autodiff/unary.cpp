@@ -178,7 +178,7 @@ Tensor clamp(const Tensor& x, double lo, double hi) {
       },
       [lo, hi](auto g, auto v) {
         const SL_T l = static_cast<SL_T>(lo), h = static_cast<SL_T>(hi);
-        return (v >= l) & (v <= h) ? g : SL_T(0);
+        return ((v >= l) & (v <= h)) ? g : SL_T(0);
       });
 }
 

@@ -12,6 +12,7 @@
 
 #include "autodiff/buffer_cache.h"
 #include "nn/functional/conv_microkernel.h"
+#include "nn/functional/conv_tuning.h"
 #include "nn/functional/conv_winograd.h"
 #include "nn/functional/group_sums.h"
 #include "nn/functional/transpose16.h"
@@ -432,6 +433,78 @@ void input_grad_from(const ConvGeometry& g, const Order& order, const Padded& pa
                  pack_weights_flipped(w, g.O, g.C, g.taps()).data(), nullptr, dx);
 }
 
+#if defined(__AVX512F__)
+// weight_grad (below) on the outer-product kernel (conv_weight_grad_outer): dy, on the padded
+// pitch with zeros at the dropped positions (dy_base, dy_pitch floats per (n, o) plane), is
+// transposed once to dyT[n][q][o] (o padded to whole vectors of 16), and the tasks accumulate
+// dwT[tap][o] partials. Tasks: the same fixed groups of (item, chunk) calls as the window kernel,
+// each group split further by blocks of taps (not of channels: every task then reads whole
+// vectors of dyT); each dw element is summed by one task in a fixed order, and the groups are
+// added in group order, so the bits do not depend on threads. The chunk comes from the L2 size
+// (conv_tuning.h): a chunk's dyT rows are re-read for every block of taps.
+void weight_grad_outer(const ConvGeometry& g, const Padded& xp, const std::vector<int64_t>& taps,
+                       const float* dy_base, int64_t dy_pitch, int64_t len_total, float* dw) {
+  const int64_t R = g.rows(), vectors = (g.O + 15) / 16, Op = 16 * vectors;
+  const Scratch dyT = make_scratch(g.N * len_total * Op);
+  {
+    constexpr int64_t kBlock = 256;  // positions per transpose task
+    const int64_t blocks = (len_total + kBlock - 1) / kBlock;
+    parallel_for(g.N * blocks, grain_for(Op * kBlock), [&](int64_t b0, int64_t b1) {
+      for (int64_t b = b0; b < b1; ++b) {
+        const int64_t n = b / blocks, q0 = b % blocks * kBlock, cnt = std::min(kBlock, len_total - q0);
+        float* dst = dyT.get() + (n * len_total + q0) * Op;
+        if (Op != g.O)
+          for (int64_t q = 0; q < cnt; ++q) std::fill(dst + q * Op + g.O, dst + (q + 1) * Op, 0.0f);
+        transpose_copy(dy_base + n * g.O * dy_pitch + q0, dy_pitch, g.O, cnt, dst, Op);
+      }
+    });
+  }
+  const int64_t kChunk = weight_grad_chunk();
+  const int64_t chunks = (len_total + kChunk - 1) / kChunk, tasks = g.N * chunks;
+  const int64_t memory_cap = std::max<int64_t>(1, (int64_t{16} << 20) / (Op * R * 4));
+  const int64_t items_per_call = chunks == 1 ? std::max<int64_t>(1, kChunk / len_total) : 1;
+  const int64_t calls = (tasks + items_per_call - 1) / items_per_call;
+  const int64_t groups = std::min({calls, int64_t{16}, memory_cap});  // 16: even split over 2-4 threads
+  constexpr int64_t kTapTile = 24;  // a multiple of every register tile's tap count (6, 8, 12)
+  const int64_t tiles = (R + kTapTile - 1) / kTapTile;
+  const int64_t parts = groups >= 8 ? 1 : std::min(tiles, (16 + groups - 1) / groups);
+  const Scratch partial = make_scratch(groups * R * Op);
+  parallel_for(groups * parts, grain_for(Op * R * len_total * g.N / (groups * parts)), [&](int64_t t0, int64_t t1) {
+    for (int64_t task = t0; task < t1; ++task) {
+      const int64_t grp = task / parts, part = task % parts;
+      const int64_t k0 = part * tiles / parts * kTapTile, k1 = std::min(R, (part + 1) * tiles / parts * kTapTile);
+      float* sums = partial.get() + grp * R * Op;
+      std::fill(sums + k0 * Op, sums + k1 * Op, 0.0f);
+      for (int64_t call = grp * calls / groups; call < (grp + 1) * calls / groups; ++call) {
+        const int64_t t = call * items_per_call, items = std::min(items_per_call, tasks - t);
+        const int64_t n = t / chunks, i0 = (t % chunks) * kChunk, len = std::min(kChunk, len_total - i0);
+        conv_weight_grad_outer(dyT.get() + (n * len_total + i0) * Op, Op, vectors,
+                               xp.data.get() + n * g.C * xp.volume + i0, taps.data() + k0, k1 - k0, len,
+                               sums + k0 * Op, Op, items, len_total * Op, g.C * xp.volume);
+      }
+    }
+  });
+  // dw[o][r] = Σ_grp partial[grp][r][o], groups in order; 16 taps per step.
+  parallel_for((R + 15) / 16, grain_for(16 * Op * groups), [&](int64_t r0, int64_t r1) {
+    alignas(64) float block[16 * 16];
+    for (int64_t rb = r0; rb < r1; ++rb) {
+      const int64_t ra = rb * 16, nr = std::min<int64_t>(16, R - ra);
+      for (int64_t o0 = 0; o0 < g.O; o0 += 16) {
+        for (int64_t r = 0; r < nr; ++r) {
+          __m512 acc = _mm512_loadu_ps(partial.get() + (ra + r) * Op + o0);
+          for (int64_t grp = 1; grp < groups; ++grp)
+            acc = _mm512_add_ps(acc, _mm512_loadu_ps(partial.get() + (grp * R + ra + r) * Op + o0));
+          _mm512_store_ps(block + r * 16, acc);
+        }
+        const int64_t no = std::min<int64_t>(16, g.O - o0);
+        for (int64_t o = 0; o < no; ++o)
+          for (int64_t r = 0; r < nr; ++r) dw[(o0 + o) * R + ra + r] = block[r * 16 + o];
+      }
+    }
+  });
+}
+#endif
+
 // dw[o][tap] = Σ_n Σ_q dy[n][o][q] · x_padded[n][tap offset + q] over the output positions q on
 // the padded pitch, where dy is zero at the dropped positions. Flat chunks of each batch item are
 // cut into a number of groups fixed by the shapes; each group sums its chunks in order into its
@@ -455,6 +528,9 @@ void weight_grad(const ConvGeometry& g, const Order& order, const Padded& xp, co
     own = pad_copy(dy, g.N * g.O, g.out_plane(), out, permute(out_strides(g), order), {0, 0, 0}, {out[0], Hp, Wp});
     dy_base = own.data.get();
   }
+#if defined(__AVX512F__)
+  return weight_grad_outer(g, xp, taps, dy_base, dy_pitch, len_total, dw);
+#endif
   constexpr int64_t kChunk = 1024;  // positions per task: 8 rows of dy (32 KiB) stay in L1 across taps
   const int64_t chunks = (len_total + kChunk - 1) / kChunk, tasks = g.N * chunks;
   // Partials are capped at 16 MiB: deep layers (512 channels × 4608 taps on a few positions)

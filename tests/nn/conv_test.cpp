@@ -164,6 +164,10 @@ TEST(Conv, Float32KernelsMatchFloat64ForwardAndBackward) {
       {{1, 3, 26, 30}, {5, 3, 4, 4}, {1, 2, 2}, {0, 0, 0}, {1, 1, 1}},
       // Stride-1 items shorter than a weight-gradient chunk, summed on shared accumulators.
       {{5, 6, 10, 12}, {9, 6, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
+      // The outer-product weight gradient's register tiles: 3 vectors of channels (40 = 48 with
+      // 8 zero channels), and 4 + 1 vectors (72) with a tap count no tile divides (3·5·5 = 75).
+      {{2, 4, 20, 24}, {40, 4, 3, 3}, {1, 1, 1}, {0, 1, 1}, {1, 1, 1}},
+      {{1, 3, 14, 18}, {72, 3, 5, 5}, {1, 1, 1}, {0, 2, 2}, {1, 1, 1}},
   };
 
   for (const Case& c : cases) {
@@ -203,6 +207,27 @@ TEST(Conv, ForwardBackwardBitwiseIdenticalWithOneAndTwoThreads) {
       EXPECT_EQ(a.gw, c.gw) << shape_str(xs) << " stride " << stride;
       EXPECT_EQ(a.gb, c.gb) << shape_str(xs) << " stride " << stride;
     }
+}
+
+// The weight gradient's outer-product tiles for wider layers (40 and 72 output channels: 3 and
+// 4 + 1 vectors of 16), split by blocks of taps over the threads: the same bits with 1 and 2.
+TEST(Conv, WideWeightGradientBitwiseIdenticalWithOneAndTwoThreads) {
+  auto run = [](int threads, const Shape& xs, const Shape& ws) {
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(threads);
+    Tensor x = Tensor::normal(xs, 0, 1, 31), w = Tensor::normal(ws, 0, 0.2, 32);
+    x.set_requires_grad(true);
+    w.set_requires_grad(true);
+    Tensor y = xs.size() == 5 ? conv3d(x, w, Tensor(), {1, 1, 1}, {1, 1, 1}) : conv2d(x, w, Tensor(), {1, 1}, {1, 1});
+    backward(y, Tensor::normal(y.shape(), 0, 1, 33));
+    std::vector<double> r = w.grad().to_vector();
+    omp_set_num_threads(saved);
+    return r;
+  };
+  for (const auto& [xs, ws] : {std::pair<Shape, Shape>{{3, 6, 40, 33}, {40, 6, 3, 3}},
+                               std::pair<Shape, Shape>{{1, 5, 20, 30}, {72, 5, 3, 3}},
+                               std::pair<Shape, Shape>{{1, 4, 34, 12, 12}, {40, 4, 3, 3, 3}}})
+    EXPECT_EQ(run(1, xs, ws), run(2, xs, ws)) << shape_str(xs) << " * " << shape_str(ws);
 }
 
 // The implicit GEMM's padded input copy is large and the same size on every call, so it comes

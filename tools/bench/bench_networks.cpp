@@ -3,10 +3,14 @@
 //   resnet18: ResNet-18 (BasicBlock, base width 64, a 512 -> 64 linear head), batch 4×3×128×256;
 //   unet3d:   UNet3D {in 16, out 8, base 16, depth 2 (16/32/64 channels), batch norm, nearest
 //             upsampling + conv}, input 1×16×64×64×16.
-// A step is zero_grad, forward, mean(y²), backward, in train mode; the best of 5 after a warm-up.
+// A step is zero_grad, forward, mean(y²), backward, in train mode; the best of 5 (--repeat) after a
+// warm-up, in wall time or (--cpu-time) process CPU time.
 #include <omp.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <cstdlib>
+#include <string>
 
 #include "autodiff/ops.h"
 #include "nn/modules/resnet.h"
@@ -18,17 +22,24 @@ namespace sl::bench {
 namespace {
 
 int run_networks(const std::vector<std::string>& args) {
-  bool json = false;
-  for (const auto& a : args) {
+  bool json = false, cpu_time = false;
+  int repeat = 5;
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
     if (a == "--json") json = true;
+    else if (a == "--cpu-time") cpu_time = true;
+    else if (a == "--repeat" && i + 1 < args.size()) repeat = std::max(1, std::atoi(args[++i].c_str()));
     else if (a == "--help" || a == "-h") {
-      std::printf("usage: streetlight-bench networks [--json]\n"
-                  "  ResNet-18 (4x3x128x256) and UNet3D (1x16x64x64x16) forward+backward, best of 5.\n");
+      std::printf("usage: streetlight-bench networks [--json] [--repeat N] [--cpu-time]\n"
+                  "  ResNet-18 (4x3x128x256) and UNet3D (1x16x64x64x16) forward+backward, best of N (default 5).\n"
+                  "  --cpu-time: process CPU time instead of wall time (with OMP_NUM_THREADS=1, a figure\n"
+                  "    that other processes' load distorts far less)\n");
       return 0;
     } else {
       fail("networks: unknown option '", a, "' (try --help)");
     }
   }
+  auto best_ms = [&](auto&& f) { return cpu_time ? bench::best_cpu_ms(f, repeat) : bench::best_ms(f, repeat); };
   auto report = [&](const char* name, double ms) {
     if (json) std::printf("{\"network\": \"%s\", \"threads\": %d, \"ms\": %.2f}\n", name, omp_get_max_threads(), ms);
     else std::printf("%-10s forward+backward %9.2f ms\n", name, ms);

@@ -208,24 +208,43 @@ Padded phase_copy(const ConvGeometry& g, const float* x) {
   float* base = out.data.get();
   std::fill(base + planes * out.volume, base + planes * out.volume + kSlack, 0.0f);
   const int64_t H = g.in[1], W = g.in[2];
+  // Each source row is first copied with its zero margins into a padded row of s·Wq floats, whose
+  // phase px is then every s-th float from px: no bounds test per element, and for s = 2 a vector
+  // deinterleave (the per-element gather with its bounds tests was 15% of ResNet-18's
+  // 64 -> 128-channel stride-2 forward, perf, 1 thread). The same values either way.
   parallel_for(planes, grain_for(out.volume), [&](int64_t p0, int64_t p1) {
+    std::vector<float> padded(static_cast<size_t>(s * Wq + 32), 0.0f);
+    float* const pr = padded.data();
     for (int64_t p = p0; p < p1; ++p) {
       const float* src = x + p * H * W;
       for (int64_t py = 0; py < s; ++py)
-        for (int64_t px = 0; px < s; ++px)
-          for (int64_t i = 0; i < Hq; ++i) {
-            float* dst = base + p * out.volume + ((py * s + px) * Hq + i) * Wq;
-            const int64_t y = i * s + py - g.pad[1];
-            if (y < 0 || y >= H) {
-              std::fill(dst, dst + Wq, 0.0f);
-              continue;
-            }
-            const float* row = src + y * W;
-            for (int64_t j = 0; j < Wq; ++j) {
-              const int64_t xx = j * s + px - g.pad[2];
-              dst[j] = xx >= 0 && xx < W ? row[xx] : 0.0f;
+        for (int64_t i = 0; i < Hq; ++i) {
+          float* const dst0 = base + p * out.volume + (py * s * Hq + i) * Wq;  // phase (py, 0); (py, px) is px·Hq·Wq further
+          const int64_t y = i * s + py - g.pad[1];
+          if (y < 0 || y >= H) {
+            for (int64_t px = 0; px < s; ++px) std::fill(dst0 + px * Hq * Wq, dst0 + px * Hq * Wq + Wq, 0.0f);
+            continue;
+          }
+          // pr[t] = x column t − pad[2] (0 outside the row), t < s·Wq.
+          const int64_t lo = std::min(g.pad[2], s * Wq), n = std::clamp<int64_t>(s * Wq - lo, 0, W);
+          std::fill(pr, pr + lo, 0.0f);
+          std::copy(src + y * W, src + y * W + n, pr + lo);
+          std::fill(pr + lo + n, pr + s * Wq, 0.0f);
+          int64_t j = 0;
+#if defined(__AVX512F__)
+          if (s == 2) {
+            const __m512i even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+            const __m512i odd = _mm512_add_epi32(even, _mm512_set1_epi32(1));
+            for (; j + 16 <= Wq; j += 16) {
+              const __m512 a = _mm512_loadu_ps(pr + 2 * j), b = _mm512_loadu_ps(pr + 2 * j + 16);
+              _mm512_storeu_ps(dst0 + j, _mm512_permutex2var_ps(a, even, b));
+              _mm512_storeu_ps(dst0 + Hq * Wq + j, _mm512_permutex2var_ps(a, odd, b));
             }
           }
+#endif
+          for (int64_t px = 0; px < s; ++px)
+            for (int64_t jj = j; jj < Wq; ++jj) dst0[px * Hq * Wq + jj] = pr[jj * s + px];
+        }
     }
   });
   return out;

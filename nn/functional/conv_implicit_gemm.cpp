@@ -491,8 +491,30 @@ void input_grad_from(const ConvGeometry& g, const Order& order, const Padded& pa
 // vectors of dyT); each dw element is summed by one task in a fixed order, and the groups are
 // added in group order, so the bits do not depend on threads. The chunk comes from the L2 size
 // (conv_tuning.h): a chunk's dyT rows are re-read for every block of taps.
+// Triples of taps for conv_weight_grad_shift: the 3 undilated taps along the innermost storage
+// axis (original axis `inner`) of each other tap, whose windows are 0, 1, 2 floats apart. Empty
+// when the kernel has no such axis or the offsets do not line up (phase-split strided copies).
+struct ShiftTriples {
+  std::vector<int64_t> offset, tap;
+  int64_t step = 0;
+};
+
+ShiftTriples shift_triples(const ConvGeometry& g, int inner, const std::vector<int64_t>& taps) {
+  ShiftTriples t;
+  if (inner < 0 || g.k[inner] != 3 || g.dil[inner] != 1) return t;
+  t.step = 1;
+  for (int a = inner + 1; a < 3; ++a) t.step *= g.k[a];
+  for (int64_t r = 0; r < g.rows(); ++r) {
+    if ((r / t.step) % 3 != 0) continue;
+    if (taps[r + t.step] != taps[r] + 1 || taps[r + 2 * t.step] != taps[r] + 2) return ShiftTriples{};
+    t.offset.push_back(taps[r]);
+    t.tap.push_back(r);
+  }
+  return t;
+}
+
 void weight_grad_outer(const ConvGeometry& g, const Padded& xp, const std::vector<int64_t>& taps,
-                       const float* dy_base, int64_t dy_pitch, int64_t len_total, float* dw) {
+                       const float* dy_base, int64_t dy_pitch, int64_t len_total, float* dw, int inner_axis) {
   const int64_t R = g.rows(), vectors = (g.O + 15) / 16, Op = 16 * vectors;
   const Scratch dyT = make_scratch(g.N * len_total * Op);
   {
@@ -518,6 +540,26 @@ void weight_grad_outer(const ConvGeometry& g, const Padded& xp, const std::vecto
   const int64_t tiles = (R + kTapTile - 1) / kTapTile;
   const int64_t parts = groups >= 8 ? 1 : std::min(tiles, (16 + groups - 1) / groups);
   const Scratch partial = make_scratch(groups * R * Op);
+  const ShiftTriples tri = shift_triples(g, inner_axis, taps);
+  if (vectors == 1 && !tri.offset.empty()) {
+    // Blocks of 8 triples (the kernel's tile) split over the tasks like the tap tiles below.
+    const int64_t count = static_cast<int64_t>(tri.offset.size()), blocks = (count + 7) / 8;
+    const int64_t split = groups >= 8 ? 1 : std::min(blocks, (16 + groups - 1) / groups);
+    std::fill(partial.get(), partial.get() + groups * R * Op, 0.0f);
+    parallel_for(groups * split, grain_for(Op * R * len_total * g.N / (groups * split)), [&](int64_t t0, int64_t t1) {
+      for (int64_t task = t0; task < t1; ++task) {
+        const int64_t grp = task / split, part = task % split;
+        const int64_t b0 = part * blocks / split * 8, b1 = std::min(count, (part + 1) * blocks / split * 8);
+        for (int64_t call = grp * calls / groups; call < (grp + 1) * calls / groups; ++call) {
+          const int64_t t = call * items_per_call, items = std::min(items_per_call, tasks - t);
+          const int64_t n = t / chunks, i0 = (t % chunks) * kChunk, len = std::min(kChunk, len_total - i0);
+          conv_weight_grad_shift(dyT.get() + (n * len_total + i0) * Op, Op, xp.data.get() + n * g.C * xp.volume + i0,
+                                 tri.offset.data() + b0, tri.tap.data() + b0, tri.step, b1 - b0, len,
+                                 partial.get() + grp * R * Op, Op, items, len_total * Op, g.C * xp.volume);
+        }
+      }
+    });
+  } else {
   parallel_for(groups * parts, grain_for(Op * R * len_total * g.N / (groups * parts)), [&](int64_t t0, int64_t t1) {
     for (int64_t task = t0; task < t1; ++task) {
       const int64_t grp = task / parts, part = task % parts;
@@ -533,6 +575,7 @@ void weight_grad_outer(const ConvGeometry& g, const Padded& xp, const std::vecto
       }
     }
   });
+  }
   // dw[o][r] = Σ_grp partial[grp][r][o], groups in order; 16 taps per step.
   parallel_for((R + 15) / 16, grain_for(16 * Op * groups), [&](int64_t r0, int64_t r1) {
     alignas(64) float block[16 * 16];
@@ -562,7 +605,8 @@ void weight_grad_outer(const ConvGeometry& g, const Padded& xp, const std::vecto
 // exactly the padded input's extents, with dy starting `pad` positions in on every axis.
 // taps: the offset of each kernel tap in xp (tap_offsets, or phase_tap_offsets for a strided copy).
 void weight_grad(const ConvGeometry& g, const Order& order, const Padded& xp, const std::vector<int64_t>& taps,
-                 const float* dy, float* dw, const Padded* padded_dy) {
+                 const float* dy, float* dw, const Padded* padded_dy, bool phased = false) {
+  const int inner_axis = phased ? -1 : order[2];
   const int64_t R = g.rows(), Hp = xp.ext[1], Wp = xp.ext[2];
   const Axes out = permute(g.out, order);
   const int64_t flat = out[0] * Hp * Wp, len_total = (out[0] - 1) * Hp * Wp + (out[1] - 1) * Wp + out[2];
@@ -578,7 +622,7 @@ void weight_grad(const ConvGeometry& g, const Order& order, const Padded& xp, co
     dy_base = own.data.get();
   }
 #if defined(__AVX512F__)
-  return weight_grad_outer(g, xp, taps, dy_base, dy_pitch, len_total, dw);
+  return weight_grad_outer(g, xp, taps, dy_base, dy_pitch, len_total, dw, inner_axis);
 #endif
   constexpr int64_t kChunk = 1024;  // positions per task: 8 rows of dy (32 KiB) stay in L1 across taps
   const int64_t chunks = (len_total + kChunk - 1) / kChunk, tasks = g.N * chunks;
@@ -708,7 +752,7 @@ void direct_forward_strided(const ConvGeometry& g, const float* x, const float* 
 void direct_backward_weight_strided(const ConvGeometry& g, const float* x, const float* dy, float* dw) {
   SL_CHECK(direct_strided_supported(g), "conv: the phase-split weight gradient needs a 2-D stride >= 2 convolution");
   const Padded xp = phase_copy(g, x);
-  weight_grad(g, Order{0, 1, 2}, xp, phase_tap_offsets(g, xp), dy, dw, nullptr);
+  weight_grad(g, Order{0, 1, 2}, xp, phase_tap_offsets(g, xp), dy, dw, nullptr, true);
 }
 
 }  // namespace sl::nn::detail

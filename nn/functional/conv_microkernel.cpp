@@ -307,6 +307,55 @@ void weight_grad_outer_taps(const float* dyT, int64_t ldp, const float* base, co
 
 }  // namespace
 
+namespace {
+
+// One block of up to 8 triples of conv_weight_grad_shift: acc[b][k] = Σ_j x_b[j] · dyT[j − k]
+// (dyT zero outside [0, len)), i.e. tap k of triple b summed in position order; one broadcast
+// of x_b[j] feeds the three taps. Triples past `count` repeat the last one and are not stored.
+template <int T>
+inline void weight_grad_shift_block(const float* dyT, int64_t ldp, const float* base, const int64_t* offset,
+                                    const int64_t* tap, int64_t tap_step, int64_t count, int64_t len, float* dwT,
+                                    int64_t ld_dwT, int64_t items, int64_t dy_item, int64_t base_item) {
+  __m512 acc[T][3];
+  for (int b = 0; b < T; ++b) acc[b][0] = acc[b][1] = acc[b][2] = _mm512_setzero_ps();
+  for (int64_t it = 0; it < items; ++it) {
+    const float* x[T];
+    for (int b = 0; b < T; ++b) x[b] = base + it * base_item + offset[std::min<int64_t>(b, count - 1)];
+    const float* d = dyT + it * dy_item;
+    __m512 d1 = _mm512_setzero_ps(), d2 = d1;  // dy at j − 1 and j − 2
+    auto step = [&](int64_t j, __m512 d0) {
+#pragma GCC unroll 8
+      for (int b = 0; b < T; ++b) {
+        const __m512 v = _mm512_set1_ps(x[b][j]);
+        acc[b][0] = _mm512_fmadd_ps(v, d0, acc[b][0]);
+        acc[b][1] = _mm512_fmadd_ps(v, d1, acc[b][1]);
+        acc[b][2] = _mm512_fmadd_ps(v, d2, acc[b][2]);
+      }
+      d2 = d1;
+      d1 = d0;
+    };
+    for (int64_t j = 0; j < len; ++j) step(j, _mm512_loadu_ps(d + j * ldp));
+    step(len, _mm512_setzero_ps());
+    step(len + 1, _mm512_setzero_ps());
+  }
+  for (int b = 0; b < T && b < count; ++b)
+    for (int k = 0; k < 3; ++k) {
+      float* dst = dwT + (tap[b] + k * tap_step) * ld_dwT;
+      _mm512_storeu_ps(dst, _mm512_add_ps(_mm512_loadu_ps(dst), acc[b][k]));
+    }
+}
+
+}  // namespace
+
+void conv_weight_grad_shift(const float* dyT, int64_t ldp, const float* base, const int64_t* offset,
+                            const int64_t* tap, int64_t tap_step, int64_t triples, int64_t len, float* dwT,
+                            int64_t ld_dwT, int64_t items, int64_t dy_item, int64_t base_item) {
+  constexpr int T = 8;
+  for (int64_t b0 = 0; b0 < triples; b0 += T)
+    weight_grad_shift_block<T>(dyT, ldp, base, offset + b0, tap + b0, tap_step, std::min<int64_t>(T, triples - b0), len,
+                               dwT, ld_dwT, items, dy_item, base_item);
+}
+
 // Register tiles of 24 accumulators where the channels allow (4 × 6, 3 × 8, 2 × 12); one vector
 // of channels takes 12 taps (12 accumulators: more taps means more window pointers than
 // registers, and measured 89 against 153 GFLOP/s with 24).

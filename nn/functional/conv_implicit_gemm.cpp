@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdlib>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -84,8 +85,12 @@ struct Padded {
 };
 
 
+// after (optional): called with each plane's index and data as soon as that plane is complete, by
+// the task that wrote it (while the plane is still in cache).
+using PlaneDone = std::function<void(int64_t, const float*)>;
+
 Padded pad_copy(const float* src, int64_t planes, int64_t src_plane, const Axes& src_ext, const Axes& src_stride,
-                const Axes& lo, const Axes& ext) {
+                const Axes& lo, const Axes& ext, const PlaneDone& after = {}) {
   Padded out;
   out.ext = ext;
   out.volume = ext[0] * ext[1] * ext[2];
@@ -118,8 +123,7 @@ Padded pad_copy(const float* src, int64_t planes, int64_t src_plane, const Axes&
             for (int64_t i = 0; i < n2; ++i) dst[lo2 + i] = row[i * src_stride[2]];
           }
         }
-      if (!transposed) continue;
-      for (int64_t s1 = lo[1]; s1 < lo[1] + src_ext[1]; ++s1) {
+      for (int64_t s1 = lo[1]; transposed && s1 < lo[1] + src_ext[1]; ++s1) {
         const float* slab = sp + (s1 - lo[1]) * src_stride[1];
         float* dst = vol + s1 * ext[2] + lo2 + lo[0] * ext[1] * ext[2];
 #if defined(__AVX512F__)
@@ -131,6 +135,7 @@ Padded pad_copy(const float* src, int64_t planes, int64_t src_plane, const Axes&
         for (int64_t i = 0; i < n2; ++i)
           for (int64_t j = 0; j < src_ext[0]; ++j) dst[j * ext[1] * ext[2] + i] = slab[i * src_stride[2] + j * src_stride[0]];
       }
+      if (after) after(p, vol);
     }
   });
   return out;
@@ -177,15 +182,19 @@ bool winograd_applies(const ConvGeometry& g, const Order& order) {
 // (pad > dilation·(k − 1)) gives rows of more than in + pad outputs and keeps both margins, as do
 // the other axes. The last plane's windows then end pad − 1 floats past the copy, plus a panel's
 // overrun: the zero slack must hold both, else both margins are kept too.
-Padded pad_input(const ConvGeometry& g, const Order& order, const float* x) {
+Axes padded_extents(const ConvGeometry& g, const Order& order) {  // original axis order
   Axes padded{};
   for (int a = 0; a < 3; ++a) {
     const bool shared = a == order[2] && g.pad[a] <= g.dil[a] * (g.k[a] - 1) && g.pad[a] + kPanelCols <= kSlack;
     padded[a] = g.in[a] + (shared ? 1 : 2) * g.pad[a];
     if (a == order[2] && winograd_applies(g, order)) padded[a] += padded[a] % 2;  // one more zero column
   }
+  return padded;
+}
+
+Padded pad_input(const ConvGeometry& g, const Order& order, const float* x, const PlaneDone& after = {}) {
   return pad_copy(x, g.N * g.C, g.in_plane(), permute(g.in, order), permute(in_strides(g), order),
-                  permute(g.pad, order), permute(padded, order));
+                  permute(g.pad, order), permute(padded_extents(g, order), order), after);
 }
 
 // Strided 2-D convolutions (stride s on both image axes, dilation 1) on the same windows: the
@@ -386,6 +395,34 @@ struct WinogradInput {
   Scratch data;      // [N][4][C][half], then kSlack zeros
 };
 
+// pad_input with the Winograd transform of each plane made by the task that padded it, while the
+// plane is in cache, instead of in a second pass over the whole copy (a 1×16×64×64×16 input pads
+// to 5 MB, past L2). The pairs whose vector loads would reach past the plane (into the next one,
+// perhaps not written yet) are transformed once the copy is complete: the same values either way.
+struct PaddedWinograd {
+  Padded xp;
+  WinogradInput u;
+};
+
+PaddedWinograd pad_input_winograd(const ConvGeometry& g, const Order& order, const float* x) {
+  PaddedWinograd r;
+  const Axes ext = padded_extents(g, order);
+  const int64_t volume = ext[0] * ext[1] * ext[2], half = volume / 2, C = g.C, planes = g.N * C;
+  // winograd_pairs(d, n, ...) with AVX-512 reads up to d[2·ceil(n / 16)·16 + 33].
+  const int64_t safe = std::max<int64_t>(0, (volume - 34) / 2 / 16 * 16);
+  r.u.half = half;
+  r.u.data = make_scratch(planes * 4 * half + kSlack);
+  float* const ubase = r.u.data.get();
+  std::fill(ubase + planes * 4 * half, ubase + planes * 4 * half + kSlack, 0.0f);
+  auto u_of = [&](int64_t p) { return ubase + ((p / C) * 4 * C + p % C) * half; };
+  r.xp = pad_input(g, order, x, [&](int64_t p, const float* vol) { winograd_pairs(vol, safe, u_of(p), C * half); });
+  const float* const xbase = r.xp.data.get();
+  parallel_for(planes, grain_for(4 * (half - safe)), [&](int64_t p0, int64_t p1) {
+    for (int64_t p = p0; p < p1; ++p) winograd_pairs(xbase + p * volume + 2 * safe, half - safe, u_of(p) + safe, C * half);
+  });
+  return r;
+}
+
 WinogradInput winograd_input(const Padded& xp, int64_t N, int64_t C) {
   WinogradInput u;
   u.half = xp.volume / 2;
@@ -425,10 +462,12 @@ std::vector<int64_t> winograd_tap_offsets(const ConvGeometry& g, const Order& or
 // micro-kernel tiles of 48 pairs, combined into 96 outputs. w: [O][C][taps] (flipped: see
 // winograd_weights), not packed.
 void forward_winograd(const ConvGeometry& g, const Order& order, const Padded& xp, const float* w, const float* b,
-                      float* y, bool flipped = false) {
+                      float* y, bool flipped = false, const WinogradInput* pre = nullptr) {
   SL_CHECK(winograd_applies(g, order) && xp.ext[2] % 2 == 0, "conv: Winograd forward on an unsupported geometry");
   const WinogradWeights v = winograd_weights(g, order[2], w, flipped);
-  const WinogradInput u = winograd_input(xp, g.N, g.C);
+  WinogradInput own;
+  if (!pre) own = winograd_input(xp, g.N, g.C);
+  const WinogradInput& u = pre ? *pre : own;
   const std::vector<int64_t> taps = winograd_tap_offsets(g, order, xp);
   const int64_t R = g.rows() / 3, plane = xp.ext[1] * xp.ext[2] / 2, comp = (g.O + kBlockRows) * kPanelCols;
   constexpr int64_t kCols = 2 * kPanelCols;
@@ -475,9 +514,11 @@ void forward_winograd(const ConvGeometry& g, const Order& order, const Padded& x
   });
 }
 
-void input_grad_from(const ConvGeometry& g, const Order& order, const Padded& padded_dy, const float* w, float* dx) {
+// u (optional): the Winograd transform of padded_dy (pad_output_grad made it with the copy).
+void input_grad_from(const ConvGeometry& g, const Order& order, const Padded& padded_dy, const float* w, float* dx,
+                     const WinogradInput* u = nullptr) {
   const ConvGeometry t = input_grad_geometry(g);
-  if (winograd_applies(t, order)) return forward_winograd(t, order, padded_dy, w, nullptr, dx, true);
+  if (winograd_applies(t, order)) return forward_winograd(t, order, padded_dy, w, nullptr, dx, true, u);
   forward_padded(t, order, padded_dy, tap_offsets(t, order, padded_dy),
                  pack_weights_flipped(w, g.O, g.C, g.taps()).data(), nullptr, dx);
 }
@@ -660,9 +701,12 @@ void weight_grad(const ConvGeometry& g, const Order& order, const Padded& xp, co
   if (groups > 1) sum_groups(partial.data(), groups, g.O * R, dw);
 }
 
-Padded pad_output_grad(const ConvGeometry& g, const Order& order, const float* dy) {
+// dy padded for the input gradient, with its Winograd transform when the input gradient runs as
+// Winograd (u.data empty otherwise).
+PaddedWinograd pad_output_grad(const ConvGeometry& g, const Order& order, const float* dy) {
   const ConvGeometry t = input_grad_geometry(g);
-  return pad_input(t, order, dy);
+  if (winograd_applies(t, order)) return pad_input_winograd(t, order, dy);
+  return PaddedWinograd{pad_input(t, order, dy), {}};
 }
 
 }  // namespace
@@ -704,14 +748,16 @@ bool direct_winograd_supported(const ConvGeometry& g) { return winograd_applies(
 void direct_forward_winograd(const ConvGeometry& g, const float* x, const float* w, const float* b, float* y,
                              KeptInput* keep) {
   const Order order = storage_order(g);
-  auto xp = std::make_shared<PaddedInput>(PaddedInput{pad_input(g, order, x)});
-  forward_winograd(g, order, xp->copy, w, b, y);
+  PaddedWinograd pw = pad_input_winograd(g, order, x);
+  auto xp = std::make_shared<PaddedInput>(PaddedInput{std::move(pw.xp)});
+  forward_winograd(g, order, xp->copy, w, b, y, false, &pw.u);
   if (keep && order != Order{0, 1, 2}) *keep = std::move(xp);
 }
 
 void direct_backward_input(const ConvGeometry& g, const float* w, const float* dy, float* dx) {
   const Order order = storage_order(g);
-  input_grad_from(g, order, pad_output_grad(g, order, dy), w, dx);
+  const PaddedWinograd pd = pad_output_grad(g, order, dy);
+  input_grad_from(g, order, pd.xp, w, dx, pd.u.data ? &pd.u : nullptr);
 }
 
 void direct_backward_weight(const ConvGeometry& g, const float* x, const float* dy, float* dw,
@@ -729,8 +775,9 @@ bool direct_backward_fused(const ConvGeometry& g, const float* x, const float* w
   for (int a = 0; a < 3; ++a)
     if (g.stride[a] != 1 || g.dil[a] * (g.k[a] - 1) != 2 * g.pad[a]) return false;
   const Order order = storage_order(g);
-  const Padded padded_dy = pad_output_grad(g, order, dy);
-  input_grad_from(g, order, padded_dy, w, dx);
+  const PaddedWinograd pd = pad_output_grad(g, order, dy);
+  const Padded& padded_dy = pd.xp;
+  input_grad_from(g, order, padded_dy, w, dx, pd.u.data ? &pd.u : nullptr);
   Padded own;
   const Padded& xp = padded_x(g, order, x, kept, own);
   weight_grad(g, order, xp, tap_offsets(g, order, xp), dy, dw, &padded_dy);

@@ -647,7 +647,6 @@ void weight_grad_outer(const ConvGeometry& g, const Padded& xp, const std::vecto
 // taps: the offset of each kernel tap in xp (tap_offsets, or phase_tap_offsets for a strided copy).
 void weight_grad(const ConvGeometry& g, const Order& order, const Padded& xp, const std::vector<int64_t>& taps,
                  const float* dy, float* dw, const Padded* padded_dy, bool phased = false) {
-  const int inner_axis = phased ? -1 : order[2];
   const int64_t R = g.rows(), Hp = xp.ext[1], Wp = xp.ext[2];
   const Axes out = permute(g.out, order);
   const int64_t flat = out[0] * Hp * Wp, len_total = (out[0] - 1) * Hp * Wp + (out[1] - 1) * Wp + out[2];
@@ -663,7 +662,7 @@ void weight_grad(const ConvGeometry& g, const Order& order, const Padded& xp, co
     dy_base = own.data.get();
   }
 #if defined(__AVX512F__)
-  return weight_grad_outer(g, xp, taps, dy_base, dy_pitch, len_total, dw, inner_axis);
+  return weight_grad_outer(g, xp, taps, dy_base, dy_pitch, len_total, dw, phased ? -1 : order[2]);
 #endif
   constexpr int64_t kChunk = 1024;  // positions per task: 8 rows of dy (32 KiB) stay in L1 across taps
   const int64_t chunks = (len_total + kChunk - 1) / kChunk, tasks = g.N * chunks;

@@ -385,6 +385,33 @@ TEST(Conv, WinogradForwardAndGradientsMatchFloat64) {
   EXPECT_LT(worst_dx, 1e-5 * scale) << "input gradient";
 }
 
+// winograd_weights (unflipped, along the innermost axis, where AVX-512 deinterleaves 32 rows of
+// taps per step and transposes them into pack_weights' layout) equals its definition bit for bit:
+// V_0 = g0, V_1 = (g0 + g1 + g2) / 2, V_2 = (g0 − g1 + g2) / 2, V_3 = g2, rows past O zero.
+TEST(Conv, WinogradWeightsEqualTheirDefinitionBitForBit) {
+  for (const auto& [O, C, k0] : {std::array<int64_t, 3>{13, 21, 1}, std::array<int64_t, 3>{16, 11, 3}}) {
+    nn::detail::ConvGeometry g;
+    g.N = 1, g.C = C, g.O = O;
+    for (int a = 0; a < 3; ++a) g.in[a] = 8, g.k[a] = 3, g.stride[a] = 1, g.pad[a] = 1, g.dil[a] = 1, g.out[a] = 8;
+    g.k[0] = k0;
+    const int64_t taps = g.taps(), R = g.rows() / 3;
+    const std::vector<double> wd = rand64({O, C * taps}, 61).to_vector();
+    const std::vector<float> w(wd.begin(), wd.end());
+    const nn::detail::WinogradWeights v = nn::detail::winograd_weights(g, 2, w.data());
+    for (int64_t o = 0; o < (O + 7) / 8 * 8; ++o)
+      for (int64_t r = 0; r < R; ++r) {
+        const bool real = o < O;
+        const float g0 = real ? w[o * C * taps + 3 * r] : 0.0f, g1 = real ? w[o * C * taps + 3 * r + 1] : 0.0f;
+        const float g2 = real ? w[o * C * taps + 3 * r + 2] : 0.0f;
+        const float expect[4] = {g0, (g0 + g1 + g2) * 0.5f, (g0 - g1 + g2) * 0.5f, g2};
+        for (int i = 0; i < 4; ++i) {
+          const float got = v.data(i)[(o / 8 * R + r) * 8 + o % 8];
+          ASSERT_EQ(std::memcmp(&got, &expect[i], sizeof(float)), 0) << "V_" << i << " o " << o << " r " << r;
+        }
+      }
+  }
+}
+
 TEST(Conv, FlippedWeightPackingIsTheTransposedReversedKernel) {
   // pack_weights_flipped by its definition: row block b, packed column k = o·taps + t, lane i holds
   // w[o][8b + i][taps − 1 − t], and 0 for channels past C. Full blocks go through 8 × 8 register

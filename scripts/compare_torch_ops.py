@@ -3,7 +3,7 @@
 
 Usage (Debian's python3-torch; the pyenv `python3` on PATH has no torch):
   /usr/bin/python3 scripts/compare_torch_ops.py [build/tools/streetlight-bench] [--threads 2]
-      [--repeat 5] [--rounds 3] [--skip-networks] [--skip-train] [--ours-networks-cmd "CMD"]
+      [--repeat 5] [--rounds 3] [--skip-networks] [--skip-train] [--ours-networks-cmd "CMD"] [--cpu-time]
 
 Runs the four benchmark convolutions in PyTorch with torch.set_num_threads(threads), then
 `streetlight-bench conv --json` with OMP_NUM_THREADS=threads in the same invocation, and prints
@@ -20,6 +20,11 @@ ours from `streetlight-bench networks --json` or --ours-networks-cmd) and the de
 predictor's AdamW training step (scripts/compare_torch_train.py's two sides). Every part runs in
 each round, torch and ours back to back, and the last lines print every PyTorch row of the README's
 table with its ratio.
+
+--cpu-time (with --threads 1): both sides are timed in process CPU time instead of wall time
+(time.process_time; `conv --cpu-time`, `networks --cpu-time`), a figure that other processes' load
+on a shared machine distorts far less; the core ops and the training step, which have no CPU-time
+mode on our side, are left out.
 """
 import argparse
 import json
@@ -48,13 +53,16 @@ SHAPES = [
 ]
 
 
+CLOCK = time.perf_counter  # time.process_time with --cpu-time
+
+
 def best_ms(fn, repeat):
     fn()  # warm-up (oneDNN primitive creation, allocator)
     best = float("inf")
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = CLOCK()
         fn()
-        best = min(best, (time.perf_counter() - t0) * 1e3)
+        best = min(best, (CLOCK() - t0) * 1e3)
     return best
 
 
@@ -84,9 +92,10 @@ def torch_conv(repeat):
     return rows
 
 
-def ours_conv(bench, threads):
+def ours_conv(bench, threads, cpu_time=False):
     env = dict(os.environ, OMP_NUM_THREADS=str(threads))
-    out = subprocess.run([bench, "conv", "--json"], env=env, check=True, capture_output=True, text=True).stdout
+    cmd = [bench, "conv", "--json"] + (["--cpu-time"] if cpu_time else [])
+    out = subprocess.run(cmd, env=env, check=True, capture_output=True, text=True).stdout
     rows = {}
     for line in out.splitlines():
         if line.strip().startswith("{"):
@@ -218,7 +227,16 @@ def main():
     ap.add_argument("--ours-networks-cmd", default=None,
                     help="command printing JSON lines {\"network\": ..., \"ms\": ...} for our networks "
                          "(default: BENCH networks --json)")
+    ap.add_argument("--cpu-time", action="store_true",
+                    help="process CPU time on both sides (needs --threads 1); leaves out core ops and training")
     args = ap.parse_args()
+    if args.cpu_time and args.threads != 1:
+        print("error: --cpu-time needs --threads 1 (CPU time of several threads counts their waiting)", file=sys.stderr)
+        return 2
+    if args.cpu_time:
+        global CLOCK
+        CLOCK = time.process_time
+        args.skip_train = True
     if not os.path.exists(args.bench):
         print(f"error: benchmark executable not found: {args.bench}", file=sys.stderr)
         return 2
@@ -226,18 +244,20 @@ def main():
         print("error: --threads, --rounds and --repeat must be >= 1", file=sys.stderr)
         return 2
     torch.set_num_threads(args.threads)
-    networks_cmd = args.ours_networks_cmd or f"env OMP_NUM_THREADS={args.threads} {shlex.quote(args.bench)} networks --json"
+    networks_cmd = args.ours_networks_cmd or (f"env OMP_NUM_THREADS={args.threads} {shlex.quote(args.bench)} networks --json"
+                                              + (" --cpu-time" if args.cpu_time else ""))
     build = os.path.dirname(os.path.dirname(os.path.abspath(args.bench)))
-    print(f"# torch {torch.__version__}, {args.threads} threads, {args.rounds} interleaved rounds; ours: {args.bench}",
-          file=sys.stderr)
+    print(f"# torch {torch.__version__}, {args.threads} threads, {args.rounds} interleaved rounds, "
+          f"{'process CPU' if args.cpu_time else 'wall'} time; ours: {args.bench}", file=sys.stderr)
     # Alternate the two sides for several rounds and keep each side's best, so that load from
     # other processes during one side's turn does not bias the ratio.
     rounds = {k: [] for k in ("tconv", "oconv", "tcore", "ocore", "tnet", "onet", "ttrain", "otrain")}
     for _ in range(args.rounds):
         rounds["tconv"].append(torch_conv(args.repeat))
-        rounds["oconv"].append(ours_conv(args.bench, args.threads))
-        rounds["tcore"].append(torch_core_ops(args.repeat))
-        rounds["ocore"].append(ours_core_ops(args.bench, args.threads))
+        rounds["oconv"].append(ours_conv(args.bench, args.threads, args.cpu_time))
+        if not args.cpu_time:
+            rounds["tcore"].append(torch_core_ops(args.repeat))
+            rounds["ocore"].append(ours_core_ops(args.bench, args.threads))
         if not args.skip_networks:
             rounds["tnet"].append(torch_networks(args.repeat))
             rounds["onet"].append(ours_networks(networks_cmd))

@@ -206,12 +206,16 @@ inline unsigned hit_block(const Bvh::TriangleBlock& b, const PreparedRay& r, con
                                       _mm256_cmp_ps(e2, zero, _CMP_LT_OQ));
   const __m256 any_pos = _mm256_or_ps(_mm256_or_ps(_mm256_cmp_ps(e0, zero, _CMP_GT_OQ), _mm256_cmp_ps(e1, zero, _CMP_GT_OQ)),
                                       _mm256_cmp_ps(e2, zero, _CMP_GT_OQ));
+  const __m256 mixed = _mm256_and_ps(any_neg, any_pos);
+  // No lane inside all three edges: stop before the division (a 256-bit divide issues at most
+  // every 5 cycles on Golden Cove) and the t test; the result is the same.
+  if (!(~static_cast<unsigned>(_mm256_movemask_ps(mixed)) & lanes)) return 0;
   const __m256 det = _mm256_add_ps(_mm256_add_ps(e0, e1), e2);
   const __m256 scaled_t = _mm256_mul_ps(
       s.sz, _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(e0, az), _mm256_mul_ps(e1, bz)), _mm256_mul_ps(e2, cz)));
   const __m256 inv_det = _mm256_div_ps(_mm256_set1_ps(1.0f), det);
   const __m256 t = _mm256_mul_ps(scaled_t, inv_det);
-  __m256 ok = _mm256_andnot_ps(_mm256_and_ps(any_neg, any_pos), _mm256_cmp_ps(det, zero, _CMP_NEQ_OQ));
+  __m256 ok = _mm256_andnot_ps(mixed, _mm256_cmp_ps(det, zero, _CMP_NEQ_OQ));
   ok = _mm256_and_ps(ok, _mm256_and_ps(_mm256_cmp_ps(t, s.tmin, _CMP_GT_OQ),
                                        _mm256_cmp_ps(t, _mm256_set1_ps(tmax), _CMP_LT_OQ)));
   const unsigned mask = static_cast<unsigned>(_mm256_movemask_ps(ok)) & lanes;

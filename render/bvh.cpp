@@ -368,7 +368,7 @@ inline bool hit_leaf(const Bvh::TriangleBlock* blocks, uint32_t ref, const Prepa
 
 }  // namespace
 
-template <bool kAnyHit, class SimdRay>
+template <bool kAnyHit, class SimdRay, bool kPrefetch>
 inline Hit Bvh::traverse(const Ray& ray) const {
   Hit hit;
   if (nodes_.empty()) return hit;
@@ -385,7 +385,7 @@ inline Hit Bvh::traverse(const Ray& ray) const {
       const BvhNode& n = nodes_[ref];
       alignas(32) float tnear[kW];
       const unsigned mask = hit_children(n, r, s, tmax, tnear);
-      if (mask) {
+      if (kPrefetch && mask) {
         // Start loading every child the ray enters, so their cache misses overlap.
         for (unsigned m = mask; m; m &= m - 1) {
           const uint32_t c = n.child[__builtin_ctz(m)];
@@ -398,6 +398,8 @@ inline Hit Bvh::traverse(const Ray& ray) const {
           __builtin_prefetch(p), __builtin_prefetch(p + 64), __builtin_prefetch(p + 128);
           __builtin_prefetch(p + 192), __builtin_prefetch(p + 256);
         }
+      }
+      if (mask) {
         if (!(mask & (mask - 1))) {
           ref = n.child[__builtin_ctz(mask)];
           continue;
@@ -430,12 +432,20 @@ inline Hit Bvh::traverse(const Ray& ray) const {
   }
 }
 
-Hit Bvh::intersect(const Ray& ray) const {
-  return portable_kernels_ ? traverse<false, portable::SimdRay>(ray) : traverse<false, BestSimdRay>(ray);
+template <bool kAnyHit>
+Hit Bvh::dispatch(const Ray& ray) const {
+#if defined(SL_FORCE_PREFETCH)
+  const bool prefetch = SL_FORCE_PREFETCH;
+#else
+  const bool prefetch = prefetch_;
+#endif
+  if (portable_kernels_)
+    return prefetch ? traverse<kAnyHit, portable::SimdRay, true>(ray) : traverse<kAnyHit, portable::SimdRay, false>(ray);
+  return prefetch ? traverse<kAnyHit, BestSimdRay, true>(ray) : traverse<kAnyHit, BestSimdRay, false>(ray);
 }
-bool Bvh::occluded(const Ray& ray) const {
-  return (portable_kernels_ ? traverse<true, portable::SimdRay>(ray) : traverse<true, BestSimdRay>(ray)).hit();
-}
+
+Hit Bvh::intersect(const Ray& ray) const { return dispatch<false>(ray); }
+bool Bvh::occluded(const Ray& ray) const { return dispatch<true>(ray).hit(); }
 
 void Bvh::intersect(const Ray* rays, Hit* hits, size_t count) const {
   const int64_t n = static_cast<int64_t>(count);

@@ -18,6 +18,7 @@
 #if defined(__linux__)
 #include <sys/mman.h>
 #endif
+#include <unistd.h>
 
 namespace sl::render {
 
@@ -42,6 +43,19 @@ void bvh_deallocate(void* p, size_t bytes) {
 }
 
 namespace {
+
+// The L2 cache of one core in bytes, as the CPU reports it (glibc reads CPUID); 256 KiB, the
+// smallest of current x86-64 cores, when it is unknown.
+size_t l2_cache_bytes() {
+  static const size_t bytes = [] {
+    long l2 = -1;
+#if defined(_SC_LEVEL2_CACHE_SIZE)
+    l2 = sysconf(_SC_LEVEL2_CACHE_SIZE);
+#endif
+    return l2 > 0 ? static_cast<size_t>(l2) : size_t{256} << 10;
+  }();
+  return bytes;
+}
 
 // ---------------------------------------------------------------- 4-float vectors (x, y, z, 0)
 
@@ -507,6 +521,7 @@ Bvh::Bvh(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>&
   BvhLayout layout{builder, positions, triangles, nodes_, blocks_, ids_};
   layout.node(0, 0);
   depth_ = layout.depth + 1;  // the leaf level
+  prefetch_ = nodes_.size() * sizeof(BvhNode) + blocks_.size() * sizeof(TriangleBlock) > l2_cache_bytes();
   SL_CHECK(depth_ <= kMaxDepth, "Bvh: tree depth ", depth_, " exceeds ", kMaxDepth);
 }
 

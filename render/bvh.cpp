@@ -392,7 +392,7 @@ inline Hit Bvh::traverse(const Ray& ray) const {
           const bool leaf = BvhNode::is_leaf(c);
           const char* p = leaf ? reinterpret_cast<const char*>(&blocks_[BvhNode::leaf_block(c)])
                                : reinterpret_cast<const char*>(&nodes_[c]);
-          // Five lines cover a block (4.5 lines) or a node (4, then the next node's first): a fixed
+          // Five lines cover a block or a node (4, then the next node's first): a fixed
           // count, as a loop over the size would mispredict its exit (prefetches never fault).
           static_assert(sizeof(TriangleBlock) <= 5 * 64 && sizeof(BvhNode) <= 5 * 64);
           __builtin_prefetch(p), __builtin_prefetch(p + 64), __builtin_prefetch(p + 128);
@@ -414,13 +414,13 @@ inline Hit Bvh::traverse(const Ray& ray) const {
         continue;
       }
     } else if (hit_leaf<kAnyHit>(blocks_.data(), ref, r, s, tmax, hit, slot) && kAnyHit) {
-      hit.triangle = ids_[slot];
+      hit.triangle = blocks_[slot / kB].id[slot % kB];
       return hit;
     }
     // Pop the next subtree; closest-hit skips those that start beyond the closest hit.
     for (;;) {
       if (sp == 0) {
-        if (slot != Hit::kNone) hit.triangle = ids_[slot];
+        if (slot != Hit::kNone) hit.triangle = blocks_[slot / kB].id[slot % kB];
         return hit;
       }
       const StackEntry e = stack[--sp];

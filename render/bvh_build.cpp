@@ -384,7 +384,6 @@ struct BvhLayout {
   const std::vector<glm::uvec3>& triangles;
   std::vector<BvhNode, BvhAllocator<BvhNode>>& nodes;
   std::vector<Bvh::TriangleBlock, BvhAllocator<Bvh::TriangleBlock>>& blocks;
-  std::vector<uint32_t>& ids;
   int depth = 0;
 
   // Lanes used in the last block; kBlockWidth when there is no block with free lanes.
@@ -404,11 +403,11 @@ struct BvhLayout {
       if (b == blocks.size()) {  // a new block: unused lanes stay NaN and never hit
         Bvh::TriangleBlock tb;
         std::fill(&tb.v[0][0][0], &tb.v[0][0][0] + 9 * Bvh::kBlockWidth, nan);
+        std::fill(tb.id, tb.id + Bvh::kBlockWidth, Hit::kNone);
         blocks.push_back(tb);
-        ids.resize(ids.size() + Bvh::kBlockWidth, Hit::kNone);
       }
       const uint32_t id = builder.refs[first + i].id;
-      ids[slot] = id;
+      blocks[b].id[l] = id;
       for (int v = 0; v < 3; ++v) {
         const glm::vec3 p = positions[triangles[id][v]];
         for (int a = 0; a < 3; ++a) blocks[b].v[v][a][l] = p[a];
@@ -517,8 +516,7 @@ Bvh::Bvh(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>&
     for (int i = 0; i < builder.arena[b].children; ++i) block_count += (builder.arena[b].count[i] + kBlockWidth - 1) / kBlockWidth;
   nodes_.reserve(node_count);
   blocks_.reserve(block_count);
-  ids_.reserve(block_count * kBlockWidth);
-  BvhLayout layout{builder, positions, triangles, nodes_, blocks_, ids_};
+  BvhLayout layout{builder, positions, triangles, nodes_, blocks_};
   layout.node(0, 0);
   depth_ = layout.depth + 1;  // the leaf level
   prefetch_ = nodes_.size() * sizeof(BvhNode) + blocks_.size() * sizeof(TriangleBlock) > l2_cache_bytes();

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 
 #include "render/bvh.h"
 #include "util/error.h"
@@ -29,8 +30,12 @@ struct PreparedRay {
   float o[3];          // origin
   float inv[3];        // 1 / direction (±∞ for a zero component)
   float inv_far[3];    // inv · kFarScale, for box exits
-  int near_row[3];     // row of BvhNode::bounds holding each axis' entry plane: lo (k) or hi (3 + k)
-  int far_row[3];      // and its exit plane
+  // Byte offsets in BvhNode of the row holding each axis' entry plane, lo (row k) or hi (row
+  // 3 + k), and of its exit plane. Pointer-sized, so a node test adds them to the node's address
+  // as they are: as int rows, GCC kept them packed in vector registers and extracted, widened and
+  // scaled all six at every node.
+  ptrdiff_t near_off[3];
+  ptrdiff_t far_off[3];
   float ox, oy, oz;    // origin permuted to (kx, ky, kz)
   float sx, sy, sz;    // shear constants, Sec. 3 of the paper
   int kx, ky, kz;
@@ -70,11 +75,18 @@ inline PreparedRay prepare(const Ray& ray) {
   for (int k = 0; k < 3; ++k) r.inv_far[k] = r.inv[k] * kFarScale;
   r.ox = r.o[r.kx], r.oy = r.o[r.ky], r.oz = r.o[r.kz];
   for (int k = 0; k < 3; ++k) {
-    r.near_row[k] = std::signbit(r.inv[k]) ? 3 + k : k;
-    r.far_row[k] = std::signbit(r.inv[k]) ? k : 3 + k;
+    const ptrdiff_t lo = static_cast<ptrdiff_t>(offsetof(BvhNode, bounds) + k * sizeof(BvhNode::bounds[0]));
+    const ptrdiff_t hi = lo + static_cast<ptrdiff_t>(3 * sizeof(BvhNode::bounds[0]));
+    r.near_off[k] = std::signbit(r.inv[k]) ? hi : lo;
+    r.far_off[k] = std::signbit(r.inv[k]) ? lo : hi;
   }
   r.tmin = ray.tmin;
   return r;
+}
+
+// The bounds row of node n at byte offset `off` (PreparedRay::near_off, far_off).
+inline const float* row(const BvhNode& n, ptrdiff_t off) {
+  return reinterpret_cast<const float*>(reinterpret_cast<const char*>(&n) + off);
 }
 
 // ---------------------------------------------------------------- scalar ray-triangle test
@@ -153,8 +165,8 @@ struct SimdRay {
 inline unsigned hit_children(const BvhNode& n, const PreparedRay& r, const SimdRay& s, float tmax, float* tnear) {
   __m256 near = s.tmin, far = _mm256_set1_ps(kInf);
   for (int k = 0; k < 3; ++k) {
-    const __m256 tn = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.bounds[r.near_row[k]]), s.o[k]), s.inv[k]);
-    const __m256 tf = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n.bounds[r.far_row[k]]), s.o[k]), s.inv_far[k]);
+    const __m256 tn = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(row(n, r.near_off[k])), s.o[k]), s.inv[k]);
+    const __m256 tf = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(row(n, r.far_off[k])), s.o[k]), s.inv_far[k]);
     near = _mm256_max_ps(tn, near);
     far = _mm256_min_ps(tf, far);
   }
@@ -241,8 +253,8 @@ inline unsigned hit_children(const BvhNode& n, const PreparedRay& r, const SimdR
   float far[kW];
   for (int i = 0; i < kW; ++i) tnear[i] = r.tmin, far[i] = kInf;
   for (int k = 0; k < 3; ++k) {
-    const float* lo = n.bounds[r.near_row[k]];
-    const float* hi = n.bounds[r.far_row[k]];
+    const float* lo = row(n, r.near_off[k]);
+    const float* hi = row(n, r.far_off[k]);
     for (int i = 0; i < kW; ++i) {
       const float tn = (lo[i] - r.o[k]) * r.inv[k], tf = (hi[i] - r.o[k]) * r.inv_far[k];
       tnear[i] = tnear[i] < tn ? tn : tnear[i];  // NaN entry: keeps tnear

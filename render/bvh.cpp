@@ -19,6 +19,12 @@ namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
+#if defined(__GNUC__)
+#define SL_ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define SL_ALWAYS_INLINE inline
+#endif
+
 // ---------------------------------------------------------------- ray set-up (Woop et al. 2013)
 
 // Box exits are computed with 1/d times 1 + 2γ₄, γₙ = nε/(1 - nε), ε = 2⁻²⁴: pbrt-v3 §3.9.2
@@ -350,9 +356,11 @@ inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const flo
 
 // Tests the triangles of leaf `ref`. Closest-hit narrows tmax to each closer hit and records
 // it in `hit` and `slot` (block * kBlockWidth + lane); any-hit returns true at the first hit.
+// Always inlined: GCC 12 left it a call, before which it zeroed the upper vector halves
+// (vzeroupper) and spilled the ray's vectors, to reload them inside and again after.
 template <bool kAnyHit, class SimdRay>
-inline bool hit_leaf(const Bvh::TriangleBlock* blocks, uint32_t ref, const PreparedRay& r, const SimdRay& s,
-                     float& tmax, Hit& hit, uint32_t& slot) {
+SL_ALWAYS_INLINE bool hit_leaf(const Bvh::TriangleBlock* blocks, uint32_t ref, const PreparedRay& r,
+                               const SimdRay& s, float& tmax, Hit& hit, uint32_t& slot) {
   const uint32_t first = BvhNode::leaf_block(ref) * kB + BvhNode::leaf_lane(ref), end = first + BvhNode::leaf_count(ref);
   bool found = false;
   for (uint32_t b = first / kB; b * kB < end; ++b) {  // the leaf's slots [first, end), block by block

@@ -454,11 +454,7 @@ inline Hit Bvh::traverse(const Ray& ray) const {
 
 template <bool kAnyHit>
 Hit Bvh::dispatch(const Ray& ray) const {
-#if defined(SL_FORCE_PREFETCH)
-  const bool prefetch = SL_FORCE_PREFETCH;
-#else
   const bool prefetch = prefetch_;
-#endif
   if (portable_kernels_)
     return prefetch ? traverse<kAnyHit, portable::SimdRay, true>(ray) : traverse<kAnyHit, portable::SimdRay, false>(ray);
   return prefetch ? traverse<kAnyHit, BestSimdRay, true>(ray) : traverse<kAnyHit, BestSimdRay, false>(ray);

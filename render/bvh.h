@@ -126,6 +126,11 @@ class Bvh {
   void use_portable_kernels(bool on) { portable_kernels_ = on; }
   bool uses_portable_kernels() const { return portable_kernels_; }
 
+  // Whether traversal prefetches the children a ray enters: chosen by the build (prefetch_
+  // below); settable so tests can run both traversals. Results do not depend on it.
+  void use_prefetch(bool on) { prefetch_ = on; }
+  bool uses_prefetch() const { return prefetch_; }
+
   bool empty() const { return nodes_.empty(); }
   size_t node_count() const { return nodes_.size(); }
   size_t triangle_count() const { return triangle_count_; }  // triangles kept (non-degenerate)

@@ -150,6 +150,41 @@ TEST(Bvh, PortableAndVectorKernelsGiveBitIdenticalHits) {
   EXPECT_LT(hit_count, static_cast<int>(rays.size()));
 }
 
+TEST(Bvh, PrefetchingDoesNotChangeHits) {
+  // The build turns prefetching on only for trees larger than the L2 cache, so the small test
+  // meshes would otherwise never run that traversal; both must give the same hits.
+  const sl::render::Mesh m = random_soup(6000, 57);
+  for (const bool portable : {false, true}) {
+    sl::render::Bvh with(m), without(m);
+    with.use_portable_kernels(portable), without.use_portable_kernels(portable);
+    with.use_prefetch(true), without.use_prefetch(false);
+    ASSERT_TRUE(with.uses_prefetch());
+    ASSERT_FALSE(without.uses_prefetch());
+    const std::vector<sl::render::Ray> rays = random_rays(m.bounds(), 3000, 59);
+    std::vector<sl::render::Hit> a(rays.size()), b(rays.size());
+    std::vector<uint8_t> occ_a(rays.size()), occ_b(rays.size());
+    with.intersect(rays.data(), a.data(), rays.size());
+    without.intersect(rays.data(), b.data(), rays.size());
+    with.occluded(rays.data(), occ_a.data(), rays.size());
+    without.occluded(rays.data(), occ_b.data(), rays.size());
+    int hit_count = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(a[i].triangle, b[i].triangle) << "ray " << i;
+      ASSERT_EQ(a[i].t, b[i].t) << "ray " << i;
+      ASSERT_EQ(a[i].u, b[i].u) << "ray " << i;
+      ASSERT_EQ(a[i].v, b[i].v) << "ray " << i;
+      ASSERT_EQ(occ_a[i], occ_b[i]) << "ray " << i;
+      hit_count += a[i].hit();
+    }
+    EXPECT_GT(hit_count, 300);
+  }
+  expect_matches_brute_force(m, [&] {
+    sl::render::Bvh b(m);
+    b.use_prefetch(true);
+    return b;
+  }(), random_rays(m.bounds(), 500, 61));
+}
+
 TEST(Bvh, RaysWithTiedDirectionComponentsMatchBruteForce) {
   // The ray set-up picks the dominant axis of |d| without branches; ties (|dx| = |dy|, diagonals,
   // zero components) and every sign must still give the scalar test's hits.

@@ -49,7 +49,10 @@ struct PreparedRay {
   bool valid;
 };
 
-inline PreparedRay prepare(const Ray& ray) {
+inline void shear(PreparedRay& r, const Ray& ray);
+
+// The box-test part of the set-up; shear() adds the triangle test's part.
+inline PreparedRay prepare_boxes(const Ray& ray) {
   PreparedRay r{};
   const float d[3] = {ray.direction.x, ray.direction.y, ray.direction.z};
   r.o[0] = ray.origin.x, r.o[1] = ray.origin.y, r.o[2] = ray.origin.z;
@@ -58,7 +61,7 @@ inline PreparedRay prepare(const Ray& ray) {
             std::isfinite(r.o[0] + r.o[1] + r.o[2]) && (ad[0] > 0 || ad[1] > 0 || ad[2] > 0) &&
             !std::isnan(ray.tmin) && !std::isnan(ray.tmax);
   if (!r.valid) return r;
-  // 1/d first: the box tests need only it, so they need not wait for the axis choice below.
+  // 1/d first: the box tests need only it, so they need not wait for the axis choice (shear).
 #if defined(__AVX2__)
   alignas(16) float q[4];
   _mm_store_ps(q, _mm_div_ps(_mm_set1_ps(1.0f), _mm_setr_ps(d[0], d[1], d[2], 1.0f)));
@@ -66,6 +69,22 @@ inline PreparedRay prepare(const Ray& ray) {
 #else
   for (int k = 0; k < 3; ++k) r.inv[k] = 1.0f / d[k];
 #endif
+  for (int k = 0; k < 3; ++k) r.inv_far[k] = r.inv[k] * kFarScale;
+  for (int k = 0; k < 3; ++k) {
+    const ptrdiff_t lo = static_cast<ptrdiff_t>(offsetof(BvhNode, bounds) + k * sizeof(BvhNode::bounds[0]));
+    const ptrdiff_t hi = lo + static_cast<ptrdiff_t>(3 * sizeof(BvhNode::bounds[0]));
+    r.near_off[k] = std::signbit(r.inv[k]) ? hi : lo;
+    r.far_off[k] = std::signbit(r.inv[k]) ? lo : hi;
+  }
+  r.tmin = ray.tmin;
+  return r;
+}
+
+// Axis permutation and shear of the watertight triangle test. Traversal calls it at the first
+// leaf only: most rays of a scene that does not fill their view never reach one.
+inline void shear(PreparedRay& r, const Ray& ray) {
+  const float d[3] = {ray.direction.x, ray.direction.y, ray.direction.z};
+  const float ad[3] = {std::fabs(d[0]), std::fabs(d[1]), std::fabs(d[2])};
   // kz: the dominant axis; swapping kx and ky when d[kz] < 0 keeps the winding (paper, Fig. 2).
   // Integer arithmetic on comparison results and a table: random directions would mispredict
   // branches, and compilers turn the equivalent ternaries on indexed floats into branches.
@@ -78,15 +97,12 @@ inline PreparedRay prepare(const Ray& ray) {
   r.sx = d[r.kx] / d[r.kz];
   r.sy = d[r.ky] / d[r.kz];
   r.sz = r.inv[r.kz];
-  for (int k = 0; k < 3; ++k) r.inv_far[k] = r.inv[k] * kFarScale;
   r.ox = r.o[r.kx], r.oy = r.o[r.ky], r.oz = r.o[r.kz];
-  for (int k = 0; k < 3; ++k) {
-    const ptrdiff_t lo = static_cast<ptrdiff_t>(offsetof(BvhNode, bounds) + k * sizeof(BvhNode::bounds[0]));
-    const ptrdiff_t hi = lo + static_cast<ptrdiff_t>(3 * sizeof(BvhNode::bounds[0]));
-    r.near_off[k] = std::signbit(r.inv[k]) ? hi : lo;
-    r.far_off[k] = std::signbit(r.inv[k]) ? lo : hi;
-  }
-  r.tmin = ray.tmin;
+}
+
+inline PreparedRay prepare(const Ray& ray) {
+  PreparedRay r = prepare_boxes(ray);
+  if (r.valid) shear(r, ray);
   return r;
 }
 
@@ -160,6 +176,8 @@ struct SimdRay {
       o[k] = _mm256_set1_ps(r.o[k]), inv[k] = _mm256_set1_ps(r.inv[k]), inv_far[k] = _mm256_set1_ps(r.inv_far[k]);
     }
     tmin = _mm256_set1_ps(r.tmin);
+  }
+  void set_shear(const PreparedRay& r) {
     sx = _mm256_set1_ps(r.sx), sy = _mm256_set1_ps(r.sy), sz = _mm256_set1_ps(r.sz);
   }
 };
@@ -252,6 +270,7 @@ namespace portable {
 
 struct SimdRay {
   explicit SimdRay(const PreparedRay&) {}
+  void set_shear(const PreparedRay&) {}
 };
 
 // The same tests as lane loops without branches, which compilers vectorise for SSE.
@@ -392,9 +411,10 @@ template <bool kAnyHit, class SimdRay, bool kPrefetch>
 inline Hit Bvh::traverse(const Ray& ray) const {
   Hit hit;
   if (nodes_.empty()) return hit;
-  const PreparedRay r = prepare(ray);
+  PreparedRay r = prepare_boxes(ray);
   if (!r.valid) return hit;
-  const SimdRay s(r);
+  SimdRay s(r);
+  bool sheared = false;
   float tmax = ray.tmax;
   uint32_t slot = Hit::kNone;  // block * kBlockWidth + lane of the closest hit so far
   StackEntry stack[(kW - 1) * kMaxDepth + 1];  // each level defers at most kWidth − 1 children
@@ -433,7 +453,8 @@ inline Hit Bvh::traverse(const Ray& ray) const {
         }
         continue;
       }
-    } else if (hit_leaf<kAnyHit>(blocks_.data(), ref, r, s, tmax, hit, slot) && kAnyHit) {
+    } else if ((sheared || (shear(r, ray), s.set_shear(r), sheared = true)) &&
+               hit_leaf<kAnyHit>(blocks_.data(), ref, r, s, tmax, hit, slot) && kAnyHit) {
       hit.triangle = blocks_[slot / kB].id[slot % kB];
       return hit;
     }

@@ -26,12 +26,21 @@ std::pair<int64_t, int64_t> fans(const Tensor& w, const std::string& name) {
 }
 
 namespace {
+thread_local bool skip_init = false;
+}  // namespace
+
+SkipInitGuard::SkipInitGuard() : previous_(skip_init) { skip_init = true; }
+SkipInitGuard::~SkipInitGuard() { skip_init = previous_; }
+bool init_skipped() { return skip_init; }
+
+namespace {
 
 template <class Draw>
 void fill_with(Tensor& w, const std::string& name, Draw draw) {
   SL_CHECK(w.defined() && w.dtype() != DType::I64, "init of '", name, "': need a floating tensor, got ",
            w.describe());
   SL_CHECK(w.is_contiguous(), "init of '", name, "': tensor ", w.describe(), " is not contiguous");
+  if (init_skipped()) return;  // the caller loads every parameter next (SkipInitGuard)
   NoGradGuard no_grad;
   SL_DISPATCH_FLOAT(w.dtype(), "init", [&] {
     scalar_t* p = w.data<scalar_t>();

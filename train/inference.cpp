@@ -12,6 +12,7 @@
 #include "data/augment.h"
 #include "data/panorama.h"
 #include "nn/checkpoint.h"
+#include "nn/init.h"
 #include "render/equirect.h"
 #include "train/train_config.h"
 #include "train/unprojection.h"
@@ -110,7 +111,12 @@ LightingEstimator::LightingEstimator(const std::string& path) : path_(path) {
     SL_CHECK(false, "checkpoint '", path, "': its config metadata is not JSON (", e.what(), ")");
   }
   const LightingPredictorOptions po = predictor_options(config_);
-  predictor_ = std::make_shared<LightingPredictor>(po);
+  {
+    // Every parameter is loaded below, and load_state_dict refuses a missing one: random values
+    // drawn now would all be overwritten (nn/init.h, SkipInitGuard).
+    const nn::SkipInitGuard loaded_next;
+    predictor_ = std::make_shared<LightingPredictor>(po);
+  }
   // Load predictor.* only: the checkpoint also holds the teacher and maybe a discriminator,
   // which load_checkpoint would report as unexpected, so read the tensors by name.
   const nn::SafetensorsFile file = nn::read_safetensors(path);

@@ -30,7 +30,11 @@ using nn::Sequential;
 using nn::Sigmoid;
 using nn::StateDict;
 using nn::kaiming_normal_init;
+using nn::init_skipped;
 using nn::kaiming_uniform_init;
+using nn::normal_init;
+using nn::SkipInitGuard;
+using nn::uniform_init;
 using nn::make_activation;
 using nn::xavier_normal_init;
 using nn::xavier_uniform_init;
@@ -291,6 +295,29 @@ TEST(Init, ZeroFanOrIntegerTensorThrowsNamingTheParameter) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("conv.weight"), std::string::npos);
   }
+}
+
+// For a model loaded next (train/inference.cpp): nothing is drawn, the checks still run, and the
+// guard restores the previous state when it ends, nested or not.
+TEST(Init, SkipInitGuardDrawsNothingStillChecksAndRestores) {
+  Tensor w = Tensor::full({4, 3}, 7.0);
+  {
+    const SkipInitGuard outer;
+    {
+      const SkipInitGuard inner;
+      EXPECT_TRUE(init_skipped());
+    }
+    EXPECT_TRUE(init_skipped());
+    kaiming_normal_init(w, 1, "conv.weight");
+    normal_init(w, 0.0, 1.0, 1, "conv.weight");
+    uniform_init(w, -1.0, 1.0, 1, "conv.weight");
+    EXPECT_EQ(max(abs(add_scalar(w, -7.0))).item(), 0.0);
+    Tensor empty = Tensor::empty({0, 3});
+    EXPECT_THROW(kaiming_normal_init(empty, 0, "conv.weight", 0.0, FanMode::FanOut), Error);  // zero fan
+  }
+  EXPECT_FALSE(init_skipped());
+  normal_init(w, 0.0, 1.0, 1, "conv.weight");
+  EXPECT_GT(max(abs(add_scalar(w, -7.0))).item(), 1.0);
 }
 
 // ---------------------------------------------------------------- small layers

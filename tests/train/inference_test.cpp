@@ -3,6 +3,8 @@
 
 #include "autodiff/ops.h"
 #include "data/augment.h"
+#include "nn/init.h"
+#include "nn/safetensors.h"
 #include "render/bvh.h"
 #include "render/equirect.h"
 #include "render/primitives.h"
@@ -59,6 +61,24 @@ TEST(Inference, FusingAViewWithItselfChangesNothing) {
   EXPECT_NEAR(glm::length(one.sun_direction_canonical - two.sun_direction_canonical), 0.0, 1e-9);
   ASSERT_TRUE(two.vsg.defined());
   EXPECT_LT(max(abs(sub(one.vsg, two.vsg))).item(), 1e-4);
+}
+
+// Lean: the estimator builds its predictor without drawing initial values (nn::SkipInitGuard),
+// since the checkpoint overwrites them all; its parameters and buffers equal the file's bit for bit.
+TEST(Inference, EstimatorHoldsExactlyTheCheckpointsTensors) {
+  const std::string dir = test::tool_dir("inference_lean_init");
+  const std::string path = test::tiny_lighting_checkpoint(dir);
+  LightingEstimator est(path);
+  const nn::SafetensorsFile file = nn::read_safetensors(path);
+  size_t compared = 0;
+  for (const auto& [name, t] : est.predictor().state_dict()) {
+    const auto it = file.tensors.find("predictor." + name);
+    ASSERT_NE(it, file.tensors.end()) << name;
+    EXPECT_EQ(max(abs(sub(t.to(DType::F64), it->second.to(DType::F64)))).item(), 0.0) << name;
+    ++compared;
+  }
+  EXPECT_GT(compared, 10u);
+  EXPECT_FALSE(nn::init_skipped()) << "the guard ended with the constructor";
 }
 
 // Flip averaging makes the estimate mirror-equivariant: the mirrored photo gets the mirrored sun

@@ -31,7 +31,7 @@ for mesh in "$truck" "$work/bumpy200k.glb"; do
     "$bench" gen-rays --mesh "$mesh" --kind "$kind" --count "$count" --seed 1 --out "$rays" 2>/dev/null
     results=()
     for ((round = 0; round < rounds; ++round)); do
-      ours="$("$bench" trace --mesh "$mesh" --rays "$rays" --hits-out "$work/ours.hits" --json)"
+      ours="$("$bench" trace --mesh "$mesh" --rays "$rays" --hits-out "$work/ours.hits" --json 2> >(grep -v " ran on: " >&2))"
       theirs="$("$embree" --mesh "$mesh" --rays "$rays" --hits-out "$work/embree.hits" --json)"
       for key in closest_mrays_per_s any_mrays_per_s build_ms; do
         results+=("$(field $key <<<"$ours")" "$(field $key <<<"$theirs")")
@@ -48,4 +48,4 @@ print(f"{n[:18]:<18} {k:<8} {med(0):9.2f} {med(1):9.2f} {ratio(0):7.2f} {med(2):
 PY
   done
 done
-echo "(Mrays/s, best of 5 passes, median of $rounds rounds, OMP_NUM_THREADS=${OMP_NUM_THREADS:-all}; ratio = median of the rounds' ours/Embree; build in ms; agree = share of rays with equal hit/miss and t within 1e-4 relative)"
+echo "(CPU: $(grep -m1 '^model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//'); Mrays/s, best of 5 passes, median of $rounds rounds, OMP_NUM_THREADS=${OMP_NUM_THREADS:-all}; ratio = median of the rounds' ours/Embree; build in ms; agree = share of rays with equal hit/miss and t within 1e-4 relative)"

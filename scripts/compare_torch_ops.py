@@ -56,6 +56,18 @@ SHAPES = [
 CLOCK = time.perf_counter  # time.process_time with --cpu-time
 
 
+def cpu_model_name():
+    """lscpu's model name (from /proc/cpuinfo), so that every figure names its machine."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return "unknown CPU"
+
+
 def best_ms(fn, repeat):
     fn()  # warm-up (oneDNN primitive creation, allocator)
     best = float("inf")
@@ -248,7 +260,8 @@ def main():
                                               + (" --cpu-time" if args.cpu_time else ""))
     build = os.path.dirname(os.path.dirname(os.path.abspath(args.bench)))
     print(f"# torch {torch.__version__}, {args.threads} threads, {args.rounds} interleaved rounds, "
-          f"{'process CPU' if args.cpu_time else 'wall'} time; ours: {args.bench}", file=sys.stderr)
+          f"{'process CPU' if args.cpu_time else 'wall'} time; ours: {args.bench}; CPU: {cpu_model_name()}",
+          file=sys.stderr)
     # Alternate the two sides for several rounds and keep each side's best, so that load from
     # other processes during one side's turn does not bias the ratio.
     rounds = {k: [] for k in ("tconv", "oconv", "tcore", "ocore", "tnet", "onet", "ttrain", "otrain")}

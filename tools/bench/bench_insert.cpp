@@ -162,14 +162,8 @@ long max_rss_mb() {
 // Relative RMSE of the composite over the object and its shadow region: pixels the reference's
 // object covers, or whose reference shadow ratio differs from 1 by more than 1e-3. Both
 // renders use the same anti-aliasing samples (same seed), so coverage is identical and the
-// error is the lighting estimate's alone.
-// CPU time of the whole process (all threads): on a loaded machine, wall time ≈ this / threads
-// is what an idle machine would show.
-double process_cpu_ms() {
-  timespec t{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return double(t.tv_sec) * 1e3 + double(t.tv_nsec) * 1e-6;
-}
+// error is the lighting estimate's alone. (The rows also report process CPU time, cpu_now_ms of
+// timing.h: on a loaded machine, wall time ≈ that / threads is what an idle machine would show.)
 
 struct RegionError {
   double rel_rmse = 0;
@@ -264,9 +258,9 @@ double lighting_ms(const train::Photo& photo, const std::string& dir) {
   train::LightingEstimator est(path);  // kept: streetlight-insert --checkpoint can time a batch with it
   double cpu = 1e300;
   const double ms = best_ms([&] {
-    const double c0 = process_cpu_ms();
+    const double c0 = cpu_now_ms();
     est.estimate({{photo.ldr, photo.depth, photo.camera}});
-    cpu = std::min(cpu, process_cpu_ms() - c0);
+    cpu = std::min(cpu, cpu_now_ms() - c0);
   }, 2, 1);
   std::fprintf(stderr, "lighting CPU time %.0f ms\n", cpu);
   return ms;
@@ -393,9 +387,9 @@ int run_production(const std::string& size, bool json, const std::string& data, 
     InsertionResult r;
     double cpu_ms = 1e300;
     const double ms = best_ms([&] {
-      const double c0 = process_cpu_ms();
+      const double c0 = cpu_now_ms();
       r = insert_objects(in, row.opt);
-      cpu_ms = std::min(cpu_ms, process_cpu_ms() - c0);
+      cpu_ms = std::min(cpu_ms, cpu_now_ms() - c0);
     }, 2, 0);
     const RegionError err = region_error(r, reference);
     // Noise alone: the same row with independent light and shadow samples; the RMSE between

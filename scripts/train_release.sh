@@ -10,45 +10,56 @@
 #   2. stage 1, the sky autoencoder (configs/release_sky.json) on the split's training panoramas
 #      and sky-model skies;
 #   3. stage 2, the lighting predictor (configs/release_lighting.json) on the streets mixed with
-#      perspective crops of the training panoramas;
+#      perspective crops of the training HDR panoramas and of the labelled LDR street panoramas
+#      (../shared/data/pano_ldr, configs/pano_ldr_split.json);
 #   4. stage 3, end to end through object insertion (configs/release_adversarial.json);
 #   5. evaluation of stages 2 and 3 on the real-sky test split and the synthetic test split;
 #   6. the release: of stages 2 and 3, the checkpoint with the lower VALIDATION sun error (never a
 #      test figure) is exported (F16) with a model card that lists data, configs, steps, wall
 #      times, commit and the test metrics beside the constant baseline.
 # Usage: scripts/train_release.sh [--runs DIR] [--build-dir DIR] [--skip-build] [--no-publish]
+#                                  [--stop-after STEP]
 #   --runs DIR     run folder (default ../streetlight-runs/release, outside the repository)
 #   --no-publish   train and evaluate only; leave models/ untouched
+#   --stop-after STEP  stop once STEP is done (datagen, test_streets, sky, lighting, adversarial, eval)
 # Needs ../shared/data/hdri (the real panoramas). Logs go to DIR/*.log; progress to stderr.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-runs=../streetlight-runs/release; build_dir=build; build=1; publish=1
+runs=../streetlight-runs/release; build_dir=build; build=1; publish=1; stop_after=
 while [ $# -gt 0 ]; do
   case "$1" in
     --runs) runs="$2"; shift ;;
     --build-dir) build_dir="$2"; shift ;;
     --skip-build) build=0 ;;
     --no-publish) publish=0 ;;
-    -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
+    --stop-after) stop_after="$2"; shift
+      case "$stop_after" in datagen|test_streets|sky|lighting|adversarial|eval) ;;
+        *) echo "error: --stop-after '$stop_after': expected datagen, test_streets, sky, lighting, adversarial or eval" >&2; exit 2 ;;
+      esac ;;
+    -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
     *) echo "error: unknown option '$1' (try --help)" >&2; exit 2 ;;
   esac
   shift
 done
-hdri=../shared/data/hdri
+hdri=../shared/data/hdri; ldr=../shared/data/pano_ldr
 [ -d "$hdri" ] || { echo "error: $hdri is missing: the release trains on the real panoramas there" >&2; exit 2; }
+[ -f "$ldr/sun_labels.csv" ] || { echo "error: $ldr/sun_labels.csv is missing: the release trains on the labelled LDR panoramas there" >&2; exit 2; }
 if [ "$build" = 1 ]; then bash scripts/install_deps.sh; build_dir=$(bash scripts/build.sh --dir "$build_dir" | tail -n 1); fi
 bin="$build_dir/tools"
 mkdir -p "$runs"
 runs=$(cd "$runs" && pwd)
-hdri=$(cd "$hdri" && pwd)
+hdri=$(cd "$hdri" && pwd); ldr=$(cd "$ldr" && pwd)
 start=$(date +%s)
 say() { echo "train_release: [$(( $(date +%s) - start )) s] $*" >&2; }
 timed() {  # timed NAME CMD...: runs CMD unless NAME is done; records its wall time
   local name=$1; shift
-  if [ -f "$runs/$name.done" ]; then say "$name: done before ($(cat "$runs/$name.done") s)"; return 0; fi
-  local t0; t0=$(date +%s)
-  "$@"
-  echo $(( $(date +%s) - t0 )) > "$runs/$name.done"
+  if [ -f "$runs/$name.done" ]; then say "$name: done before ($(cat "$runs/$name.done") s)"
+  else
+    local t0; t0=$(date +%s)
+    "$@"
+    echo $(( $(date +%s) - t0 )) > "$runs/$name.done"
+  fi
+  if [ "$name" = "$stop_after" ]; then say "stopping after $name (--stop-after)"; exit 0; fi
 }
 # Resumes a stage from its last checkpoint when one exists.
 train_stage() {  # train_stage NAME CONFIG [--set ...]
@@ -74,9 +85,9 @@ say "1/6 synthetic streets (configs/release_datagen.json, configs/release_datage
 timed datagen datagen configs/release_datagen.json street
 timed test_streets datagen configs/release_datagen_test.json test_street
 timed sky train_stage sky configs/release_sky.json --set "data.hdri_dir=$hdri"
-timed lighting train_stage lighting configs/release_lighting.json --set "data.hdri_dir=$hdri" \
+timed lighting train_stage lighting configs/release_lighting.json --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" \
   --set "data.dataset=$runs/street" --set "init.sky_checkpoint=$runs/sky/best.safetensors"
-timed adversarial train_stage adversarial configs/release_adversarial.json --set "data.hdri_dir=$hdri" \
+timed adversarial train_stage adversarial configs/release_adversarial.json --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" \
   --set "data.dataset=$runs/street" --set "init.checkpoint=$runs/lighting/best.safetensors"
 
 say "5/6 evaluating stages 2 and 3 (real-sky test split, 8 crops per panorama; the held-out test streets)"

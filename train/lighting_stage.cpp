@@ -312,7 +312,7 @@ Metrics LightingStage::validate() {
   predictor_->set_training(false);
   const size_t n = val_.size;
   Metrics sum_m;
-  std::vector<double> sun_err, real_err, street_err, psnrs, si_psnrs;
+  std::vector<double> sun_err, real_err, ldr_err, street_err, psnrs, si_psnrs;
   const int64_t val_h = config_.at("data").at("val_view_height").get<int64_t>();
   for (size_t s = 0; s < n; ++s) {
     const Forward f = forward_val(s);
@@ -328,7 +328,8 @@ Metrics LightingStage::validate() {
     if (f.samples[0].sun_known) {
       const double e = angular_error_deg(dir, f.items[0].sun_direction);
       sun_err.push_back(e);
-      (f.samples[0].id.rfind("hdri:", 0) == 0 ? real_err : street_err).push_back(e);
+      const std::string& id = f.samples[0].id;
+      (id.rfind("hdri:", 0) == 0 ? real_err : id.rfind("ldr:", 0) == 0 ? ldr_err : street_err).push_back(e);
     }
     // Novel views: every view but the input, rendered through the radiance query.
     for (size_t v = 1; v < f.samples[0].views.size(); ++v) {
@@ -356,6 +357,7 @@ Metrics LightingStage::validate() {
   sum_m["val_sun_error_mean_deg"] = mean_of(sun_err);
   if (!street_err.empty()) sum_m["val_street_sun_error_median_deg"] = median(street_err);
   if (!real_err.empty()) sum_m["val_real_sun_error_median_deg"] = median(real_err);
+  if (!ldr_err.empty()) sum_m["val_ldr_sun_error_median_deg"] = median(ldr_err);
   if (!psnrs.empty()) {
     sum_m["val_psnr"] = mean_of(psnrs);
     sum_m["val_si_psnr"] = mean_of(si_psnrs);
@@ -400,21 +402,40 @@ std::unique_ptr<Stage> make_lighting_stage(const nlohmann::json& config) {
   SampleSource train = dataset_source(dir, d.at("train_split").get<std::string>(), 0, cache_bytes);
   SampleSource val = dataset_source(dir, d.at("val_split").get<std::string>(),
                                     static_cast<size_t>(d.at("val_size").get<int64_t>()));
-  const double real = d.value("real_fraction", 0.0);
+  // Mixing (configs/README.md): of a shuffled epoch, a share data.real_fraction is crops of the
+  // real HDR panoramas, data.ldr_fraction crops of the real LDR panoramas, the rest generated
+  // streets. The HDR share is taken first, relative to what the LDR share leaves.
+  const double real = d.value("real_fraction", 0.0), ldr = d.value("ldr_fraction", 0.0);
+  const PanoramaSampleOptions ro = real_sample_options(config);
   if (real > 0) {
     const auto paths = configured_hdri_paths(config, "hdri_train_split");
     SL_CHECK(!paths.empty(), "data.real_fraction > 0 but no real panoramas were found (data.hdri_dir, data.hdri_split)");
-    train = mixed_source(std::move(train), panorama_source(paths, real_sample_options(config), seed, paths.size(), true),
-                         real);
+    train = mixed_source(std::move(train), panorama_source(paths, ro, seed, paths.size(), true), real / (1.0 - ldr));
+  }
+  if (ldr > 0) {
+    const auto paths = configured_ldr_paths(config, "hdri_train_split");
+    SL_CHECK(!paths.empty(), "data.ldr_fraction > 0 but no LDR panoramas were found (data.ldr_dir, data.ldr_split)");
+    train = mixed_source(std::move(train),
+                         ldr_panorama_source(paths, configured_ldr_labels(config), ro, seed, paths.size(), true), ldr);
+  }
+  // Validation: real crops of the validation panoramas whenever a split names them (also in a
+  // stage that trains on streets alone, so stages 2 and 3 are selected on the same samples).
+  PanoramaSampleOptions vo = ro;
+  vo.flip = false;
+  vo.white_balance_stops = 0.0;
+  vo.exposure_stops = 0.0;
+  const auto hdr_crops = static_cast<size_t>(d.at("real_val_crops").get<int64_t>());
+  if (hdr_crops > 0 && (real > 0 || !d.at("hdri_split").get<std::string>().empty())) {
     const auto val_paths = configured_hdri_paths(config, "hdri_val_split");
-    const auto crops = static_cast<size_t>(d.at("real_val_crops").get<int64_t>());
-    if (!val_paths.empty() && crops > 0) {
-      PanoramaSampleOptions vo = real_sample_options(config);
-      vo.flip = false;
-      vo.white_balance_stops = 0.0;
-      vo.exposure_stops = 0.0;
-      val = concat_sources(std::move(val), panorama_source(val_paths, vo, seed ^ kValSeed, val_paths.size() * crops, false));
-    }
+    if (!val_paths.empty())
+      val = concat_sources(std::move(val), panorama_source(val_paths, vo, seed ^ kValSeed, val_paths.size() * hdr_crops, false));
+  }
+  const auto ldr_crops = static_cast<size_t>(d.at("ldr_val_crops").get<int64_t>());
+  if (ldr_crops > 0 && !d.at("ldr_split").get<std::string>().empty()) {
+    const auto val_paths = configured_ldr_paths(config, "hdri_val_split");
+    if (!val_paths.empty())
+      val = concat_sources(std::move(val), ldr_panorama_source(val_paths, configured_ldr_labels(config), vo,
+                                                               seed ^ kValSeed, val_paths.size() * ldr_crops, false));
   }
   if (config.at("stage").get<std::string>() == kStageAdversarial)
     return std::make_unique<AdversarialStage>(config, std::move(train), std::move(val));

@@ -17,9 +17,9 @@
 //     radiance L2 in LDR, depth consistency, sky_separation BCE(τ_K, sky mask).
 // Data order: sample (step·B + i) of the epoch permutation epoch_order(n, seed, epoch); the
 // input view and the rays come from Rng(seed, step·B + i): resume is bit-identical. Sources
-// (train/sample_source.h): the street dataset, mixed with real-panorama crops at
-// data.real_fraction; samples whose sun is not a usable label (sun_known = false) get no
-// direction loss. data.flip (stage 2): each training sample is mirrored with probability 1/2
+// (train/sample_source.h): the street dataset, mixed with crops of real HDR panoramas at
+// data.real_fraction and of labelled real LDR panoramas at data.ldr_fraction (configs/README.md,
+// "Mixing"); samples whose sun is not a usable label (sun_known = false) get no direction loss. data.flip (stage 2): each training sample is mirrored with probability 1/2
 // (data/augment.h flip_sample, drawn from the same Rng after the view). The next step's batch
 // is built on a background thread while the current step computes; it is the same pure
 // function of the step, so prefetching changes nothing.
@@ -27,8 +27,9 @@
 // time_backward_ms, time_optimizer_ms); time_data_ms is the time spent WAITING for data.
 // Validation on the val split (view 0 as input, fixed rays): val_loss, sun angular error
 // median/mean (f̂_dir, or the peak of the predicted env map for the other branches) over the
-// samples with a known sun, also split into val_street_* and val_real_* (real-panorama crops of
-// the HDRI split's val panoramas, data.real_val_crops each), and PSNR / si-PSNR of the LDR
+// samples with a known sun, also split into val_street_*, val_real_* (crops of the HDRI split's
+// val panoramas, data.real_val_crops each, whenever data.hdri_split is set) and val_ldr_* (crops
+// of the LDR split's val panoramas, data.ldr_val_crops each, whenever data.ldr_split is set), and PSNR / si-PSNR of the LDR
 // radiance of every other view rendered at data.val_view_height rows. best.safetensors follows
 // train.best_metric (default val_loss).
 #pragma once

@@ -8,6 +8,7 @@
 #include "data/augment.h"
 #include "data/hdri_folder.h"
 #include "data/image_io.h"
+#include "data/ldr_panorama_sample.h"
 #include "data/panorama.h"
 #include "train/metrics.h"
 #include "train/street_batch.h"
@@ -90,36 +91,19 @@ LdrPanoramaCrops ldr_panorama_crops(const std::vector<std::string>& paths, const
     SL_CHECK(full.size(2) == 2 * full.size(1), "LDR panorama '", path, "' is ", full.size(2), "x", full.size(1),
              "; an equirectangular panorama is 2:1 (width = 2 x height)");
     const int fw = static_cast<int>(full.size(2)), fh = static_cast<int>(full.size(1));
-    const glm::dvec3 sun = labels.direction(*label, fw, fh);
-    const Tensor pano = resize_area(full, working_width / 2, working_width).contiguous();
-    const Tensor small = resize_area(full, options.pano_height, options.pano_width).contiguous();
+    data::LdrPanorama pano;
+    pano.ldr = resize_area(full, working_width / 2, working_width).contiguous();
+    pano.sun_known = true;
+    pano.sun_direction = labels.direction(*label, fw, fh);
     for (int k = 0; k < crops_per_panorama; ++k) {
-      const data::PanoramaSampleDraw draw = data::draw_panorama_sample(seed, static_cast<uint64_t>(k), working_width, options);
-      const double delta = 2.0 * kPi * static_cast<double>(draw.shift_columns) / working_width;
-      const Tensor rotated = draw.shift_columns ? rotate_azimuth(pano, delta) : pano;
-      const data::RandomCrop rc = data::random_perspective_crop(rotated, seed, draw.crop_stream, options.crop, centre);
       RealSkyCrop c;
       c.panorama = name;
       c.label_sun = data::to_string(label->sun);
       c.label_confidence = data::to_string(label->confidence);
       c.scene = data::to_string(label->scene);
-      StreetSample& s = c.sample;
-      s.id = "ldr:" + name + "#" + std::to_string(k);
-      s.exposure = 1.0;
-      s.sun_direction = rotate_direction_azimuth(sun, delta);
-      s.sun_known = true;
-      s.pano_position = centre;
-      StreetView v;
-      v.camera = rc.crop.camera;
-      if (keep_images) {
-        const Tensor small_rot = draw.shift_columns ? rotate_azimuth(small, delta) : small;
-        s.pano_ldr = small_rot.contiguous();
-        s.pano_hdr = pow_scalar(s.pano_ldr, 2.2).contiguous();
-        s.sky_hdr = s.pano_hdr;
-        v.ldr = rc.crop.image.contiguous();
-        v.depth = Tensor::zeros({options.crop.height, options.crop.width}, DType::F32);
-      }
-      s.views.push_back(std::move(v));
+      c.sample = data::ldr_panorama_street_sample(pano, "ldr:" + name + "#" + std::to_string(k), seed,
+                                                  static_cast<uint64_t>(k), options, keep_images);
+      const StreetSample& s = c.sample;
       const Camera& cam = s.views[0].camera;
       c.sun_canonical = canonical_frame(cam).direction(s.sun_direction);
       c.sun_known = true;

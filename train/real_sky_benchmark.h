@@ -13,15 +13,14 @@
 // Throws: sl::Error naming the panorama (unreadable, not 2:1).
 //
 // LDR panoramas (ldr_panorama_crops; ../shared/data/pano_ldr, 8-bit sRGB-encoded JPEGs whose sun
-// is hand-labelled in sun_labels.csv, data/sun_labels.h): the same crops as the HDR skies — the
-// panorama area-resized to ldr_working_width × width/2 (the HDR skies' 1024 × 512, so a crop's
-// pixels are as sharp), the azimuth shift and crop stream of draw_panorama_sample (data/
-// panorama_sample.h) and random_perspective_crop — and the true sun from the label, rotated with
-// the panorama (data/panorama.h rotate_direction_azimuth). The image is the 8-bit codes / 255
-// (Transfer::Linear): the estimator's input is "an 8-bit photo read without an sRGB curve"
-// (train/inference.h), as streetlight-insert reads a photo, and it is not re-exposed (a photo is
-// scored at the exposure its camera chose). pano_hdr holds the codes^2.2 at pano_width × pano_height
-// and exposure is 1, so to_ldr(pano_hdr, exposure) gives the codes back for the novel-view PSNR.
+// is hand-labelled in sun_labels.csv, data/sun_labels.h): the panorama area-resized to
+// ldr_working_width × width/2 (the HDR skies' 1024 × 512, so a crop's pixels are as sharp), then
+// crop k is data/ldr_panorama_sample.h's sample (seed, k) without flip or jitter: the azimuth
+// shift and crop stream of draw_panorama_sample, the crop resampled in linear radiance codes^2.2
+// and re-encoded, the true sun from the label rotated with the panorama. The image is the 8-bit
+// codes / 255 (Transfer::Linear): the estimator's input is "an 8-bit photo read without an sRGB
+// curve" (train/inference.h), as streetlight-insert reads a photo, and it is not re-exposed (a
+// photo is scored at the exposure its camera chose); exposure is 1.
 // Panoramas labelled none, or occluded without a position, give no crops and are listed in
 // not_scored; each crop carries its label's class, confidence and scene.
 // Throws: sl::Error naming the panorama (unreadable, not 2:1) or, for a panorama without a label,

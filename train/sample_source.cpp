@@ -1,6 +1,8 @@
 // Sample sources for the lighting stages. See sample_source.h.
 #include "train/sample_source.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <memory>
@@ -9,6 +11,9 @@
 
 #include "data/hdri_folder.h"
 #include "data/hdri_split.h"
+#include "data/image_io.h"
+#include "data/panorama.h"
+#include "data/sun_labels.h"
 #include "util/error.h"
 
 using sl::data::HdriFolder;
@@ -90,6 +95,45 @@ SampleSource panorama_source(const std::vector<std::string>& paths, const Panora
                       }};
 }
 
+SampleSource ldr_panorama_source(const std::vector<std::string>& paths, const std::string& labels_path,
+                                 const PanoramaSampleOptions& options, uint64_t seed, size_t items, bool vary_with_draw,
+                                 int working_width) {
+  SL_CHECK(!paths.empty(), "ldr_panorama_source: no panoramas");
+  SL_CHECK(working_width >= 2 && working_width % 2 == 0, "ldr_panorama_source: working width must be even, got ",
+           working_width);
+  const data::SunLabels labels = data::read_sun_labels(labels_path);
+  std::vector<std::string> sorted = paths;
+  std::sort(sorted.begin(), sorted.end());
+  auto panos = std::make_shared<std::vector<data::LdrPanorama>>();
+  auto names = std::make_shared<std::vector<std::string>>();
+  for (const std::string& path : sorted) {
+    const std::string name = std::filesystem::path(path).filename().string();
+    const data::PanoramaSunLabel* label = labels.find(name);
+    SL_CHECK(label != nullptr, "LDR panorama '", path, "' has no row in the sun labels '", labels_path, "'");
+    data::ImageReadOptions ro;
+    ro.transfer = data::Transfer::Linear;  // codes / 255 (data/ldr_panorama_sample.h)
+    ro.channels = 3;
+    const Tensor full = data::read_image(path, ro);
+    SL_CHECK(full.size(2) == 2 * full.size(1), "LDR panorama '", path, "' is ", full.size(2), "x", full.size(1),
+             "; an equirectangular panorama is 2:1 (width = 2 x height)");
+    data::LdrPanorama p;
+    p.ldr = data::resize_area(full, working_width / 2, working_width).contiguous();
+    p.sky_mask = data::ldr_sky_mask(p.ldr);
+    p.sun_known = label->has_position;
+    if (p.sun_known) p.sun_direction = labels.direction(*label, static_cast<int>(full.size(2)), static_cast<int>(full.size(1)));
+    panos->push_back(std::move(p));
+    names->push_back(name);
+  }
+  const size_t n = panos->size();
+  const size_t per = std::max<size_t>(1, items / n);
+  return SampleSource{items, [panos, names, options, seed, vary_with_draw, n, per](size_t i, uint64_t draw) {
+                        const size_t k = vary_with_draw ? i % n : std::min(i / per, n - 1);
+                        const uint64_t stream = vary_with_draw ? draw : static_cast<uint64_t>(i);
+                        return data::ldr_panorama_street_sample((*panos)[k], "ldr:" + (*names)[k] + "#" + std::to_string(stream),
+                                                                seed, stream, options);
+                      }};
+}
+
 SampleSource mixed_source(SampleSource a, SampleSource b, double fraction_b) {
   SL_CHECK(fraction_b >= 0 && fraction_b < 1, "mixed_source: fraction must lie in [0, 1), got ", fraction_b);
   if (fraction_b == 0 || b.size == 0) return a;
@@ -107,6 +151,31 @@ std::vector<std::string> configured_hdri_paths(const nlohmann::json& config, con
   if (dir.empty()) return {};
   if (split_file.empty()) return split_key == "hdri_train_split" ? HdriFolder(dir).paths() : std::vector<std::string>{};
   return read_hdri_split(split_file).split_paths(dir, d.at(split_key).get<std::string>());
+}
+
+std::vector<std::string> configured_ldr_paths(const nlohmann::json& config, const std::string& split_key) {
+  const auto& d = config.at("data");
+  const std::string dir = d.value("ldr_dir", std::string()), split_file = d.value("ldr_split", std::string());
+  if (dir.empty()) return {};
+  if (split_file.empty()) {
+    if (split_key != "hdri_train_split") return {};
+    std::vector<std::string> out;
+    for (const auto& e : std::filesystem::directory_iterator(dir)) {
+      std::string ext = e.path().extension().string();
+      for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      if (e.is_regular_file() && (ext == ".jpg" || ext == ".jpeg" || ext == ".png")) out.push_back(e.path().string());
+    }
+    std::sort(out.begin(), out.end());
+    return out;
+  }
+  return read_hdri_split(split_file).split_paths(dir, d.at(split_key).get<std::string>());
+}
+
+std::string configured_ldr_labels(const nlohmann::json& config) {
+  const auto& d = config.at("data");
+  const std::string labels = d.value("ldr_labels", std::string());
+  if (!labels.empty()) return labels;
+  return (std::filesystem::path(d.value("ldr_dir", std::string())) / "sun_labels.csv").string();
 }
 
 SampleSource concat_sources(SampleSource a, SampleSource b) {

@@ -1,6 +1,7 @@
 // Where the lighting stages (Sec 3.4) get their samples: generated street scenes
 // (data/street_dataset.h), real HDR panoramas as augmented perspective crops
-// (data/panorama_sample.h, the paper's HoliCity branch), and mixtures of the two.
+// (data/panorama_sample.h), real LDR street panoramas with hand-labelled suns as augmented
+// crops (data/ldr_panorama_sample.h, the paper's HoliCity branch in kind), and mixtures.
 //
 // A SampleSource has `size` items; load(index, draw) returns item `index`. `draw` is the global
 // counter of samples drawn so far in training (step·batch + i): a real-panorama source uses it
@@ -21,6 +22,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "data/ldr_panorama_sample.h"
 #include "data/panorama_sample.h"
 #include "data/street_dataset.h"
 
@@ -49,6 +51,16 @@ size_t sample_bytes(const data::StreetSample& sample);
 SampleSource panorama_source(const std::vector<std::string>& paths, const data::PanoramaSampleOptions& options,
                              uint64_t seed, size_t items, bool vary_with_draw);
 
+// Real LDR panoramas (paths, e.g. from configs/pano_ldr_split.json) with their rows of the sun
+// labels file `labels_path` (data/sun_labels.h; every panorama must have one), read once and
+// area-resized to working_width × working_width/2 (the benchmark's working size,
+// train/real_sky_benchmark.h), each with its sky mask (ldr_sky_mask). Items as panorama_source.
+// Panoramas labelled none, or occluded without a position, are kept: their samples have
+// sun_known = false and still teach the sky, the pseudo-labels and the radiance.
+SampleSource ldr_panorama_source(const std::vector<std::string>& paths, const std::string& labels_path,
+                                 const data::PanoramaSampleOptions& options, uint64_t seed, size_t items,
+                                 bool vary_with_draw, int working_width = 1024);
+
 SampleSource mixed_source(SampleSource a, SampleSource b, double fraction_b);
 
 // The real panoramas a config names for one split: data.hdri_dir filtered by the split file
@@ -56,6 +68,11 @@ SampleSource mixed_source(SampleSource a, SampleSource b, double fraction_b);
 // "hdri_val_split"). Without a split file, every panorama of the folder is a training one and
 // there is no validation one. Empty when data.hdri_dir is empty.
 std::vector<std::string> configured_hdri_paths(const nlohmann::json& config, const std::string& split_key);
+// The same for the LDR panoramas: data.ldr_dir filtered by data.ldr_split under the split named by
+// data.<split_key> (the same keys as the HDR panoramas'); and their labels file, data.ldr_labels
+// or, when empty, sun_labels.csv beside the images.
+std::vector<std::string> configured_ldr_paths(const nlohmann::json& config, const std::string& split_key);
+std::string configured_ldr_labels(const nlohmann::json& config);
 SampleSource concat_sources(SampleSource a, SampleSource b);
 
 }  // namespace sl::train

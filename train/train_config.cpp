@@ -36,6 +36,11 @@ json default_train_config() {
         {"real_pitch_deg", 10.0},
         {"real_white_balance_stops", 0.15},
         {"real_exposure_stops", 0.5},
+        {"ldr_dir", ""},
+        {"ldr_split", ""},
+        {"ldr_labels", ""},
+        {"ldr_fraction", 0.0},
+        {"ldr_val_crops", 4},
         {"exposure_stops", 1.0},
         {"ldr_key", 0.25},
         {"val_size", 16},
@@ -143,7 +148,13 @@ void check_train_config(const json& c) {
   SL_CHECK(real >= 0 && real < 1, "data.real_fraction must lie in [0, 1), got ", real);
   SL_CHECK(real == 0 || !c.at("data").at("hdri_dir").get<std::string>().empty(),
            "data.real_fraction > 0 needs data.hdri_dir (a folder of real HDR panoramas)");
-  if (real > 0) {
+  const double ldr = c.at("data").at("ldr_fraction").get<double>();
+  SL_CHECK(ldr >= 0 && ldr < 1 && real + ldr < 1, "data.ldr_fraction must lie in [0, 1) and leave room for the "
+           "generated streets (data.real_fraction + data.ldr_fraction < 1), got ", ldr, " with data.real_fraction ", real);
+  SL_CHECK(ldr == 0 || !c.at("data").at("ldr_dir").get<std::string>().empty(),
+           "data.ldr_fraction > 0 needs data.ldr_dir (a folder of real LDR panoramas with sun_labels.csv)");
+  SL_CHECK(c.at("data").at("ldr_val_crops").get<int64_t>() >= 0, "data.ldr_val_crops must be >= 0");
+  if (real > 0 || ldr > 0) {
     const auto fov = c.at("data").at("real_fov_deg").get<std::vector<double>>();
     SL_CHECK(fov.size() == 2 && fov[0] > 0 && fov[0] <= fov[1] && fov[1] < 179,
              "data.real_fov_deg must be [min, max] with 0 < min <= max < 179");

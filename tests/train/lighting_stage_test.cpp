@@ -5,11 +5,19 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "data/image_io.h"
+#include "data/panorama.h"
+#include "data/sky_model.h"
+#include "data/sun_extraction.h"
+#include "render/equirect.h"
 #include "support/tiny_stage.h"
+#include "util/error.h"
+#include "util/math.h"
 
 namespace sl::test {
 using train::LightingStage;
@@ -26,6 +34,67 @@ TEST(LightingStage, TwentyStepsOverfitATinyBatch) {
   stage.initialise();
   const auto [first, last] = overfit(stage, 20);
   EXPECT_LT(last, 0.8 * first) << first << " -> " << last;
+}
+
+// Two labelled LDR panoramas (one sun at a pixel, one "none") written as PNG files with their
+// labels, read by ldr_panorama_source: mixed into training, they give finite steps; in
+// validation, their suns are scored apart as val_ldr_*.
+TEST(LightingStage, LdrPanoramasTrainAndValidateApart) {
+  const std::string dir = temp_dir("lighting_ldr");
+  data::SkyParams sp;
+  sp.sun_elevation_rad = 20.0 * kPi / 180.0;
+  sp.sun_azimuth_rad = 0.4;
+  const Tensor hdr = data::PreethamSky(sp).render(64, 128);
+  const Tensor ldr = data::to_ldr(hdr, render::exposure_for_ldr_median(hdr, 0.4));
+  const data::SunEstimate sun = data::extract_sun(hdr);
+  const auto uv = render::equirect::direction_to_uv(sun.direction.x, sun.direction.y, sun.direction.z, 2048, 1024);
+  data::ImageWriteOptions wo;
+  wo.transfer = data::Transfer::Linear;  // codes = LDR·255, read back as codes / 255
+  data::write_image(dir + "/a.png", ldr, wo);
+  data::write_image(dir + "/b.png", ldr, wo);
+  {
+    std::ofstream csv(dir + "/sun_labels.csv");
+    csv << "file,sun,u,v,confidence,scene,note\n";
+    csv << "a.png,visible," << uv.u << "," << uv.v << ",high,street,\n";
+    csv << "b.png,none,,,high,street,\n";
+  }
+  nlohmann::json c = tiny_config(kStageLighting);
+  c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  data::PanoramaSampleOptions o;
+  o.crop.width = 64;
+  o.crop.height = 32;
+  o.pano_width = 64;
+  o.pano_height = 32;
+  const std::vector<std::string> paths = {dir + "/a.png", dir + "/b.png"};
+  const train::SampleSource train_ldr = train::ldr_panorama_source(paths, dir + "/sun_labels.csv", o, 1, 2, true, 128);
+  const data::StreetSample a = train_ldr.load(0, 0), b = train_ldr.load(1, 0);
+  EXPECT_TRUE(a.sun_known);
+  EXPECT_FALSE(b.sun_known);
+  EXPECT_EQ(a.id.rfind("ldr:a.png#", 0), 0u) << a.id;
+  o.flip = false;
+  o.exposure_stops = o.white_balance_stops = 0.0;
+  LightingStage stage(c, train::mixed_source(memory_source(2), train_ldr, 0.5),
+                      train::concat_sources(memory_source(1),
+                                            train::ldr_panorama_source(paths, dir + "/sun_labels.csv", o, 2, 4, false, 128)));
+  stage.initialise();
+  for (int64_t step = 0; step < 3; ++step)
+    for (const auto& [k, v] : stage.step(step)) EXPECT_TRUE(std::isfinite(v)) << k << " at step " << step;
+  const Metrics v = stage.validate();
+  ASSERT_TRUE(v.count("val_ldr_sun_error_median_deg"));
+  EXPECT_TRUE(std::isfinite(v.at("val_ldr_sun_error_median_deg")));
+  EXPECT_TRUE(std::isfinite(v.at("val_loss")));
+  // A panorama without a label row is refused, naming it and the labels file.
+  {
+    std::ofstream csv(dir + "/only_a.csv");
+    csv << "file,sun,u,v,confidence,scene,note\na.png,none,,,high,street,\n";
+  }
+  try {
+    train::ldr_panorama_source(paths, dir + "/only_a.csv", o, 1, 2, true, 128);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("b.png"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("only_a.csv"), std::string::npos) << e.what();
+  }
 }
 
 TEST(LightingStage, AblationsRun) {

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
+#include "data/ldr_panorama_sample.h"
 #include "data/panorama.h"
 #include "data/sky_model.h"
 #include "render/environment_map.h"
@@ -73,6 +74,44 @@ TEST(RealPanorama, RadianceConsistencyIsZeroForThePanoramaItselfAndPositiveOther
   EXPECT_GT(radiance_l2(rolled, it.target_ldr.to(DType::F32)).item(), 1e-4);
   // No depth loss where there is no depth: every target distance is unknown.
   for (double d : it.target_distance.to_vector()) EXPECT_TRUE(std::isnan(d));
+}
+
+// An LDR street panorama (codes / 255) with a clipped sun: what data/ldr_panorama_sample.h reads.
+Tensor ldr_street(int width) {
+  const Tensor t = data::resize_area(clear_sky(25.0, 60.0), width / 2, width).contiguous();
+  return data::to_ldr(t, render::exposure_for_ldr_median(t, 0.4));
+}
+
+TEST(RealPanorama, LdrRadianceConsistencyIsZeroForThePanoramaItselfAndPositiveOtherwise) {
+  PanoramaSampleOptions o;
+  o.crop.width = 64;
+  o.crop.height = 32;
+  o.pano_width = 128;  // the working size: the sample's panorama is the one its crop reads
+  o.pano_height = 64;
+  o.exposure_stops = 1.0;  // jittered and flipped: the oracle is the sample's own panorama
+  data::LdrPanorama pano;
+  pano.ldr = ldr_street(128);
+  pano.sky_mask = data::ldr_sky_mask(pano.ldr);
+  for (uint64_t stream : {1u, 2u, 5u}) {
+    const StreetSample s = data::ldr_panorama_street_sample(pano, "ldr:oracle", 3, stream, o);
+    VsgGrid grid;
+    grid.dims = {8, 8, 4};
+    StreetBatchOptions bo;
+    bo.pano_rays = 300;
+    bo.view_rays = 300;
+    bo.need_volume = false;
+    const StreetItem it = make_street_item(s, 0, grid, bo, 11, stream);
+    // LDR terms (clipped, γ 2.2): the oracle light field is the panorama's linear radiance,
+    // codes^2.2, in the item's canonical frame; its LDR along every ray is the captured code.
+    const Tensor oracle_env = it.frame.panorama(s.pano_hdr.contiguous()).contiguous();
+    const Tensor dirs = it.directions.to(DType::F32);
+    const Tensor oracle = env_lookup(oracle_env, dirs);
+    EXPECT_LT(radiance_l2(oracle, it.target_ldr.to(DType::F32)).item(), 1e-6) << "stream " << stream;
+    EXPECT_GT(radiance_l2(mul_scalar(oracle, 0.5), it.target_ldr.to(DType::F32)).item(), 1e-3);
+    const Tensor rolled = env_lookup(rotate_azimuth(oracle_env, 0.5).contiguous(), dirs);
+    EXPECT_GT(radiance_l2(rolled, it.target_ldr.to(DType::F32)).item(), 1e-4);
+    for (double d : it.target_distance.to_vector()) EXPECT_TRUE(std::isnan(d));
+  }
 }
 
 TEST(RealPanorama, MixedSourceDrawsBothKindsAndANewCropPerDraw) {

@@ -56,3 +56,37 @@ TEST(TrainConfig, ConfigsWithoutTheGridHeadKeyBuildThePooledHead) {
 
 }  // namespace
 }  // namespace sl::test
+
+namespace sl::test {
+namespace {
+
+// The LDR panorama keys (configs/README.md, "Mixing"): the shares leave room for the streets, and
+// a share without its folder is refused naming the key.
+TEST(TrainConfig, LdrPanoramaSharesAreCheckedNamingTheirKeys) {
+  const auto refusal = [](const nlohmann::json& c) {
+    try {
+      train::check_train_config(c);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  nlohmann::json c = default_train_config();
+  c["stage"] = "lighting";
+  c["init"]["sky_checkpoint"] = "sky.safetensors";
+  c["data"]["dataset"] = "streets";
+  EXPECT_EQ(refusal(c), "");
+  c["data"]["ldr_fraction"] = 0.3;
+  EXPECT_NE(refusal(c).find("data.ldr_dir"), std::string::npos) << refusal(c);
+  c["data"]["ldr_dir"] = "pano_ldr";
+  EXPECT_EQ(refusal(c), "");
+  c["data"]["hdri_dir"] = "hdri";
+  c["data"]["real_fraction"] = 0.7;
+  EXPECT_NE(refusal(c).find("data.ldr_fraction"), std::string::npos) << refusal(c);
+  c["data"]["real_fraction"] = 0.2;
+  c["data"]["ldr_val_crops"] = -1;
+  EXPECT_NE(refusal(c).find("data.ldr_val_crops"), std::string::npos) << refusal(c);
+}
+
+}  // namespace
+}  // namespace sl::test

@@ -1,0 +1,100 @@
+// Real LDR panoramas as street samples. See ldr_panorama_sample.h.
+#include "data/ldr_panorama_sample.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "data/augment.h"
+#include "data/panorama.h"
+#include "util/error.h"
+#include "util/math.h"
+
+namespace sl::data {
+
+namespace {
+
+constexpr float kClippedCode = 254.0f / 255.0f;
+
+void check_panorama(const Tensor& t, const std::string& id) {
+  SL_CHECK(t.defined() && t.dim() == 3 && t.size(0) == 3 && t.size(2) == 2 * t.size(1), "LDR panorama '", id,
+           "': expected [3, H, 2H], got ", t.defined() ? t.describe() : std::string("nothing"));
+}
+
+// The linear radiance codes^2.2 with white balance and exposure applied; clipped texels stay 1.
+Tensor linear_radiance(const Tensor& ldr, const double gain[3], double k) {
+  const double grey = luminance(gain[0], gain[1], gain[2]);
+  Tensor out = ldr.to(DType::F32).contiguous().clone();
+  float* p = out.data<float>();
+  const int64_t plane = out.size(1) * out.size(2);
+  float scale[3];
+  for (int c = 0; c < 3; ++c) scale[c] = static_cast<float>(gain[c] / grey * k);
+  for (int64_t i = 0; i < plane; ++i) {
+    const bool clipped = p[i] >= kClippedCode || p[plane + i] >= kClippedCode || p[2 * plane + i] >= kClippedCode;
+    for (int c = 0; c < 3; ++c) {
+      float& v = p[c * plane + i];
+      v = clipped ? 1.0f : std::pow(std::max(v, 0.0f), 2.2f) * scale[c];
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+Tensor ldr_sky_mask(const Tensor& ldr) {
+  check_panorama(ldr, "sky mask input");
+  const double one[3] = {1.0, 1.0, 1.0};
+  return estimate_sky_mask(linear_radiance(ldr, one, 1.0));
+}
+
+StreetSample ldr_panorama_street_sample(const LdrPanorama& pano, const std::string& id, uint64_t seed, uint64_t stream,
+                                        const PanoramaSampleOptions& o, bool keep_images) {
+  check_panorama(pano.ldr, id);
+  SL_CHECK(o.pano_width == 2 * o.pano_height && o.pano_height > 0,
+           "ldr_panorama_street_sample: pano size must be 2:1, got ", o.pano_width, "x", o.pano_height);
+  const int64_t W = pano.ldr.size(2);
+  const PanoramaSampleDraw draw = draw_panorama_sample(seed, stream, W, o);
+  const double delta = 2.0 * kPi * static_cast<double>(draw.shift_columns) / static_cast<double>(W);
+  const Tensor linear = linear_radiance(pano.ldr, draw.gain, draw.exposure_jitter);
+  const auto turn = [&](const Tensor& t) {  // the rotation, then the flip
+    Tensor r = draw.shift_columns ? rotate_azimuth(t, delta) : t;
+    return (draw.flip ? flip_panorama(r) : r).contiguous();
+  };
+  const Tensor full = turn(linear);
+  const glm::dvec3 centre(0.0, o.camera_height_m, 0.0);
+  const RandomCrop rc = random_perspective_crop(full, seed, draw.crop_stream, o.crop, centre);
+
+  StreetSample s;
+  s.id = id;
+  s.exposure = 1.0;
+  s.pano_position = centre;
+  const glm::dvec3 sun = rotate_direction_azimuth(pano.sun_direction, delta);
+  s.sun_direction = draw.flip ? flip_panorama_direction(sun) : sun;
+  s.sun_known = pano.sun_known;
+  StreetView v;
+  v.camera = rc.crop.camera;
+  if (keep_images) {
+    // The small panorama is resized before it is turned (as the benchmark has always done): the
+    // rotation of a whole working column is a fraction of a small one, read linearly.
+    s.pano_hdr = turn(resize_area(linear, o.pano_height, o.pano_width));
+    s.pano_ldr = to_ldr(s.pano_hdr, 1.0);
+    s.sky_hdr = s.pano_hdr;
+    v.ldr = to_ldr(rc.crop.image.contiguous(), 1.0);
+    v.depth = Tensor::zeros({o.crop.height, o.crop.width}, DType::F32);
+    if (pano.sky_mask.defined()) {
+      const Tensor mask = turn(pano.sky_mask);
+      s.pano_sky_mask = binarize_mask(resize_area(mask, o.pano_height, o.pano_width).contiguous());
+      PerspectiveCropParams mp;
+      mp.horizontal_fov_rad = rc.fov_deg * kDegToRad;
+      mp.yaw_rad = rc.yaw_deg * kDegToRad;
+      mp.pitch_rad = rc.pitch_deg * kDegToRad;
+      mp.roll_rad = rc.roll_deg * kDegToRad;
+      mp.width = o.crop.width;
+      mp.height = o.crop.height;
+      v.sky_mask = binarize_mask(crop_perspective(mask, mp).image.contiguous());
+    }
+  }
+  s.views.push_back(std::move(v));
+  return s;
+}
+
+}  // namespace sl::data

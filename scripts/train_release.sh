@@ -13,7 +13,7 @@
 #      perspective crops of the training HDR panoramas and of the labelled LDR street panoramas
 #      (../shared/data/pano_ldr, configs/pano_ldr_split.json);
 #   4. stage 3, end to end through object insertion (configs/release_adversarial.json);
-#   5. evaluation of stages 2 and 3 on the real-sky test split and the synthetic test split;
+#   5. evaluation of stages 2 and 3 on the real HDR and LDR test splits and the synthetic test split;
 #   6. the release: of stages 2 and 3, the checkpoint with the lower VALIDATION sun error (never a
 #      test figure) is exported (F16) with a model card that lists data, configs, steps, wall
 #      times, commit and the test metrics beside the constant baseline.
@@ -90,9 +90,10 @@ timed lighting train_stage lighting configs/release_lighting.json --set "data.hd
 timed adversarial train_stage adversarial configs/release_adversarial.json --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" \
   --set "data.dataset=$runs/street" --set "init.checkpoint=$runs/lighting/best.safetensors"
 
-say "5/6 evaluating stages 2 and 3 (real-sky test split, 8 crops per panorama; the held-out test streets)"
+say "5/6 evaluating stages 2 and 3 (real HDR and LDR test splits, 8 crops per panorama; the held-out test streets)"
 evaluate() {
   "$bin/streetlight-eval" --data "$hdri" --hdri-split configs/hdri_split.json --split test --crops 8 \
+    --data "$ldr" --ldr-split configs/pano_ldr_split.json \
     --data "$runs/test_street" --baseline-data "$runs/street" --no-budgets --out "$runs/eval" \
     --checkpoint "$runs/lighting/best.safetensors" --name "stage 2 (lighting)" \
     --checkpoint "$runs/adversarial/best.safetensors" --name "stage 3 (adversarial)" > /dev/null

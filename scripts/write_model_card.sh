@@ -13,12 +13,14 @@ total=0
 for s in datagen test_streets sky lighting adversarial eval; do v=$(secs $s); [ "$v" != "?" ] && total=$(( total + v )); done
 steps() { sed -n 's/.*"steps": *\([0-9]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
 samples() { sed -n 's/.*"samples": *\([0-9]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
-fraction() { sed -n 's/.*"real_fraction": *\([0-9.]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
-real_fraction=$(fraction lighting)
+fraction() { sed -n "s/.*\"$2\": *\\([0-9.]*\\).*/\\1/p" "configs/release_$1.json" | head -n 1; }
+real_fraction=$(fraction lighting real_fraction)
+ldr_fraction=$(fraction lighting ldr_fraction)
 # Whether stages 2-3 saw real crops decides the card's mixing sentence and its depth limit.
 if awk -v f="${real_fraction:-0}" 'BEGIN { exit !(f + 0 > 0) }'; then
-  mixing="- Mixed in stages 2-3 at \`data.real_fraction = $real_fraction\` (crops of real panoramas: random azimuth
-  rotation, flips, white balance and exposure jitter)."
+  mixing="- Mixed in stage 2 at \`data.real_fraction = $real_fraction\` (crops of the real HDR panoramas) and
+  \`data.ldr_fraction = ${ldr_fraction:-0}\` (crops of the real LDR street panoramas): random azimuth rotation, flips,
+  white balance and exposure jitter; the rest are synthetic streets (configs/README.md, \"Mixing\")."
   depth_limit="- The real crops have no depth, so the volume branch learns geometry only from the synthetic streets."
 else
   mixing="- Stages 2-3 train on the synthetic streets alone (\`data.real_fraction = 0\`). The mechanism that
@@ -28,8 +30,10 @@ else
   of the synthetic streets, so real photos are outside the training distribution."
 fi
 # The HDRI split's sizes, read from the file the release configs name.
-split_count() { python3 -c "import json,sys; print(len(json.load(open('configs/hdri_split.json'))[sys.argv[1]]))" "$1"; }
+split_count() { python3 -c "import json,sys; print(len(json.load(open(sys.argv[2]))[sys.argv[1]]))" "$1" "${2:-configs/hdri_split.json}"; }
 n_train=$(split_count train) n_val=$(split_count val) n_test=$(split_count test)
+l_train=$(split_count train configs/pano_ldr_split.json) l_val=$(split_count val configs/pano_ldr_split.json)
+l_test=$(split_count test configs/pano_ldr_split.json)
 commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
 size=$(du -h models/streetlight.safetensors 2>/dev/null | cut -f1)
 cat <<EOF
@@ -46,12 +50,17 @@ validation sun error; stage 3 is the end-to-end fine-tuning through object inser
 - **Real panoramas**: the $n_train training panoramas of \`configs/hdri_split.json\` (\`../shared/data/hdri\`,
   Poly Haven, CC0). $n_val are validation, $n_test test; the split is scene-disjoint and no validation or test
   sky is ever trained on (stage 1, stage-2/3 crops, or the light of generated streets).
+- **Real LDR street panoramas**: the $l_train training panoramas of \`configs/pano_ldr_split.json\`
+  (\`../shared/data/pano_ldr\`, MANIFEST.md there gives each file's source and licence), with the sun
+  hand-labelled in \`sun_labels.csv\` (visible, occluded with the place its shadows give, or none). $l_val
+  are validation, $l_test test, split by place. Stages 2-3 only (the stage-1 sky autoencoder needs HDR).
 - **Synthetic streets**: \`configs/release_datagen.json\`, rendered by \`streetlight-datagen\` (path
   traced, 16 spp); a third of them lit by the training panoramas, the rest by the Preetham sky model.
   Objects inserted by the generator are procedural cars.
 $mixing
 - The sun direction is supervised only where the sun is hard (data/panorama_sample.h: ≥ 25% of the
-  panorama's light within 5° of its peak, above the horizon).
+  panorama's light within 5° of its peak, above the horizon) or, for an LDR panorama, labelled with a
+  position.
 
 ## Training (configs, steps, wall time on this machine)
 | step | config | steps | wall time |
@@ -72,7 +81,7 @@ The release configs pin what this model was trained with, even where later defau
 
 ## Metrics (test splits, never trained or selected on)
 Command: \`streetlight-eval --data ../shared/data/hdri --hdri-split configs/hdri_split.json --split test
---crops 8 --data RUN/test_street --baseline-data RUN/street --checkpoint RUN/lighting/best.safetensors
+--crops 8 --data ../shared/data/pano_ldr --ldr-split configs/pano_ldr_split.json --data RUN/test_street --baseline-data RUN/street --checkpoint RUN/lighting/best.safetensors
 --checkpoint RUN/adversarial/best.safetensors\`. The generated test streets are a separate set
 (\`configs/release_datagen_test.json\`: its own seed, same generator settings), never trained or
 selected on; the constant baseline comes from the training streets. Each image's sun is the
@@ -84,7 +93,7 @@ panoramas' crops (in the camera's frame); a model that does not beat it has lear
 $(cat "$runs/eval/results.md")
 
 ## Known limits
-- Its real data are $n_train panoramas, beside $(samples datagen) synthetic streets: far less than
+- Its real data are $n_train HDR and $l_train LDR panoramas, beside $(samples datagen) synthetic streets: far less than
   the paper's HoliCity crops. Expect errors on skies unlike these (night, heavy overcast, snow).
 - Where the sun is soft (overcast), the sun direction has no meaning and was not supervised.
 $depth_limit

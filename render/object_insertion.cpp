@@ -45,6 +45,8 @@ void validate(const InsertionInputs& in, const InsertionOptions& opt) {
                                     opt.cache_shadow_max_y >= 2),
            "insert_objects: radiance cache ", opt.cache_width, "x", opt.cache_height, " with spacing ",
            opt.cache_spacing_m, " m (at most ", opt.cache_max_xz, "x", opt.cache_max_y, " probes) is invalid");
+  SL_CHECK(std::isfinite(opt.cache_shadow_exact_sky) && opt.cache_shadow_exact_sky >= 0,
+           "insert_objects: cache_shadow_exact_sky ", opt.cache_shadow_exact_sky, " must be finite and >= 0");
   SL_CHECK(std::isfinite(opt.adaptive_light_samples) && opt.adaptive_light_samples >= 0 && opt.adaptive_max_factor >= 0,
            "insert_objects: adaptive_light_samples ", opt.adaptive_light_samples, " and adaptive_max_factor ",
            opt.adaptive_max_factor, " must be >= 0");
@@ -114,7 +116,8 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
   // Eq. 4 in numerator and denominator alike (measured: streetlight-bench insert, shadow term).
   const bool cached = opt.radiance_cache && in.vsg.defined();
   // Guard of Eq. 4: S = (Σ L' + ε)/(Σ L + ε), ε = 1e-6 · mean sky radiance (never 0/0).
-  const double eps = 1e-6 * std::max(1e-12, mean(in.env.detach().to(DType::F64)).item());
+  const double sky_mean = mean(in.env.detach().to(DType::F64)).item();
+  const double eps = 1e-6 * std::max(1e-12, sky_mean);
   if (cached) {
     // Inference with the radiance cache: every light and shadow ray is read from the probes as
     // it is drawn, and the image is assembled by plain loops (no ray buffer, no tape).
@@ -144,8 +147,10 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
           sh_opt.cache_height = std::max(2, opt.cache_shadow_height);
           sh_opt.cache_width = 2 * sh_opt.cache_height;
         }
-        const RadianceCache sh_cache(in, sh_opt, env_map, lo, hi, opt.cache_shadow_max_xz, opt.cache_shadow_max_y);
+        const RadianceCache sh_cache(in, sh_opt, env_map, lo, hi, opt.cache_shadow_max_xz, opt.cache_shadow_max_y,
+                                     opt.cache_shadow_exact_sky * sky_mean);
         shade_shadows(opt, bvh, env_map, sh, texel_origins, sh_cache, eps, ratio);
+        out.stats.exact_query_rays = sh_cache.exact_rays();
       }
     } else {
       sh.texel_depth.assign(size_t(opt.shadow_width) * opt.shadow_height, 0.0f);

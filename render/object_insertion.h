@@ -39,6 +39,11 @@
 // reads them trilinearly in position and bilinearly in direction, and L_env(l) exactly, so a
 // sun in the sky keeps its full sharpness (render/radiance_cache.h). The object's light rays are
 // then read as they are drawn and never stored (the foreground is off the tape in this mode).
+// Exact directions: a shadow ray toward sky brighter than cache_shadow_exact_sky × the sky's mean
+// (the sun) is marched exactly instead (RayMarcher: radiance_query's value). The sun's
+// transmittance changes over the ground faster than the probes follow, and the shadow ratio
+// weighs it against the rest of the sky; the sun's rays are few (KITTI 000008, released
+// lighting: 50k of 1M shadow rays at 8×, shadow term 1.55% → 1.05% for +5% CPU).
 // Error against exact queries: streetlight-bench insert.
 // Lean: shadows are computed only inside the screen-space region the object can shadow (its
 // bounds swept along the light directions that carry energy, clipped to the image) and shading
@@ -112,6 +117,10 @@ struct InsertionOptions {
   int cache_max_xz = 4, cache_max_y = 3;    // ...with at most this many probes per horizontal axis / vertically (light rays)
   int cache_shadow_max_xz = 2, cache_shadow_max_y = 2;  // the same for the shadow rays' grid
   int cache_shadow_height = 0;  // > 0: the shadow grid's directions, cache_shadow_height × 2·that (else as above)
+  // Shadow rays whose sky radiance L_env(l) (largest channel) exceeds this multiple of the sky's
+  // mean radiance are marched exactly rather than read from the probes (see "Radiance cache");
+  // 0 = none.
+  double cache_shadow_exact_sky = 8.0;
   // Inference, with the radiance cache: Eq. 2 with the Lambertian part of the BRDF as a control
   // variate (see "Control variate" above): E on a grid of cv_normals_height × 2·height normals,
   // integrated over square texels half the env's rows high, refined cv_quadrature_supersample× per axis.
@@ -137,6 +146,7 @@ struct InsertionStats {
   int64_t foreground_samples = 0;  // primary rays that see the object (the "foreground rays")
   int64_t query_rays = 0;          // rays sent to the radiance query (light + shadow)
   int64_t adaptive_light_rays = 0; // of those, the light rays adaptive sampling added
+  int64_t exact_query_rays = 0;    // of those, with the radiance cache: rays marched exactly (exact directions)
 };
 
 struct InsertionResult {

@@ -16,9 +16,13 @@
 namespace sl::render::insertion {
 
 RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& opt, const EnvironmentMap& env_map,
-              const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y)
+              const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y, double exact_sky)
     : env_map_(env_map), H_(opt.cache_height), W_(opt.cache_width) {
   if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return;  // no rays read it
+  if (exact_sky > 0) {
+    exact_sky_ = float(exact_sky);
+    marcher_ = std::make_unique<const RayMarcher>(in.vsg, in.env, in.grid, opt.query);
+  }
   lo_ = lo;
   for (int a = 0; a < 3; ++a) {
     const float ext = std::max(0.0f, hi[a] - lo[a]);
@@ -60,6 +64,7 @@ RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& 
 // texel centres alone miss it by 5%: tests/render/radiance_cache_test.cpp), its texels square.
 void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<glm::vec3>& normals) {
   if (cache_.empty()) return;
+  SL_CHECK(!marcher_, "RadianceCache: build_irradiance() integrates the probes; exact directions would differ");
   hn_ = std::max(2, hn);
   wn_ = 2 * hn_;
   const int ss = std::max(1, supersample);
@@ -172,6 +177,7 @@ glm::vec3 RadianceCache::radiance(const float* origin, const float* dir) const {
 RadianceCache::Corners RadianceCache::corners(const float* origin) const {
   Corners at;
   probe_weights(origin, at.probe, at.weight);
+  at.origin = glm::vec3(origin[0], origin[1], origin[2]);
   return at;
 }
 
@@ -184,6 +190,13 @@ glm::vec3 RadianceCache::radiance_unit(const Corners& at, const equirect::UV& un
   if (cache_.empty()) return glm::vec3(0.0f);
   const int64_t* probe = at.probe;
   const float* wp = at.weight;
+  const glm::vec3 sky = env_map_.lookup_unit(unit);
+  if (marcher_ && std::max({sky.x, sky.y, sky.z}) > exact_sky_) {
+    const equirect::Dir d = equirect::uv_to_direction(unit.u, unit.v, 1, 1);
+    const float dir[3] = {float(d.x), float(d.y), float(d.z)};
+    exact_rays_.fetch_add(1, std::memory_order_relaxed);
+    return (*marcher_)(&at.origin[0], dir).radiance;
+  }
   const EnvTaps taps = env_bilinear_taps_unit(unit, W_, H_);
   const int64_t D = int64_t(H_) * W_;
   glm::vec4 acc(0.0f);
@@ -196,7 +209,7 @@ glm::vec3 RadianceCache::radiance_unit(const Corners& at, const equirect::UV& un
       acc += w * glm::vec4(e[0], e[1], e[2], e[3]);
     }
   }
-  return glm::vec3(acc) + acc.w * env_map_.lookup_unit(unit);
+  return glm::vec3(acc) + acc.w * sky;
 }
 
 // The 8 probes around a point (clamped to the grid) and their trilinear weights.

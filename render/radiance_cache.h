@@ -11,6 +11,11 @@
 //   empty box (lo > hi) builds nothing; radiance() then returns 0.
 // - Directions are the cache_height × cache_width texel centres (render/equirect.h).
 // - radiance(o, l) for any o (clamped to the box) and l (zero or non-finite l reads 0).
+// - Exact directions (exact_sky > 0): a ray whose sky radiance L_env(l) (largest channel) exceeds
+//   exact_sky is marched exactly from its own origin (RayMarcher: the same value radiance_query
+//   gives) instead of read from the probes. A sun's transmittance changes faster in space than
+//   the probes follow, and its rays carry most of the light (streetlight-bench insert, rows
+//   shadow_exact_sky*); the sky's other directions stay cached. Not with build_irradiance().
 // - build_irradiance(hn, ss, normals): E(probe, n) = ∫_{n·l>0} (n·l) L_probe(l) dΩ (and the
 //   same with (n·l)(1 − n·l)^5 for the control variate's grazing term) for the
 //   nodes of an hn × 2·hn grid of normals that bilinear reads of `normals` touch, as a sum over
@@ -19,7 +24,9 @@
 //   for n among those normals.
 // Results do not depend on the thread count.
 #pragma once
+#include <atomic>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -27,13 +34,14 @@
 #include "render/environment_map.h"
 #include "render/equirect.h"
 #include "render/object_insertion.h"
+#include "render/radiance_query.h"
 
 namespace sl::render::insertion {
 
 class RadianceCache {
  public:
   RadianceCache(const InsertionInputs& in, const InsertionOptions& opt, const EnvironmentMap& env_map,
-                const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y);
+                const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y, double exact_sky = 0);
 
   glm::vec3 radiance(const float* origin, const float* dir) const;
   // radiance() at the unit panorama coordinates of a valid direction (no atan2/asin).
@@ -42,6 +50,7 @@ class RadianceCache {
   struct Corners {
     int64_t probe[8];
     float weight[8];
+    glm::vec3 origin{0.0f};  // for exact directions
   };
   Corners corners(const float* origin) const;
   glm::vec3 radiance_unit(const Corners& at, const equirect::UV& unit) const;
@@ -53,6 +62,7 @@ class RadianceCache {
   Irradiance irradiance(const glm::vec3& origin, const glm::vec3& n) const;
   Irradiance irradiance(const Corners& at, const glm::vec3& n) const;  // at = corners(origin)
   int64_t probes() const { return cache_.empty() ? 0 : int64_t(n_[0]) * n_[1] * n_[2]; }
+  int64_t exact_rays() const { return exact_rays_.load(std::memory_order_relaxed); }  // marched so far
 
  private:
   void probe_weights(const float* origin, int64_t probe[8], float w[8]) const;
@@ -60,6 +70,9 @@ class RadianceCache {
 
   const EnvironmentMap& env_map_;
   int H_, W_;
+  float exact_sky_ = 0.0f;
+  std::unique_ptr<const RayMarcher> marcher_;  // with exact directions
+  mutable std::atomic<int64_t> exact_rays_{0};
   glm::vec3 lo_{0.0f};
   int n_[3] = {2, 2, 2};
   float step_[3] = {1, 1, 1};

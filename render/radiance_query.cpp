@@ -210,6 +210,24 @@ void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& pro
   }
 }
 
+// Eq. 1's sums over one marched ray: radiance, τ_K and depth (the forward of the op, and
+// RayMarcher's).
+template <class T>
+void composite(const RayMarch<T>& m, T out[3], T& tr, T& d) {
+  out[0] = out[1] = out[2] = 0;
+  tr = 1;
+  d = 0;
+  if (!m.valid) return;
+  for (size_t k = 0; k < m.count(); ++k) {
+    const T w = tr * m.alpha[k];
+    for (int c = 0; c < 3; ++c) out[c] += w * m.g[3 * k + c];
+    d += w * m.t[k];
+    tr *= 1 - m.alpha[k];
+  }
+  if (!m.terminated)
+    for (int c = 0; c < 3; ++c) out[c] += tr * m.env[c];
+}
+
 class RadianceQueryOp : public Function {
  public:
   RadianceQueryOp(const VsgGrid& grid, const RadianceQueryOptions& opt, RadianceQueryStats* stats)
@@ -238,17 +256,8 @@ class RadianceQueryOp : public Function {
           const int64_t n = r / geo_.R;
           march(geo_, grid_, proj, opt_, vsg_.data<T>() + n * 8 * geo_.vox, env_.data<T>() + n * 3 * geo_.H * geo_.W,
                 origins_.data<T>() + 3 * r, dirs_.data<T>() + 3 * r, m);
-          T out[3] = {0, 0, 0}, tr = 1, d = 0;
-          if (m.valid) {
-            for (size_t k = 0; k < m.count(); ++k) {
-              const T w = tr * m.alpha[k];
-              for (int c = 0; c < 3; ++c) out[c] += w * m.g[3 * k + c];
-              d += w * m.t[k];
-              tr *= 1 - m.alpha[k];
-            }
-            if (!m.terminated)
-              for (int c = 0; c < 3; ++c) out[c] += tr * m.env[c];
-          }
+          T out[3], tr, d;
+          composite(m, out, tr, d);
           for (int c = 0; c < 3; ++c) radiance.data<T>()[3 * r + c] = out[c];
           tau.data<T>()[r] = tr;
           depth.data<T>()[r] = d;
@@ -374,6 +383,33 @@ class RadianceQueryOp : public Function {
 };
 
 }  // namespace
+
+struct RayMarcher::Projection : LogProjection<float> {
+  using LogProjection<float>::LogProjection;
+};
+
+RayMarcher::RayMarcher(const Tensor& vsg, const Tensor& env, const VsgGrid& grid, const RadianceQueryOptions& options)
+    : vsg_(vsg.detach().to(DType::F32).contiguous()), env_(env.detach().to(DType::F32).contiguous()), grid_(grid),
+      opt_(options) {
+  grid.validate();
+  proj_ = std::make_shared<const Projection>(grid);
+  SL_CHECK(options.samples >= 1, "RayMarcher: samples = ", options.samples, " must be >= 1");
+  SL_CHECK(vsg_.dim() == 4 && vsg_.size(0) == 8 && vsg_.size(1) == grid.dims[0] && vsg_.size(2) == grid.dims[1] &&
+               vsg_.size(3) == grid.dims[2],
+           "RayMarcher: vsg must be [8, ", grid.dims[0], ", ", grid.dims[1], ", ", grid.dims[2], "], got ",
+           vsg.describe());
+  SL_CHECK(env_.dim() == 3 && env_.size(0) == 3, "RayMarcher: env must be [3, H, W], got ", env.describe());
+}
+
+RayMarcher::Result RayMarcher::operator()(const float origin[3], const float dir[3]) const {
+  const Geometry geo{1, 1, vsg_.size(1), vsg_.size(2), vsg_.size(3), vsg_.size(1) * vsg_.size(2) * vsg_.size(3),
+                     env_.size(1), env_.size(2)};
+  thread_local RayMarch<float> m;  // scratch: no allocation per ray after the first
+  march(geo, grid_, *proj_, opt_, vsg_.data<float>(), env_.data<float>(), origin, dir, m);
+  float out[3], tr, d;
+  composite(m, out, tr, d);
+  return {glm::vec3(out[0], out[1], out[2]), tr};
+}
 
 SampleSpacing parse_sample_spacing(const std::string& name) {
   if (name == "metric") return SampleSpacing::kMetric;

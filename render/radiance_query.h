@@ -35,6 +35,7 @@
 // tests/render/radiance_query_test.cpp checks pruned against unpruned within these bounds.
 #pragma once
 #include <cstdint>
+#include <memory>
 #include <string>
 
 #include "autodiff/tape.h"
@@ -72,5 +73,27 @@ struct RadianceQueryResult {
 RadianceQueryResult radiance_query(const Tensor& vsg, const Tensor& env, const Tensor& origins,
                                    const Tensor& directions, const VsgGrid& grid,
                                    const RadianceQueryOptions& options = {}, RadianceQueryStats* stats = nullptr);
+
+// One ray at a time, off the tape: the forward of radiance_query() (float32) for callers that
+// need a few exact rays among many cached ones (render/radiance_cache.h, exact directions). The
+// same march and the same sums, so the same bits as radiance_query() on float32 inputs; no
+// stats. vsg [8, X, Y, Z] matching grid.dims, env [3, H, W]; both are copied to float32 once.
+// Thread-safe (scratch is per thread).
+class RayMarcher {
+ public:
+  RayMarcher(const Tensor& vsg, const Tensor& env, const VsgGrid& grid, const RadianceQueryOptions& options);
+  struct Result {
+    glm::vec3 radiance{0.0f};
+    float transmittance = 1.0f;  // τ_K
+  };
+  Result operator()(const float origin[3], const float dir[3]) const;
+
+ private:
+  struct Projection;  // the grid's log projection, precomputed once
+  Tensor vsg_, env_;
+  VsgGrid grid_;
+  RadianceQueryOptions opt_;
+  std::shared_ptr<const Projection> proj_;
+};
 
 }  // namespace sl::render

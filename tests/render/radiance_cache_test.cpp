@@ -230,6 +230,57 @@ TEST(RadianceCache, FusedShadowsEqualStoredRaysShadowRatioAndTaps) {
     }
 }
 
+// Exact directions: a ray toward sky brighter than the threshold (the scene's 400× sun texel)
+// reads the exact march from its own origin; every other ray reads the probes unchanged.
+TEST(RadianceCache, ExactDirectionsReadTheMarchAndTheRestReadTheProbes) {
+  const Scene s = scene();
+  const InsertionOptions opt = cached_options();
+  const EnvironmentMap env_map(s.in.env);
+  const glm::vec3 lo(-3.0f, 0.0f, -9.0f), hi(3.0f, 0.2f, -3.0f);
+  const insertion::RadianceCache plain(s.in, opt, env_map, lo, hi, 2, 2);
+  const insertion::RadianceCache exact(s.in, opt, env_map, lo, hi, 2, 2, 10.0);
+  const RayMarcher march(s.in.vsg, s.in.env, s.in.grid, opt.query);
+  // The sun texel (row 3, column 9 of 16×32) and a direction of sky 1.
+  const equirect::Dir sd = equirect::uv_to_direction(9.5, 3.5, 32, 16);
+  const glm::vec3 sun(float(sd.x), float(sd.y), float(sd.z)), sky = glm::normalize(glm::vec3(0.3f, 0.5f, 0.8f));
+  int differ = 0;
+  for (const glm::vec3& o : {lo, hi, glm::vec3(0.7f, 0.1f, -4.3f), glm::vec3(-2.2f, 0.05f, -8.1f)}) {
+    const glm::vec3 a = exact.radiance(&o[0], &sun[0]);
+    // radiance() marches the direction rebuilt from its panorama coordinates (float rounding).
+    const glm::vec3 m = march(&o[0], &sun[0]).radiance;
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(a[c], m[c], 1e-5 * m[c]);
+    differ += glm::length(a - plain.radiance(&o[0], &sun[0])) > 1e-4f * glm::length(m) ? 1 : 0;
+    const glm::vec3 b = exact.radiance(&o[0], &sky[0]), p = plain.radiance(&o[0], &sky[0]);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(b[c], p[c]);
+  }
+  EXPECT_GT(differ, 0);  // the probes' sun is not the march's everywhere
+  EXPECT_EQ(exact.exact_rays(), 4);
+}
+
+// Lean: a threshold above the brightest sky marches nothing and gives the same bits as none.
+// With every direction exact, the shadows no longer depend on the probe grid.
+TEST(RadianceCache, ExactShadowDirectionsAboveTheSkyChangeNothingAndAllExactIgnoresTheProbes) {
+  const Scene s = scene();
+  InsertionOptions none = cached_options(), above = none;
+  none.cache_shadow_exact_sky = 0;
+  above.cache_shadow_exact_sky = 1e9;
+  const InsertionResult a = insert_objects(s.in, none), b = insert_objects(s.in, above);
+  EXPECT_EQ(b.stats.exact_query_rays, 0);
+  EXPECT_EQ(a.composite.to_vector(), b.composite.to_vector());
+  EXPECT_EQ(a.shadow_map.to_vector(), b.shadow_map.to_vector());
+
+  InsertionOptions all = none;
+  all.cache_shadow_exact_sky = 1e-3;  // every texel of the scene's sky is ≥ 1 ≥ 1e-3 × its mean
+  InsertionOptions all_fine = all;
+  all_fine.cache_shadow_max_xz = 6;
+  all_fine.cache_shadow_height = 4;
+  const InsertionResult c = insert_objects(s.in, all), d = insert_objects(s.in, all_fine);
+  EXPECT_GT(c.stats.exact_query_rays, 0);
+  EXPECT_EQ(c.stats.exact_query_rays, d.stats.exact_query_rays);
+  EXPECT_EQ(c.shadow_map.to_vector(), d.shadow_map.to_vector());
+  EXPECT_NE(a.shadow_map.to_vector(), c.shadow_map.to_vector());
+}
+
 // Relative RMSE over the object's fully covered pixels.
 double object_error(const InsertionResult& a, const InsertionResult& b) {
   const auto va = a.composite.to_vector(), vb = b.composite.to_vector(), m = b.object_mask.to_vector();

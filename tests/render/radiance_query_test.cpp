@@ -298,6 +298,36 @@ TEST(RadianceQuery, ResultsAndGradientsAreIdenticalWithOneAndTwoThreads) {
   for (size_t i = 0; i < one.size(); ++i) ASSERT_EQ(one[i], two[i]) << i;
 }
 
+// RayMarcher (one ray, off the tape) is the op's forward: the same bits for every lookup,
+// spacing and pruning, a zero direction included.
+TEST(RayMarcher, EqualsTheQueryBitForBit) {
+  VsgGrid g;
+  g.dims = {16, 16, 8};
+  const Tensor vsg = random_vsg(g, 50, DType::F32, 0.0, 0.9);
+  Tensor env = Tensor::uniform({3, 16, 32}, 0, 2, 51);
+  env.data<float>()[5 * 32 + 7] = 1e5f;  // a sun, so some rays stop on transmittance
+  Tensor o = Tensor::uniform({500, 3}, -20, 20, 52), d = Tensor::uniform({500, 3}, -1, 1, 53);
+  slice(d, 0, 0, 1).fill_(0.0);  // a zero direction
+  for (bool trilinear : {false, true})
+    for (SampleSpacing spacing : {SampleSpacing::kMetric, SampleSpacing::kGrid})
+      for (bool prune : {true, false}) {
+        RadianceQueryOptions opt;
+        opt.samples = 24;
+        opt.trilinear = trilinear;
+        opt.spacing = spacing;
+        opt.prune = prune;
+        const auto q = radiance_query(vsg, env, o, d, g, opt);
+        const sl::render::RayMarcher march(vsg, env, g, opt);
+        const float* po = o.data<float>();
+        const float* pd = d.data<float>();
+        for (int64_t r = 0; r < 500; ++r) {
+          const auto m = march(po + 3 * r, pd + 3 * r);
+          for (int c = 0; c < 3; ++c) ASSERT_EQ(m.radiance[c], q.radiance.data<float>()[3 * r + c]) << r;
+          ASSERT_EQ(m.transmittance, q.transmittance.data<float>()[r]) << r;
+        }
+      }
+}
+
 TEST(RadianceQuery, ExtremeLobeSharpnessAndZeroAxesStayFinite) {
   const VsgGrid g = small_grid();
   for (double sharp : {1e-3, 1.0, 1e4, 1e6}) {

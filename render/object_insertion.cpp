@@ -132,7 +132,8 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
         }
         glm::vec3 lo, hi;
         origin_bounds(origins, lo, hi);
-        RadianceCache fg_cache(in, opt, env_map, lo, hi, opt.cache_max_xz, opt.cache_max_y);
+        RadianceCache fg_cache(in, opt, env_map, lo, hi, opt.cache_max_xz, opt.cache_max_y, 0.0,
+                               opt.cache_sparse ? &origins : nullptr);
         if (cv) fg_cache.build_irradiance(opt.cv_normals_height, opt.cv_quadrature_supersample, normals);
         shade_foreground(opt, bvh, env_map, gs, fg_cache, cv, fg, shaded);
       }
@@ -148,7 +149,7 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
           sh_opt.cache_width = 2 * sh_opt.cache_height;
         }
         const RadianceCache sh_cache(in, sh_opt, env_map, lo, hi, opt.cache_shadow_max_xz, opt.cache_shadow_max_y,
-                                     opt.cache_shadow_exact_sky * sky_mean);
+                                     opt.cache_shadow_exact_sky * sky_mean, opt.cache_sparse ? &origins : nullptr);
         shade_shadows(opt, bvh, env_map, sh, texel_origins, sh_cache, eps, ratio);
         out.stats.exact_query_rays = sh_cache.exact_rays();
       }

@@ -117,6 +117,9 @@ struct InsertionOptions {
   int cache_max_xz = 4, cache_max_y = 3;    // ...with at most this many probes per horizontal axis / vertically (light rays)
   int cache_shadow_max_xz = 2, cache_shadow_max_y = 2;  // the same for the shadow rays' grid
   int cache_shadow_height = 0;  // > 0: the shadow grid's directions, cache_shadow_height × 2·that (else as above)
+  // Both grids build only the probes of cells that hold a ray's origin (render/radiance_cache.h,
+  // sparse): the same values where rays read, fewer marches (Lean; tested).
+  bool cache_sparse = true;
   // Shadow rays whose sky radiance L_env(l) (largest channel) exceeds this multiple of the sky's
   // mean radiance are marched exactly rather than read from the probes (see "Radiance cache");
   // 0 = none.

@@ -16,7 +16,8 @@
 namespace sl::render::insertion {
 
 RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& opt, const EnvironmentMap& env_map,
-              const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y, double exact_sky)
+              const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y, double exact_sky,
+              const std::vector<glm::vec3>* occupied)
     : env_map_(env_map), H_(opt.cache_height), W_(opt.cache_width) {
   if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return;  // no rays read it
   if (exact_sky > 0) {
@@ -29,7 +30,25 @@ RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& 
     n_[a] = std::clamp(int(std::ceil(ext / opt.cache_spacing_m)) + 1, 2, a == 1 ? max_y : max_xz);
     step_[a] = ext > 0 ? ext / float(n_[a] - 1) : 1.0f;
   }
-  const int64_t D = int64_t(H_) * W_, P = int64_t(n_[0]) * n_[1] * n_[2];
+  const int64_t dense = int64_t(n_[0]) * n_[1] * n_[2];
+  if (occupied) {  // only the corners of cells that hold an origin
+    slot_.assign(size_t(dense), -1);
+    for (const glm::vec3& x : *occupied) {
+      int64_t probe[8];
+      float w[8];
+      dense_weights(&x[0], probe, w);
+      for (int c = 0; c < 8; ++c) slot_[size_t(probe[c])] = 0;
+    }
+    for (int64_t j = 0; j < dense; ++j)
+      if (slot_[size_t(j)] == 0) {
+        slot_[size_t(j)] = int64_t(dense_of_.size());
+        dense_of_.push_back(j);
+      }
+  } else {
+    for (int64_t j = 0; j < dense; ++j) dense_of_.push_back(j);
+  }
+  const int64_t D = int64_t(H_) * W_, P = int64_t(dense_of_.size());
+  if (P == 0) return;
   std::vector<float> o(size_t(3 * P * D)), d(size_t(3 * P * D));
   std::vector<glm::vec3> dirs(static_cast<size_t>(D));
   for (int64_t t = 0; t < D; ++t) {
@@ -39,7 +58,7 @@ RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& 
   for (int64_t p = 0; p < P; ++p)
     for (int64_t t = 0; t < D; ++t)
       for (int c = 0; c < 3; ++c) {
-        o[size_t(3 * (p * D + t) + c)] = probe(p)[c];
+        o[size_t(3 * (p * D + t) + c)] = probe(dense_of_[size_t(p)])[c];
         d[size_t(3 * (p * D + t) + c)] = dirs[size_t(t)][c];
       }
   Tensor ot = Tensor::empty({P * D, 3}, DType::F32), dt = Tensor::empty({P * D, 3}, DType::F32);
@@ -70,7 +89,7 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
   const int ss = std::max(1, supersample);
   const int hq = ss * std::max(2 * env_map_.height(), H_);
   const int wq = std::max({2 * hq, ss * env_map_.width(), ss * W_});
-  const int64_t Q = int64_t(hq) * wq, P = int64_t(n_[0]) * n_[1] * n_[2], D = int64_t(H_) * W_;
+  const int64_t Q = int64_t(hq) * wq, P = probes(), D = int64_t(H_) * W_;
   node_row_.assign(size_t(hn_) * wn_, -1);
   for (const glm::vec3& n : normals) {
     if (!all_finite(n) || !(glm::dot(n, n) > 0.0f)) continue;
@@ -152,7 +171,7 @@ RadianceCache::Irradiance RadianceCache::irradiance(const Corners& at, const glm
   const int64_t* probe = at.probe;
   const float* wp = at.weight;
   const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
-  const int64_t P = int64_t(n_[0]) * n_[1] * n_[2];
+  const int64_t P = probes();
   for (int k = 0; k < 4; ++k) {
     const int64_t row = node_row_[size_t(taps.index[k])];
     if (row < 0 || taps.weight[k] == 0.0) continue;
@@ -212,8 +231,29 @@ glm::vec3 RadianceCache::radiance_unit(const Corners& at, const equirect::UV& un
   return glm::vec3(acc) + acc.w * sky;
 }
 
-// The 8 probes around a point (clamped to the grid) and their trilinear weights.
+// The 8 built probes around a point and their trilinear weights. On a sparse grid a corner
+// that was not built (a cell no origin occupied) drops out and the rest are renormalised (all
+// missing: weights 0, the read is 0).
 void RadianceCache::probe_weights(const float* origin, int64_t probe[8], float w[8]) const {
+  dense_weights(origin, probe, w);
+  if (slot_.empty()) return;
+  float total = 0.0f;
+  bool whole = true;
+  for (int c = 0; c < 8; ++c) {
+    const int64_t s = slot_[size_t(probe[c])];
+    if (s < 0) {
+      w[c] = 0.0f;
+      whole = false;
+    }
+    probe[c] = std::max<int64_t>(s, 0);
+    total += w[c];
+  }
+  if (whole) return;  // the dense grid's weights, bit for bit
+  for (int c = 0; c < 8; ++c) w[c] = total > 0.0f ? w[c] / total : 0.0f;
+}
+
+// The 8 grid nodes around a point (clamped to the grid), dense indices, trilinear weights.
+void RadianceCache::dense_weights(const float* origin, int64_t probe[8], float w[8]) const {
   int i0[3];
   float f[3];
   for (int a = 0; a < 3; ++a) {

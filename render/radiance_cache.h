@@ -9,6 +9,10 @@
 // - Probes span the box [lo, hi] (the origins of the rays that will read it), cache_spacing_m
 //   apart or sparser: at most max_xz per horizontal axis and max_y vertically, at least 2. An
 //   empty box (lo > hi) builds nothing; radiance() then returns 0.
+// - Sparse (occupied given): only the corners of grid cells that hold one of `occupied` are
+//   marched, so a finer spacing costs the probes the rays' origins need (a surface's shell, not
+//   its box). A read whose cell lost corners renormalises over the rest (exact for the origins
+//   given: their cells are whole).
 // - Directions are the cache_height × cache_width texel centres (render/equirect.h).
 // - radiance(o, l) for any o (clamped to the box) and l (zero or non-finite l reads 0).
 // - Exact directions (exact_sky > 0): a ray whose sky radiance L_env(l) (largest channel) exceeds
@@ -41,7 +45,8 @@ namespace sl::render::insertion {
 class RadianceCache {
  public:
   RadianceCache(const InsertionInputs& in, const InsertionOptions& opt, const EnvironmentMap& env_map,
-                const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y, double exact_sky = 0);
+                const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y, double exact_sky = 0,
+                const std::vector<glm::vec3>* occupied = nullptr);
 
   glm::vec3 radiance(const float* origin, const float* dir) const;
   // radiance() at the unit panorama coordinates of a valid direction (no atan2/asin).
@@ -61,11 +66,12 @@ class RadianceCache {
   void build_irradiance(int hn, int supersample, const std::vector<glm::vec3>& normals);
   Irradiance irradiance(const glm::vec3& origin, const glm::vec3& n) const;
   Irradiance irradiance(const Corners& at, const glm::vec3& n) const;  // at = corners(origin)
-  int64_t probes() const { return cache_.empty() ? 0 : int64_t(n_[0]) * n_[1] * n_[2]; }
+  int64_t probes() const { return cache_.empty() ? 0 : int64_t(dense_of_.size()); }
   int64_t exact_rays() const { return exact_rays_.load(std::memory_order_relaxed); }  // marched so far
 
  private:
   void probe_weights(const float* origin, int64_t probe[8], float w[8]) const;
+  void dense_weights(const float* origin, int64_t probe[8], float w[8]) const;
   glm::vec3 probe(int64_t p) const;
 
   const EnvironmentMap& env_map_;
@@ -76,6 +82,8 @@ class RadianceCache {
   glm::vec3 lo_{0.0f};
   int n_[3] = {2, 2, 2};
   float step_[3] = {1, 1, 1};
+  std::vector<int64_t> slot_;      // grid node → built probe (−1: not built); empty: every node, in order
+  std::vector<int64_t> dense_of_;  // built probe → grid node
   std::vector<float> cache_;  // [probe][direction][V rgb, τ]
   int hn_ = 0, wn_ = 0;
   std::vector<int64_t> node_row_;  // normal-grid node → row of irradiance_ (−1: not built)

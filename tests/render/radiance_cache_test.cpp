@@ -281,6 +281,52 @@ TEST(RadianceCache, ExactShadowDirectionsAboveTheSkyChangeNothingAndAllExactIgno
   EXPECT_NE(a.shadow_map.to_vector(), c.shadow_map.to_vector());
 }
 
+// Lean: a sparse grid (only the cells that hold an origin) reads the dense grid's values at
+// those origins bit for bit, and builds fewer probes; insertion gives the same image (the
+// control variate's irradiance is a GEMM over fewer probes: equal to float rounding).
+TEST(RadianceCache, SparseProbesReadTheDenseValuesWhereTheRaysStart) {
+  const Scene s = scene();
+  const InsertionOptions opt = cached_options();
+  const EnvironmentMap env_map(s.in.env);
+  // Origins on two faces of a box: the grid's inner cells hold none.
+  std::vector<glm::vec3> origins;
+  for (int i = 0; i <= 10; ++i)
+    for (int j = 0; j <= 10; ++j) {
+      origins.emplace_back(-2.0f + 0.4f * float(i), 0.1f + 0.2f * float(j), -8.0f);
+      origins.emplace_back(2.0f, 0.1f + 0.2f * float(j), -8.0f + 0.4f * float(i));
+    }
+  glm::vec3 lo, hi;
+  insertion::origin_bounds(origins, lo, hi);
+  InsertionOptions fine = opt;
+  fine.cache_spacing_m = 0.5;
+  const insertion::RadianceCache dense(s.in, fine, env_map, lo, hi, 9, 5);
+  const insertion::RadianceCache sparse(s.in, fine, env_map, lo, hi, 9, 5, 0.0, &origins);
+  EXPECT_LT(sparse.probes(), dense.probes());
+  const std::vector<glm::vec3> dirs = {glm::normalize(glm::vec3(0.3f, 0.5f, 0.8f)), glm::vec3(0, 1, 0),
+                                       glm::normalize(glm::vec3(-0.7f, -0.2f, 0.1f))};
+  for (const glm::vec3& o : origins)
+    for (const glm::vec3& d : dirs) {
+      const glm::vec3 a = dense.radiance(&o[0], &d[0]), b = sparse.radiance(&o[0], &d[0]);
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(a[c], b[c]);
+    }
+  for (bool cv : {false, true}) {
+    InsertionOptions on = opt, off = opt;
+    on.diffuse_control_variate = off.diffuse_control_variate = cv;
+    on.cache_sparse = true;
+    off.cache_sparse = false;
+    on.cache_spacing_m = off.cache_spacing_m = 0.3;  // fine enough that the object's box has empty cells
+    on.cache_max_xz = off.cache_max_xz = 8;
+    const auto a = insert_objects(s.in, on).composite.to_vector(), b = insert_objects(s.in, off).composite.to_vector();
+    ASSERT_EQ(a.size(), b.size());
+    for (size_t i = 0; i < a.size(); ++i) {
+      if (cv)
+        ASSERT_NEAR(a[i], b[i], 1e-5 * std::max(1.0, std::abs(b[i]))) << i;
+      else
+        ASSERT_EQ(a[i], b[i]) << i;
+    }
+  }
+}
+
 // Relative RMSE over the object's fully covered pixels.
 double object_error(const InsertionResult& a, const InsertionResult& b) {
   const auto va = a.composite.to_vector(), vb = b.composite.to_vector(), m = b.object_mask.to_vector();

@@ -112,6 +112,20 @@ std::vector<InsertRow> insert_rows(const train::PhotoInsertionOptions& productio
                           std::to_string(hd) + "x" + std::to_string(2 * hd),
                       o});
     }
+    // Sparse probe grids (only cells that hold an origin), then finer object grids on them.
+    for (const auto& [hd, sp, xz, y] : std::vector<std::tuple<int, double, int, int>>{
+             {24, 1.0, 4, 6}, {24, 1.0, 8, 6}, {16, 0.5, 12, 6}, {24, 0.5, 12, 6}, {16, 0.35, 16, 8}, {12, 0.25, 24, 12}}) {
+      InsertionOptions o = train::insertion_options(production);
+      o.cache_sparse = true;
+      o.cache_height = hd;
+      o.cache_width = 2 * hd;
+      o.cache_spacing_m = sp;
+      o.cache_max_xz = xz;
+      o.cache_max_y = y;
+      rows.push_back({"sparse_object_" + std::to_string(xz) + "x" + std::to_string(y) + "x" + std::to_string(xz) + "_dirs" +
+                          std::to_string(hd) + "x" + std::to_string(2 * hd),
+                      o});
+    }
     for (int n : {128, 256}) {  // shadow rays alone (the shadow term is mostly noise)
       InsertionOptions o = train::insertion_options(production);
       o.shadow_rays = n;
@@ -136,6 +150,12 @@ std::vector<InsertRow> insert_rows(const train::PhotoInsertionOptions& productio
     // Shadow rays toward bright sky (the sun) marched exactly (render/object_insertion.h,
     // cache_shadow_exact_sky, default 8): the threshold over the sky's mean (0 = all cached),
     // then with a coarser shadow grid and more shadow rays, then finer shadow grids beside it.
+    {  // the defaults before them: every shadow ray cached, dense probe grids
+      InsertionOptions o = train::insertion_options(production);
+      o.cache_shadow_exact_sky = 0;
+      o.cache_sparse = false;
+      rows.push_back({"former_cache_defaults", o});
+    }
     for (double t : {0.0, 20.0, 8.0, 3.0, 1.0}) {
       InsertionOptions o = train::insertion_options(production);
       o.cache_shadow_exact_sky = t;

@@ -39,6 +39,8 @@
 // reads them trilinearly in position and bilinearly in direction, and L_env(l) exactly, so a
 // sun in the sky keeps its full sharpness (render/radiance_cache.h). The object's light rays are
 // then read as they are drawn and never stored (the foreground is off the tape in this mode).
+// Sparse grids (cache_sparse): only the probes of cells that hold a ray's origin are marched
+// (the object's visible shell, not its box); the values read are the dense grid's.
 // Exact directions: a shadow ray toward sky brighter than cache_shadow_exact_sky × the sky's mean
 // (the sun) is marched exactly instead (RayMarcher: radiance_query's value). The sun's
 // transmittance changes over the ground faster than the probes follow, and the shadow ratio

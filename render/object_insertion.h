@@ -44,8 +44,9 @@
 // Exact directions: a shadow ray toward sky brighter than cache_shadow_exact_sky × the sky's mean
 // (the sun) is marched exactly instead (RayMarcher: radiance_query's value). The sun's
 // transmittance changes over the ground faster than the probes follow, and the shadow ratio
-// weighs it against the rest of the sky; the sun's rays are few (KITTI 000008, released
-// lighting: 50k of 1M shadow rays at 8×, shadow term 1.55% → 1.05% for +5% CPU).
+// weighs it against the rest of the sky. Their cost is the share of shadow rays the sun draws
+// (KITTI 000008: the released model's sky, 50k of 1M at 8×, shadow term 1.55% → 1.05% for +5%
+// CPU; the bench's sharp HDRI sun over a random volume, 313k, 1.36% → 1.28% for +70%).
 // Error against exact queries: streetlight-bench insert.
 // Lean: shadows are computed only inside the screen-space region the object can shadow (its
 // bounds swept along the light directions that carry energy, clipped to the image) and shading

@@ -33,6 +33,21 @@ std::vector<double> to_doubles(const Tensor& t) {
   return std::vector<double>(c.data<double>(), c.data<double>() + c.numel());
 }
 
+// The visible sun of the view with the highest score (data/visible_sun.h); direction in world.
+struct VisibleSunCue {
+  bool found = false;
+  int view = -1;
+  data::VisibleSun sun;
+};
+VisibleSunCue find_visible_sun_cue(const std::vector<InferenceView>& views, const data::VisibleSunParams& params) {
+  VisibleSunCue cue;
+  for (size_t k = 0; k < views.size(); ++k) {
+    const data::VisibleSun s = data::find_visible_sun(views[k].ldr, views[k].camera, params);
+    if (s.found && (!cue.found || s.score > cue.sun.score)) cue = {true, static_cast<int>(k), s};
+  }
+  return cue;
+}
+
 }  // namespace
 
 glm::dvec3 direction_from_azimuth_elevation_deg(double azimuth_deg, double elevation_deg) {
@@ -185,6 +200,7 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
   const Single& ref = singles[0];
   EstimatedLighting out;
   for (const Single& s : singles) out.sun_flip_spread_deg = std::fmax(out.sun_flip_spread_deg, s.flip_spread_deg);
+  out.network_sun_flip_spread_deg = out.sun_flip_spread_deg;
   out.frame = ref.frame;
   out.camera = ref.camera;
   out.grid = ref.grid;
@@ -204,16 +220,30 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
       dir_sum += ref.frame.direction(world);
     }
     glm::dvec3 dir = glm::length(dir_sum) > 1e-12 ? glm::normalize(dir_sum) : glm::dvec3(0.0, 1.0, 0.0);
+    // The visible sun fills the direction fields the caller's edit leaves unset.
+    SunEdit sun = edit;
+    if (visible_sun_) {
+      const VisibleSunCue cue = find_visible_sun_cue(views, visible_sun_params_);
+      if (cue.found) {
+        out.visible_sun_found = true;
+        out.visible_sun_view = cue.view;
+        out.visible_sun_pixel = cue.sun.pixel;
+        out.visible_sun_score = cue.sun.score;
+        if (!sun.azimuth_deg) sun.azimuth_deg = azimuth_deg_of(cue.sun.direction);
+        if (!sun.elevation_deg) sun.elevation_deg = elevation_deg_of(cue.sun.direction);
+        if (!edit.azimuth_deg && !edit.elevation_deg) out.sun_flip_spread_deg = 0.0;
+      }
+    }
     // Sec 3.2: edit the sky vector before decoding.
-    if (edit.azimuth_deg || edit.elevation_deg) {
+    if (sun.azimuth_deg || sun.elevation_deg) {
       const glm::dvec3 world = out.world_direction(dir);
-      const double az = edit.azimuth_deg.value_or(azimuth_deg_of(world));
-      const double el = edit.elevation_deg.value_or(elevation_deg_of(world));
+      const double az = sun.azimuth_deg.value_or(azimuth_deg_of(world));
+      const double el = sun.elevation_deg.value_or(elevation_deg_of(world));
       dir = ref.frame.direction(direction_from_azimuth_elevation_deg(az, el));
     }
-    SL_CHECK(std::isfinite(edit.intensity_scale) && edit.intensity_scale > 0, "sun intensity scale ",
-             edit.intensity_scale, " must be positive");
-    for (double& v : log_i) v += std::log(edit.intensity_scale);
+    SL_CHECK(std::isfinite(sun.intensity_scale) && sun.intensity_scale > 0, "sun intensity scale ",
+             sun.intensity_scale, " must be positive");
+    for (double& v : log_i) v += std::log(sun.intensity_scale);
     SkyCode code;
     const int64_t d_lat = static_cast<int64_t>(latent.size());
     code.log_intensity = Tensor::from_vector(log_i, {1, 3}).to(DType::F32);

@@ -25,6 +25,13 @@
 // - SunEdit (Sec 3.2): replaces f̂_dir by the world direction of (azimuth, elevation) and/or
 //   multiplies f̂_intensity by intensity_scale before decoding. Requires the "sky_decoder"
 //   branch (throws otherwise). The volume is left as predicted.
+// - Visible sun (set_visible_sun, on by default; issue 39 item 3): a network that has to guess
+//   the sun from shading turns a sun it can SEE around. Each view's LDR goes through
+//   data/visible_sun.h; when a sun disk is found (the view with the highest score wins), the
+//   ray through its pixel (the view's camera) becomes the sun direction, through the SunEdit
+//   path: its azimuth and elevation fill the fields the caller's SunEdit leaves unset, so an
+//   explicit edit still wins field by field. Checkpoints without a sky vector ignore the cue.
+//   When nothing is found the estimate is bit-identical to the cue being off.
 // - Deterministic; no tape (runs under NoGradGuard).
 #pragma once
 #include <limits>
@@ -38,6 +45,7 @@
 
 #include "autodiff/tensor.h"
 #include "data/sun_from_shadows.h"
+#include "data/visible_sun.h"
 #include "render/camera.h"
 #include "render/radiance_query.h"
 #include "render/vsg_volume.h"
@@ -75,7 +83,20 @@ struct EstimatedLighting {
   // finds it in both; a guess need not agree with its mirror image. The largest over the views;
   // the network's own even when a SunEdit replaces the direction. NaN when not measured (flip
   // averaging off, or no sky vector).
+  // When the visible-sun cue sets the direction (visible_sun_found and the caller's SunEdit names
+  // neither azimuth nor elevation) the direction was measured in the photo, not guessed: the
+  // spread is then 0, so consumers that rank estimates by it (streetlight-eval's confident half)
+  // rank these first; the network's own spread stays in network_sun_flip_spread_deg.
   double sun_flip_spread_deg = std::numeric_limits<double>::quiet_NaN();
+  double network_sun_flip_spread_deg = std::numeric_limits<double>::quiet_NaN();
+  // The visible-sun cue (see LightingEstimator::set_visible_sun): whether it found a sun disk,
+  // in which view, where (continuous pixel coordinates of that view's image, render/camera.h)
+  // and its score (data/visible_sun.h). False when the cue is off or the checkpoint has no sky
+  // vector.
+  bool visible_sun_found = false;
+  int visible_sun_view = -1;
+  glm::dvec2 visible_sun_pixel{0.0};
+  double visible_sun_score = 0.0;
 
   glm::dvec3 world_direction(const glm::dvec3& canonical) const;
   glm::dvec3 world_point(const glm::dvec3& canonical) const;
@@ -104,6 +125,11 @@ class LightingEstimator {
   // (stage 2: median 16.3 -> 16.5, mean 22.6 -> 21.8; stage 3: 16.6 -> 15.5; docs/RESULTS.md).
   void set_flip_average(bool on) { flip_average_ = on; }
   bool flip_average() const { return flip_average_; }
+  // The visible-sun cue (see the contract above) and its detector's thresholds.
+  void set_visible_sun(bool on) { visible_sun_ = on; }
+  bool visible_sun() const { return visible_sun_; }
+  void set_visible_sun_params(const data::VisibleSunParams& p) { visible_sun_params_ = p; }
+  const data::VisibleSunParams& visible_sun_params() const { return visible_sun_params_; }
 
  private:
   struct Single {
@@ -121,6 +147,8 @@ class LightingEstimator {
   std::shared_ptr<LightingPredictor> predictor_;
   render::VsgGrid grid_template_;
   bool flip_average_ = true;
+  bool visible_sun_ = true;
+  data::VisibleSunParams visible_sun_params_;
 };
 
 // The sun-strength scale that makes a fully sun-blocked ground point of this lighting as much

@@ -130,6 +130,93 @@ TEST(Inference, FlipSpreadIsTheAngleBetweenAPassAndItsMirroredPass) {
   EXPECT_NEAR(est.estimate({v, turned}).sun_flip_spread_deg, std::max(expect, s2), 1e-9);
 }
 
+// A street view (blue sky over grey ground) with, optionally, a clipped sun disk of radius 2.5 px
+// whose glare fades over 3 px at continuous pixel (u, v): what data/visible_sun.h finds.
+InferenceView sunny_view(double yaw_deg, bool with_sun, double u = 44.3, double v = 8.6) {
+  InferenceView view = view_at(yaw_deg);
+  const int h = 32, w = 64;
+  std::vector<float> px(3 * h * w);
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c) {
+      const bool sky = r < 18;
+      const float rgb[3] = {sky ? 0.5f : 0.35f, sky ? 0.62f : 0.35f, sky ? 0.85f : 0.33f};
+      const double d = std::hypot(c + 0.5 - u, r + 0.5 - v);
+      const double white = !with_sun ? 0.0 : d <= 2.5 ? 1.0 : std::exp(-(d - 2.5) / 3.0);
+      for (int ch = 0; ch < 3; ++ch) px[(ch * h + r) * w + c] = static_cast<float>(white + (1.0 - white) * rgb[ch]);
+    }
+  view.ldr = Tensor::from_vector(std::vector<double>(px.begin(), px.end()), {3, h, w}).to(DType::F32);
+  return view;
+}
+
+// Issue 39 item 3: a sun the photo shows is where the sun is, whatever the network guessed; the
+// direction goes through the SunEdit path (decoded into the dome), the spread becomes 0.
+TEST(Inference, VisibleSunSetsTheSunToTheRayThroughIt) {
+  const std::string dir = test::tool_dir("inference_visible_sun");
+  LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  EXPECT_TRUE(est.visible_sun());  // the default
+  const InferenceView v = sunny_view(30.0, true);
+  const EstimatedLighting on = est.estimate({v});
+  est.set_visible_sun(false);
+  const EstimatedLighting off = est.estimate({v});
+  ASSERT_TRUE(on.visible_sun_found);
+  EXPECT_FALSE(off.visible_sun_found);
+  EXPECT_EQ(on.visible_sun_view, 0);
+  EXPECT_NEAR(on.visible_sun_pixel.x, 44.3, 0.3);
+  EXPECT_NEAR(on.visible_sun_pixel.y, 8.6, 0.3);
+  EXPECT_GT(on.visible_sun_score, 0.0);
+  const glm::dvec3 ray = v.camera.ray(on.visible_sun_pixel.x, on.visible_sun_pixel.y).direction;
+  EXPECT_LT(glm::length(on.sun_direction_world() - ray), 1e-9);
+  EXPECT_GT(glm::length(off.sun_direction_world() - ray), 1e-3);  // a random network looks elsewhere
+  // The decoder saw the new direction: the dome moved.
+  EXPECT_GT(max(abs(sub(on.env, off.env))).item(), 1e-4);
+  EXPECT_EQ(on.sun_flip_spread_deg, 0.0);
+  EXPECT_EQ(on.network_sun_flip_spread_deg, off.sun_flip_spread_deg);
+  EXPECT_GT(off.sun_flip_spread_deg, 0.0);
+}
+
+TEST(Inference, WithoutAVisibleSunTheCueChangesNothing) {
+  const std::string dir = test::tool_dir("inference_no_visible_sun");
+  LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  for (const InferenceView& v : {sunny_view(-40.0, false), view_at(10.0)}) {
+    const EstimatedLighting on = est.estimate({v});
+    est.set_visible_sun(false);
+    const EstimatedLighting off = est.estimate({v});
+    est.set_visible_sun(true);
+    EXPECT_FALSE(on.visible_sun_found);
+    EXPECT_EQ(on.visible_sun_view, -1);
+    EXPECT_EQ(max(abs(sub(on.env, off.env))).item(), 0.0);
+    EXPECT_EQ(max(abs(sub(on.vsg, off.vsg))).item(), 0.0);
+    EXPECT_EQ(on.sun_direction_canonical, off.sun_direction_canonical);
+    EXPECT_EQ(on.sun_intensity_rgb, off.sun_intensity_rgb);
+    EXPECT_EQ(on.sun_flip_spread_deg, off.sun_flip_spread_deg);
+  }
+}
+
+TEST(Inference, AnExplicitSunEditWinsOverTheVisibleSun) {
+  const std::string dir = test::tool_dir("inference_visible_sun_edit");
+  LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  const InferenceView v = sunny_view(-25.0, true);
+  SunEdit e;
+  e.azimuth_deg = 40.0;
+  e.elevation_deg = 25.0;
+  const EstimatedLighting edited = est.estimate({v}, e);
+  EXPECT_TRUE(edited.visible_sun_found);
+  EXPECT_NEAR(azimuth_deg_of(edited.sun_direction_world()), 40.0, 1e-6);
+  EXPECT_NEAR(elevation_deg_of(edited.sun_direction_world()), 25.0, 1e-6);
+  est.set_visible_sun(false);
+  const EstimatedLighting edited_off = est.estimate({v}, e);
+  EXPECT_EQ(max(abs(sub(edited.env, edited_off.env))).item(), 0.0);
+  EXPECT_EQ(edited.sun_flip_spread_deg, edited_off.sun_flip_spread_deg);  // the network's, as for any edit
+  // Field by field: an edit of the elevation alone keeps the visible sun's azimuth.
+  est.set_visible_sun(true);
+  const EstimatedLighting found = est.estimate({v});
+  SunEdit el;
+  el.elevation_deg = 60.0;
+  const EstimatedLighting partly = est.estimate({v}, el);
+  EXPECT_NEAR(azimuth_deg_of(partly.sun_direction_world()), azimuth_deg_of(found.sun_direction_world()), 1e-6);
+  EXPECT_NEAR(elevation_deg_of(partly.sun_direction_world()), 60.0, 1e-6);
+}
+
 TEST(Inference, ResamplingOntoTheSameGridIsTheIdentity) {
   VsgGrid g;
   g.dims = {8, 8, 4};

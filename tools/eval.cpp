@@ -512,9 +512,10 @@ Tensor render_truth(const Tensor& pano_hdr, const Camera& cam, double exposure) 
 
 json eval_lighting(const std::string& ckpt, const std::string& data, const std::string& split, int64_t limit,
                    int view_rows, std::vector<cli::PlotPoint>* plot, const std::string& label, const RealSkyData* real,
-                   bool oracle, bool flip_average) {
+                   bool oracle, bool flip_average, bool visible_sun) {
   LightingEstimator est(ckpt);
   est.set_flip_average(flip_average);
+  est.set_visible_sun(visible_sun);
   // Every score carries its group for the bootstrap: the street's id, or the real crop's panorama.
   Grouped sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, oracle_psnr, oracle_ratio;
   // One entry per image with a sun label: which image, the error and both directions (in the
@@ -534,6 +535,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   int64_t oracle_probes = 0;  // oracle samples lit by the light probe at the object
   PartScores ins_parts, oracle_parts;
   LdrSunSplits ldr_splits;
+  size_t cue_all = 0, cue_in = 0, cue_out = 0;  // scored images on which the visible-sun cue fired
   const bool street = fs::exists(fs::path(data) / "index.json");
   size_t count = 0;
   if (street) {
@@ -554,6 +556,8 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         const double e = angular_error_deg(dir, truth);
         sun_err.add(e, s.id);
         add_image(s.id, dir, truth, e, l.sun_flip_spread_deg);
+        per_image.back()["visible_sun_found"] = l.visible_sun_found;
+        cue_all += l.visible_sun_found;
       } else {
         ++sun_unknown;
       }
@@ -621,6 +625,9 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         (c.sun_in_crop ? sun_in : sun_out).add(e, c.panorama);
         add_image(cat(c.panorama, "#", i), dir, c.sun_canonical, e, l.sun_flip_spread_deg);
         per_image.back()["sun_in_crop"] = c.sun_in_crop;
+        per_image.back()["visible_sun_found"] = l.visible_sun_found;
+        cue_all += l.visible_sun_found;
+        (c.sun_in_crop ? cue_in : cue_out) += l.visible_sun_found;
         if (real->ldr) {
           ldr_splits.add(c, e);
           per_image.back()["label"] = c.label_sun;
@@ -653,6 +660,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
     for (const auto& [t, e] : line) plot->push_back({label, t, e});
   }
   json r = {{"checkpoint", ckpt}, {"stage", est.stage()}, {"step", est.step()}, {"flip_average", flip_average},
+            {"visible_sun", visible_sun},
             {"sky_branch", est.predictor().options().sky_branch},
             {"volume_branch", est.predictor().options().volume_branch},
             {"images", count}, {"sun_unknown", sun_unknown},
@@ -661,6 +669,8 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
             {"psnr", mean_of(ps.v)}, {"si_psnr", mean_of(sps.v)},
             {"psnr_upper", mean_of(ups.v)}, {"si_psnr_upper", mean_of(usps.v)},
             {"inference_ms", mean_of(ms)}, {"sun_per_image", per_image}};
+  r["sun"]["all"]["visible_sun_fired"] = cue_all;
+  if (real) r["sun"]["sun_in_crop"]["visible_sun_fired"] = cue_in, r["sun"]["sun_outside_crop"]["visible_sun_fired"] = cue_out;
   if (real && real->ldr) ldr_splits.write(r);
   r["sun_confidence"] = confidence.to_json();
   json ci = {{"sun_error_median_deg", ci_json(sun_err.v, sun_err.g, Statistic::Median)},
@@ -802,6 +812,9 @@ int run(int argc, char** argv) {
                {"--no-budgets", "", "skip the error-against-time sweep"},
                {"--no-flip-average", "", "one network pass per image for the sun, instead of averaging it with the left-right\n"
                                          "mirrored image's (the estimator's default)"},
+               {"--no-visible-sun", "", "keep the network's sun even where the photo shows the sun disk (by default a visible\n"
+                "                               sun sets the direction, data/visible_sun.h); the sun rows count the images\n"
+                "                               where it fired (\"cue k\" in the table, visible_sun_fired in the JSON)"},
                {"--out", "DIR", "write results.json, results.md and error_time.png here"},
                {"--json", "", "print the results as one JSON object on stdout"}});
   if (!a.parse(argc, argv)) return 0;
@@ -859,7 +872,8 @@ int run(int argc, char** argv) {
         // The oracle row depends only on the data: computed with the first lighting checkpoint.
         const bool want_oracle = street && !oracle_done;
         results.push_back(eval_lighting(ckpts[i], data, split, limit, rows, want_plot ? &plot : nullptr, names[i],
-                                        real.get(), want_oracle, !a.has("--no-flip-average")));
+                                        real.get(), want_oracle, !a.has("--no-flip-average"),
+                                        !a.has("--no-visible-sun")));
         oracle_done = oracle_done || want_oracle;
         plotted = plotted || want_plot;
       }

@@ -6,7 +6,8 @@
 // only when everything succeeded, so bad input leaves nothing behind:
 //   composite.png (+ composite.exr with --exr), object_mask.png, shadow_map.png, sky.exr,
 //   sky.png (tone-mapped, world azimuths), depth.exr (the depth used), result.json (sun, with
-//   flip_spread_deg: the network's confidence, train/inference.h sun_flip_spread_deg; placement,
+//   flip_spread_deg: the network's confidence, train/inference.h sun_flip_spread_deg, and
+//   visible_sun: whether a sun disk in the photo set the direction, and its pixel; placement,
 //   boxes, KITTI label line, timings; with --refine N > 0 the discriminator loss and the sun
 //   before and after refinement), label.txt (the KITTI line).
 // --refine N (paper Fig. 7): N Adam steps on the sky vector (and with --refine-volume the volume)
@@ -150,13 +151,22 @@ json spread_json(const EstimatedLighting& light) {
   return std::isfinite(light.sun_flip_spread_deg) ? json(light.sun_flip_spread_deg) : json();
 }
 
+// The visible-sun cue (train/inference.h): whether the photo showed the sun disk that set the
+// sun's direction, and where (the view's continuous pixel coordinates).
+json visible_sun_json(const EstimatedLighting& light) {
+  if (!light.visible_sun_found) return {{"found", false}};
+  return {{"found", true}, {"view", light.visible_sun_view},
+          {"pixel", {light.visible_sun_pixel.x, light.visible_sun_pixel.y}}, {"score", light.visible_sun_score}};
+}
+
 json sun_json(const EstimatedLighting& light) {
   const glm::dvec3 sun = light.sun_direction_world();
   return {{"direction_world", vec_json(sun)},
           {"azimuth_deg", azimuth_deg_of(sun)},
           {"elevation_deg", elevation_deg_of(sun)},
           {"intensity_rgb", vec_json(light.sun_intensity_rgb)},
-          {"flip_spread_deg", spread_json(light)}};
+          {"flip_spread_deg", spread_json(light)},
+          {"visible_sun", visible_sun_json(light)}};
 }
 
 // --sun-from-shadows without a confident fit: say so on stderr (the network's sun stays).
@@ -287,6 +297,7 @@ int single(const cli::Args& a) {
   AtomicDirectory out(a.get("--out"));
   LightingEstimator est(checkpoint);
   est.set_flip_average(!a.has("--no-flip-average"));
+  est.set_visible_sun(!a.has("--no-visible-sun"));
   std::vector<InferenceView> views;
   for (const Photo& p : photos) views.push_back({p.ldr, p.depth, p.camera});
   std::optional<ShadowSunLighting> shadow;
@@ -351,6 +362,7 @@ int single(const cli::Args& a) {
                      {"intensity_rgb", vec_json(light.sun_intensity_rgb)},
                      {"from_sky_vector", light.has_sky_code},
                      {"flip_spread_deg", spread_json(light)},
+                     {"visible_sun", visible_sun_json(light)},
                      {"edited", edit.active() || (shadow && shadow->fit.found)}}},
             {"placement", {{"at_camera_ground_xz", {ax, az}},
                            {"world_x_m", pose.x_m},
@@ -604,6 +616,7 @@ int batch(const cli::Args& a) {
   }
   LightingEstimator est(a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path());
   est.set_flip_average(!a.has("--no-flip-average"));
+  est.set_visible_sun(!a.has("--no-visible-sun"));
   for (const char* d : {"image_2", "label_2", "calib"}) fs::create_directories(out / d);
   write_file_atomic((out / "batch.json").string(), marker.dump(2) + "\n");
   for (const char* d : {"image_2", "label_2", "calib"}) sweep_stale_temp_files((out / d).string());
@@ -660,6 +673,8 @@ int run(int argc, char** argv) {
                {"--out", "DIR", "output folder (written atomically)"},
                {"--no-flip-average", "", "take the sun from one pass of the network instead of averaging it with the\n"
                                          "mirrored photo's (saves one backbone pass)"},
+               {"--no-visible-sun", "", "keep the network's sun even where the photo shows the sun disk (by default a\n"
+                "                               visible sun sets the direction, data/visible_sun.h; result.json sun.visible_sun)"},
                {"--exr", "", "also write the composite as linear EXR"},
                {"--sun-azimuth", "DEG", "edit the sun: world azimuth (Sec 3.2 sky vector)"},
                {"--sun-elevation", "DEG", "edit the sun: elevation above the horizon"},

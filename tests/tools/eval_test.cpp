@@ -400,13 +400,21 @@ TEST(EvalTool, LdrPanoramasAreReportedApartBySceneBesideTheirBaselineAndListWhat
   const auto j2 = nlohmann::json::parse(r2.out.substr(r2.out.find('{')));
   EXPECT_EQ(j2["datasets"][0]["sun_labels"], dir + "/other_labels.csv");
   EXPECT_EQ(j2["datasets"][0]["results"][0]["images"], 2);
-  // Without flip averaging there is no spread, so no confidence split.
+  // Without flip averaging there is no spread, so no confidence split; without the visible-sun
+  // cue it never fires.
   const auto r3 = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --data " + folder + " --ldr-split " + dir +
-                                                           "/ldr_split.json --crops 1 --view-rows 8 --no-flip-average --json");
+                                                           "/ldr_split.json --crops 1 --view-rows 8 --no-flip-average "
+                                                           "--no-visible-sun --json");
   ASSERT_EQ(r3.code, 0) << r3.out;
   const auto j3 = nlohmann::json::parse(r3.out.substr(r3.out.find('{')));
   EXPECT_TRUE(j3["datasets"][0]["results"][0]["sun_confidence"].is_null());
   EXPECT_TRUE(j3["datasets"][0]["results"][0]["sun_per_image"][0]["sun_flip_spread_deg"].is_null());
+  EXPECT_EQ(j3["datasets"][0]["results"][0]["visible_sun"], false);
+  EXPECT_EQ(j3["datasets"][0]["results"][0]["sun_per_image"][0]["visible_sun_found"], false);
+  EXPECT_EQ(j3["datasets"][0]["results"][0]["sun"]["sun_in_crop"]["visible_sun_fired"].get<size_t>() +
+                j3["datasets"][0]["results"][0]["sun"]["sun_outside_crop"]["visible_sun_fired"].get<size_t>(),
+            0u);
+  EXPECT_EQ(j2["datasets"][0]["results"][0]["visible_sun"], true);  // the default
 }
 
 TEST(EvalTool, BadSunLabelsAreOneLineNamingTheFileAndLine) {

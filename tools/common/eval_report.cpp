@@ -96,7 +96,9 @@ std::string real_sky_markdown(const std::vector<json>& rows, const json& baselin
       const size_t n = p.at("count").get<size_t>();
       char c[64];
       if (n == 0) return std::string("— (0)");
-      std::snprintf(c, sizeof c, "%.1f (%zu)", p.at("median_deg").get<double>(), n);
+      const size_t cue = p.value("visible_sun_fired", size_t{0});
+      if (cue > 0) std::snprintf(c, sizeof c, "%.1f (%zu, cue %zu)", p.at("median_deg").get<double>(), n, cue);
+      else std::snprintf(c, sizeof c, "%.1f (%zu)", p.at("median_deg").get<double>(), n);
       return std::string(c);
     };
     std::snprintf(b, sizeof b, "| %s | %zu | %s | %s | %.2f | %.2f | %.2f | %s | %s |\n", name.c_str(),

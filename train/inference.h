@@ -165,9 +165,10 @@ double sun_scale_for_shadow_ratio(const EstimatedLighting& lighting, double shad
 // path of streetlight-insert --sun-from-shadows (single photo and batch): fit the sun on the view's
 // LDR, depth and camera; when found, estimate with the fitted direction (edit's azimuth and
 // elevation are replaced), then scale the sun by sun_scale_for_shadow_ratio() and estimate again,
-// so the network keeps the sky's colour and the volume. When not found, the estimate is the
-// network's with `edit` as given, and intensity_scale is 1. Throws as estimate(); a found fit
-// needs the "sky_decoder" sky branch.
+// so the network keeps the sky's colour and the volume (a fitted direction wins over a visible
+// sun, as any edit does). When not found, the estimate is estimate()'s with `edit` as given (the
+// visible sun, when the estimator's cue is on and finds one, included), and intensity_scale is
+// 1. Throws as estimate(); a found fit needs the "sky_decoder" sky branch.
 struct ShadowSunLighting {
   EstimatedLighting lighting;
   data::ShadowSunFit fit;

@@ -16,7 +16,11 @@
 //     position (none, or occluded without one) are counted and listed, not scored.
 //   confidence: each labelled image's flip spread (train/inference.h sun_flip_spread_deg) in
 //     "sun_per_image", and "sun_confidence": the median sun error of the most confident half of
-//     the images against the rest's (does a small spread mean a small error?).
+//     the images against the rest's, each with its 95% interval (train/sun_confidence.h: does a
+//     small spread mean a small error?).
+//   sun in crop, pooled: with two or more real data sets (e.g. the HDR and the LDR test splits),
+//     "sun_in_crop_pooled" holds each checkpoint's median error over every crop whose sun is
+//     inside it, from all of them, with its interval (whole panoramas resampled).
 //   sky-autoencoder checkpoints: sky log-L2 = mean (ln(1 + L̂) − ln(1 + L))² of the
 //     reconstructed exposure-normalised dome, and the sun angular error of f_dir.
 // Error against run time (--out): the first lighting checkpoint is re-run at several insertion
@@ -63,6 +67,7 @@
 #include "train/photo_insertion.h"
 #include "train/real_sky_benchmark.h"
 #include "train/street_batch.h"
+#include "train/sun_confidence.h"
 #include "train/sky_autoencoder.h"
 #include "train/train_config.h"
 #include "util/file.h"
@@ -378,29 +383,32 @@ struct LdrSunSplits {
 
 // Does the network know when it is right? Each labelled image's sun error beside its confidence,
 // the flip spread (train/inference.h sun_flip_spread_deg): the median error of the most confident
-// half (the floor(n/2) smallest spreads) against that of the rest. null when the spread was not
-// measured (--no-flip-average, or a checkpoint without a sky vector) or fewer than 2 images.
+// half against that of the rest, each with its 95% interval resampling whole panoramas
+// (train/sun_confidence.h). null when the spread was not measured (--no-flip-average, or a
+// checkpoint without a sky vector) or fewer than 2 images.
+json interval_json(const sl::train::Interval& ci) { return ci.valid ? json{ci.lo, ci.hi} : json(); }
+
 struct Confidence {
-  std::vector<std::pair<double, double>> spread_error;
-  bool complete = true;
-  void add(double spread, double error) {
-    if (std::isfinite(spread)) spread_error.emplace_back(spread, error);
-    else complete = false;
-  }
+  std::vector<double> spread, error;
+  std::vector<std::string> group;
+  void add(double s, double e, const std::string& g) { spread.push_back(s), error.push_back(e), group.push_back(g); }
   json to_json() const {
-    if (!complete || spread_error.size() < 2) return json();
-    std::vector<std::pair<double, double>> v = spread_error;
-    std::stable_sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    const size_t half = v.size() / 2;
-    std::vector<double> confident, uncertain, spreads;
-    for (size_t i = 0; i < v.size(); ++i) (i < half ? confident : uncertain).push_back(v[i].second), spreads.push_back(v[i].first);
-    return {{"measure", "sun_flip_spread_deg"}, {"spread_median_deg", median(spreads)},
-            {"confident_half", {{"count", confident.size()}, {"sun_error_median_deg", median(confident)},
-                                {"spread_max_deg", v[half - 1].first}}},
-            {"uncertain_half", {{"count", uncertain.size()}, {"sun_error_median_deg", median(uncertain)},
-                                {"spread_min_deg", v[half].first}}}};
+    const sl::train::ConfidenceHalves h = sl::train::confidence_halves(spread, error, group);
+    if (!h.valid) return json();
+    return {{"measure", "sun_flip_spread_deg"}, {"spread_median_deg", h.spread_median},
+            {"confident_half", {{"count", h.confident.count}, {"sun_error_median_deg", h.confident.median},
+                                {"ci95", interval_json(h.confident.ci)}, {"spread_max_deg", h.confident_spread_max}}},
+            {"uncertain_half", {{"count", h.uncertain.count}, {"sun_error_median_deg", h.uncertain.median},
+                                {"ci95", interval_json(h.uncertain.ci)}, {"spread_min_deg", h.uncertain_spread_min}}}};
   }
 };
+
+std::string ci_text(const json& ci) {
+  if (ci.is_null()) return "";
+  char b[64];
+  std::snprintf(b, sizeof b, " [%.1f, %.1f]", ci[0].get<double>(), ci[1].get<double>());
+  return b;
+}
 
 // One markdown line per result row with a confidence split.
 std::string confidence_markdown(const std::vector<json>& results) {
@@ -410,12 +418,13 @@ std::string confidence_markdown(const std::vector<json>& results) {
     const json& c = r.at("sun_confidence");
     char b[512];
     std::snprintf(b, sizeof b,
-                  "- %s: sun error median %.1f° on the most confident half (%zu images, flip spread ≤ %.1f°) against "
-                  "%.1f° on the rest (%zu, spread ≥ %.1f°)\n",
+                  "- %s: sun error median %.1f°%s on the most confident half (%zu images, flip spread ≤ %.1f°) against "
+                  "%.1f°%s on the rest (%zu, spread ≥ %.1f°)\n",
                   r.at("name").get<std::string>().c_str(), c["confident_half"]["sun_error_median_deg"].get<double>(),
-                  c["confident_half"]["count"].get<size_t>(), c["confident_half"]["spread_max_deg"].get<double>(),
-                  c["uncertain_half"]["sun_error_median_deg"].get<double>(), c["uncertain_half"]["count"].get<size_t>(),
-                  c["uncertain_half"]["spread_min_deg"].get<double>());
+                  ci_text(c["confident_half"]["ci95"]).c_str(), c["confident_half"]["count"].get<size_t>(),
+                  c["confident_half"]["spread_max_deg"].get<double>(),
+                  c["uncertain_half"]["sun_error_median_deg"].get<double>(), ci_text(c["uncertain_half"]["ci95"]).c_str(),
+                  c["uncertain_half"]["count"].get<size_t>(), c["uncertain_half"]["spread_min_deg"].get<double>());
     md += b;
   }
   return md.empty() ? md : "\nConfidence (the angle between the sun of the photo and of its mirror image, train/inference.h):\n\n" + md;
@@ -527,7 +536,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
     per_image.push_back({{"id", id}, {"sun_error_deg", e}, {"predicted", {predicted.x, predicted.y, predicted.z}},
                          {"truth", {truth.x, truth.y, truth.z}},
                          {"sun_flip_spread_deg", std::isfinite(spread) ? json(spread) : json()}});
-    confidence.add(spread, e);
+    confidence.add(spread, e, id.substr(0, id.find('#')));  // a real crop's group is its panorama
   };
   std::vector<double> ms;
   size_t sun_unknown = 0;  // samples whose sun label is not usable (soft sun): no sun error
@@ -776,6 +785,56 @@ std::string ldr_markdown(const std::vector<json>& results, const json& baseline,
   return md + "\n";
 }
 
+// "Sun in crop" pooled over every real data set of the run (HDR and LDR panorama folders): per
+// checkpoint row, the median error of the crops whose sun is inside the crop, with its interval
+// resampling whole panoramas. Empty when fewer than two real data sets were scored.
+json pooled_sun_in_crop(const json& datasets, const std::vector<std::string>& names) {
+  size_t real_sets = 0;
+  for (const auto& d : datasets) real_sets += d["kind"] != "street";
+  if (real_sets < 2) return json::array();
+  json rows = json::array();
+  for (const std::string& name : names) {
+    std::vector<double> e;
+    std::vector<std::string> g;
+    bool scored = false;
+    for (const auto& d : datasets) {
+      if (d["kind"] == "street") continue;
+      for (const auto& r : d["results"]) {
+        if (r.value("name", std::string()) != name || !r.contains("sun_per_image")) continue;
+        scored = true;
+        for (const auto& im : r["sun_per_image"])
+          if (im.value("sun_in_crop", false)) {
+            const std::string id = im["id"].get<std::string>();
+            e.push_back(im["sun_error_deg"].get<double>());
+            g.push_back(d["data"].get<std::string>() + "/" + id.substr(0, id.find('#')));
+          }
+      }
+    }
+    if (!scored) continue;
+    const sl::train::GroupedMedian m = sl::train::pooled_median(e, g);
+    rows.push_back({{"name", name}, {"count", m.count}, {"sun_error_median_deg", e.empty() ? json() : json(m.median)},
+                    {"ci95", interval_json(m.ci)}});
+  }
+  return rows;
+}
+
+std::string pooled_markdown(const json& pooled, const json& datasets) {
+  std::string sets;
+  for (const auto& d : datasets)
+    if (d["kind"] != "street") sets += (sets.empty() ? "" : ", ") + d["data"].get<std::string>();
+  std::string md = "## Sun in crop, pooled over the real data sets (" + sets + ")\n\n| model | crops | median ° [95% CI] |\n|---|---|---|\n";
+  for (const auto& r : pooled) {
+    char b[256];
+    if (r["sun_error_median_deg"].is_null())
+      std::snprintf(b, sizeof b, "| %s | 0 | — |\n", r["name"].get<std::string>().c_str());
+    else
+      std::snprintf(b, sizeof b, "| %s | %zu | %.1f%s |\n", r["name"].get<std::string>().c_str(), r["count"].get<size_t>(),
+                    r["sun_error_median_deg"].get<double>(), ci_text(r["ci95"]).c_str());
+    md += b;
+  }
+  return md + "\n";
+}
+
 int run(int argc, char** argv) {
   cli::Args a("streetlight-eval",
               "streetlight-eval [--checkpoint CKPT ...] --data DIR [--data DIR2 ...] [--split test] [--hdri-split FILE]\n"
@@ -918,6 +977,11 @@ int run(int argc, char** argv) {
   }
   // The first data set's fields stay at the top level for single-data callers.
   json all = {{"data", datas[0]}, {"split", split}, {"results", datasets[0]["results"]}, {"datasets", datasets}};
+  const json pooled = pooled_sun_in_crop(datasets, names);
+  if (!pooled.empty()) {
+    all["sun_in_crop_pooled"] = pooled;
+    md += pooled_markdown(pooled, datasets);
+  }
   if (a.has("--out")) {
     const std::string out = a.get("--out");
     fs::create_directories(out);

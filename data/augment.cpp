@@ -34,14 +34,7 @@ RandomCrop random_perspective_crop(const Tensor& pano, uint64_t seed, uint64_t s
   out.yaw_deg = rng.uniform(-180.0, 180.0);
   out.pitch_deg = rng.uniform(-r.pitch_range_deg, r.pitch_range_deg);
   out.roll_deg = rng.uniform(-r.roll_range_deg, r.roll_range_deg);
-  PerspectiveCropParams p;
-  p.horizontal_fov_rad = out.fov_deg * kDegToRad;
-  p.yaw_rad = out.yaw_deg * kDegToRad;
-  p.pitch_rad = out.pitch_deg * kDegToRad;
-  p.roll_rad = out.roll_deg * kDegToRad;
-  p.width = r.width;
-  p.height = r.height;
-  out.crop = crop_perspective(pano, p);
+  out.crop = crop_perspective(pano, crop_params(out, r.width, r.height));
   out.crop.camera = Camera(out.crop.camera.intrinsics(), out.crop.camera.rotation(), position);
   return out;
 }
@@ -129,6 +122,17 @@ Tensor scale_ldr(const Tensor& ldr, double factor) {
   float* p = out.data<float>();
   for (int64_t i = 0; i < out.numel(); ++i) p[i] = std::clamp(p[i] * g, 0.0f, 1.0f);
   return out;
+}
+
+PerspectiveCropParams crop_params(const RandomCrop& crop, int width, int height) {
+  PerspectiveCropParams p;
+  p.horizontal_fov_rad = crop.fov_deg * kDegToRad;
+  p.yaw_rad = crop.yaw_deg * kDegToRad;
+  p.pitch_rad = crop.pitch_deg * kDegToRad;
+  p.roll_rad = crop.roll_deg * kDegToRad;
+  p.width = width;
+  p.height = height;
+  return p;
 }
 
 }  // namespace sl::data

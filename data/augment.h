@@ -40,6 +40,9 @@ struct RandomCrop {
 
 RandomCrop random_perspective_crop(const Tensor& pano, uint64_t seed, uint64_t stream, const CropRanges& ranges = {},
                                    const glm::dvec3& position = glm::dvec3(0.0));
+// The crop_perspective parameters of a drawn crop at width × height (e.g. to cut the same view
+// out of the panorama's sky mask).
+PerspectiveCropParams crop_params(const RandomCrop& crop, int width, int height);
 
 // Reverses the last dimension of a [C, H, W] or [H, W] tensor (F32), returning a new tensor.
 Tensor flip_horizontal(const Tensor& image);

@@ -83,14 +83,7 @@ StreetSample ldr_panorama_street_sample(const LdrPanorama& pano, const std::stri
     if (pano.sky_mask.defined()) {
       const Tensor mask = turn(pano.sky_mask);
       s.pano_sky_mask = binarize_mask(resize_area(mask, o.pano_height, o.pano_width).contiguous());
-      PerspectiveCropParams mp;
-      mp.horizontal_fov_rad = rc.fov_deg * kDegToRad;
-      mp.yaw_rad = rc.yaw_deg * kDegToRad;
-      mp.pitch_rad = rc.pitch_deg * kDegToRad;
-      mp.roll_rad = rc.roll_deg * kDegToRad;
-      mp.width = o.crop.width;
-      mp.height = o.crop.height;
-      v.sky_mask = binarize_mask(crop_perspective(mask, mp).image.contiguous());
+      v.sky_mask = binarize_mask(crop_perspective(mask, crop_params(rc, o.crop.width, o.crop.height)).image.contiguous());
     }
   }
   s.views.push_back(std::move(v));

@@ -93,14 +93,8 @@ StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id
 
   const glm::dvec3 centre(0.0, o.camera_height_m, 0.0);
   const RandomCrop crop = random_perspective_crop(pano, seed, crop_stream, o.crop, centre);
-  PerspectiveCropParams mp;
-  mp.horizontal_fov_rad = crop.fov_deg * kDegToRad;
-  mp.yaw_rad = crop.yaw_deg * kDegToRad;
-  mp.pitch_rad = crop.pitch_deg * kDegToRad;
-  mp.roll_rad = crop.roll_deg * kDegToRad;
-  mp.width = o.crop.width;
-  mp.height = o.crop.height;
-  const Tensor view_mask = binarize_mask(crop_perspective(mask_full, mp).image.contiguous());
+  const Tensor view_mask =
+      binarize_mask(crop_perspective(mask_full, crop_params(crop, o.crop.width, o.crop.height)).image.contiguous());
 
   const Tensor& hdr = crop.crop.image;
   const double exposure = exposure_for_ldr_median(hdr, o.ldr_median) * exposure_jitter;

@@ -52,6 +52,18 @@ struct SampleCache {
   size_t capacity = 0;
 };
 
+// Item i of a real-panorama source of n panoramas: training (vary_with_draw) cycles through them
+// with the draw as the augmentation stream; fixed sets give each panorama `per` consecutive items
+// with the item's index as the stream.
+struct PanoramaDraw {
+  size_t panorama;
+  uint64_t stream;
+};
+PanoramaDraw panorama_draw(size_t i, uint64_t draw, bool vary_with_draw, size_t n, size_t per) {
+  if (vary_with_draw) return {i % n, draw};
+  return {std::min(i / per, n - 1), static_cast<uint64_t>(i)};
+}
+
 }  // namespace
 
 SampleSource dataset_source(const std::string& dir, const std::string& split, size_t max_items, size_t cache_bytes) {
@@ -88,8 +100,7 @@ SampleSource panorama_source(const std::vector<std::string>& paths, const Panora
   const size_t n = panos->size();
   const size_t per = std::max<size_t>(1, items / n);
   return SampleSource{items, [panos, names, options, seed, vary_with_draw, n, per](size_t i, uint64_t draw) {
-                        const size_t k = vary_with_draw ? i % n : std::min(i / per, n - 1);
-                        const uint64_t stream = vary_with_draw ? draw : static_cast<uint64_t>(i);
+                        const auto [k, stream] = panorama_draw(i, draw, vary_with_draw, n, per);
                         return panorama_street_sample((*panos)[k], "hdri:" + (*names)[k] + "#" + std::to_string(stream),
                                                       seed, stream, options);
                       }};
@@ -127,8 +138,7 @@ SampleSource ldr_panorama_source(const std::vector<std::string>& paths, const st
   const size_t n = panos->size();
   const size_t per = std::max<size_t>(1, items / n);
   return SampleSource{items, [panos, names, options, seed, vary_with_draw, n, per](size_t i, uint64_t draw) {
-                        const size_t k = vary_with_draw ? i % n : std::min(i / per, n - 1);
-                        const uint64_t stream = vary_with_draw ? draw : static_cast<uint64_t>(i);
+                        const auto [k, stream] = panorama_draw(i, draw, vary_with_draw, n, per);
                         return data::ldr_panorama_street_sample((*panos)[k], "ldr:" + (*names)[k] + "#" + std::to_string(stream),
                                                                 seed, stream, options);
                       }};

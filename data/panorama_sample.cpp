@@ -51,6 +51,29 @@ SunHardness sun_hardness(const Tensor& pano, double radius_deg, double min_share
   return h;
 }
 
+glm::dvec3 sun_energy_rgb(const Tensor& pano_in, const glm::dvec3& s, double radius_deg) {
+  SL_CHECK(pano_in.defined() && pano_in.dim() == 3 && pano_in.size(0) == 3 && pano_in.size(1) > 0,
+           "sun_energy_rgb: expected an RGB panorama [3, H, W], got ", pano_in.defined() ? pano_in.describe() : "nothing");
+  const Tensor pano = pano_in.to(DType::F32).contiguous();
+  const int64_t H = pano.size(1), W = pano.size(2), plane = H * W;
+  const float* p = pano.data<float>();
+  const double cos_r = std::cos(radius_deg * kDegToRad), texel = (2.0 * kPi / W) * (kPi / H);
+  glm::dvec3 e(0.0);
+  for (int64_t r = 0; r < H; ++r) {
+    const double omega = texel * std::cos((0.5 - (r + 0.5) / static_cast<double>(H)) * kPi);
+    for (int64_t c = 0; c < W; ++c) {
+      const auto d = render::equirect::uv_to_direction(c + 0.5, r + 0.5, static_cast<int>(W), static_cast<int>(H));
+      if (d.x * s.x + d.y * s.y + d.z * s.z < cos_r) continue;
+      const int64_t i = r * W + c;
+      for (int ch = 0; ch < 3; ++ch) {
+        const double v = p[ch * plane + i];
+        if (std::isfinite(v) && v > 0.0) e[ch] += v * omega;
+      }
+    }
+  }
+  return e;
+}
+
 PanoramaSampleDraw draw_panorama_sample(uint64_t seed, uint64_t stream, int64_t width, const PanoramaSampleOptions& o) {
   SL_CHECK(width > 0, "draw_panorama_sample: width must be positive, got ", width);
   Rng rng(seed, stream);

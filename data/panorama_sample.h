@@ -59,6 +59,12 @@ struct SunHardness {
 };
 SunHardness sun_hardness(const Tensor& pano, double radius_deg = 5.0, double min_share = 0.25);
 
+// Σ L·Ω per channel over the texels of an RGB equirectangular map [3, H, W] (a panorama, W = 2H,
+// or the generator's sky dome, W = 4H; render/equirect.h) whose centre lies within
+// radius_deg of the unit direction `sun` (Ω of a texel: (2π/W)(π/H)·cos(elevation)): the sun's
+// energy, the label of the sky vector's intensity where the sky is HDR (train/lighting_stage.h).
+glm::dvec3 sun_energy_rgb(const Tensor& pano, const glm::dvec3& sun, double radius_deg = 5.0);
+
 // Replaces NaN, Inf and negative texels by 0 and checks the shape (W = 2H, 3 channels);
 // `name` is used in errors.
 Tensor sanitized_panorama(const Tensor& pano, const std::string& name);

@@ -46,6 +46,9 @@ struct StreetSample {
   // False where the sun direction is not a usable label (a real panorama whose sun is soft or
   // below the horizon, data/panorama_sample.h): the direction loss and sun metrics skip it.
   bool sun_known = true;
+  // False where sky_hdr is not linear radiance but a stand-in: an LDR panorama's codes^2.2, clipped
+  // at the sun (data/ldr_panorama_sample.h). Its sun's energy is then no label.
+  bool hdr_sky = true;
   double exposure = 1.0;
   std::vector<StreetView> views;
   bool has_insertion = false;

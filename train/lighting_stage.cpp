@@ -253,6 +253,25 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
                             : mul_scalar(split ? elevation_azimuth_l1(stack(known_dirs, 0), dvec_rows(suns))
                                                : angular_l1(stack(known_dirs, 0), dvec_rows(suns)),
                                          static_cast<double>(suns.size()) / static_cast<double>(n)));
+      // The sun's energy where the sky is HDR: the analytic lobe f_int·exp(λ(d·f_dir − 1)) holds
+      // f_int·2π(1 − e^(−2λ))/λ over the sphere; its label is the true Σ L·Ω near the sun.
+      TensorList log_int;
+      std::vector<glm::dvec3> energy;
+      for (size_t i = 0; i < f.items.size(); ++i)
+        if (f.items[i].sun_energy_known) {
+          log_int.push_back(select(f.pred.code.log_intensity, 0, static_cast<int64_t>(i)));
+          energy.push_back(f.items[i].sun_energy);
+        }
+      Tensor energy_term = Tensor::scalar(0.0);
+      if (!energy.empty()) {
+        const auto& so = predictor_->options().sky;
+        const double lambda = sun_lobe_sharpness(so.height, so.sun_lobe_texels);
+        const double log_lobe = std::log(2.0 * kPi * -std::expm1(-2.0 * lambda) / lambda);
+        const Tensor pred = add_scalar(stack(log_int, 0), log_lobe);
+        energy_term = mul_scalar(log_encoded_l2_from_log(pred, dvec_rows(energy).to(pred.dtype())),
+                                 static_cast<double>(energy.size()) / static_cast<double>(n));
+      }
+      add_term("sun_energy", energy_term);
     } else {
       add_term("sky_hdr", log_encoded_l2_from_log(f.pred.log_env, teacher.sky.hdr));
     }

@@ -10,7 +10,9 @@
 //   sky_decoder branch: sky_intensity LogEncodedL2(f̂_int, f̃_int), sky_latent L1(f̂_lat, f̃_lat)
 //     (f̃ = teacher encoder on the full panorama), sky_direction between f̂_dir and the true sun
 //     (loss.sky_direction_form: angular_l1 by default, or elevation_azimuth_l1; train/losses.h),
-//     sky_ldr L1 between LDR(decoded sky) and the panorama inside the sky mask;
+//     sky_ldr L1 between LDR(decoded sky) and the panorama inside the sky mask; sun_energy
+//     LogEncodedL2 between the energy of the sky vector's analytic sun lobe and the true sun's
+//     Σ L·Ω within 5° (StreetItem.sun_energy: samples whose sky is HDR and sun known);
 //   direct branch: sky_hdr LogEncodedL2(env, teacher-decoded HDR) and sky_ldr;
 //   constant branch: no sky term (the volume-only baseline learns the sky from rays);
 //   volume terms on radiance-queried rays (Eq. 1; env lookup only without the volume):

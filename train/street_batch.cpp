@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "data/panorama.h"
+#include "data/panorama_sample.h"
 #include "render/equirect.h"
 #include "train/unprojection.h"
 #include "util/math.h"
@@ -113,6 +114,10 @@ StreetItem make_street_item(const StreetSample& sample, size_t input_view, const
   it.pano_mask_dome =
       binarize_mask(resize_area(pano_mask, static_cast<int>(opt.dome_height), static_cast<int>(opt.dome_width)));
   it.sun_direction = it.frame.direction(sample.sun_direction);
+  if (sample.sun_known && sample.hdr_sky && sample.sky_hdr.defined()) {
+    it.sun_energy = data::sun_energy_rgb(sample.sky_hdr, sample.sun_direction) * sample.exposure;
+    it.sun_energy_known = true;
+  }
 
   // Rays (Sec 3.4): panorama rays from the panorama's centre, then rays of every view.
   const double nan = std::numeric_limits<double>::quiet_NaN();

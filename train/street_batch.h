@@ -59,6 +59,10 @@ struct StreetItem {
   render::VsgGrid grid;
   Tensor image, rgba, pano_ldr_dome, pano_mask_dome;
   glm::dvec3 sun_direction{0.0, 1.0, 0.0};
+  // The sun's energy Σ L·Ω within 5° of the true sun in the HDR sky, exposure-normalised
+  // (data/panorama_sample.h sun_energy_rgb); known when the sun is and the sky is HDR.
+  glm::dvec3 sun_energy{0.0};
+  bool sun_energy_known = false;
   Tensor origins, directions, target_ldr, target_distance, sky;
 };
 

@@ -81,6 +81,7 @@ json default_train_config() {
         {"sky_latent", 1.0},
         {"sky_direction", 1.0},
         {"sky_direction_form", "angular"},
+        {"sun_energy", 0.0},
         {"sky_ldr", 1.0},
         {"sky_hdr", 1.0},
         {"radiance", 1.0},

@@ -9,6 +9,7 @@
 
 #include "data/panorama.h"
 #include "data/sky_model.h"
+#include "render/equirect.h"
 #include "util/math.h"
 
 using sl::data::extract_sun;
@@ -145,6 +146,29 @@ TEST(PanoramaSample, IsAPureFunctionOfSeedAndStreamWithFiniteValues) {
   EXPECT_EQ(a.sun_direction, b.sun_direction);
   for (float v : a.views[0].ldr.to_vector()) ASSERT_TRUE(std::isfinite(v) && v >= 0 && v <= 1);
   for (float v : a.views[0].depth.to_vector()) ASSERT_EQ(v, 0.0f);  // unknown depth: holes
+}
+
+// The sun's energy: a cap of constant radiance L holds L·2π(1 − cos r) within r, whatever the
+// panorama's azimuth; channels are summed apart.
+TEST(PanoramaSample, SunEnergyIsTheCapsRadianceTimesItsSolidAngle) {
+  const int w = 1024, h = 512;
+  const glm::dvec3 sun = glm::normalize(glm::dvec3(0.3, 0.6, -0.7));
+  Tensor pano = Tensor::zeros({3, h, w});
+  float* p = pano.data<float>();
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c) {
+      const auto d = render::equirect::uv_to_direction(c + 0.5, r + 0.5, w, h);
+      if (d.x * sun.x + d.y * sun.y + d.z * sun.z >= std::cos(10.0 * kPi / 180.0))
+        for (int ch = 0; ch < 3; ++ch) p[(ch * h + r) * w + c] = 1000.0f * static_cast<float>(ch + 1);
+      else
+        p[r * w + c] = 1.0f;  // a dim red sky outside the cap
+    }
+  const double cap = 2 * kPi * (1 - std::cos(5.0 * kPi / 180.0));
+  const glm::dvec3 e = data::sun_energy_rgb(pano, sun, 5.0);
+  for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(e[ch], 1000.0 * (ch + 1) * cap, 0.02 * 1000.0 * (ch + 1) * cap) << ch;
+  const double delta = 2 * kPi * 100.0 / w;  // whole columns
+  const glm::dvec3 turned = data::sun_energy_rgb(rotate_azimuth(pano, delta), rotate_direction_azimuth(sun, delta), 5.0);
+  for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(turned[ch], e[ch], 0.01 * e[ch]) << ch;
 }
 
 }  // namespace

@@ -60,6 +60,7 @@ TEST(LightingStage, LdrPanoramasTrainAndValidateApart) {
   }
   nlohmann::json c = tiny_config(kStageLighting);
   c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  c["loss"]["sun_energy"] = 1.0;
   data::PanoramaSampleOptions o;
   o.crop.width = 64;
   o.crop.height = 32;
@@ -77,8 +78,13 @@ TEST(LightingStage, LdrPanoramasTrainAndValidateApart) {
                       train::concat_sources(memory_source(1),
                                             train::ldr_panorama_source(paths, dir + "/sun_labels.csv", o, 2, 4, false, 128)));
   stage.initialise();
-  for (int64_t step = 0; step < 3; ++step)
-    for (const auto& [k, v] : stage.step(step)) EXPECT_TRUE(std::isfinite(v)) << k << " at step " << step;
+  double energy = 0.0;
+  for (int64_t step = 0; step < 3; ++step) {
+    const Metrics m = stage.step(step);
+    for (const auto& [k, v] : m) EXPECT_TRUE(std::isfinite(v)) << k << " at step " << step;
+    energy += m.at("sun_energy");
+  }
+  EXPECT_GT(energy, 0.0);  // loss.sun_energy: the streets' HDR skies label the sun's energy
   const Metrics v = stage.validate();
   ASSERT_TRUE(v.count("val_ldr_sun_error_median_deg"));
   EXPECT_TRUE(std::isfinite(v.at("val_ldr_sun_error_median_deg")));

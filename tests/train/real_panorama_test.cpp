@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "autodiff/ops.h"
+#include "data/augment.h"
 #include "data/ldr_panorama_sample.h"
 #include "data/panorama.h"
 #include "data/sky_model.h"
@@ -112,6 +113,38 @@ TEST(RealPanorama, LdrRadianceConsistencyIsZeroForThePanoramaItselfAndPositiveOt
     EXPECT_GT(radiance_l2(rolled, it.target_ldr.to(DType::F32)).item(), 1e-4);
     for (double d : it.target_distance.to_vector()) EXPECT_TRUE(std::isnan(d));
   }
+}
+
+// The sun's energy is a label where the sky is HDR (a hard-sun HDR crop, and its mirror image,
+// with the same energy), and none for an LDR panorama, whose sun is clipped.
+TEST(RealPanorama, TheSunsEnergyIsKnownForHdrSkiesOnly) {
+  PanoramaSampleOptions o;
+  o.crop.width = 64;
+  o.crop.height = 32;
+  o.pano_width = 128;
+  o.pano_height = 64;
+  VsgGrid grid;
+  grid.dims = {8, 8, 4};
+  StreetBatchOptions bo;
+  bo.pano_rays = 8;
+  bo.view_rays = 8;
+  bo.need_volume = false;
+  const StreetSample hdr = panorama_street_sample(clear_sky(30.0, 45.0), "hdri:sky", 3, 1, o);
+  ASSERT_TRUE(hdr.sun_known);
+  const StreetItem a = make_street_item(hdr, 0, grid, bo, 1, 0);
+  const StreetItem b = make_street_item(data::flip_sample(hdr), 0, grid, bo, 1, 0);
+  ASSERT_TRUE(a.sun_energy_known && b.sun_energy_known);
+  for (int ch = 0; ch < 3; ++ch) {
+    EXPECT_GT(a.sun_energy[ch], 0.0);
+    EXPECT_NEAR(b.sun_energy[ch], a.sun_energy[ch], 1e-9 * a.sun_energy[ch]);
+  }
+  data::LdrPanorama pano;
+  pano.ldr = ldr_street(128);
+  pano.sky_mask = data::ldr_sky_mask(pano.ldr);
+  pano.sun_known = true;
+  const StreetSample ldr = data::ldr_panorama_street_sample(pano, "ldr:p", 3, 1, o);
+  EXPECT_FALSE(ldr.hdr_sky);
+  EXPECT_FALSE(make_street_item(ldr, 0, grid, bo, 1, 0).sun_energy_known);
 }
 
 TEST(RealPanorama, MixedSourceDrawsBothKindsAndANewCropPerDraw) {

@@ -100,18 +100,21 @@ std::vector<InsertRow> insert_rows(const train::PhotoInsertionOptions& productio
     // cache128x64_* leave it where it is). Released lighting, KITTI (2026-11-27): 12×24
     // directions 1.15%, 16×32 0.98% (as 24×48); 0.35 m apart (16×8×16) with 12×24 also 0.98%,
     // with 8×16 1.21%: a floor near 0.9% bias that spacing alone does not lower.
-    for (const auto& [hd, sp, xz, y] : std::vector<std::tuple<int, double, int, int>>{
-             {12, 0.5, 12, 6}, {16, 0.5, 12, 6}}) {
+    // An object probe grid: hd × 2hd directions, probes sp metres apart, at most xz × y × xz.
+    const auto object_grid = [&](const std::string& prefix, bool sparse, int hd, double sp, int xz, int y) {
       InsertionOptions o = train::insertion_options(production);
+      o.cache_sparse = sparse;
       o.cache_height = hd;
       o.cache_width = 2 * hd;
       o.cache_spacing_m = sp;
       o.cache_max_xz = xz;
       o.cache_max_y = y;
-      rows.push_back({"cache_object_" + std::to_string(xz) + "x" + std::to_string(y) + "x" + std::to_string(xz) + "_dirs" +
+      rows.push_back({prefix + std::to_string(xz) + "x" + std::to_string(y) + "x" + std::to_string(xz) + "_dirs" +
                           std::to_string(hd) + "x" + std::to_string(2 * hd),
                       o});
-    }
+    };
+    for (const auto& [hd, sp, xz, y] : std::vector<std::tuple<int, double, int, int>>{{12, 0.5, 12, 6}, {16, 0.5, 12, 6}})
+      object_grid("cache_object_", train::insertion_options(production).cache_sparse, hd, sp, xz, y);
     // Sparse probe grids (only cells that hold an origin), then finer object grids on them.
     // Released lighting, KITTI, OMP_NUM_THREADS=1 under load (2026-11-27), object term / CPU
     // against production's 1.24% / ~1.15 s: 8×6×8 1.14% +18%; 0.5 m 16×32 directions 0.98%
@@ -119,18 +122,8 @@ std::vector<InsertRow> insert_rows(const train::PhotoInsertionOptions& productio
     // random-stress volume: 1.88% → 0.94% at 0.5 m 16×32. Spacing, not directions, sets it.
     for (const auto& [hd, sp, xz, y] : std::vector<std::tuple<int, double, int, int>>{
              {24, 1.0, 4, 6}, {24, 1.0, 8, 6}, {16, 0.5, 12, 6}, {24, 0.5, 12, 6}, {32, 0.5, 12, 6}, {16, 0.35, 16, 8},
-             {24, 0.35, 16, 8}, {12, 0.25, 24, 12}}) {
-      InsertionOptions o = train::insertion_options(production);
-      o.cache_sparse = true;
-      o.cache_height = hd;
-      o.cache_width = 2 * hd;
-      o.cache_spacing_m = sp;
-      o.cache_max_xz = xz;
-      o.cache_max_y = y;
-      rows.push_back({"sparse_object_" + std::to_string(xz) + "x" + std::to_string(y) + "x" + std::to_string(xz) + "_dirs" +
-                          std::to_string(hd) + "x" + std::to_string(2 * hd),
-                      o});
-    }
+             {24, 0.35, 16, 8}, {12, 0.25, 24, 12}})
+      object_grid("sparse_object_", true, hd, sp, xz, y);
     for (int n : {128, 256}) {  // shadow rays alone (the shadow term is mostly noise)
       InsertionOptions o = train::insertion_options(production);
       o.shadow_rays = n;

@@ -21,18 +21,22 @@ void check_panorama(const Tensor& t, const std::string& id) {
 }
 
 // The linear radiance codes^2.2 with white balance and exposure applied; clipped texels stay 1.
-Tensor linear_radiance(const Tensor& ldr, const double gain[3], double k) {
+// `base` (optional): codes^2.2 computed before (LdrPanorama::linear), the same bits as computing it.
+Tensor linear_radiance(const Tensor& ldr, const Tensor& base, const double gain[3], double k) {
   const double grey = luminance(gain[0], gain[1], gain[2]);
-  Tensor out = ldr.to(DType::F32).contiguous().clone();
+  const Tensor codes = ldr.to(DType::F32).contiguous();
+  const float* q = codes.data<float>();
+  const float* b = base.defined() ? base.data<float>() : nullptr;
+  Tensor out = Tensor::empty(codes.shape(), DType::F32);
   float* p = out.data<float>();
   const int64_t plane = out.size(1) * out.size(2);
   float scale[3];
   for (int c = 0; c < 3; ++c) scale[c] = static_cast<float>(gain[c] / grey * k);
   for (int64_t i = 0; i < plane; ++i) {
-    const bool clipped = p[i] >= kClippedCode || p[plane + i] >= kClippedCode || p[2 * plane + i] >= kClippedCode;
+    const bool clipped = q[i] >= kClippedCode || q[plane + i] >= kClippedCode || q[2 * plane + i] >= kClippedCode;
     for (int c = 0; c < 3; ++c) {
-      float& v = p[c * plane + i];
-      v = clipped ? 1.0f : std::pow(std::max(v, 0.0f), 2.2f) * scale[c];
+      const int64_t j = c * plane + i;
+      p[j] = clipped ? 1.0f : (b ? b[j] : std::pow(std::max(q[j], 0.0f), 2.2f)) * scale[c];
     }
   }
   return out;
@@ -40,10 +44,15 @@ Tensor linear_radiance(const Tensor& ldr, const double gain[3], double k) {
 
 }  // namespace
 
+Tensor ldr_linear(const Tensor& ldr) {
+  check_panorama(ldr, "linear radiance input");
+  const double one[3] = {1.0, 1.0, 1.0};
+  return linear_radiance(ldr, Tensor(), one, 1.0);
+}
+
 Tensor ldr_sky_mask(const Tensor& ldr) {
   check_panorama(ldr, "sky mask input");
-  const double one[3] = {1.0, 1.0, 1.0};
-  return estimate_sky_mask(linear_radiance(ldr, one, 1.0));
+  return estimate_sky_mask(ldr_linear(ldr));
 }
 
 StreetSample ldr_panorama_street_sample(const LdrPanorama& pano, const std::string& id, uint64_t seed, uint64_t stream,
@@ -54,7 +63,10 @@ StreetSample ldr_panorama_street_sample(const LdrPanorama& pano, const std::stri
   const int64_t W = pano.ldr.size(2);
   const PanoramaSampleDraw draw = draw_panorama_sample(seed, stream, W, o);
   const double delta = 2.0 * kPi * static_cast<double>(draw.shift_columns) / static_cast<double>(W);
-  const Tensor linear = linear_radiance(pano.ldr, draw.gain, draw.exposure_jitter);
+  SL_CHECK(!pano.linear.defined() || pano.linear.shape() == pano.ldr.shape(), "LDR panorama '", id,
+           "': its linear radiance is ", pano.linear.describe(), ", its codes ", pano.ldr.describe());
+  const Tensor linear = linear_radiance(pano.ldr, pano.linear.defined() ? pano.linear.contiguous() : Tensor(), draw.gain,
+                                        draw.exposure_jitter);
   const auto turn = [&](const Tensor& t) {  // the rotation, then the flip
     Tensor r = draw.shift_columns ? rotate_azimuth(t, delta) : t;
     return (draw.flip ? flip_panorama(r) : r).contiguous();

@@ -46,9 +46,15 @@ namespace sl::data {
 struct LdrPanorama {
   Tensor ldr;       // [3, H, 2H] codes / 255 (the working resolution)
   Tensor sky_mask;  // [1, H, 2H] 0/1, or undefined (not needed: the benchmark)
+  // ldr_linear(ldr), kept so that each sample scales it instead of raising every code to 2.2
+  // again (the same bits); undefined: computed per sample.
+  Tensor linear;
   bool sun_known = false;
   glm::dvec3 sun_direction{0.0, 1.0, 0.0};  // world, unrotated panorama
 };
+
+// The linear radiance codes^2.2 of an LDR panorama [3, H, 2H], 1 where the camera clipped.
+Tensor ldr_linear(const Tensor& ldr);
 
 // The sky mask rule above, on an LDR panorama [3, H, 2H].
 Tensor ldr_sky_mask(const Tensor& ldr);

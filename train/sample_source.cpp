@@ -129,7 +129,8 @@ SampleSource ldr_panorama_source(const std::vector<std::string>& paths, const st
              "; an equirectangular panorama is 2:1 (width = 2 x height)");
     data::LdrPanorama p;
     p.ldr = data::resize_area(full, working_width / 2, working_width).contiguous();
-    p.sky_mask = data::ldr_sky_mask(p.ldr);
+    p.linear = data::ldr_linear(p.ldr);
+    p.sky_mask = data::estimate_sky_mask(p.linear);  // ldr_sky_mask's rule, on the linear radiance kept
     p.sun_known = label->has_position;
     if (p.sun_known) p.sun_direction = labels.direction(*label, static_cast<int>(full.size(2)), static_cast<int>(full.size(1)));
     panos->push_back(std::move(p));

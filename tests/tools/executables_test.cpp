@@ -5,10 +5,12 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include "tools/common/cli.h"
 #include "util/error.h"
@@ -119,4 +121,25 @@ TEST(CliParseInteger, TakesTheWholeValueInRangeOrNamesIt) {
 
 }  // namespace
 
+}  // namespace sl::test
+
+namespace sl::test {
+// A resumed run's progress counts from where this process began: 3 items past a checkpoint at
+// 5000 of 6000 are 3 items (not 5003) over this process's time, so its ETA is ~1000 items long.
+TEST(CliProgress, RateCountsFromTheFirstUpdateNotFromZero) {
+  cli::Progress resumed("x", 6000, 1e9);
+  cli::Progress fresh("y", 6000, 1e9);
+  ::testing::internal::CaptureStderr();
+  resumed.update(5001);
+  fresh.update(1);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  resumed.update(5003);
+  fresh.update(3);
+  ::testing::internal::GetCapturedStderr();
+  const double a = resumed.rate(), b = fresh.rate();
+  EXPECT_GT(a, 0.0);
+  // Both have counted 3 items since construction; the clocks differ by microseconds.
+  EXPECT_NEAR(a / b, 1.0, 0.05) << a << " vs " << b;
+  EXPECT_LT(a, 3.0 / 0.05 + 1.0) << "the rate counted the checkpoint's items";
+}
 }  // namespace sl::test

@@ -1,5 +1,6 @@
 #include "tools/common/cli.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cstdlib>
 #include <filesystem>
@@ -137,14 +138,20 @@ Progress::Progress(std::string label, int64_t total, double plain_interval_s)
   start_ = last_ = clock::now();
 }
 
+double Progress::rate() const {
+  const double elapsed = std::chrono::duration<double>(clock::now() - start_).count();
+  return base_ >= 0 && elapsed > 0 ? static_cast<double>(done_ - base_) / elapsed : 0.0;
+}
+
 void Progress::update(int64_t done, const std::string& extra) {
+  if (base_ < 0) base_ = std::max<int64_t>(0, done - 1);
+  done_ = done;
   const auto now = clock::now();
   const double since = std::chrono::duration<double>(now - last_).count();
   if (!tty_ && since < interval_ && done < total_) return;
   if (tty_ && since < 0.1 && done < total_) return;
   last_ = now;
-  const double elapsed = std::chrono::duration<double>(now - start_).count();
-  const double rate = elapsed > 0 ? done / elapsed : 0;
+  const double rate = this->rate();
   const double eta = rate > 0 ? (total_ - done) / rate : 0;
   if (tty_) {
     const int width = 28, filled = total_ > 0 ? int(width * done / total_) : 0;
@@ -161,7 +168,8 @@ void Progress::update(int64_t done, const std::string& extra) {
 void Progress::finish(const std::string& extra) {
   const double elapsed = std::chrono::duration<double>(clock::now() - start_).count();
   if (tty_) std::fputs("\n", stderr);
-  std::fprintf(stderr, "%s done: %lld in %.1fs %s\n", label_.c_str(), (long long)total_, elapsed, extra.c_str());
+  const int64_t counted = total_ - std::max<int64_t>(0, base_);
+  std::fprintf(stderr, "%s done: %lld in %.1fs %s\n", label_.c_str(), (long long)counted, elapsed, extra.c_str());
 }
 
 std::string released_model_path() {

@@ -11,7 +11,9 @@
 //   in the working directory, else in the source tree the tools were built from. Throws
 //   sl::Error listing where it looked when none exists.
 // - Progress: on a terminal, one self-overwriting bar with rate and ETA; otherwise a plain line
-//   at most every `plain_interval_s` seconds (and at the end), so logs stay short.
+//   at most every `plain_interval_s` seconds (and at the end), so logs stay short. The rate counts
+//   from where this process began: the first update's `done` − 1 (a resumed run's first step is
+//   its checkpoint's + 1), so a resumed run's ETA is its own, not the whole run's over its time.
 // - parse_integer(what, value, lo, hi): the whole of `value` as an integer in [lo, hi], else
 //   sl::Error "<what> must be an integer in [lo, hi], got '<value>'" (for hand-parsed flags such
 //   as the streetlight-bench subcommands').
@@ -61,6 +63,8 @@ class Progress {
   Progress(std::string label, int64_t total, double plain_interval_s = 10.0);
   void update(int64_t done, const std::string& extra = "");
   void finish(const std::string& extra = "");
+  // Items per second since the first update, counted from its `done` − 1 (0 before any update).
+  double rate() const;
 
  private:
   using clock = std::chrono::steady_clock;
@@ -69,6 +73,8 @@ class Progress {
   double interval_;
   bool tty_;
   clock::time_point start_, last_;
+  int64_t base_ = -1;  // `done` before this process's first item (set by the first update)
+  int64_t done_ = 0;
 };
 
 }  // namespace sl::cli

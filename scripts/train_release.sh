@@ -12,16 +12,22 @@
 #   3. stage 2, the lighting predictor (configs/release_lighting.json) on the streets mixed with
 #      perspective crops of the training HDR panoramas and of the labelled LDR street panoramas
 #      (../shared/data/pano_ldr, configs/pano_ldr_split.json);
-#   4. stage 3, end to end through object insertion (configs/release_adversarial.json);
-#   5. evaluation of stages 2 and 3 on the real HDR and LDR test splits and the synthetic test split;
-#   6. the release: of stages 2 and 3, the checkpoint with the lower VALIDATION sun error (never a
-#      test figure) is exported (F16) with a model card that lists data, configs, steps, wall
-#      times, commit and the test metrics beside the constant baseline.
+#   4. the sun's energy (configs/release_sun.json): stage 2 continued for 400 steps with the sun
+#      lobe's energy supervised by the true sun's (loss.sun_energy) in place of the stage-1
+#      encoder's intensity pseudo-label, which sees a clipped sun (docs/RESULTS.md);
+#   5. stage 3, end to end through object insertion (configs/release_adversarial.json), from step 4;
+#   6. evaluation of stages 2, 2b (sun) and 3 on the real HDR and LDR test splits and the
+#      synthetic test split;
+#   7. the release: of steps 4 and 5 (the two that learned the sun's energy), the checkpoint with
+#      the lower VALIDATION sun error (never a test figure) is exported (F16) with a model card that
+#      lists data, configs, steps, wall times, commit and the test metrics beside the constant
+#      baseline.
 # Usage: scripts/train_release.sh [--runs DIR] [--build-dir DIR] [--skip-build] [--no-publish]
 #                                  [--stop-after STEP]
 #   --runs DIR     run folder (default ../streetlight-runs/release, outside the repository)
 #   --no-publish   train and evaluate only; leave models/ untouched
-#   --stop-after STEP  stop once STEP is done (datagen, test_streets, sky, lighting, adversarial, eval)
+#   --stop-after STEP  stop once STEP is done (datagen, test_streets, sky, lighting, sun, adversarial,
+#                      eval)
 # Needs ../shared/data/hdri (the real panoramas). Logs go to DIR/*.log; progress to stderr.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -33,10 +39,10 @@ while [ $# -gt 0 ]; do
     --skip-build) build=0 ;;
     --no-publish) publish=0 ;;
     --stop-after) stop_after="$2"; shift
-      case "$stop_after" in datagen|test_streets|sky|lighting|adversarial|eval) ;;
-        *) echo "error: --stop-after '$stop_after': expected datagen, test_streets, sky, lighting, adversarial or eval" >&2; exit 2 ;;
+      case "$stop_after" in datagen|test_streets|sky|lighting|sun|adversarial|eval) ;;
+        *) echo "error: --stop-after '$stop_after': expected datagen, test_streets, sky, lighting, sun, adversarial or eval" >&2; exit 2 ;;
       esac ;;
-    -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,29p' "$0"; exit 0 ;;
     *) echo "error: unknown option '$1' (try --help)" >&2; exit 2 ;;
   esac
   shift
@@ -81,21 +87,25 @@ datagen() {  # datagen CONFIG OUT_NAME: two processes, one shard each
   done
   for p in "${pids[@]}"; do wait "$p" || { echo "error: streetlight-datagen failed, see $runs/${2}_datagen_*.log" >&2; exit 1; }; done
 }
-say "1/6 synthetic streets (configs/release_datagen.json, configs/release_datagen_test.json), 2 processes"
+say "1/7 synthetic streets (configs/release_datagen.json, configs/release_datagen_test.json), 2 processes"
 timed datagen datagen configs/release_datagen.json street
 timed test_streets datagen configs/release_datagen_test.json test_street
 timed sky train_stage sky configs/release_sky.json --set "data.hdri_dir=$hdri"
 timed lighting train_stage lighting configs/release_lighting.json --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" \
   --set "data.dataset=$runs/street" --set "init.sky_checkpoint=$runs/sky/best.safetensors"
+timed sun train_stage sun configs/release_sun.json --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" \
+  --set "data.dataset=$runs/street" --set "init.sky_checkpoint=$runs/sky/best.safetensors" \
+  --set "init.checkpoint=$runs/lighting/best.safetensors"
 timed adversarial train_stage adversarial configs/release_adversarial.json --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" \
-  --set "data.dataset=$runs/street" --set "init.checkpoint=$runs/lighting/best.safetensors"
+  --set "data.dataset=$runs/street" --set "init.checkpoint=$runs/sun/best.safetensors"
 
-say "5/6 evaluating stages 2 and 3 (real HDR and LDR test splits, 8 crops per panorama; the held-out test streets)"
+say "6/7 evaluating stages 2, 2b and 3 (real HDR and LDR test splits, 8 crops per panorama; the held-out test streets)"
 evaluate() {
   "$bin/streetlight-eval" --data "$hdri" --hdri-split configs/hdri_split.json --split test --crops 8 \
     --data "$ldr" --ldr-split configs/pano_ldr_split.json \
     --data "$runs/test_street" --baseline-data "$runs/street" --no-budgets --out "$runs/eval" \
     --checkpoint "$runs/lighting/best.safetensors" --name "stage 2 (lighting)" \
+    --checkpoint "$runs/sun/best.safetensors" --name "stage 2b (sun energy)" \
     --checkpoint "$runs/adversarial/best.safetensors" --name "stage 3 (adversarial)" > /dev/null
 }
 timed eval evaluate
@@ -104,10 +114,20 @@ timed eval evaluate
 best_of() {  # the best_metric value a stage stored with its best checkpoint
   "$bin/streetlight-export" --checkpoint "$1" --info | sed -n 's/.*"best_metric":"\([^"]*\)".*/\1/p'
 }
-v2=$(best_of "$runs/lighting/best.safetensors"); v3=$(best_of "$runs/adversarial/best.safetensors")
-chosen=lighting
+# The sun stage's best_metric is its val_loss (it selects on the energy too), so its sun error is
+# read from its metrics at the stored step.
+val_sun_at_best() {  # val_sun_at_best STAGE: val_sun_error_median_deg at the step of STAGE's best checkpoint
+  local step
+  step=$("$bin/streetlight-export" --checkpoint "$runs/$1/best.safetensors" --info | sed -n 's/.*"step":"\{0,1\}\([0-9]*\).*/\1/p')
+  python3 -c "import json,sys
+for l in open(sys.argv[1]):
+  d=json.loads(l)
+  if d.get('split')=='val' and d['step']==int(sys.argv[2]): print(d['val_sun_error_median_deg'])" "$runs/$1/metrics.jsonl" "$step" | tail -n 1
+}
+v2=$(val_sun_at_best sun); v3=$(best_of "$runs/adversarial/best.safetensors")
+chosen=sun
 awk -v a="$v3" -v b="$v2" 'BEGIN { exit !(a + 0 < b + 0) }' && chosen=adversarial
-say "6/6 validation sun error: stage 2 $v2, stage 3 $v3 -> releasing stage $chosen"
+say "7/7 validation sun error: stage 2b $v2, stage 3 $v3 -> releasing stage $chosen"
 echo "$chosen" > "$runs/chosen"
 if [ "$publish" = 1 ]; then
   commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)

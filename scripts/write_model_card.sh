@@ -10,7 +10,7 @@ runs=${1:?usage: scripts/write_model_card.sh RUN_DIR}
 chosen=$(cat "$runs/chosen")
 secs() { cat "$runs/$1.done" 2>/dev/null || echo "?"; }
 total=0
-for s in datagen test_streets sky lighting adversarial eval; do v=$(secs $s); [ "$v" != "?" ] && total=$(( total + v )); done
+for s in datagen test_streets sky lighting sun adversarial eval; do v=$(secs $s); [ "$v" != "?" ] && total=$(( total + v )); done
 steps() { sed -n 's/.*"steps": *\([0-9]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
 samples() { sed -n 's/.*"samples": *\([0-9]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
 fraction() { sed -n "s/.*\"$2\": *\\([0-9.]*\\).*/\\1/p" "configs/release_$1.json" | head -n 1; }
@@ -42,8 +42,9 @@ cat <<EOF
 The lighting predictor of Streetlight (Wang et al., ECCV 2022, Sec 3.2: ResNet-18 backbone, sky head
 with the frozen sky decoder, volume branch with its 3D UNet), trained by \`scripts/train_release.sh\`
 on this repository's 2-core CPU machine. It is what \`streetlight-insert\` and \`streetlight-eval\` use
-when \`--checkpoint\` is omitted. Released stage: **$chosen** (of stages 2 and 3, the one with the lower
-validation sun error; stage 3 is the end-to-end fine-tuning through object insertion). Stored as F16
+when \`--checkpoint\` is omitted. Released stage: **$chosen** (of stages 2b and 3, the two that learned the
+sun's energy, the one with the lower validation sun error; stage 3 is the end-to-end fine-tuning through
+object insertion). Stored as F16
 ($size); it loads into the float32 model. Made at commit \`$commit\`.
 
 ## Data
@@ -58,6 +59,11 @@ validation sun error; stage 3 is the end-to-end fine-tuning through object inser
   traced, 16 spp); a third of them lit by the training panoramas, the rest by the Preetham sky model.
   Objects inserted by the generator are procedural cars.
 $mixing
+- The sun's energy (stage 2b onwards, \`loss.sun_energy\`): the analytic sun lobe's energy is supervised by
+  the true sun's Σ L·Ω within 5° wherever the sky is HDR and the sun known (generated streets, hard-sun
+  HDR crops), in place of the stage-1 encoder's intensity pseudo-label (\`loss.sky_intensity = 0\`), which
+  sees a clipped sun: before it, the predicted sun held about a quarter of the light it should
+  (docs/RESULTS.md), and inserted objects cast faint shadows.
 - The sun direction is supervised only where the sun is hard (data/panorama_sample.h: ≥ 25% of the
   panorama's light within 5° of its peak, above the horizon) or, for an LDR panorama, labelled with a
   position.
@@ -69,7 +75,8 @@ $mixing
 | held-out test streets | \`configs/release_datagen_test.json\` | $(samples datagen_test) samples | $(secs test_streets) s |
 | stage 1, sky autoencoder | \`configs/release_sky.json\` | $(steps sky) | $(secs sky) s |
 | stage 2, lighting | \`configs/release_lighting.json\` | $(steps lighting) | $(secs lighting) s |
-| stage 3, adversarial | \`configs/release_adversarial.json\` | $(steps adversarial) | $(secs adversarial) s |
+| stage 2b, sun energy (from stage 2) | \`configs/release_sun.json\` | $(steps sun) | $(secs sun) s |
+| stage 3, adversarial (from stage 2b) | \`configs/release_adversarial.json\` | $(steps adversarial) | $(secs adversarial) s |
 | evaluation | \`streetlight-eval\` (below) | | $(secs eval) s |
 | **total** | | | **$total s** |
 
@@ -82,7 +89,7 @@ The release configs pin what this model was trained with, even where later defau
 ## Metrics (test splits, never trained or selected on)
 Command: \`streetlight-eval --data ../shared/data/hdri --hdri-split configs/hdri_split.json --split test
 --crops 8 --data ../shared/data/pano_ldr --ldr-split configs/pano_ldr_split.json --data RUN/test_street --baseline-data RUN/street --checkpoint RUN/lighting/best.safetensors
---checkpoint RUN/adversarial/best.safetensors\`. The generated test streets are a separate set
+--checkpoint RUN/sun/best.safetensors --checkpoint RUN/adversarial/best.safetensors\`. The generated test streets are a separate set
 (\`configs/release_datagen_test.json\`: its own seed, same generator settings), never trained or
 selected on; the constant baseline comes from the training streets. Each image's sun is the
 average of the network's answer for the image and for its mirror image (the estimator's default;

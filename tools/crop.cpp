@@ -26,17 +26,13 @@
 #include "render/exposure.h"
 #include "tools/common/cli.h"
 #include "util/file.h"
+#include "util/file_kind.h"
 #include "util/math.h"
 
 namespace {
 
 using namespace sl;
 namespace fs = std::filesystem;
-
-bool has_suffix(std::string s, const std::string& suffix) {
-  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
 
 int run(int argc, char** argv) {
   cli::Args a("streetlight-crop",
@@ -62,8 +58,8 @@ int run(int argc, char** argv) {
   SL_CHECK(a.has("--panorama") && a.has("--out"), "--panorama FILE and --out FILE are required");
   const std::string pano_path = a.get("--panorama"), out = a.get("--out");
   SL_CHECK(fs::is_regular_file(pano_path), "--panorama: '", pano_path, "' is not a file");
-  const bool out_exr = has_suffix(out, ".exr");
-  SL_CHECK(out_exr || has_suffix(out, ".png") || has_suffix(out, ".jpg") || has_suffix(out, ".jpeg"),
+  const bool out_exr = has_extension(out, {".exr"});
+  SL_CHECK(out_exr || has_extension(out, {".png", ".jpg", ".jpeg"}),
            "--out: '", out, "' must end in .png, .jpg or .exr");
   const double fov = a.number("--fov", 60.0), yaw = a.number("--yaw", 0.0), pitch = a.number("--pitch", 0.0),
                roll = a.number("--roll", 0.0);
@@ -73,7 +69,7 @@ int run(int argc, char** argv) {
   const int width = static_cast<int>(cli::parse_integer("--width", a.get("--width", "640"), 1, 16384));
   const int height = static_cast<int>(cli::parse_integer("--height", a.get("--height", "360"), 1, 16384));
 
-  const bool ldr_input = !(has_suffix(pano_path, ".hdr") || has_suffix(pano_path, ".exr"));
+  const bool ldr_input = !has_extension(pano_path, {".hdr", ".exr"});
   data::ImageReadOptions ro;
   ro.channels = 3;
   if (ldr_input) ro.transfer = data::Transfer::Linear;  // codes / 255

@@ -71,6 +71,7 @@
 #include "train/sky_autoencoder.h"
 #include "train/train_config.h"
 #include "util/file.h"
+#include "util/file_kind.h"
 
 using sl::data::extract_sun;
 using sl::data::HdriFolder;
@@ -262,14 +263,6 @@ RealSkyData load_real_sky(const std::string& folder, const std::string& split_fi
   return r;
 }
 
-bool has_extension(const fs::path& p, std::initializer_list<const char*> extensions) {
-  std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  for (const char* e : extensions)
-    if (ext == e) return true;
-  return false;
-}
-
 // A folder of LDR panoramas: it has a sun_labels.csv, or holds 8-bit images and no HDR ones.
 bool is_ldr_folder(const std::string& dir) {
   if (fs::exists(fs::path(dir) / "sun_labels.csv")) return true;
@@ -277,8 +270,8 @@ bool is_ldr_folder(const std::string& dir) {
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     if (!e.is_regular_file(ec)) continue;
-    if (has_extension(e.path(), {".hdr", ".exr"})) return false;
-    ldr = ldr || has_extension(e.path(), {".jpg", ".jpeg", ".png"});
+    if (has_extension(e.path().string(), {".hdr", ".exr"})) return false;
+    ldr = ldr || has_extension(e.path().string(), {".jpg", ".jpeg", ".png"});
   }
   return ldr;
 }
@@ -297,9 +290,7 @@ RealSkyData load_ldr_panoramas(const std::string& folder, const std::string& lab
   r.labels = labels_file;
   std::vector<std::string> test_paths;
   if (split_file.empty()) {
-    for (const auto& e : fs::directory_iterator(folder))
-      if (e.is_regular_file() && has_extension(e.path(), {".jpg", ".jpeg", ".png"})) test_paths.push_back(e.path().string());
-    std::sort(test_paths.begin(), test_paths.end());
+    test_paths = files_with_extension(folder, {".jpg", ".jpeg", ".png"});
     SL_CHECK(!test_paths.empty(), "LDR panorama folder '", folder, "' holds no .jpg, .jpeg or .png files");
   } else {
     const HdriSplit hs = read_hdri_split(split_file);

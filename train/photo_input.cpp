@@ -10,6 +10,7 @@
 #include "data/image_io.h"
 #include "data/kitti.h"
 #include "train/photo_insertion.h"
+#include "util/file_kind.h"
 #include "util/math.h"
 
 using sl::data::densify_depth;
@@ -29,15 +30,9 @@ using sl::render::rotation_from_yaw_pitch_roll;
 
 namespace sl::train {
 
-namespace {
-bool ends_with(const std::string& s, const std::string& e) {
-  return s.size() >= e.size() && s.compare(s.size() - e.size(), e.size(), e) == 0;
-}
-}  // namespace
-
 Intrinsics read_intrinsics(const std::string& path, int width, int height) {
   Intrinsics k;
-  if (ends_with(path, ".json")) {
+  if (has_extension(path, {".json"})) {
     std::ifstream f(path);
     SL_CHECK(f.good(), "intrinsics file '", path, "' cannot be opened");
     nlohmann::json j;

@@ -15,6 +15,7 @@
 #include "data/panorama.h"
 #include "data/sun_labels.h"
 #include "util/error.h"
+#include "util/file_kind.h"
 
 using sl::data::HdriFolder;
 using sl::data::panorama_street_sample;
@@ -170,14 +171,7 @@ std::vector<std::string> configured_ldr_paths(const nlohmann::json& config, cons
   if (dir.empty()) return {};
   if (split_file.empty()) {
     if (split_key != "hdri_train_split") return {};
-    std::vector<std::string> out;
-    for (const auto& e : std::filesystem::directory_iterator(dir)) {
-      std::string ext = e.path().extension().string();
-      for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-      if (e.is_regular_file() && (ext == ".jpg" || ext == ".jpeg" || ext == ".png")) out.push_back(e.path().string());
-    }
-    std::sort(out.begin(), out.end());
-    return out;
+    return files_with_extension(dir, {".jpg", ".jpeg", ".png"});
   }
   return read_hdri_split(split_file).split_paths(dir, d.at(split_key).get<std::string>());
 }

@@ -14,10 +14,12 @@
 //     apart ("kind": "ldr_panoramas") and split by the label's scene (street / other) and with the
 //     low-confidence labels apart, each beside the constant baseline; panoramas without a sun
 //     position (none, or occluded without one) are counted and listed, not scored.
-//   confidence: each labelled image's flip spread (train/inference.h sun_flip_spread_deg) in
-//     "sun_per_image", and "sun_confidence": the median sun error of the most confident half of
-//     the images against the rest's, each with its 95% interval (train/sun_confidence.h: does a
-//     small spread mean a small error?).
+//   confidence: each labelled image's sun height (train/inference.h sun_hedge) and flip spread
+//     (sun_flip_spread_deg) in "sun_per_image", and for each measure ("sun_confidence" by the
+//     hedge, "sun_confidence_flip_spread") the median sun error of the most confident half of the
+//     images against the rest's, each with its 95% interval (train/sun_confidence.h: does a small
+//     measure mean a small error?). The per-image "predicted_sun_share" is the predicted sky's
+//     share of its light near its sun.
 //   sun in crop, pooled: with two or more real data sets (e.g. the HDR and the LDR test splits),
 //     "sun_in_crop_pooled" holds each checkpoint's median error over every crop whose sun is
 //     inside it, from all of them, with its interval (whole panoramas resampled).
@@ -49,6 +51,7 @@
 #include "data/image_io.h"
 #include "data/panorama.h"
 #include "data/panorama_dataset.h"
+#include "data/panorama_sample.h"
 #include "data/street_dataset.h"
 #include "data/sun_extraction.h"
 #include "data/sun_labels.h"
@@ -379,18 +382,21 @@ struct LdrSunSplits {
 // checkpoint without a sky vector) or fewer than 2 images.
 json interval_json(const sl::train::Interval& ci) { return ci.valid ? json{ci.lo, ci.hi} : json(); }
 
+// One confidence measure (smaller = more confident) over the labelled images of a result row.
 struct Confidence {
-  std::vector<double> spread, error;
+  explicit Confidence(std::string m) : measure(std::move(m)) {}
+  std::string measure;  // the per-image key it is read from
+  std::vector<double> value, error;
   std::vector<std::string> group;
-  void add(double s, double e, const std::string& g) { spread.push_back(s), error.push_back(e), group.push_back(g); }
+  void add(double v, double e, const std::string& g) { value.push_back(v), error.push_back(e), group.push_back(g); }
   json to_json() const {
-    const sl::train::ConfidenceHalves h = sl::train::confidence_halves(spread, error, group);
+    const sl::train::ConfidenceHalves h = sl::train::confidence_halves(value, error, group);
     if (!h.valid) return json();
-    return {{"measure", "sun_flip_spread_deg"}, {"spread_median_deg", h.spread_median},
+    return {{"measure", measure}, {"measure_median", h.spread_median},
             {"confident_half", {{"count", h.confident.count}, {"sun_error_median_deg", h.confident.median},
-                                {"ci95", interval_json(h.confident.ci)}, {"spread_max_deg", h.confident_spread_max}}},
+                                {"ci95", interval_json(h.confident.ci)}, {"measure_max", h.confident_spread_max}}},
             {"uncertain_half", {{"count", h.uncertain.count}, {"sun_error_median_deg", h.uncertain.median},
-                                {"ci95", interval_json(h.uncertain.ci)}, {"spread_min_deg", h.uncertain_spread_min}}}};
+                                {"ci95", interval_json(h.uncertain.ci)}, {"measure_min", h.uncertain_spread_min}}}};
   }
 };
 
@@ -401,24 +407,31 @@ std::string ci_text(const json& ci) {
   return b;
 }
 
-// One markdown line per result row with a confidence split.
+// One markdown line per result row and confidence measure (the hedge, then the flip spread).
 std::string confidence_markdown(const std::vector<json>& results) {
   std::string md;
-  for (const auto& r : results) {
-    if (!r.contains("sun_confidence") || r.at("sun_confidence").is_null()) continue;
-    const json& c = r.at("sun_confidence");
-    char b[512];
-    std::snprintf(b, sizeof b,
-                  "- %s: sun error median %.1f°%s on the most confident half (%zu images, flip spread ≤ %.1f°) against "
-                  "%.1f°%s on the rest (%zu, spread ≥ %.1f°)\n",
-                  r.at("name").get<std::string>().c_str(), c["confident_half"]["sun_error_median_deg"].get<double>(),
-                  ci_text(c["confident_half"]["ci95"]).c_str(), c["confident_half"]["count"].get<size_t>(),
-                  c["confident_half"]["spread_max_deg"].get<double>(),
-                  c["uncertain_half"]["sun_error_median_deg"].get<double>(), ci_text(c["uncertain_half"]["ci95"]).c_str(),
-                  c["uncertain_half"]["count"].get<size_t>(), c["uncertain_half"]["spread_min_deg"].get<double>());
-    md += b;
-  }
-  return md.empty() ? md : "\nConfidence (the angle between the sun of the photo and of its mirror image, train/inference.h):\n\n" + md;
+  for (const auto& [key, what] : std::vector<std::pair<std::string, std::string>>{
+           {"sun_confidence", "sun height (hedge)"}, {"sun_confidence_flip_spread", "flip spread (°)"}})
+    for (const auto& r : results) {
+      if (!r.contains(key) || r.at(key).is_null()) continue;
+      const json& c = r.at(key);
+      char b[512];
+      std::snprintf(b, sizeof b,
+                    "- %s, by %s: sun error median %.1f°%s on the most confident half (%zu images, ≤ %.2f) against "
+                    "%.1f°%s on the rest (%zu, ≥ %.2f)\n",
+                    r.at("name").get<std::string>().c_str(), what.c_str(),
+                    c["confident_half"]["sun_error_median_deg"].get<double>(),
+                    ci_text(c["confident_half"]["ci95"]).c_str(), c["confident_half"]["count"].get<size_t>(),
+                    c["confident_half"]["measure_max"].get<double>(),
+                    c["uncertain_half"]["sun_error_median_deg"].get<double>(), ci_text(c["uncertain_half"]["ci95"]).c_str(),
+                    c["uncertain_half"]["count"].get<size_t>(), c["uncertain_half"]["measure_min"].get<double>());
+      md += b;
+    }
+  return md.empty() ? md
+                    : "\nConfidence (train/inference.h): the sun height sin(elevation) of the network's sun, a hedge "
+                      "toward the zenith when it cannot tell the azimuth (0 when the visible-sun cue set it); and the "
+                      "angle between the sun of the photo and of its mirror image:\n\n" +
+                          md;
 }
 
 // The constant baseline of a generated street dataset: the normalised mean of the canonical sun
@@ -510,6 +523,13 @@ Tensor render_truth(const Tensor& pano_hdr, const Camera& cam, double exposure) 
   return to_ldr(out, exposure);
 }
 
+// The predicted sky's sun strength: the share of its Σ L·Ω within 8° of its brightest direction
+// (data/panorama_sample.h sun_hardness; the measure of docs/RESULTS.md, "faint shadows"). A weak
+// predicted sun is a candidate confidence signal, recorded per image beside the flip spread.
+double predicted_sun_share(const EstimatedLighting& l) {
+  return sl::data::sun_hardness(l.env.to(DType::F32).contiguous(), 8.0, 0.25).share;
+}
+
 json eval_lighting(const std::string& ckpt, const std::string& data, const std::string& split, int64_t limit,
                    int view_rows, std::vector<cli::PlotPoint>* plot, const std::string& label, const RealSkyData* real,
                    bool oracle, bool flip_average, bool visible_sun) {
@@ -521,13 +541,17 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   // One entry per image with a sun label: which image, the error and both directions (in the
   // input camera's canonical frame), so failures can be found and looked at.
   json per_image = json::array();
-  Confidence confidence;
+  Confidence confidence{"sun_hedge"}, confidence_spread{"sun_flip_spread_deg"};
   const auto add_image = [&](const std::string& id, const glm::dvec3& predicted, const glm::dvec3& truth, double e,
-                             double spread) {
+                             const EstimatedLighting& l) {
+    const double spread = l.sun_flip_spread_deg, hedge = l.sun_hedge;
     per_image.push_back({{"id", id}, {"sun_error_deg", e}, {"predicted", {predicted.x, predicted.y, predicted.z}},
                          {"truth", {truth.x, truth.y, truth.z}},
-                         {"sun_flip_spread_deg", std::isfinite(spread) ? json(spread) : json()}});
-    confidence.add(spread, e, id.substr(0, id.find('#')));  // a real crop's group is its panorama
+                         {"sun_flip_spread_deg", std::isfinite(spread) ? json(spread) : json()},
+                         {"sun_hedge", std::isfinite(hedge) ? json(hedge) : json()}});
+    const std::string group = id.substr(0, id.find('#'));  // a real crop's group is its panorama
+    confidence.add(hedge, e, group);
+    confidence_spread.add(spread, e, group);
   };
   std::vector<double> ms;
   size_t sun_unknown = 0;  // samples whose sun label is not usable (soft sun): no sun error
@@ -555,8 +579,9 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         const glm::dvec3 truth = l.frame.direction(s.sun_direction);
         const double e = angular_error_deg(dir, truth);
         sun_err.add(e, s.id);
-        add_image(s.id, dir, truth, e, l.sun_flip_spread_deg);
+        add_image(s.id, dir, truth, e, l);
         per_image.back()["visible_sun_found"] = l.visible_sun_found;
+        per_image.back()["predicted_sun_share"] = predicted_sun_share(l);
         cue_all += l.visible_sun_found;
       } else {
         ++sun_unknown;
@@ -623,9 +648,10 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         const double e = angular_error_deg(dir, c.sun_canonical);
         sun_err.add(e, c.panorama);
         (c.sun_in_crop ? sun_in : sun_out).add(e, c.panorama);
-        add_image(cat(c.panorama, "#", i), dir, c.sun_canonical, e, l.sun_flip_spread_deg);
+        add_image(cat(c.panorama, "#", i), dir, c.sun_canonical, e, l);
         per_image.back()["sun_in_crop"] = c.sun_in_crop;
         per_image.back()["visible_sun_found"] = l.visible_sun_found;
+        per_image.back()["predicted_sun_share"] = predicted_sun_share(l);
         cue_all += l.visible_sun_found;
         (c.sun_in_crop ? cue_in : cue_out) += l.visible_sun_found;
         if (real->ldr) {
@@ -673,6 +699,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   if (real) r["sun"]["sun_in_crop"]["visible_sun_fired"] = cue_in, r["sun"]["sun_outside_crop"]["visible_sun_fired"] = cue_out;
   if (real && real->ldr) ldr_splits.write(r);
   r["sun_confidence"] = confidence.to_json();
+  r["sun_confidence_flip_spread"] = confidence_spread.to_json();
   json ci = {{"sun_error_median_deg", ci_json(sun_err.v, sun_err.g, Statistic::Median)},
              {"sun_error_mean_deg", ci_json(sun_err.v, sun_err.g, Statistic::Mean)},
              {"psnr", ci_json(ps.v, ps.g, Statistic::Mean)}, {"si_psnr", ci_json(sps.v, sps.g, Statistic::Mean)},

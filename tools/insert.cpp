@@ -6,7 +6,8 @@
 // only when everything succeeded, so bad input leaves nothing behind:
 //   composite.png (+ composite.exr with --exr), object_mask.png, shadow_map.png, sky.exr,
 //   sky.png (tone-mapped, world azimuths), depth.exr (the depth used), result.json (sun, with
-//   flip_spread_deg: the network's confidence, train/inference.h sun_flip_spread_deg, and
+//   flip_spread_deg and hedge: the network's confidences, train/inference.h sun_flip_spread_deg and
+//   sun_hedge (smaller is more confident for both), and
 //   visible_sun: whether a sun disk in the photo set the direction, and its pixel; placement,
 //   boxes, KITTI label line, timings; with --refine N > 0 the discriminator loss and the sun
 //   before and after refinement), label.txt (the KITTI line).
@@ -151,6 +152,12 @@ json spread_json(const EstimatedLighting& light) {
   return std::isfinite(light.sun_flip_spread_deg) ? json(light.sun_flip_spread_deg) : json();
 }
 
+// The network's sun height, its second confidence (train/inference.h sun_hedge), null without a
+// sky vector.
+json hedge_json(const EstimatedLighting& light) {
+  return std::isfinite(light.sun_hedge) ? json(light.sun_hedge) : json();
+}
+
 // The visible-sun cue (train/inference.h): whether the photo showed the sun disk that set the
 // sun's direction, and where (the view's continuous pixel coordinates).
 json visible_sun_json(const EstimatedLighting& light) {
@@ -166,6 +173,7 @@ json sun_json(const EstimatedLighting& light) {
           {"elevation_deg", elevation_deg_of(sun)},
           {"intensity_rgb", vec_json(light.sun_intensity_rgb)},
           {"flip_spread_deg", spread_json(light)},
+          {"hedge", hedge_json(light)},
           {"visible_sun", visible_sun_json(light)}};
 }
 
@@ -362,6 +370,7 @@ int single(const cli::Args& a) {
                      {"intensity_rgb", vec_json(light.sun_intensity_rgb)},
                      {"from_sky_vector", light.has_sky_code},
                      {"flip_spread_deg", spread_json(light)},
+                     {"hedge", hedge_json(light)},
                      {"visible_sun", visible_sun_json(light)},
                      {"edited", edit.active() || (shadow && shadow->fit.found)}}},
             {"placement", {{"at_camera_ground_xz", {ax, az}},

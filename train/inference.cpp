@@ -220,6 +220,7 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
       dir_sum += ref.frame.direction(world);
     }
     glm::dvec3 dir = glm::length(dir_sum) > 1e-12 ? glm::normalize(dir_sum) : glm::dvec3(0.0, 1.0, 0.0);
+    out.sun_hedge = std::clamp(dir.y, 0.0, 1.0);
     // The visible sun fills the direction fields the caller's edit leaves unset.
     SunEdit sun = edit;
     if (visible_sun_) {
@@ -231,7 +232,7 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
         out.visible_sun_score = cue.sun.score;
         if (!sun.azimuth_deg) sun.azimuth_deg = azimuth_deg_of(cue.sun.direction);
         if (!sun.elevation_deg) sun.elevation_deg = elevation_deg_of(cue.sun.direction);
-        if (!edit.azimuth_deg && !edit.elevation_deg) out.sun_flip_spread_deg = 0.0;
+        if (!edit.azimuth_deg && !edit.elevation_deg) out.sun_flip_spread_deg = 0.0, out.sun_hedge = 0.0;
       }
     }
     // Sec 3.2: edit the sky vector before decoding.

@@ -89,6 +89,14 @@ struct EstimatedLighting {
   // rank these first; the network's own spread stays in network_sun_flip_spread_deg.
   double sun_flip_spread_deg = std::numeric_limits<double>::quiet_NaN();
   double network_sun_flip_spread_deg = std::numeric_limits<double>::quiet_NaN();
+  // A second confidence: how high the network put its sun, sin(elevation) in view 0's canonical
+  // frame clamped to [0, 1], before any edit. Trained with an angular L1 loss, the network puts
+  // a sun whose azimuth it cannot tell near the zenith (the direction nearest, on average, to
+  // every azimuth), so a high sun is a hedge. 0 when the visible-sun cue set the direction (as
+  // for the spread). Smaller is more confident; a true noon sun is ranked uncertain even when
+  // right. On the validation splits it ranked errors where the flip spread did not
+  // (docs/RESULTS.md, "Which confidence"). NaN without a sky vector.
+  double sun_hedge = std::numeric_limits<double>::quiet_NaN();
   // The visible-sun cue (see LightingEstimator::set_visible_sun): whether it found a sun disk,
   // in which view, where (continuous pixel coordinates of that view's image, render/camera.h)
   // and its score (data/visible_sun.h). False when the cue is off or the checkpoint has no sky

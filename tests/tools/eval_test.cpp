@@ -365,19 +365,29 @@ TEST(EvalTool, LdrPanoramasAreReportedApartBySceneBesideTheirBaselineAndListWhat
     EXPECT_EQ(per[i]["confidence"], a ? "high" : "low") << per[i].dump();
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(per[i]["truth"][k].get<double>(), crops.crops[i].sun_canonical[k], 1e-9);
   }
-  // Confidence: the median error of the half with the smallest flip spreads against the rest's.
-  std::vector<std::pair<double, double>> spread_error;
-  for (const auto& e : per) spread_error.emplace_back(e["sun_flip_spread_deg"].get<double>(), e["sun_error_deg"].get<double>());
-  std::stable_sort(spread_error.begin(), spread_error.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
-  auto median3 = [](std::vector<double> v) { std::sort(v.begin(), v.end()); return v[1]; };
-  const auto& conf = res["sun_confidence"];
-  EXPECT_EQ(conf["confident_half"]["count"], 3);
-  EXPECT_EQ(conf["uncertain_half"]["count"], 3);
-  EXPECT_NEAR(conf["confident_half"]["sun_error_median_deg"].get<double>(),
-              median3({spread_error[0].second, spread_error[1].second, spread_error[2].second}), 1e-9);
-  EXPECT_NEAR(conf["uncertain_half"]["sun_error_median_deg"].get<double>(),
-              median3({spread_error[3].second, spread_error[4].second, spread_error[5].second}), 1e-9);
-  EXPECT_LE(conf["confident_half"]["spread_max_deg"].get<double>(), conf["uncertain_half"]["spread_min_deg"].get<double>());
+  // Confidence, by each measure: the median error of the half with the smallest values against the
+  // rest's. The hedge is the predicted sun's height: sin(elevation) of its canonical direction.
+  for (const auto& [key, measure] : std::vector<std::pair<std::string, std::string>>{
+           {"sun_confidence", "sun_hedge"}, {"sun_confidence_flip_spread", "sun_flip_spread_deg"}}) {
+    std::vector<std::pair<double, double>> value_error;
+    for (const auto& e : per) value_error.emplace_back(e[measure].get<double>(), e["sun_error_deg"].get<double>());
+    std::stable_sort(value_error.begin(), value_error.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    auto median3 = [](std::vector<double> v) { std::sort(v.begin(), v.end()); return v[1]; };
+    const auto& conf = res[key];
+    EXPECT_EQ(conf["measure"], measure);
+    EXPECT_EQ(conf["confident_half"]["count"], 3);
+    EXPECT_EQ(conf["uncertain_half"]["count"], 3);
+    EXPECT_NEAR(conf["confident_half"]["sun_error_median_deg"].get<double>(),
+                median3({value_error[0].second, value_error[1].second, value_error[2].second}), 1e-9);
+    EXPECT_NEAR(conf["uncertain_half"]["sun_error_median_deg"].get<double>(),
+                median3({value_error[3].second, value_error[4].second, value_error[5].second}), 1e-9);
+    EXPECT_LE(conf["confident_half"]["measure_max"].get<double>(), conf["uncertain_half"]["measure_min"].get<double>());
+  }
+  for (const auto& e : per) {
+    if (e["visible_sun_found"].get<bool>()) continue;
+    EXPECT_NEAR(e["sun_hedge"].get<double>(), std::clamp(e["predicted"][1].get<double>(), 0.0, 1.0), 1e-6) << e.dump();
+    EXPECT_GT(e["predicted_sun_share"].get<double>(), 0.0) << e.dump();
+  }
   // The baseline: the training split's labelled suns, as the library computes it.
   const auto& b = d["baseline"];
   EXPECT_EQ(b["from_panoramas"], nlohmann::json({"t1.jpg", "t2.jpg"}));
@@ -407,7 +417,8 @@ TEST(EvalTool, LdrPanoramasAreReportedApartBySceneBesideTheirBaselineAndListWhat
                                                            "--no-visible-sun --json");
   ASSERT_EQ(r3.code, 0) << r3.out;
   const auto j3 = nlohmann::json::parse(r3.out.substr(r3.out.find('{')));
-  EXPECT_TRUE(j3["datasets"][0]["results"][0]["sun_confidence"].is_null());
+  EXPECT_TRUE(j3["datasets"][0]["results"][0]["sun_confidence_flip_spread"].is_null());
+  EXPECT_FALSE(j3["datasets"][0]["results"][0]["sun_confidence"].is_null());  // the hedge needs no mirror pass
   EXPECT_TRUE(j3["datasets"][0]["results"][0]["sun_per_image"][0]["sun_flip_spread_deg"].is_null());
   EXPECT_EQ(j3["datasets"][0]["results"][0]["visible_sun"], false);
   EXPECT_EQ(j3["datasets"][0]["results"][0]["sun_per_image"][0]["visible_sun_found"], false);

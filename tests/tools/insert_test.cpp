@@ -53,6 +53,9 @@ TEST(InsertTool, WritesEveryOutputWithTheGroundPlaneFallback) {
   ASSERT_TRUE(j["sun"]["flip_spread_deg"].is_number()) << j["sun"].dump();
   EXPECT_GE(j["sun"]["flip_spread_deg"].get<double>(), 0.0);
   EXPECT_LE(j["sun"]["flip_spread_deg"].get<double>(), 180.0);
+  ASSERT_TRUE(j["sun"]["hedge"].is_number()) << j["sun"].dump();
+  EXPECT_GE(j["sun"]["hedge"].get<double>(), 0.0);
+  EXPECT_LE(j["sun"]["hedge"].get<double>(), 1.0);
   // Whether a sun disk in the photo set the direction (train/inference.h visible sun).
   ASSERT_TRUE(j["sun"]["visible_sun"]["found"].is_boolean()) << j["sun"].dump();
   EXPECT_NEAR(j["box3d"]["z"].get<double>(), 8.0, 1e-6);  // 8 m ahead in the camera frame

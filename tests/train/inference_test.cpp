@@ -1,6 +1,8 @@
 // train/inference.h: frames, sun editing and multi-view fusion on a random-weight tiny model.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "autodiff/ops.h"
 #include "data/augment.h"
 #include "nn/init.h"
@@ -172,6 +174,9 @@ TEST(Inference, VisibleSunSetsTheSunToTheRayThroughIt) {
   EXPECT_EQ(on.sun_flip_spread_deg, 0.0);
   EXPECT_EQ(on.network_sun_flip_spread_deg, off.sun_flip_spread_deg);
   EXPECT_GT(off.sun_flip_spread_deg, 0.0);
+  // The hedge (the network's sun height) is 0 when the photo showed the sun, as the spread is.
+  EXPECT_EQ(on.sun_hedge, 0.0);
+  EXPECT_EQ(off.sun_hedge, std::clamp(off.sun_direction_canonical.y, 0.0, 1.0));
 }
 
 TEST(Inference, WithoutAVisibleSunTheCueChangesNothing) {
@@ -207,6 +212,8 @@ TEST(Inference, AnExplicitSunEditWinsOverTheVisibleSun) {
   const EstimatedLighting edited_off = est.estimate({v}, e);
   EXPECT_EQ(max(abs(sub(edited.env, edited_off.env))).item(), 0.0);
   EXPECT_EQ(edited.sun_flip_spread_deg, edited_off.sun_flip_spread_deg);  // the network's, as for any edit
+  EXPECT_EQ(edited.sun_hedge, edited_off.sun_hedge);
+  EXPECT_EQ(edited.sun_hedge, est.estimate({v}).sun_hedge);  // the cue is off here: the network's own
   // Field by field: an edit of the elevation alone keeps the visible sun's azimuth.
   est.set_visible_sun(true);
   const EstimatedLighting found = est.estimate({v});

@@ -14,9 +14,9 @@
 //     apart ("kind": "ldr_panoramas") and split by the label's scene (street / other) and with the
 //     low-confidence labels apart, each beside the constant baseline; panoramas without a sun
 //     position (none, or occluded without one) are counted and listed, not scored.
-//   confidence: each labelled image's sun height (train/inference.h sun_hedge) and flip spread
-//     (sun_flip_spread_deg) in "sun_per_image", and for each measure ("sun_confidence" by the
-//     hedge, "sun_confidence_flip_spread") the median sun error of the most confident half of the
+//   confidence: each labelled image's flip spread (train/inference.h sun_flip_spread_deg) and sun
+//     height (sun_hedge) in "sun_per_image", and for each measure ("sun_confidence" by the flip
+//     spread, "sun_confidence_hedge" by the height) the median sun error of the most confident half of the
 //     images against the rest's, each with its 95% interval (train/sun_confidence.h: does a small
 //     measure mean a small error?). The per-image "predicted_sun_share" is the predicted sky's
 //     share of its light near its sun.
@@ -407,11 +407,11 @@ std::string ci_text(const json& ci) {
   return b;
 }
 
-// One markdown line per result row and confidence measure (the hedge, then the flip spread).
+// One markdown line per result row and confidence measure (the flip spread, then the hedge).
 std::string confidence_markdown(const std::vector<json>& results) {
   std::string md;
   for (const auto& [key, what] : std::vector<std::pair<std::string, std::string>>{
-           {"sun_confidence", "sun height (hedge)"}, {"sun_confidence_flip_spread", "flip spread (°)"}})
+           {"sun_confidence", "flip spread (°)"}, {"sun_confidence_hedge", "sun height (hedge)"}})
     for (const auto& r : results) {
       if (!r.contains(key) || r.at(key).is_null()) continue;
       const json& c = r.at(key);
@@ -428,9 +428,9 @@ std::string confidence_markdown(const std::vector<json>& results) {
       md += b;
     }
   return md.empty() ? md
-                    : "\nConfidence (train/inference.h): the sun height sin(elevation) of the network's sun, a hedge "
-                      "toward the zenith when it cannot tell the azimuth (0 when the visible-sun cue set it); and the "
-                      "angle between the sun of the photo and of its mirror image:\n\n" +
+                    : "\nConfidence (train/inference.h): the angle between the sun of the photo and of its mirror "
+                      "image; and the sun height sin(elevation) of the network's sun, a hedge toward the zenith when "
+                      "it cannot tell the azimuth (both 0 when the visible-sun cue set the direction):\n\n" +
                           md;
 }
 
@@ -541,7 +541,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   // One entry per image with a sun label: which image, the error and both directions (in the
   // input camera's canonical frame), so failures can be found and looked at.
   json per_image = json::array();
-  Confidence confidence{"sun_hedge"}, confidence_spread{"sun_flip_spread_deg"};
+  Confidence confidence{"sun_flip_spread_deg"}, confidence_hedge{"sun_hedge"};
   const auto add_image = [&](const std::string& id, const glm::dvec3& predicted, const glm::dvec3& truth, double e,
                              const EstimatedLighting& l) {
     const double spread = l.sun_flip_spread_deg, hedge = l.sun_hedge;
@@ -550,8 +550,8 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
                          {"sun_flip_spread_deg", std::isfinite(spread) ? json(spread) : json()},
                          {"sun_hedge", std::isfinite(hedge) ? json(hedge) : json()}});
     const std::string group = id.substr(0, id.find('#'));  // a real crop's group is its panorama
-    confidence.add(hedge, e, group);
-    confidence_spread.add(spread, e, group);
+    confidence.add(spread, e, group);
+    confidence_hedge.add(hedge, e, group);
   };
   std::vector<double> ms;
   size_t sun_unknown = 0;  // samples whose sun label is not usable (soft sun): no sun error
@@ -699,7 +699,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   if (real) r["sun"]["sun_in_crop"]["visible_sun_fired"] = cue_in, r["sun"]["sun_outside_crop"]["visible_sun_fired"] = cue_out;
   if (real && real->ldr) ldr_splits.write(r);
   r["sun_confidence"] = confidence.to_json();
-  r["sun_confidence_flip_spread"] = confidence_spread.to_json();
+  r["sun_confidence_hedge"] = confidence_hedge.to_json();
   json ci = {{"sun_error_median_deg", ci_json(sun_err.v, sun_err.g, Statistic::Median)},
              {"sun_error_mean_deg", ci_json(sun_err.v, sun_err.g, Statistic::Mean)},
              {"psnr", ci_json(ps.v, ps.g, Statistic::Mean)}, {"si_psnr", ci_json(sps.v, sps.g, Statistic::Mean)},

@@ -94,8 +94,8 @@ struct EstimatedLighting {
   // a sun whose azimuth it cannot tell near the zenith (the direction nearest, on average, to
   // every azimuth), so a high sun is a hedge. 0 when the visible-sun cue set the direction (as
   // for the spread). Smaller is more confident; a true noon sun is ranked uncertain even when
-  // right. On the validation splits it ranked errors where the flip spread did not
-  // (docs/RESULTS.md, "Which confidence"). NaN without a sky vector.
+  // right. Neither measure ranks errors reliably yet (docs/RESULTS.md, "Which confidence"):
+  // streetlight-eval reports both. NaN without a sky vector.
   double sun_hedge = std::numeric_limits<double>::quiet_NaN();
   // The visible-sun cue (see LightingEstimator::set_visible_sun): whether it found a sun disk,
   // in which view, where (continuous pixel coordinates of that view's image, render/camera.h)

@@ -368,7 +368,7 @@ TEST(EvalTool, LdrPanoramasAreReportedApartBySceneBesideTheirBaselineAndListWhat
   // Confidence, by each measure: the median error of the half with the smallest values against the
   // rest's. The hedge is the predicted sun's height: sin(elevation) of its canonical direction.
   for (const auto& [key, measure] : std::vector<std::pair<std::string, std::string>>{
-           {"sun_confidence", "sun_hedge"}, {"sun_confidence_flip_spread", "sun_flip_spread_deg"}}) {
+           {"sun_confidence", "sun_flip_spread_deg"}, {"sun_confidence_hedge", "sun_hedge"}}) {
     std::vector<std::pair<double, double>> value_error;
     for (const auto& e : per) value_error.emplace_back(e[measure].get<double>(), e["sun_error_deg"].get<double>());
     std::stable_sort(value_error.begin(), value_error.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
@@ -417,8 +417,8 @@ TEST(EvalTool, LdrPanoramasAreReportedApartBySceneBesideTheirBaselineAndListWhat
                                                            "--no-visible-sun --json");
   ASSERT_EQ(r3.code, 0) << r3.out;
   const auto j3 = nlohmann::json::parse(r3.out.substr(r3.out.find('{')));
-  EXPECT_TRUE(j3["datasets"][0]["results"][0]["sun_confidence_flip_spread"].is_null());
-  EXPECT_FALSE(j3["datasets"][0]["results"][0]["sun_confidence"].is_null());  // the hedge needs no mirror pass
+  EXPECT_TRUE(j3["datasets"][0]["results"][0]["sun_confidence"].is_null());
+  EXPECT_FALSE(j3["datasets"][0]["results"][0]["sun_confidence_hedge"].is_null());  // the hedge needs no mirror pass
   EXPECT_TRUE(j3["datasets"][0]["results"][0]["sun_per_image"][0]["sun_flip_spread_deg"].is_null());
   EXPECT_EQ(j3["datasets"][0]["results"][0]["visible_sun"], false);
   EXPECT_EQ(j3["datasets"][0]["results"][0]["sun_per_image"][0]["visible_sun_found"], false);

@@ -48,7 +48,9 @@ struct PhotoInsertionOptions {
   // doubled it). KITTI 000008 under the released model's lighting, against a 4096-spp
   // exact-query reference (streetlight-bench insert --size kitti --lighting released, rows
   // production, no_control_variate, cv_normals16/32, cache_4x3x4_1m, shadow128_grid*; 2026-11-23):
-  // 0.91% (object 0.79%), was 2.02% (object 1.85%) at session 8's defaults. Probes 0.5 m apart
+  // 0.91% (object 0.79%), was 2.02% (object 1.85%) at session 8's defaults. Those figures are
+  // session 15's release's lighting; with session 17's release the same row is 1.65% (object
+  // 1.24%, shadow 1.05%; README, Intel Xeon rows of session 20). Probes 0.5 m apart
   // (up to 4×6×4) gave 0.94% in ~90 ms more; an 8×2×8 shadow grid lowers the shadow term
   // (nuScenes size 0.44% → 0.17%) for 130-160 ms more on KITTI.
   // The shadow rays' grid: up to 8×2×8 probes with 12×24 directions each (the same number of

@@ -42,7 +42,7 @@ while [ $# -gt 0 ]; do
       case "$stop_after" in datagen|test_streets|sky|lighting|sun|adversarial|eval) ;;
         *) echo "error: --stop-after '$stop_after': expected datagen, test_streets, sky, lighting, sun, adversarial or eval" >&2; exit 2 ;;
       esac ;;
-    -h|--help) sed -n '2,29p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,31p' "$0"; exit 0 ;;
     *) echo "error: unknown option '$1' (try --help)" >&2; exit 2 ;;
   esac
   shift

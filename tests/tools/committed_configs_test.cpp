@@ -1,0 +1,52 @@
+// Every training config committed under configs/ is one streetlight-train accepts: it merges over
+// the defaults without an unknown key or a wrong type (tools/common/config.h), passes
+// check_train_config, and builds its model options. A typo in a release config fails here, not
+// hours into a run.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "tools/common/config.h"
+#include "train/train_config.h"
+#include "util/error.h"
+
+namespace sl::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(CommittedConfigs, EveryTrainingConfigValidatesAndBuildsItsModel) {
+  const fs::path dir = fs::path(STREETLIGHT_SOURCE_DIR) / "configs";
+  std::vector<fs::path> configs;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().extension() != ".json") continue;
+    std::ifstream f(e.path());
+    const nlohmann::json j = nlohmann::json::parse(f);
+    if (j.is_object() && j.contains("stage")) configs.push_back(e.path());  // datagen configs and splits have none
+  }
+  ASSERT_GE(configs.size(), 17u) << "the training configs of configs/README.md";
+  for (const fs::path& p : configs) {
+    SCOPED_TRACE(p.filename().string());
+    try {
+      cli::Config c(train::default_train_config());
+      c.merge_file(p.string());
+      train::check_train_config(c.tree());
+      const std::string stage = c.tree().at("stage").get<std::string>();
+      if (stage == train::kStageSky) {
+        (void)train::sky_options(c.tree());
+      } else {
+        (void)train::predictor_options(c.tree());
+      }
+    } catch (const Error& e) {
+      ADD_FAILURE() << e.what();
+    }
+  }
+}
+
+}  // namespace
+}  // namespace sl::test

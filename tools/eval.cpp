@@ -46,7 +46,6 @@
 
 #include "autodiff/ops.h"
 #include "autodiff/tape.h"
-#include "data/hdri_folder.h"
 #include "data/hdri_split.h"
 #include "data/image_io.h"
 #include "data/panorama.h"
@@ -74,11 +73,8 @@
 #include "train/sky_autoencoder.h"
 #include "train/train_config.h"
 #include "util/file.h"
-#include "util/file_kind.h"
 
 using sl::data::extract_sun;
-using sl::data::HdriFolder;
-using sl::data::HdriSplit;
 using sl::data::ImageWriteOptions;
 using sl::data::PerspectiveCropParams;
 using sl::data::read_hdri_split;
@@ -228,96 +224,16 @@ InsertionScore score_insertion(const EstimatedLighting& l, const StreetSample& s
 
 constexpr double kHalfPi = 1.57079632679489661923;
 
-// The real-sky benchmark's data for one folder (train/real_sky_benchmark.h): the test crops and
-// the constant baseline from the split's training panoramas.
-struct RealSkyData {
-  std::vector<RealSkyCrop> test;
-  bool has_baseline = false;
-  glm::dvec3 baseline{0.0, 1.0, 0.0};
-  std::vector<std::string> baseline_from;  // training panoramas
-  // LDR panoramas with sun labels (ldr_panorama_crops): the labels file, and the test panoramas
-  // scored, not scored (no sun position) and scored with a low-confidence label.
-  bool ldr = false;
-  std::string labels;
-  json scored = json::array(), not_scored = json::array(), low_confidence = json::array();
-};
+using RealSkyData = RealSkyFolder;  // train/real_sky_benchmark.h
 
-constexpr uint64_t kRealSkySeed = 0x7265616c736b79ULL;  // one fixed set of crops for every run
-
-RealSkyData load_real_sky(const std::string& folder, const std::string& split_file, const std::string& split,
-                          int crops, int64_t limit) {
-  constexpr uint64_t kSeed = kRealSkySeed;
-  RealSkyData r;
-  std::vector<std::string> test_paths;
-  if (split_file.empty()) {
-    test_paths = HdriFolder(folder).paths();
-  } else {
-    const HdriSplit hs = read_hdri_split(split_file);
-    test_paths = hs.split_paths(folder, split);
-    if (hs.has("train")) {
-      const auto train_paths = hs.split_paths(folder, "train");
-      r.baseline = constant_baseline_direction(real_sky_crops(train_paths, crops, kSeed));
-      r.has_baseline = true;
-      for (const auto& p : train_paths) r.baseline_from.push_back(fs::path(p).filename().string());
-    }
-  }
-  if (limit > 0 && static_cast<size_t>(limit) < test_paths.size()) test_paths.resize(static_cast<size_t>(limit));
-  r.test = real_sky_crops(test_paths, crops, kSeed);
-  return r;
-}
-
-// A folder of LDR panoramas: it has a sun_labels.csv, or holds 8-bit images and no HDR ones.
-bool is_ldr_folder(const std::string& dir) {
-  if (fs::exists(fs::path(dir) / "sun_labels.csv")) return true;
-  bool ldr = false;
-  std::error_code ec;
-  for (const auto& e : fs::directory_iterator(dir, ec)) {
-    if (!e.is_regular_file(ec)) continue;
-    if (has_extension(e.path().string(), {".hdr", ".exr"})) return false;
-    ldr = ldr || has_extension(e.path().string(), {".jpg", ".jpeg", ".png"});
-  }
-  return ldr;
+// The JSON of a panorama left unscored (its label has no sun position).
+json not_scored_json(const data::PanoramaSunLabel& l) {
+  return {{"file", l.file}, {"sun", data::to_string(l.sun)}, {"confidence", data::to_string(l.confidence)},
+          {"scene", data::to_string(l.scene)}};
 }
 
 std::string labels_file_for(const std::string& dir, const std::string& sun_labels) {
   return sun_labels.empty() ? (fs::path(dir) / "sun_labels.csv").string() : sun_labels;
-}
-
-RealSkyData load_ldr_panoramas(const std::string& folder, const std::string& labels_file, const std::string& split_file,
-                               const std::string& split, int crops, int64_t limit) {
-  SL_CHECK(fs::exists(labels_file), "LDR panorama folder '", folder, "': no sun labels '", labels_file,
-           "' (give --sun-labels FILE)");
-  const data::SunLabels labels = data::read_sun_labels(labels_file);
-  RealSkyData r;
-  r.ldr = true;
-  r.labels = labels_file;
-  std::vector<std::string> test_paths;
-  if (split_file.empty()) {
-    test_paths = files_with_extension(folder, {".jpg", ".jpeg", ".png"});
-    SL_CHECK(!test_paths.empty(), "LDR panorama folder '", folder, "' holds no .jpg, .jpeg or .png files");
-  } else {
-    const HdriSplit hs = read_hdri_split(split_file);
-    test_paths = hs.split_paths(folder, split);
-    if (hs.has("train")) {
-      // Only the crops' cameras and label suns are needed: the images are dropped at once.
-      const LdrPanoramaCrops train =
-          ldr_panorama_crops(hs.split_paths(folder, "train"), labels, crops, kRealSkySeed, real_sky_crop_options(), false);
-      r.baseline = constant_baseline_direction(train.crops);
-      r.has_baseline = !train.scored.empty();
-      for (const auto* l : train.scored) r.baseline_from.push_back(l->file);
-    }
-  }
-  if (limit > 0 && static_cast<size_t>(limit) < test_paths.size()) test_paths.resize(static_cast<size_t>(limit));
-  LdrPanoramaCrops test = ldr_panorama_crops(test_paths, labels, crops, kRealSkySeed);
-  r.test = std::move(test.crops);
-  for (const auto* l : test.scored) {
-    r.scored.push_back(l->file);
-    if (l->confidence == data::LabelConfidence::Low) r.low_confidence.push_back(l->file);
-  }
-  for (const auto* l : test.not_scored)
-    r.not_scored.push_back({{"file", l->file}, {"sun", data::to_string(l->sun)},
-                            {"confidence", data::to_string(l->confidence)}, {"scene", data::to_string(l->scene)}});
-  return r;
 }
 
 // The 95% bootstrap interval (train/bootstrap.h) as [lo, hi], or null without values. Values of one
@@ -797,7 +713,7 @@ std::string ldr_markdown(const std::vector<json>& results, const json& baseline,
         std::to_string(r.not_scored.size());
   std::string sep = " — ";
   for (const auto& n : r.not_scored) {
-    md += sep + n.at("file").get<std::string>() + " (" + n.at("sun").get<std::string>() + ")";
+    md += sep + n.file + " (" + data::to_string(n.sun) + ")";
     sep = ", ";
   }
   return md + "\n";
@@ -931,13 +847,13 @@ int run(int argc, char** argv) {
   bool plotted = false;
   for (const auto& data : datas) {
     const bool street = fs::exists(fs::path(data) / "index.json");
-    const bool ldr = !street && is_ldr_folder(data);
+    const bool ldr = !street && is_ldr_panorama_folder(data);
     std::unique_ptr<RealSkyData> real;
     if (ldr)
       real = std::make_unique<RealSkyData>(
-          load_ldr_panoramas(data, labels_file_for(data, sun_labels), ldr_split, split, crops, limit));
+          load_ldr_panorama_folder(data, labels_file_for(data, sun_labels), ldr_split, split, crops, limit));
     else if (!street)
-      real = std::make_unique<RealSkyData>(load_real_sky(data, hdri_split, split, crops, limit));
+      real = std::make_unique<RealSkyData>(load_hdr_sky_folder(data, hdri_split, split, crops, limit));
     std::vector<json> results;
     bool oracle_done = false;
     for (size_t i = 0; i < ckpts.size(); ++i) {
@@ -967,7 +883,9 @@ int run(int argc, char** argv) {
       if (ldr) {
         entry["ldr_split"] = ldr_split;
         entry["sun_labels"] = real->labels;
-        entry["panoramas"] = {{"scored", real->scored}, {"not_scored", real->not_scored},
+        json not_scored = json::array();
+        for (const auto& l : real->not_scored) not_scored.push_back(not_scored_json(l));
+        entry["panoramas"] = {{"scored", real->scored}, {"not_scored", not_scored},
                               {"low_confidence", real->low_confidence}};
       } else {
         entry["hdri_split"] = hdri_split;

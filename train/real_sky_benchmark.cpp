@@ -7,11 +7,14 @@
 #include "autodiff/ops.h"
 #include "data/augment.h"
 #include "data/hdri_folder.h"
+#include "data/hdri_split.h"
 #include "data/image_io.h"
 #include "data/ldr_panorama_sample.h"
 #include "data/panorama.h"
 #include "train/metrics.h"
 #include "train/street_batch.h"
+#include "util/error.h"
+#include "util/file_kind.h"
 
 using sl::data::HdriFolder;
 using sl::data::ImageReadOptions;
@@ -136,6 +139,83 @@ SunErrorStats sun_error_stats(const std::vector<double>& e) {
   const double n = static_cast<double>(e.size());
   s.within_15 /= n, s.within_30 /= n, s.within_45 /= n;
   return s;
+}
+
+namespace {
+void keep_first(std::vector<std::string>& paths, int64_t limit) {
+  if (limit > 0 && static_cast<size_t>(limit) < paths.size()) paths.resize(static_cast<size_t>(limit));
+}
+std::string file_name(const std::string& path) { return std::filesystem::path(path).filename().string(); }
+}  // namespace
+
+RealSkyFolder load_hdr_sky_folder(const std::string& folder, const std::string& split_file, const std::string& split,
+                                  int crops_per_panorama, int64_t limit) {
+  RealSkyFolder r;
+  std::vector<std::string> test_paths;
+  if (split_file.empty()) {
+    test_paths = data::HdriFolder(folder).paths();
+  } else {
+    const data::HdriSplit hs = data::read_hdri_split(split_file);
+    test_paths = hs.split_paths(folder, split);
+    if (hs.has("train")) {
+      const auto train_paths = hs.split_paths(folder, "train");
+      r.baseline = constant_baseline_direction(real_sky_crops(train_paths, crops_per_panorama, kRealSkySeed));
+      r.has_baseline = true;
+      for (const auto& p : train_paths) r.baseline_from.push_back(file_name(p));
+    }
+  }
+  keep_first(test_paths, limit);
+  r.test = real_sky_crops(test_paths, crops_per_panorama, kRealSkySeed);
+  return r;
+}
+
+RealSkyFolder load_ldr_panorama_folder(const std::string& folder, const std::string& labels_file,
+                                       const std::string& split_file, const std::string& split, int crops_per_panorama,
+                                       int64_t limit) {
+  SL_CHECK(std::filesystem::exists(labels_file), "LDR panorama folder '", folder, "': no sun labels '", labels_file,
+           "' (give --sun-labels FILE)");
+  const data::SunLabels labels = data::read_sun_labels(labels_file);
+  RealSkyFolder r;
+  r.ldr = true;
+  r.labels = labels_file;
+  std::vector<std::string> test_paths;
+  if (split_file.empty()) {
+    test_paths = files_with_extension(folder, {".jpg", ".jpeg", ".png"});
+    SL_CHECK(!test_paths.empty(), "LDR panorama folder '", folder, "' holds no .jpg, .jpeg or .png files");
+  } else {
+    const data::HdriSplit hs = data::read_hdri_split(split_file);
+    test_paths = hs.split_paths(folder, split);
+    if (hs.has("train")) {
+      // Only the crops' cameras and label suns are needed: the images are dropped at once.
+      const LdrPanoramaCrops train = ldr_panorama_crops(hs.split_paths(folder, "train"), labels, crops_per_panorama,
+                                                        kRealSkySeed, real_sky_crop_options(), false);
+      r.baseline = constant_baseline_direction(train.crops);
+      r.has_baseline = !train.scored.empty();
+      for (const auto* l : train.scored) r.baseline_from.push_back(l->file);
+    }
+  }
+  keep_first(test_paths, limit);
+  LdrPanoramaCrops test = ldr_panorama_crops(test_paths, labels, crops_per_panorama, kRealSkySeed);
+  r.test = std::move(test.crops);
+  for (const auto* l : test.scored) {
+    r.scored.push_back(l->file);
+    if (l->confidence == data::LabelConfidence::Low) r.low_confidence.push_back(l->file);
+  }
+  for (const auto* l : test.not_scored) r.not_scored.push_back(*l);
+  return r;
+}
+
+bool is_ldr_panorama_folder(const std::string& dir) {
+  namespace fs = std::filesystem;
+  if (fs::exists(fs::path(dir) / "sun_labels.csv")) return true;
+  bool ldr = false;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    if (!e.is_regular_file(ec)) continue;
+    if (has_extension(e.path().string(), {".hdr", ".exr"})) return false;
+    ldr = ldr || has_extension(e.path().string(), {".jpg", ".jpeg", ".png"});
+  }
+  return ldr;
 }
 
 }  // namespace sl::train

@@ -66,6 +66,37 @@ LdrPanoramaCrops ldr_panorama_crops(const std::vector<std::string>& paths, const
 // Normalised mean of sun_canonical over the crops with a known sun (+Y when there is none).
 glm::dvec3 constant_baseline_direction(const std::vector<RealSkyCrop>& training_crops);
 
+// A benchmark folder as streetlight-eval scores it, at the benchmark's fixed seed kRealSkySeed:
+// the K crops of every panorama of `split` of split_file (of every panorama when split_file is
+// empty; the first `limit` when limit > 0) and, when the split file has a "train" list, the
+// constant baseline from that list's crops (has_baseline; baseline_from names its panoramas).
+// - load_hdr_sky_folder: HDR panoramas (data/hdri_folder.h), real_sky_crops.
+// - load_ldr_panorama_folder: labelled LDR panoramas, ldr_panorama_crops with the labels file
+//   (sun_labels.csv format); without a split file, every .jpg/.jpeg/.png of the folder. The test
+//   panoramas scored, those not scored (no sun position) and the scored ones whose label has low
+//   confidence are listed.
+// - is_ldr_panorama_folder: the folder has a sun_labels.csv, or holds 8-bit images and no HDR ones.
+// Throws: sl::Error naming the folder (no images, no labels file) or, as the crops do, the panorama.
+inline constexpr uint64_t kRealSkySeed = 0x7265616c736b79ULL;  // one fixed set of crops for every run
+
+struct RealSkyFolder {
+  std::vector<RealSkyCrop> test;
+  bool has_baseline = false;
+  glm::dvec3 baseline{0.0, 1.0, 0.0};
+  std::vector<std::string> baseline_from;  // training panoramas (file names)
+  bool ldr = false;
+  std::string labels;  // LDR: the labels file
+  std::vector<std::string> scored, low_confidence;
+  std::vector<data::PanoramaSunLabel> not_scored;
+};
+
+RealSkyFolder load_hdr_sky_folder(const std::string& folder, const std::string& split_file, const std::string& split,
+                                  int crops_per_panorama, int64_t limit = 0);
+RealSkyFolder load_ldr_panorama_folder(const std::string& folder, const std::string& labels_file,
+                                       const std::string& split_file, const std::string& split, int crops_per_panorama,
+                                       int64_t limit = 0);
+bool is_ldr_panorama_folder(const std::string& dir);
+
 struct SunErrorStats {
   size_t count = 0;
   double median_deg = 0, mean_deg = 0, within_15 = 0, within_30 = 0, within_45 = 0;

@@ -4,7 +4,12 @@
 // baseline is the mean training sun and nothing else.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
 
 #include "autodiff/ops.h"
 #include "data/augment.h"
@@ -16,6 +21,7 @@
 #include "train/real_sky_benchmark.h"
 #include "train/sample_source.h"
 #include "train/street_batch.h"
+#include "util/error.h"
 #include "util/math.h"
 
 using sl::data::panorama_street_sample;
@@ -34,6 +40,8 @@ using train::StreetBatchOptions;
 using train::StreetItem;
 using train::SunErrorStats;
 using train::constant_baseline_direction;
+using train::is_ldr_panorama_folder;
+using train::load_ldr_panorama_folder;
 using train::make_street_item;
 using train::mixed_source;
 using train::radiance_l2;
@@ -188,6 +196,31 @@ TEST(RealSkyBenchmark, BaselineIsTheMeanTrainingSunInTheCropFrame) {
   EXPECT_DOUBLE_EQ(s.within_15, 0.25);
   EXPECT_DOUBLE_EQ(s.within_30, 0.5);
   EXPECT_DOUBLE_EQ(s.within_45, 0.75);
+}
+
+// What streetlight-eval reads as a folder of labelled LDR panoramas, and the error that names a
+// folder whose labels are missing.
+TEST(RealSkyBenchmark, LdrPanoramaFoldersAreRecognisedAndTheirLabelsRequired) {
+  namespace fs = std::filesystem;
+  const fs::path root = fs::temp_directory_path() / ("sl_ldr_folder_" + std::to_string(::getpid()));
+  fs::remove_all(root);
+  for (const char* d : {"labelled", "jpegs", "mixed", "empty"}) fs::create_directories(root / d);
+  std::ofstream(root / "labelled" / "sun_labels.csv") << "file,sun,u,v,confidence,scene,note\n";
+  std::ofstream(root / "jpegs" / "a.JPG") << "x";
+  std::ofstream(root / "mixed" / "a.jpg") << "x";
+  std::ofstream(root / "mixed" / "sky.hdr") << "x";
+  EXPECT_TRUE(is_ldr_panorama_folder((root / "labelled").string()));
+  EXPECT_TRUE(is_ldr_panorama_folder((root / "jpegs").string()));
+  EXPECT_FALSE(is_ldr_panorama_folder((root / "mixed").string()));
+  EXPECT_FALSE(is_ldr_panorama_folder((root / "empty").string()));
+  const std::string labels = (root / "jpegs" / "sun_labels.csv").string();
+  try {
+    load_ldr_panorama_folder((root / "jpegs").string(), labels, "", "test", 1);
+    ADD_FAILURE() << "a folder without its labels file was loaded";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("no sun labels '" + labels + "'"), std::string::npos) << e.what();
+  }
+  fs::remove_all(root);
 }
 
 }  // namespace

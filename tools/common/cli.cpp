@@ -140,7 +140,7 @@ Progress::Progress(std::string label, int64_t total, double plain_interval_s)
 
 double Progress::rate() const {
   const double elapsed = std::chrono::duration<double>(clock::now() - start_).count();
-  return base_ >= 0 && elapsed > 0 ? static_cast<double>(done_ - base_) / elapsed : 0.0;
+  return elapsed > 0 ? static_cast<double>(counted()) / elapsed : 0.0;
 }
 
 void Progress::update(int64_t done, const std::string& extra) {

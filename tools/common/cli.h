@@ -63,7 +63,9 @@ class Progress {
   Progress(std::string label, int64_t total, double plain_interval_s = 10.0);
   void update(int64_t done, const std::string& extra = "");
   void finish(const std::string& extra = "");
-  // Items per second since the first update, counted from its `done` − 1 (0 before any update).
+  // The items this process counted: the last update's `done` minus the first's `done` − 1 (0
+  // before any update), and them per second since construction.
+  int64_t counted() const { return base_ < 0 ? 0 : done_ - base_; }
   double rate() const;
 
  private:

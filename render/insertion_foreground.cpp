@@ -2,8 +2,10 @@
 #include "render/insertion_foreground.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 
+#include "render/exact_correction.h"
 #include "render/insertion_denoise.h"
 #include "render/pixel_window.h"
 #include "render/qmc_sampler.h"
@@ -136,9 +138,10 @@ struct LightSampling {
 };
 
 // cv: the sample's control-variate lobe (disney::diffuse_control), or null without one.
+// full, when given, gets each weight before the control variate's term is taken off.
 void light_rays(const InsertionOptions& opt, const LightSampling& sampling, const Bvh& bvh, const EnvironmentMap& env_map,
                 const GSample& g, const disney::DiffuseControl* cv, glm::vec3* ls, glm::vec3* ws,
-                equirect::UV* units) {
+                equirect::UV* units, glm::vec3* full = nullptr) {
   const uint64_t light_seed = sampling.light_seed, choice_seed = sampling.choice_seed, rot_seed = sampling.rot_seed;
   const int N = sampling.N, n_brdf = sampling.n_brdf;
   const float c_brdf = sampling.c_brdf, c_env = sampling.c_env, norm = sampling.norm;
@@ -205,10 +208,12 @@ void light_rays(const InsertionOptions& opt, const LightSampling& sampling, cons
       shadow.origin = origin;
       shadow.direction = l;
       if (bvh.occluded(shadow)) w *= float(opt.ambient);  // blocked by the object itself
+      if (full) full[k] = w;
       if (cv && all_finite(w)) w -= cv->c * ((1.0f + cv->kappa * disney::schlick_weight(cos_l)) * cos_l / pdf * norm);
     } else {
       l = g.n;
       have_unit = false;
+      if (full) full[k] = glm::vec3(0.0f);
     }
     ls[k] = l;
     ws[k] = w;
@@ -289,7 +294,7 @@ std::vector<int> adaptive_extra_samples(const std::vector<double>& spread, const
 
 void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
                       const std::vector<GSample>& gs, const RadianceCache& cache, bool control_variate, Foreground& fg,
-                      std::vector<float>& colour) {
+                      std::vector<float>& colour, const RayMarcher* exact) {
   const int N = fg.light_samples;
   pixel_offsets(gs, N, fg);
   const size_t P = fg.pixels.size();
@@ -301,29 +306,67 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
   if (adaptive || denoise) squares.assign(gs.size(), glm::vec3(0.0f));
   // One sample's light rays under `sampling`: Σ w·L, and Σ (w·L)² into *sq when given.
   // `at` = cache.corners() of the sample's light origin.
+  // With `full` (the weights without the control variate's term), also the sample's exact
+  // correction into *correct (render/object_insertion.h, "Exact corrections").
+  const int M = exact ? std::min(opt.cache_exact_light_rays, N) : 0;
+  static thread_local std::vector<glm::vec3> lc;  // a sample's cached radiance per ray (corrections)
+  static thread_local std::vector<float> score;
+  const uint64_t exact_seed = hash_counter(sample_seed(opt, kTagLight), kTagExact);
+  std::atomic<int64_t> exact_rays{0};
   auto trace = [&](const LightSampling& sampling, const GSample& g, const disney::DiffuseControl* cv,
                    const RadianceCache::Corners& at, std::vector<glm::vec3>& ls, std::vector<glm::vec3>& ws,
-                   std::vector<equirect::UV>& units, glm::vec3* sq) {
+                   std::vector<equirect::UV>& units, glm::vec3* sq, std::vector<glm::vec3>* full = nullptr,
+                   glm::vec3* correct = nullptr) {
     const int n = sampling.N;
     if (int(ls.size()) < n) {
       ls.resize(size_t(n));
       ws.resize(size_t(n));
       units.resize(size_t(n));
     }
-    light_rays(opt, sampling, bvh, env_map, g, cv, ls.data(), ws.data(), units.data());
+    if (full && int(full->size()) < n) full->resize(size_t(n));
+    light_rays(opt, sampling, bvh, env_map, g, cv, ls.data(), ws.data(), units.data(), full ? full->data() : nullptr);
     glm::vec3 acc(0.0f), acc2(0.0f);
-    for (int k = 0; k < n; ++k)
-      if (ws[size_t(k)] != glm::vec3(0.0f)) {
-        const glm::vec3 t = ws[size_t(k)] * cache.radiance_unit(at, units[size_t(k)]);
+    const bool correcting = full && correct && M > 0;
+    if (correcting && int(lc.size()) < n) lc.resize(size_t(n)), score.resize(size_t(n));
+    for (int k = 0; k < n; ++k) {
+      if (correcting) lc[size_t(k)] = glm::vec3(0.0f), score[size_t(k)] = 0.0f;
+      if (ws[size_t(k)] != glm::vec3(0.0f) || (correcting && (*full)[size_t(k)] != glm::vec3(0.0f))) {
+        const glm::vec3 L = cache.radiance_unit(at, units[size_t(k)]);
+        const glm::vec3 t = ws[size_t(k)] * L;
         acc += t;
         acc2 += t * t;
+        if (correcting) {
+          lc[size_t(k)] = L;
+          const glm::vec3 f = (*full)[size_t(k)] * L;
+          score[size_t(k)] = std::abs(f.x) + std::abs(f.y) + std::abs(f.z);
+        }
       }
+    }
+    if (correcting) {
+      // M of the n rays, drawn in proportion to their cached contribution (render/exact_correction.h).
+      CorrectionPick picks[kMaxCorrections];
+      const int m = pick_corrections(score.data(), n, std::min(M, kMaxCorrections), uniform01f(exact_seed, g.stream, 0), picks);
+      glm::vec3 c(0.0f);
+      int marched = 0;
+      for (int j = 0; j < m; ++j) {
+        const int k = picks[j].index;
+        const glm::vec3 w = (*full)[size_t(k)];
+        if (w == glm::vec3(0.0f)) continue;
+        const glm::vec3 l = ls[size_t(k)];
+        const RayMarcher::Result r = (*exact)(&at.origin[0], &l[0]);
+        ++marched;
+        c += picks[j].weight * w * (r.radiance - lc[size_t(k)]);
+      }
+      exact_rays.fetch_add(marched, std::memory_order_relaxed);
+      *correct = all_finite(c) ? c : glm::vec3(0.0f);
+    }
     if (sq) *sq = acc2;
     return acc;
   };
   const LightSampling first(opt, N);
+  std::vector<glm::vec3> correction(M > 0 ? gs.size() : 0, glm::vec3(0.0f));
   parallel_for(int64_t(gs.size()), 16, [&](int64_t b, int64_t e) {
-    std::vector<glm::vec3> ls, ws;
+    std::vector<glm::vec3> ls, ws, full;
     std::vector<equirect::UV> units;
     for (int64_t i = b; i < e; ++i) {
       const GSample& g = gs[size_t(i)];
@@ -332,7 +375,8 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
       const glm::vec3 origin = light_origin(g);
       const RadianceCache::Corners at = cache.corners(&origin[0]);
       residual[size_t(i)] = trace(first, g, control_variate ? &cv : nullptr, at, ls, ws, units,
-                                  squares.empty() ? nullptr : &squares[size_t(i)]);
+                                  squares.empty() ? nullptr : &squares[size_t(i)], M > 0 ? &full : nullptr,
+                                  M > 0 ? &correction[size_t(i)] : nullptr);
       if (control_variate) {
         const RadianceCache::Irradiance e = cache.irradiance(at, g.n);
         control[size_t(i)] = cv.c * (e.cosine + cv.kappa * e.grazing) / float(opt.aa_samples);
@@ -408,12 +452,14 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
   }
   // Per pixel: the residual (both passes blended by their counts) and the control's integral.
   std::vector<DenoisePixel> px(P);
+  std::vector<glm::vec3> fixes(correction.empty() ? 0 : P, glm::vec3(0.0f));
   parallel_for(int64_t(P), 1024, [&](int64_t b, int64_t e) {
     for (size_t p = size_t(b); p < size_t(e); ++p) {
       const auto [i0, i1] = samples_of(p);
-      glm::vec3 r2(0.0f), c(0.0f), n(0.0f), x(0.0f);
+      glm::vec3 r2(0.0f), c(0.0f), n(0.0f), x(0.0f), fix(0.0f);
       for (int64_t i = i0; i < i1; ++i) {
         c += control[size_t(i)];
+        if (!correction.empty()) fix += correction[size_t(i)];
         n += gs[size_t(i)].n;
         x += gs[size_t(i)].x / float(i1 - i0);
         if (!second.empty()) r2 += second[size_t(i)];
@@ -421,6 +467,8 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
       const int m = extra[p];
       DenoisePixel& d = px[p];
       d.residual = m > 0 ? (float(N) * first_sum[p] + float(m) * r2) / float(N + m) : first_sum[p];
+      // The exact correction estimates E[L_exact − L_cached] for both passes' rays alike.
+      if (!correction.empty()) fixes[p] = fix;
       d.control = c;
       d.normal = safe_normalize(n);
       d.position = x;
@@ -430,10 +478,22 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
       d.variance = float(sample_var[p] * double(i1 - i0) * N * double(N) / double(N + m));
     }
   });
+  fg.exact_correction_rays = exact_rays.load();
   const std::vector<glm::vec3> r = denoise ? denoise_residual(px, window, opt) : std::vector<glm::vec3>{};
+  // The correction's noise is the cache's per-ray error, its mean the probes' bias, which changes
+  // over a probe cell (many pixels): it gets its own, wider filter, guided by normals and depth.
+  std::vector<glm::vec3> fixed;
+  if (!fixes.empty()) {
+    std::vector<DenoisePixel> fx = px;
+    for (size_t p = 0; p < P; ++p) fx[p].residual = fixes[p];
+    InsertionOptions fopt = opt;
+    fopt.denoise_radius = opt.cache_exact_filter_radius;
+    fopt.denoise_variance_sigma = 0;
+    fixed = denoise_residual(fx, window, fopt);
+  }
   colour.assign(size_t(3 * P), 0.0f);
   for (size_t p = 0; p < P; ++p) {
-    const glm::vec3 acc = px[p].control + (denoise ? r[p] : px[p].residual);
+    const glm::vec3 acc = px[p].control + (denoise ? r[p] : px[p].residual) + (fixed.empty() ? glm::vec3(0.0f) : fixed[p]);
     // A control-variate estimate can dip below 0 where the object blocks much of its own light
     // (3 of 1.4M values on KITTI 000008, the lowest −0.011); radiance cannot.
     for (int ch = 0; ch < 3; ++ch) colour[3 * p + size_t(ch)] = std::max(0.0f, acc[ch]);

@@ -33,6 +33,7 @@ struct Foreground {
   std::vector<float> silhouette;       // per image pixel: coverage before the photo's occlusion
   int light_samples = 0;         // N actually used
   int64_t width = 0;             // the image's, for pixel neighbourhoods
+  int64_t exact_correction_rays = 0;  // marched for opt.cache_exact_light_rays (shade_foreground, with `exact`)
   int64_t extra_light_rays = 0;  // adaptive sampling's second pass (shade_foreground)
 };
 
@@ -65,7 +66,7 @@ void trace_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
 // trace_foreground() followed by the cache's reads and weighted_segment_sum (tested).
 void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map,
                       const std::vector<GSample>& gs, const RadianceCache& cache, bool control_variate, Foreground& fg,
-                      std::vector<float>& colour);
+                      std::vector<float>& colour, const RayMarcher* exact = nullptr);
 
 // Adaptive sampling's allocation: per pixel, the extra light samples m per primary sample that
 // minimise Σ s²/(N + m) for Σ visible·m ≈ budget: m = clamp(t·s − N, 0, cap) rounded to even,

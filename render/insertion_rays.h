@@ -24,7 +24,7 @@ namespace sl::render::insertion {
 
 inline constexpr uint64_t kTagAa = 0xA11A5EEDull, kTagLight = 0x11647ull, kTagShadow = 0x5AD0Eull, kTagChoice = 0xC401CEull;
 
-inline constexpr uint64_t kTagRotation = 0x2071A7Eull, kTagAdaptive = 0xADA97ull;
+inline constexpr uint64_t kTagRotation = 0x2071A7Eull, kTagAdaptive = 0xADA97ull, kTagExact = 0xE8AC7ull;
 
 inline bool valid_depth(double d) { return std::isfinite(d) && d > 0.0; }
 

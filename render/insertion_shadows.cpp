@@ -3,10 +3,12 @@
 #include "render/insertion_shadows.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <tuple>
 
 #include "render/equirect.h"
+#include "render/exact_correction.h"
 #include "render/sampling.h"
 #include "util/math.h"
 #include "util/parallel.h"
@@ -158,21 +160,35 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
   });
 }
 
-void shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map, const Shadows& sh,
-                   const std::vector<glm::vec3>& origins, const RadianceCache& cache, double epsilon,
-                   std::vector<float>& ratio) {
+int64_t shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map, const Shadows& sh,
+                      const std::vector<glm::vec3>& origins, const RadianceCache& cache, double epsilon,
+                      std::vector<float>& ratio, const RayMarcher* exact) {
   const ShadowSampler sampler = make_sampler(opt, env_map);
   const int N = opt.shadow_rays;
+  const int M = exact ? std::min({opt.cache_shadow_exact_rays, N, kMaxCorrections}) : 0;
+  static thread_local std::vector<glm::vec3> lc;  // a texel's cached radiance per ray (corrections)
+  static thread_local std::vector<float> score, vis_of;
+  const uint64_t exact_seed = hash_counter(sample_seed(opt, kTagShadow), kTagExact);
   const int64_t count = int64_t(sh.texels.size());
   ratio.assign(size_t(3 * count), 1.0f);
+  // With corrections: per texel the cached sums and the corrections relative to the denominator
+  // (num/den, Δnum/den, Δden/den), filtered over neighbouring texels before S is formed.
+  std::vector<glm::dvec3> base, fix_num, fix_den;
+  if (M > 0) base.assign(size_t(count), glm::dvec3(1.0)), fix_num.assign(size_t(count), glm::dvec3(0.0)),
+             fix_den.assign(size_t(count), glm::dvec3(0.0));
+  std::atomic<int64_t> marched{0};
   parallel_for(count, 4, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) {
       const int64_t t = sh.texels[size_t(i)];
       const glm::vec3 o = origins[size_t(t)];
       double num[3] = {epsilon, epsilon, epsilon}, den[3] = {epsilon, epsilon, epsilon};
+      double cnum[3] = {0, 0, 0}, cden[3] = {0, 0, 0};
       const RadianceCache::Corners at = cache.corners(&o[0]);
+      int64_t here = 0;
+      if (M > 0 && int(lc.size()) < N) lc.resize(size_t(N)), score.resize(size_t(N)), vis_of.resize(size_t(N));
       for (int k = 0; k < N; ++k) {
         const ShadowSampler::Ray s = sampler.cached(t, k);
+        if (M > 0) score[size_t(k)] = 0.0f;
         if (!(s.w > 0)) continue;  // weight 0: adds nothing to either sum
         Ray r;
         r.origin = o;
@@ -183,10 +199,76 @@ void shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const Environmen
           num[c] += vis * s.w * L[c];
           den[c] += s.w * L[c];
         }
+        if (M > 0) {
+          lc[size_t(k)] = L;
+          vis_of[size_t(k)] = float(vis);
+          score[size_t(k)] = float(s.w * (std::abs(L.x) + std::abs(L.y) + std::abs(L.z)));
+        }
       }
-      for (int c = 0; c < 3; ++c) ratio[size_t(3 * i + c)] = float(num[c] / den[c]);
+      if (M > 0) {
+        // The exact correction (render/object_insertion.h): M of the N rays, drawn in proportion
+        // to their cached light (render/exact_correction.h), for both sums.
+        CorrectionPick picks[kMaxCorrections];
+        const int m = pick_corrections(score.data(), N, M, uniform01f(exact_seed, uint64_t(t), 0), picks);
+        for (int j = 0; j < m; ++j) {
+          const int k = picks[j].index;
+          const ShadowSampler::Ray s = sampler.cached(t, k);
+          if (!(s.w > 0)) continue;
+          ++here;
+          const glm::vec3 d = (*exact)(&o[0], &s.d[0]).radiance - lc[size_t(k)];
+          if (all_finite(d))
+            for (int c = 0; c < 3; ++c) {
+              cnum[c] += picks[j].weight * vis_of[size_t(k)] * s.w * d[c];
+              cden[c] += picks[j].weight * s.w * d[c];
+            }
+        }
+      }
+      if (M > 0) {
+        for (int c = 0; c < 3; ++c) {
+          base[size_t(i)][c] = num[c] / den[c];
+          fix_num[size_t(i)][c] = cnum[c] / den[c];
+          fix_den[size_t(i)][c] = cden[c] / den[c];
+        }
+      } else {
+        for (int c = 0; c < 3; ++c) ratio[size_t(3 * i + c)] = float(num[c] / den[c]);
+      }
+      marched.fetch_add(here, std::memory_order_relaxed);
     }
   });
+  if (M > 0) {
+    // The corrections' noise is the cache's per-ray error, their mean the probes' bias, which
+    // changes over a probe cell: averaged over the (2r+1)² neighbouring texels of similar depth
+    // (σ = 5% of the texel's depth, as the upsampling), then S = (ρ + Δnum)/(1 + Δden) in [0, 1].
+    const int sw = opt.shadow_width, shh = opt.shadow_height, rad = std::max(0, opt.cache_shadow_exact_filter_radius);
+    std::vector<int64_t> slot(size_t(sw) * shh, -1);
+    for (int64_t i = 0; i < count; ++i) slot[size_t(sh.texels[size_t(i)])] = i;
+    parallel_for(count, 64, [&](int64_t b, int64_t e) {
+      for (int64_t i = b; i < e; ++i) {
+        const int64_t t = sh.texels[size_t(i)];
+        const int tx = int(t % sw), ty = int(t / sw);
+        const double dp = sh.texel_depth[size_t(t)];
+        glm::dvec3 an(0.0), ad(0.0);
+        double wsum = 0;
+        for (int y = std::max(0, ty - rad); y <= std::min(shh - 1, ty + rad); ++y)
+          for (int x = std::max(0, tx - rad); x <= std::min(sw - 1, tx + rad); ++x) {
+            const int64_t j = slot[size_t(y) * sw + x];
+            if (j < 0) continue;
+            const double dq = sh.texel_depth[size_t(y) * sw + x];
+            const double w = dp > 0 ? std::exp(-0.5 * std::pow((dp - dq) / (0.05 * dp), 2)) : double(j == i);
+            if (!(w > 0)) continue;
+            an += w * fix_num[size_t(j)];
+            ad += w * fix_den[size_t(j)];
+            wsum += w;
+          }
+        if (wsum > 0) an /= wsum, ad /= wsum;
+        for (int c = 0; c < 3; ++c) {
+          const double s = (base[size_t(i)][c] + an[c]) / std::max(1e-12, 1.0 + ad[c]);
+          ratio[size_t(3 * i + c)] = float(std::isfinite(s) ? std::clamp(s, 0.0, 1.0) : base[size_t(i)][c]);
+        }
+      }
+    });
+  }
+  return marched.load();
 }
 
 // Edge-aware upsampling taps:

@@ -42,9 +42,12 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
 // Inference with the radiance cache, after shadow_texels(): S of Eq. 4 for each texel of
 // sh.texels (3 floats each, in that order), every ray read from `cache` as it is drawn (no ray
 // buffer); the same sums as trace_shadows() + the cache's reads + shadow_ratio (tested).
-void shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map, const Shadows& sh,
+// With `exact` and opt.cache_shadow_exact_rays > 0, both sums get the exact correction
+// (render/object_insertion.h, "Exact corrections") and S is clamped to [0, 1]; returns the rays
+// marched for it.
+int64_t shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const EnvironmentMap& env_map, const Shadows& sh,
                    const std::vector<glm::vec3>& origins, const RadianceCache& cache, double epsilon,
-                   std::vector<float>& ratio);
+                   std::vector<float>& ratio, const RayMarcher* exact = nullptr);
 // Edge-aware upsampling taps: 4 bilinear texels per image pixel, weighted by depth similarity
 // (σ = 5% of the pixel's depth), renormalised. Index `n_texels` is a constant-1 row for pixels
 // with no depth.

@@ -47,6 +47,13 @@ void validate(const InsertionInputs& in, const InsertionOptions& opt) {
            opt.cache_spacing_m, " m (at most ", opt.cache_max_xz, "x", opt.cache_max_y, " probes) is invalid");
   SL_CHECK(std::isfinite(opt.cache_shadow_exact_sky) && opt.cache_shadow_exact_sky >= 0,
            "insert_objects: cache_shadow_exact_sky ", opt.cache_shadow_exact_sky, " must be finite and >= 0");
+  SL_CHECK(opt.cache_exact_light_rays >= 0 && opt.cache_shadow_exact_rays >= 0 && opt.cache_exact_light_rays <= 64 &&
+               opt.cache_shadow_exact_rays <= 64 && opt.cache_exact_filter_radius >= 0 &&
+               opt.cache_exact_filter_radius <= 16 && opt.cache_shadow_exact_filter_radius >= 0 &&
+               opt.cache_shadow_exact_filter_radius <= 16,
+           "insert_objects: exact correction rays (light ", opt.cache_exact_light_rays, ", shadow ",
+           opt.cache_shadow_exact_rays, ": 0..64) and filter radii (", opt.cache_exact_filter_radius, ", ",
+           opt.cache_shadow_exact_filter_radius, ": 0..16) are invalid");
   SL_CHECK(std::isfinite(opt.adaptive_light_samples) && opt.adaptive_light_samples >= 0 && opt.adaptive_max_factor >= 0,
            "insert_objects: adaptive_light_samples ", opt.adaptive_light_samples, " and adaptive_max_factor ",
            opt.adaptive_max_factor, " must be >= 0");
@@ -135,7 +142,10 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
         RadianceCache fg_cache(in, opt, env_map, lo, hi, opt.cache_max_xz, opt.cache_max_y, 0.0,
                                opt.cache_sparse ? &origins : nullptr);
         if (cv) fg_cache.build_irradiance(opt.cv_normals_height, opt.cv_quadrature_supersample, normals);
-        shade_foreground(opt, bvh, env_map, gs, fg_cache, cv, fg, shaded);
+        std::unique_ptr<const RayMarcher> exact;
+        if (opt.cache_exact_light_rays > 0) exact = std::make_unique<const RayMarcher>(in.vsg, in.env, in.grid, opt.query);
+        shade_foreground(opt, bvh, env_map, gs, fg_cache, cv, fg, shaded, exact.get());
+        out.stats.exact_correction_rays += fg.exact_correction_rays;
       }
       const std::vector<glm::vec3> texel_origins = shadow_texels(in, opt, bvh.bounds(), env_map, depth, sh, out.stats);
       if (!sh.texels.empty()) {
@@ -150,7 +160,10 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
         }
         const RadianceCache sh_cache(in, sh_opt, env_map, lo, hi, opt.cache_shadow_max_xz, opt.cache_shadow_max_y,
                                      opt.cache_shadow_exact_sky * sky_mean, opt.cache_sparse ? &origins : nullptr);
-        shade_shadows(opt, bvh, env_map, sh, texel_origins, sh_cache, eps, ratio);
+        std::unique_ptr<const RayMarcher> exact;
+        if (opt.cache_shadow_exact_rays > 0) exact = std::make_unique<const RayMarcher>(in.vsg, in.env, in.grid, opt.query);
+        out.stats.exact_correction_rays +=
+            shade_shadows(opt, bvh, env_map, sh, texel_origins, sh_cache, eps, ratio, exact.get());
         out.stats.exact_query_rays = sh_cache.exact_rays();
       }
     } else {

@@ -134,6 +134,8 @@ PhotoInsertionOptions insertion_options(const cli::Args& a, const RadianceQueryO
   o.shadow_height = static_cast<int>(a.integer("--shadow-height", o.shadow_height));
   o.adaptive_light_samples = a.number("--adaptive-samples", o.adaptive_light_samples);
   o.denoise_radius = static_cast<int>(a.integer("--denoise-radius", o.denoise_radius));
+  o.exact_light_rays = static_cast<int>(a.integer("--exact-light-rays", o.exact_light_rays));
+  o.shadow_exact_rays = static_cast<int>(a.integer("--exact-shadow-rays", o.shadow_exact_rays));
   o.radiance_cache = !a.has("--exact");
   o.seed = static_cast<uint64_t>(a.integer("--seed", 0));
   o.volume_query = volume_query;
@@ -142,6 +144,10 @@ PhotoInsertionOptions insertion_options(const cli::Args& a, const RadianceQueryO
   SL_CHECK(std::isfinite(o.adaptive_light_samples) && o.adaptive_light_samples >= 0 && o.adaptive_light_samples <= 1024,
            "--adaptive-samples must be in [0, 1024], got ", o.adaptive_light_samples);
   SL_CHECK(o.denoise_radius >= 0 && o.denoise_radius <= 16, "--denoise-radius must be in [0, 16], got ", o.denoise_radius);
+  SL_CHECK(o.exact_light_rays >= 0 && o.exact_light_rays <= 64, "--exact-light-rays must be in [0, 64], got ",
+           o.exact_light_rays);
+  SL_CHECK(o.shadow_exact_rays >= 0 && o.shadow_exact_rays <= 64, "--exact-shadow-rays must be in [0, 64], got ",
+           o.shadow_exact_rays);
   return o;
 }
 
@@ -691,12 +697,15 @@ int run(int argc, char** argv) {
                {"--sun-from-shadows", "", "set the sun's direction and strength from the photo's own cast shadows and its\n"
                 "                               depth (needs real geometry: --lidar or --depth); else the network's sun stays"},
                {"--aa", "N", "primary rays per pixel (default 4)"},
-               {"--light-samples", "N", "light samples per primary ray, Eq. 2 (default 6)"},
+               {"--light-samples", "N", "light samples per primary ray, Eq. 2 (default 8)"},
                {"--adaptive-samples", "X", "on average X more per primary ray where the neighbouring pixels were noisy\n"
                 "                               (default 2; 0: off)"},
                {"--denoise-radius", "N", "smooth the sampled part of Eq. 2 over (2N+1)^2 pixels, guided by normals, depth\n"
                 "                               and its own noise (default 2; 0: off)"},
-               {"--shadow-rays", "N", "shadow rays per shadow-map pixel, Eq. 4 (default 128)"},
+               {"--shadow-rays", "N", "shadow rays per shadow-map pixel, Eq. 4 (default 256)"},
+               {"--exact-light-rays", "M", "of each primary ray's light samples, M also marched exactly to correct the\n"
+                "                               radiance cache's bias (default 2; 0: off)"},
+               {"--exact-shadow-rays", "M", "the same for the shadow rays of each shadow-map pixel (default 16; 0: off)"},
                {"--shadow-width", "N", "shadow-map width (default 160)"},
                {"--shadow-height", "N", "shadow-map height (default 90)"},
                {"--seed", "N", "sampling seed (default 0)"},

@@ -107,6 +107,10 @@ InsertionOptions insertion_options(const PhotoInsertionOptions& o) {
   io.denoise_radius = o.denoise_radius;
   io.bilinear_env_sampling = o.bilinear_env_sampling;
   io.stratify_per_pixel = o.stratify_per_pixel;
+  io.cache_exact_light_rays = o.exact_light_rays;
+  io.cache_exact_filter_radius = o.exact_light_radius;
+  io.cache_shadow_exact_rays = o.shadow_exact_rays;
+  io.cache_shadow_exact_filter_radius = o.shadow_exact_radius;
   return io;
 }
 

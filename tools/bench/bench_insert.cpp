@@ -404,26 +404,28 @@ int run_production(const std::string& size, bool json, const std::string& data, 
                   "\"aa\": %d, \"light_samples\": %d, \"shadow_rays\": %d, \"shadow_map\": \"%dx%d\", \"radiance_cache\": %s, "
                   "\"lighting_ms\": %.1f, \"insertion_ms\": %.1f, \"ms\": %.1f, \"rel_rmse\": %.5f, \"region_pixels\": %lld, "
                   "\"insertion_cpu_ms\": %.1f, \"object_samples\": %lld, \"query_rays\": %lld, \"exact_query_rays\": %lld, "
-                  "\"shadow_texels_computed\": %lld, "
+                  "\"exact_correction_rays\": %lld, \"shadow_texels_computed\": %lld, "
                   "\"rel_rmse_object\": %.5f, \"rel_rmse_edge\": %.5f, \"rel_rmse_shadow\": %.5f, \"object_pixels\": %lld, "
                   "\"edge_pixels\": %lld, \"shadow_pixels\": %lld, \"rel_noise\": %.5f, \"rel_noise_object\": %.5f, "
                   "\"rel_noise_shadow\": %.5f, \"reference_ms\": %.0f}\n",
                   size.c_str(), row.name.c_str(), k.width, k.height, row.opt.aa_samples, row.opt.light_samples,
                   row.opt.shadow_rays, row.opt.shadow_width, row.opt.shadow_height, row.opt.radiance_cache ? "true" : "false",
                   light_ms, ms, total, err.rel_rmse, (long long)err.pixels, cpu_ms, (long long)r.stats.foreground_samples,
-                  (long long)r.stats.query_rays, (long long)r.stats.exact_query_rays, (long long)r.stats.shadow_pixels_computed,
-                  err.object, err.edge, err.shadow,
+                  (long long)r.stats.query_rays, (long long)r.stats.exact_query_rays,
+                  (long long)r.stats.exact_correction_rays, (long long)r.stats.shadow_pixels_computed, err.object, err.edge, err.shadow,
                   (long long)err.object_pixels, (long long)err.edge_pixels, (long long)err.shadow_pixels,
                   noise.rel_rmse / std::sqrt(2.0), noise.object / std::sqrt(2.0), noise.shadow / std::sqrt(2.0), ref_ms);
     else
       std::printf("%-26s aa %d light %4d shadow %4d (%dx%d)  lighting %6.0f ms + insertion %7.0f ms = %7.0f ms  "
                   "rel RMSE %.4f over %lld px [object %.4f, edges %.4f, shadow %.4f]  noise %.4f [object %.4f, shadow "
-                  "%.4f]  (CPU %.0f ms; object samples %lld, query rays %lld (%lld marched exactly), shadow texels %lld)\n",
+                  "%.4f]  (CPU %.0f ms; object samples %lld, query rays %lld (%lld marched exactly, %lld "
+                  "for corrections), shadow texels %lld)\n",
                   row.name.c_str(), row.opt.aa_samples, row.opt.light_samples, row.opt.shadow_rays, row.opt.shadow_width,
                   row.opt.shadow_height, light_ms, ms, total, err.rel_rmse, (long long)err.pixels, err.object, err.edge,
                   err.shadow, noise.rel_rmse / std::sqrt(2.0), noise.object / std::sqrt(2.0),
                   noise.shadow / std::sqrt(2.0), cpu_ms, (long long)r.stats.foreground_samples, (long long)r.stats.query_rays,
-                  (long long)r.stats.exact_query_rays, (long long)r.stats.shadow_pixels_computed);
+                  (long long)r.stats.exact_query_rays, (long long)r.stats.exact_correction_rays,
+                  (long long)r.stats.shadow_pixels_computed);
     std::fflush(stdout);
   }
   return 0;

@@ -69,6 +69,16 @@ std::vector<InsertRow> insert_rows(const train::PhotoInsertionOptions& productio
     InsertionOptions exact = train::insertion_options(production);
     exact.radiance_cache = false;
     rows.push_back({"production_exact_queries", exact});
+    // One pass of the reference (bench_insert.cpp: exact queries, 64 light samples per primary
+    // sample, 256 shadow rays, no control variate, adaptive sampling or filter): its noise / √passes
+    // is the reference's own noise, which every row's rel_rmse contains.
+    InsertionOptions ref_pass = exact;
+    ref_pass.light_samples = 64;
+    ref_pass.shadow_rays = 256;
+    ref_pass.diffuse_control_variate = false;
+    ref_pass.adaptive_light_samples = 0;
+    ref_pass.denoise_radius = 0;
+    rows.push_back({"reference_pass", ref_pass});
     InsertionOptions texel_env = train::insertion_options(production);
     texel_env.bilinear_env_sampling = false;
     rows.push_back({"texel_env_sampling", texel_env});
@@ -176,6 +186,41 @@ std::vector<InsertRow> insert_rows(const train::PhotoInsertionOptions& productio
       rows.push_back({"shadow_exact_sky" + std::to_string(int(t)) + "_grid" + std::to_string(xz) + "x2x" +
                           std::to_string(xz) + "_dirs" + std::to_string(hs) + "x" + std::to_string(2 * hs),
                       o});
+    }
+    // Exact corrections (render/object_insertion.h, "Exact corrections"): M exact rays per
+    // object sample (filtered over (2r+1)² pixels) and per shadow texel (over (2r+1)² texels),
+    // each alone, then with the probe and sample knobs that bring the row under 1%.
+    struct Corrected {
+      const char* name;
+      double spacing;
+      int dirs, xz, light, exact_light, light_radius, shadow_rays, exact_shadow, shadow_radius;
+    };
+    for (const Corrected& c : std::vector<Corrected>{
+             {"former_production", 1.0, 24, 4, 6, 0, 0, 128, 0, 0},  // until 2026-11-27
+             {"exact_light1_unfiltered", 1.0, 24, 4, 6, 1, 0, 128, 0, 0},
+             {"exact_light1", 1.0, 24, 4, 6, 1, 8, 128, 0, 0},
+             {"exact_light2", 1.0, 24, 4, 6, 2, 8, 128, 0, 0},
+             {"exact_light6_all_unfiltered", 1.0, 24, 4, 6, 6, 0, 128, 0, 0},
+             {"exact_shadow16_unfiltered", 1.0, 24, 4, 6, 0, 0, 128, 16, 0},
+             {"exact_shadow16", 1.0, 24, 4, 6, 0, 0, 128, 16, 2},
+             {"exact_shadow16_rays256", 1.0, 24, 4, 6, 0, 0, 256, 16, 2},
+             {"exact_light1_shadow16_rays256", 1.0, 24, 4, 6, 1, 8, 256, 16, 2},
+             {"exact_light1_n8_shadow16_rays256", 1.0, 24, 4, 8, 1, 8, 256, 16, 2},
+             {"exact_light2_n8_shadow16_rays256", 1.0, 24, 4, 8, 2, 6, 256, 16, 2},
+             {"exact_light2_n8_probes0.5m_shadow16_rays256", 0.5, 16, 12, 8, 2, 4, 256, 16, 2},
+         }) {
+      InsertionOptions o = train::insertion_options(production);
+      o.cache_spacing_m = c.spacing;
+      o.cache_height = c.dirs;
+      o.cache_width = 2 * c.dirs;
+      o.cache_max_xz = c.xz;
+      o.light_samples = c.light;
+      o.cache_exact_light_rays = c.exact_light;
+      o.cache_exact_filter_radius = c.light_radius;
+      o.shadow_rays = c.shadow_rays;
+      o.cache_shadow_exact_rays = c.exact_shadow;
+      o.cache_shadow_exact_filter_radius = c.shadow_radius;
+      rows.push_back({c.name, o});
     }
     {  // the measured knobs together: object probes 8×4×8, 256 shadow rays over a 4×2×4 grid
       InsertionOptions o = train::insertion_options(production);

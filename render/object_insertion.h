@@ -52,11 +52,16 @@
 // of a volume looked up at its nearest voxel is biased wherever the volume changes within a probe
 // cell, and finer probes lower that bias slowly (KITTI 000008, released lighting: the object term
 // 1.24% at the default grid, 0.98% at 0.5 m, 0.91% at 0.35 m for +76% CPU). Instead, M of a
-// sample's N rays (a random offset, then every N/M-th: each ray is equally likely) are also
-// marched exactly, and (N/M)·Σ w·(L_exact − L_cached) is added: the cached sum's expectation
-// plus that of the correction is the exact one, so the bias goes and only the difference's
-// (small) variance comes in. The control variate is untouched (its g-term reads the cache on
-// both sides). Shadows: the numerator and the denominator of S each get the same correction.
+// sample's N rays, drawn in proportion to their cached contribution (render/exact_correction.h),
+// are also marched exactly, and Σ w·(L_exact − L_cached)/(M·p) is added: the cached sum's
+// expectation plus that of the correction is the exact one (M ≥ N: every ray, exactly). The
+// control variate is untouched (its g-term reads the cache on both sides). The correction's
+// noise is the cache's per-ray error, large beside its mean, so it is smoothed like the residual
+// (render/insertion_denoise.h, without the noise guide) over cache_exact_filter_radius; that
+// filter's bias is what it leaves. Shadows: the numerator and the denominator of S each get the
+// correction of the same rays, relative to the denominator and averaged over the texels within
+// cache_shadow_exact_filter_radius of similar depth, then S = (ρ + Δnum)/(1 + Δden) in [0, 1].
+// Measured: streetlight-bench insert, rows exact_* (train/photo_insertion.h has the figures).
 // Lean: shadows are computed only inside the screen-space region the object can shadow (its
 // bounds swept along the light directions that carry energy, clipped to the image) and shading
 // only inside the object's screen bounds. stats reports the fraction skipped; the result equals

@@ -3,12 +3,15 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
+#include <vector>
 
 #include "autodiff/elementwise.h"
 #include "autodiff/map.h"
 #include "autodiff/shape_ops.h"
 #include "autodiff/tape.h"
 #include "autodiff/unary.h"
+#include "autodiff/vector_math.h"
 
 namespace sl {
 namespace {
@@ -53,12 +56,37 @@ Tensor rows_view(const Tensor& x, const ReducePlan& p) {
   return permute(x.detach(), perm).contiguous();
 }
 
+// One reduction block's sum in double: float32 through vm::sum (32 partial sums, the same bits
+// on every SIMD level), float64 through block_sum.
+template <class T>
+double block_total(const T* p, int64_t b, int64_t e) {
+  if constexpr (std::is_same_v<T, float>)
+    return vm::sum(p + b, e - b);
+  else
+    return block_sum(b, e, [p](int64_t i) { return p[i]; });
+}
+
 // Row sum in the fixed block order of parallel.h: identical bits whichever thread runs it.
 template <class T>
 double row_sum(const T* p, int64_t n) {
   double total = 0.0;
-  for (int64_t b = 0; b < n; b += kReduceBlock)
-    total += block_sum(b, std::min(n, b + kReduceBlock), [p](int64_t i) { return p[i]; });
+  for (int64_t b = 0; b < n; b += kReduceBlock) total += block_total(p, b, std::min(n, b + kReduceBlock));
+  return total;
+}
+
+// The whole array's sum: blocks of kReduceBlock in parallel, partials summed in block order
+// (parallel.h deterministic_sum's order).
+template <class T>
+double array_sum(const T* p, int64_t n) {
+  if (n <= 0) return 0.0;
+  const int64_t blocks = (n + kReduceBlock - 1) / kReduceBlock;
+  std::vector<double> partial(static_cast<size_t>(blocks), 0.0);
+  parallel_for(blocks, 1, [&](int64_t b0, int64_t b1) {
+    for (int64_t b = b0; b < b1; ++b)
+      partial[static_cast<size_t>(b)] = block_total(p, b * kReduceBlock, std::min(n, (b + 1) * kReduceBlock));
+  });
+  double total = 0.0;
+  for (double v : partial) total += v;
   return total;
 }
 
@@ -70,7 +98,7 @@ Tensor sum_kernel(const Tensor& x, const ReducePlan& p) {
     const T* src = rows.data<T>();
     T* dst = out.data<T>();
     if (p.outer == 1) {
-      dst[0] = static_cast<T>(deterministic_sum(p.inner, [&](int64_t i) { return src[i]; }));
+      dst[0] = static_cast<T>(array_sum(src, p.inner));
     } else {
       parallel_for(p.outer, std::max<int64_t>(1, 32768 / std::max<int64_t>(p.inner, 1)),
                    [&](int64_t r0, int64_t r1) {

@@ -68,6 +68,7 @@ const char* simd_level_name(SimdLevel level) {
   }
 }
 
+double sum(const float* x, int64_t n) { return table().sum(x, n); }
 void exp(const float* x, float* y, int64_t n) { table().exp(x, y, n); }
 void log(const float* x, float* y, int64_t n) { table().log(x, y, n); }
 void tanh(const float* x, float* y, int64_t n) { table().tanh(x, y, n); }

@@ -54,6 +54,11 @@ void softplus(const float* x, float* y, int64_t n);
 // y = x^p for a scalar exponent p (computed in double internally, rounded once).
 void pow(const float* x, float p, float* y, int64_t n);
 
+// Σ x[0..n) accumulated in double, in one fixed order on every level (32 interleaved partial
+// sums combined pairwise, then the n mod 32 tail; vector_math_kernels.h sum_array): identical
+// bits on scalar, AVX2 and AVX-512. The autodiff sum of float32 calls it per reduction block.
+double sum(const float* x, int64_t n);
+
 // Fused backward kernels: dx = g · f'(x) written to dx.
 void softplus_backward(const float* g, const float* x, float* dx, int64_t n);  // g · sigmoid(x)
 

@@ -37,6 +37,13 @@ struct Lanes {
 
   // Loads N floats (widened to double for T = double); stores N floats (rounded once).
   static F load(const float* p) {
+    // Widening float → double in one instruction (GCC splits __builtin_convertvector into two
+    // half-width conversions and an insert; exact either way).
+    if constexpr (kBytes == 64 && std::is_same_v<T, double>) {
+      return (F)_mm512_cvtps_pd(_mm256_loadu_ps(p));
+    } else if constexpr (kBytes == 32 && std::is_same_v<T, double>) {
+      return (F)_mm256_cvtps_pd(_mm_loadu_ps(p));
+    }
     Stored s;
     std::memcpy(&s, p, sizeof(s));
     return __builtin_convertvector(s, F);

@@ -218,6 +218,32 @@ TEST(VectorMath, EverySimdLevelMatchesScalarBitwise) {
   force_simd_level(saved);
 }
 
+// vm::sum: every level gives the scalar fallback's bits for lengths around the 32-wide body and
+// its tail, and the sum is within the double-accumulation bound of the exact (long double) one:
+// |error| ≤ (n/32 + 5 + n mod 32)·ε_double·Σ|x| (each partial sum adds at most n/32 terms, the
+// pairwise combine 5 levels, the tail one add per element).
+TEST(VectorMath, SumMatchesScalarBitwiseAndTheExactSum) {
+  std::vector<float> xs(100003);
+  for (size_t i = 0; i < xs.size(); ++i) xs[i] = float(std::sin(0.37 * double(i)) * std::exp(double(i % 97) / 10.0));
+  const SimdLevel saved = active_simd_level();
+  for (int64_t n : {int64_t(0), int64_t(1), int64_t(31), int64_t(32), int64_t(33), int64_t(4096), int64_t(100003)}) {
+    force_simd_level(SimdLevel::Scalar);
+    const double want = vm::sum(xs.data(), n);
+    long double exact = 0, magnitude = 0;
+    for (int64_t i = 0; i < n; ++i) exact += xs[size_t(i)], magnitude += std::fabs(xs[size_t(i)]);
+    const double bound = double(n / 32 + 5 + n % 32) * 2.220446049250313e-16 * double(magnitude);
+    EXPECT_LE(std::fabs(double(exact) - want), bound) << "n = " << n;
+    for (SimdLevel level : {SimdLevel::Avx2, SimdLevel::Avx512}) {
+      if (static_cast<int>(level) > static_cast<int>(cpu_simd_level())) continue;
+      force_simd_level(level);
+      const double got = vm::sum(xs.data(), n);
+      EXPECT_EQ(std::memcmp(&got, &want, sizeof got), 0) << simd_level_name(level) << " n = " << n << ": " << got
+                                                         << " vs " << want;
+    }
+  }
+  force_simd_level(saved);
+}
+
 // The float32 tensor ops (vectorised path, several parallel chunks) and their gradients agree
 // with the float64 ops (libm path) to float precision.
 TEST(VectorMath, Float32TensorOpsAndGradientsMatchFloat64) {

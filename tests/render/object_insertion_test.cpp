@@ -259,7 +259,10 @@ TEST(ObjectInsertion, ExtremeCasesKeepTheCachedControlVariatePathFiniteAndNonNeg
     opt.cache_width = 16;
     opt.adaptive_light_samples = 4;  // and the photo defaults' adaptive sampling and residual filter
     opt.denoise_radius = 2;
+    opt.cache_exact_light_rays = 2;  // and their exact corrections (a 10^5 sun's L_exact − L_cached)
+    opt.cache_shadow_exact_rays = 4;
     const InsertionResult r = insert_objects(in, opt);
+    EXPECT_GT(r.stats.exact_correction_rays, 0) << c.name;
     EXPECT_TRUE(finite(r.composite)) << c.name;
     EXPECT_TRUE(finite(r.shadow_map)) << c.name;
     for (double v : r.shadow_map.to_vector()) EXPECT_GE(v, 0.0) << c.name;

@@ -24,14 +24,17 @@ namespace {
 int run_networks(const std::vector<std::string>& args) {
   bool json = false, cpu_time = false;
   int repeat = 5;
+  std::string only;  // one network by name (profiling), else both
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     if (a == "--json") json = true;
     else if (a == "--cpu-time") cpu_time = true;
     else if (a == "--repeat" && i + 1 < args.size()) repeat = std::max(1, std::atoi(args[++i].c_str()));
+    else if (a == "--only" && i + 1 < args.size()) only = args[++i];
     else if (a == "--help" || a == "-h") {
-      std::printf("usage: streetlight-bench networks [--json] [--repeat N] [--cpu-time]\n"
+      std::printf("usage: streetlight-bench networks [--json] [--repeat N] [--cpu-time] [--only resnet18|unet3d]\n"
                   "  ResNet-18 (4x3x128x256) and UNet3D (1x16x64x64x16) forward+backward, best of N (default 5).\n"
+                  "  --only NAME: that network alone (for profiling one of them)\n"
                   "  --cpu-time: process CPU time instead of wall time (with OMP_NUM_THREADS=1, a figure\n"
                   "    that other processes' load distorts far less)\n");
       return 0;
@@ -39,13 +42,15 @@ int run_networks(const std::vector<std::string>& args) {
       fail("networks: unknown option '", a, "' (try --help)");
     }
   }
+  if (!only.empty() && only != "resnet18" && only != "unet3d")
+    fail("networks: --only must be resnet18 or unet3d, got '", only, "'");
   auto best_ms = [&](auto&& f) { return cpu_time ? bench::best_cpu_ms(f, repeat) : bench::best_ms(f, repeat); };
   auto report = [&](const char* name, double ms) {
     if (json) std::printf("{\"network\": \"%s\", \"threads\": %d, \"ms\": %.2f}\n", name, omp_get_max_threads(), ms);
     else std::printf("%-10s forward+backward %9.2f ms\n", name, ms);
     std::fflush(stdout);
   };
-  {
+  if (only.empty() || only == "resnet18") {
     nn::ResNet net(nn::ResNetOptions{.depth = 18, .in_channels = 3, .base_width = 64, .num_classes = 64, .seed = 1});
     net.train();
     const Tensor x = Tensor::normal({4, 3, 128, 256}, 0, 1, 2);
@@ -54,7 +59,7 @@ int run_networks(const std::vector<std::string>& args) {
              backward(mean(square(net.forward(x))));
            }));
   }
-  {
+  if (only.empty() || only == "unet3d") {
     nn::UNetOptions o;
     o.in_channels = 16;
     o.out_channels = 8;

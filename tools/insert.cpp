@@ -370,15 +370,7 @@ int single(const cli::Args& a) {
             {"image", a.has("--sample") ? a.get("--sample") : a.all("--image")[0]},
             {"views", photos.size()},
             {"depth_source", photo.depth_source},
-            {"sun", {{"direction_world", vec_json(sun)},
-                     {"azimuth_deg", azimuth_deg_of(sun)},
-                     {"elevation_deg", elevation_deg_of(sun)},
-                     {"intensity_rgb", vec_json(light.sun_intensity_rgb)},
-                     {"from_sky_vector", light.has_sky_code},
-                     {"flip_spread_deg", spread_json(light)},
-                     {"hedge", hedge_json(light)},
-                     {"visible_sun", visible_sun_json(light)},
-                     {"edited", edit.active() || (shadow && shadow->fit.found)}}},
+            {"sun", sun_json(light)},
             {"placement", {{"at_camera_ground_xz", {ax, az}},
                            {"world_x_m", pose.x_m},
                            {"world_z_m", pose.z_m},
@@ -390,6 +382,8 @@ int single(const cli::Args& a) {
                        {"y", ins.box3d[4]}, {"z", ins.box3d[5]}, {"rotation_y", ins.box3d[6]}}},
             {"kitti_label", label},
             {"timing_ms", {{"lighting", light.inference_ms}, {"insertion", ins.render_ms}}}};
+  j["sun"]["from_sky_vector"] = light.has_sky_code;
+  j["sun"]["edited"] = edit.active() || (shadow && shadow->fit.found);
   if (shadow)
     j["sun_from_shadows"] = {{"found", shadow->fit.found},
                              {"azimuth_deg", shadow->fit.azimuth_deg},

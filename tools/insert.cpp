@@ -126,7 +126,7 @@ void write_text(const std::string& path, const std::string& text) {
 }
 
 PhotoInsertionOptions insertion_options(const cli::Args& a, const RadianceQueryOptions& volume_query) {
-  PhotoInsertionOptions o;
+  PhotoInsertionOptions o = a.has("--fast") ? train::fast_insertion_options() : PhotoInsertionOptions{};
   o.aa_samples = static_cast<int>(a.integer("--aa", o.aa_samples));
   o.light_samples = static_cast<int>(a.integer("--light-samples", o.light_samples));
   o.shadow_rays = static_cast<int>(a.integer("--shadow-rays", o.shadow_rays));
@@ -381,7 +381,16 @@ int single(const cli::Args& a) {
             {"box3d", {{"h", ins.box3d[0]}, {"w", ins.box3d[1]}, {"l", ins.box3d[2]}, {"x", ins.box3d[3]},
                        {"y", ins.box3d[4]}, {"z", ins.box3d[5]}, {"rotation_y", ins.box3d[6]}}},
             {"kitti_label", label},
-            {"timing_ms", {{"lighting", light.inference_ms}, {"insertion", ins.render_ms}}}};
+            {"timing_ms", {{"lighting", light.inference_ms}, {"insertion", ins.render_ms}}},
+            {"insertion", {{"aa", options.aa_samples},
+                           {"light_samples", options.light_samples},
+                           {"adaptive_samples", options.adaptive_light_samples},
+                           {"denoise_radius", options.denoise_radius},
+                           {"shadow_rays", options.shadow_rays},
+                           {"shadow_map", {options.shadow_width, options.shadow_height}},
+                           {"exact_light_rays", options.exact_light_rays},
+                           {"exact_shadow_rays", options.shadow_exact_rays},
+                           {"radiance_cache", options.radiance_cache}}}};
   j["sun"]["from_sky_vector"] = light.has_sky_code;
   j["sun"]["edited"] = edit.active() || (shadow && shadow->fit.found);
   if (shadow)
@@ -700,6 +709,9 @@ int run(int argc, char** argv) {
                {"--exact-light-rays", "M", "of each primary ray's light samples, M also marched exactly to correct the\n"
                 "                               radiance cache's bias (default 2; 0: off)"},
                {"--exact-shadow-rays", "M", "the same for the shadow rays of each shadow-map pixel (default 16; 0: off)"},
+               {"--fast", "", "the settings before the exact corrections: --light-samples 6 --shadow-rays 128\n"
+                "                               --exact-light-rays 0 --exact-shadow-rays 0 (about half the time; KITTI:\n"
+                "                               1.6% error against 0.9%); flags given explicitly still win"},
                {"--shadow-width", "N", "shadow-map width (default 160)"},
                {"--shadow-height", "N", "shadow-map height (default 90)"},
                {"--seed", "N", "sampling seed (default 0)"},

@@ -84,6 +84,15 @@ double box_truncation(const std::array<double, 7>& b, const Intrinsics& k) {
 
 }  // namespace
 
+PhotoInsertionOptions fast_insertion_options() {
+  PhotoInsertionOptions o;
+  o.light_samples = 6;
+  o.shadow_rays = 128;
+  o.exact_light_rays = 0;
+  o.shadow_exact_rays = 0;
+  return o;
+}
+
 InsertionOptions insertion_options(const PhotoInsertionOptions& o) {
   InsertionOptions io;
   io.aa_samples = o.aa_samples;

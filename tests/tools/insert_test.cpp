@@ -61,6 +61,12 @@ TEST(InsertTool, WritesEveryOutputWithTheGroundPlaneFallback) {
   EXPECT_NEAR(j["box3d"]["z"].get<double>(), 8.0, 1e-6);  // 8 m ahead in the camera frame
   EXPECT_GT(j["box2d"][2].get<double>(), j["box2d"][0].get<double>());
   EXPECT_EQ(j["kitti_label"].get<std::string>().rfind("Car ", 0), 0u);
+  // What was rendered: the flags given, and the defaults' exact corrections (train/photo_insertion.h).
+  EXPECT_EQ(j["insertion"]["light_samples"], 4);
+  EXPECT_EQ(j["insertion"]["shadow_rays"], 8);
+  EXPECT_EQ(j["insertion"]["exact_light_rays"], 2);
+  EXPECT_EQ(j["insertion"]["exact_shadow_rays"], 16);
+  EXPECT_EQ(j["insertion"]["radiance_cache"], true);
   const sl::Tensor comp = sl::data::read_image(out + "/composite.png");
   EXPECT_EQ(comp.size(1), 32);
   EXPECT_EQ(comp.size(2), 64);
@@ -169,11 +175,29 @@ TEST(InsertTool, SunFromShadowsWithAnEditedSunIsACleanError) {
   expect_clean_error(r, c.dir + "/out", "--sun-from-shadows");
 }
 
+// --fast: the settings before the exact corrections (train/photo_insertion.h fast_insertion_options),
+// with the flags given explicitly still in force.
+TEST(InsertTool, FastTakesTheFormerSettingsAndExplicitFlagsWin) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP() << "streetlight-insert not built";
+  const InsertCase c = setup("insert_fast");
+  const std::string out = c.dir + "/out";
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                    "/intrinsics.json --at 0,8 --fast --exact-shadow-rays 3 --out " +
+                                                    out + c.base);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream jf(out + "/result.json");
+  const auto j = nlohmann::json::parse(jf);
+  EXPECT_EQ(j["insertion"]["exact_light_rays"], 0);
+  EXPECT_EQ(j["insertion"]["exact_shadow_rays"], 3);  // given explicitly
+  EXPECT_EQ(j["insertion"]["light_samples"], 4);      // the fixture's --light-samples 4
+}
+
 TEST(InsertTool, BadSamplingKnobsAreCleanErrors) {
   if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
   const InsertCase c = setup("insert_bad_knobs");
   for (const auto& [flag, value] : std::vector<std::pair<std::string, std::string>>{
-           {"--adaptive-samples", "-1"}, {"--adaptive-samples", "nan"}, {"--denoise-radius", "-2"}, {"--denoise-radius", "99"}}) {
+           {"--adaptive-samples", "-1"}, {"--adaptive-samples", "nan"}, {"--denoise-radius", "-2"}, {"--denoise-radius", "99"},
+           {"--exact-light-rays", "-1"}, {"--exact-shadow-rays", "65"}}) {
     const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
                                                       "/intrinsics.json --at 0,8 --out " + c.dir + "/out" + c.base + " " +
                                                       flag + " " + value);

@@ -308,7 +308,7 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
   // `at` = cache.corners() of the sample's light origin.
   // With `full` (the weights without the control variate's term), also the sample's exact
   // correction into *correct (render/object_insertion.h, "Exact corrections").
-  const int M = exact ? std::min(opt.cache_exact_light_rays, N) : 0;
+  const int M = exact ? std::min({opt.cache_exact_light_rays, N, kMaxCorrections}) : 0;
   static thread_local std::vector<glm::vec3> lc;  // a sample's cached radiance per ray (corrections)
   static thread_local std::vector<float> score;
   const uint64_t exact_seed = hash_counter(sample_seed(opt, kTagLight), kTagExact);
@@ -345,7 +345,7 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
     if (correcting) {
       // M of the n rays, drawn in proportion to their cached contribution (render/exact_correction.h).
       CorrectionPick picks[kMaxCorrections];
-      const int m = pick_corrections(score.data(), n, std::min(M, kMaxCorrections), uniform01f(exact_seed, g.stream, 0), picks);
+      const int m = pick_corrections(score.data(), n, M, uniform01f(exact_seed, g.stream, 0), picks);
       glm::vec3 c(0.0f);
       int marched = 0;
       for (int j = 0; j < m; ++j) {

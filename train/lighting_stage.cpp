@@ -262,16 +262,30 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
           log_int.push_back(select(f.pred.code.log_intensity, 0, static_cast<int64_t>(i)));
           energy.push_back(f.items[i].sun_energy);
         }
+      const auto& so = predictor_->options().sky;
+      const double lambda = sun_lobe_sharpness(so.height, so.sun_lobe_texels);
+      const double log_lobe = std::log(2.0 * kPi * -std::expm1(-2.0 * lambda) / lambda);
       Tensor energy_term = Tensor::scalar(0.0);
       if (!energy.empty()) {
-        const auto& so = predictor_->options().sky;
-        const double lambda = sun_lobe_sharpness(so.height, so.sun_lobe_texels);
-        const double log_lobe = std::log(2.0 * kPi * -std::expm1(-2.0 * lambda) / lambda);
         const Tensor pred = add_scalar(stack(log_int, 0), log_lobe);
         energy_term = mul_scalar(log_encoded_l2_from_log(pred, dvec_rows(energy).to(pred.dtype())),
                                  static_cast<double>(energy.size()) / static_cast<double>(n));
       }
       add_term("sun_energy", energy_term);
+      // Sunny LDR panoramas carry no energy label (their sun is clipped), only a plausible span:
+      // outside loss.ldr_sun_energy_range the lobe's energy is pulled back to its nearest end.
+      TensorList ldr_log_int;
+      for (size_t i = 0; i < f.items.size(); ++i)
+        if (f.samples[i].sun_known && !f.samples[i].hdr_sky)
+          ldr_log_int.push_back(select(f.pred.code.log_intensity, 0, static_cast<int64_t>(i)));
+      Tensor range_term = Tensor::scalar(0.0);
+      if (!ldr_log_int.empty()) {
+        const auto& range = w.at("ldr_sun_energy_range");
+        range_term = mul_scalar(log_encoded_range_l2_from_log(add_scalar(stack(ldr_log_int, 0), log_lobe),
+                                                              range.at(0).get<double>(), range.at(1).get<double>()),
+                                static_cast<double>(ldr_log_int.size()) / static_cast<double>(n));
+      }
+      add_term("ldr_sun_energy", range_term);
     } else {
       add_term("sky_hdr", log_encoded_l2_from_log(f.pred.log_env, teacher.sky.hdr));
     }

@@ -13,6 +13,8 @@
 //     sky_ldr L1 between LDR(decoded sky) and the panorama inside the sky mask; sun_energy
 //     LogEncodedL2 between the energy of the sky vector's analytic sun lobe and the true sun's
 //     Σ L·Ω within 5° (StreetItem.sun_energy: samples whose sky is HDR and sun known);
+//     ldr_sun_energy, on LDR panoramas whose sun has a position (no energy label: their sun is
+//     clipped), the lobe's distance outside loss.ldr_sun_energy_range (log_encoded_range_l2);
 //   direct branch: sky_hdr LogEncodedL2(env, teacher-decoded HDR) and sky_ldr;
 //   constant branch: no sky term (the volume-only baseline learns the sky from rays);
 //   volume terms on radiance-queried rays (Eq. 1; env lookup only without the volume):

@@ -19,6 +19,15 @@ Tensor log_encoded_l2_from_log(const Tensor& log_pred, const Tensor& target) {
   return mean(square(sub(softplus(log_pred), log1p(relu(target)))));
 }
 
+Tensor log_encoded_range_l2_from_log(const Tensor& log_pred, double lo, double hi) {
+  SL_CHECK(lo >= 0 && lo <= hi && std::isfinite(hi), "log_encoded_range_l2_from_log: need 0 <= lo <= hi < inf, got [",
+           lo, ", ", hi, "]");
+  const Tensor u = softplus(log_pred);
+  const Tensor below = relu(neg(add_scalar(u, -std::log1p(lo))));  // log(1 + lo) − u where positive
+  const Tensor above = relu(add_scalar(u, -std::log1p(hi)));
+  return mean(square(add(below, above)));
+}
+
 Tensor angular_l1(const Tensor& pred_dir, const Tensor& target_dir) {
   SL_CHECK(pred_dir.dim() == 2 && pred_dir.size(1) == 3 && pred_dir.shape() == target_dir.shape(),
            "angular_l1: expected two [N, 3] direction tensors, got ", pred_dir.describe(), " and ", target_dir.describe());

@@ -15,6 +15,10 @@ namespace sl::train {
 Tensor log_encoded_l2(const Tensor& pred, const Tensor& target);
 // The same with the prediction given as log x̂ (log(1 + e^y) = softplus(y): no overflow).
 Tensor log_encoded_l2_from_log(const Tensor& log_pred, const Tensor& target);
+// A range in the same encoding, for a quantity with no label but a plausible span [lo, hi]
+// (0 ≤ lo ≤ hi): mean over elements of d², d = how far log(1 + x̂) lies outside
+// [log(1 + lo), log(1 + hi)] (0 inside), with x̂ = e^y given as y = log x̂.
+Tensor log_encoded_range_l2_from_log(const Tensor& log_pred, double lo, double hi);
 
 // L1 angular error: mean over rows of acos(clamp(â·a, −1, 1)) in radians, â and a [N, 3]
 // (unit; both are normalised with a guard first).

@@ -2,6 +2,7 @@
 // documented in configs/README.md.
 #include "train/train_config.h"
 
+#include <cmath>
 #include <string>
 
 #include "util/error.h"
@@ -82,6 +83,8 @@ json default_train_config() {
         {"sky_direction", 1.0},
         {"sky_direction_form", "angular"},
         {"sun_energy", 0.0},
+        {"ldr_sun_energy", 0.0},
+        {"ldr_sun_energy_range", {1.0, 10.0}},
         {"sky_ldr", 1.0},
         {"sky_hdr", 1.0},
         {"radiance", 1.0},
@@ -185,6 +188,11 @@ void check_train_config(const json& c) {
   const std::string form = c.at("loss").at("sky_direction_form").get<std::string>();
   SL_CHECK(form == "elevation_azimuth" || form == "angular",
            "loss.sky_direction_form must be \"elevation_azimuth\" or \"angular\", got \"", form, "\"");
+  const json& range = c.at("loss").at("ldr_sun_energy_range");
+  SL_CHECK(range.is_array() && range.size() == 2 && range[0].is_number() && range[1].is_number() &&
+               range[0].get<double>() >= 0 && range[0].get<double>() <= range[1].get<double>() &&
+               std::isfinite(range[1].get<double>()),
+           "loss.ldr_sun_energy_range must be [lo, hi] with 0 <= lo <= hi, got ", range.dump());
   (void)sky_options(c);
   if (stage != kStageSky) (void)predictor_options(c), (void)volume_query_options(c);
 }

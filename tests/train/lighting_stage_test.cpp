@@ -61,6 +61,9 @@ TEST(LightingStage, LdrPanoramasTrainAndValidateApart) {
   nlohmann::json c = tiny_config(kStageLighting);
   c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
   c["loss"]["sun_energy"] = 1.0;
+  // A span no untrained sun reaches, so every sunny LDR crop in a batch adds to the range term.
+  c["loss"]["ldr_sun_energy"] = 1.0;
+  c["loss"]["ldr_sun_energy_range"] = {1e4, 1e5};
   data::PanoramaSampleOptions o;
   o.crop.width = 64;
   o.crop.height = 32;
@@ -78,13 +81,15 @@ TEST(LightingStage, LdrPanoramasTrainAndValidateApart) {
                       train::concat_sources(memory_source(1),
                                             train::ldr_panorama_source(paths, dir + "/sun_labels.csv", o, 2, 4, false, 128)));
   stage.initialise();
-  double energy = 0.0;
+  double energy = 0.0, ldr_energy = 0.0;
   for (int64_t step = 0; step < 3; ++step) {
     const Metrics m = stage.step(step);
     for (const auto& [k, v] : m) EXPECT_TRUE(std::isfinite(v)) << k << " at step " << step;
     energy += m.at("sun_energy");
+    ldr_energy += m.at("ldr_sun_energy");
   }
-  EXPECT_GT(energy, 0.0);  // loss.sun_energy: the streets' HDR skies label the sun's energy
+  EXPECT_GT(energy, 0.0);      // loss.sun_energy: the streets' HDR skies label the sun's energy
+  EXPECT_GT(ldr_energy, 0.0);  // loss.ldr_sun_energy: the sunny LDR panorama 'a' has only a span
   const Metrics v = stage.validate();
   ASSERT_TRUE(v.count("val_ldr_sun_error_median_deg"));
   EXPECT_TRUE(std::isfinite(v.at("val_ldr_sun_error_median_deg")));

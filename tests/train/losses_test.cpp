@@ -19,6 +19,7 @@ using train::elevation_azimuth_l1;
 using train::generator_adversarial;
 using train::log_encoded_l2;
 using train::log_encoded_l2_from_log;
+using train::log_encoded_range_l2_from_log;
 using train::masked_l1;
 using train::median;
 using train::psnr;
@@ -40,6 +41,26 @@ TEST(Losses, LogEncodedL2MatchesHandValue) {
   backward(l);
   EXPECT_TRUE(std::isfinite(l.item()));
   EXPECT_TRUE(std::isfinite(y.grad().item()));
+}
+
+TEST(Losses, LogEncodedRangeL2IsZeroInsideAndTheDistanceToTheNearestEnd) {
+  // x̂ = 0.5, 3, 20 against [1, 10]: log(1 + x̂) lies below, inside and above the span.
+  const Tensor y = Tensor::from_vector({std::log(0.5), std::log(3.0), std::log(20.0)}, {3});
+  const double below = std::log(2.0) - std::log(1.5), above = std::log(21.0) - std::log(11.0);
+  EXPECT_NEAR(log_encoded_range_l2_from_log(y, 1.0, 10.0).item(), (below * below + above * above) / 3, 1e-6);
+  EXPECT_EQ(log_encoded_range_l2_from_log(Tensor::from_vector({std::log(3.0)}, {1}), 1.0, 10.0).item(), 0.0);
+  // A sun of e^60 and one of e^-60 stay finite, with finite gradients pointing back into the span.
+  const Tensor e = Tensor::from_vector({60.0, -60.0}, {2}).set_requires_grad(true);
+  const Tensor l = log_encoded_range_l2_from_log(e, 1.0, 10.0);
+  backward(l);
+  EXPECT_TRUE(std::isfinite(l.item()));
+  EXPECT_GT(e.grad().at({0}), 0.0);
+  EXPECT_LT(e.grad().at({1}), 0.0);
+  // float64 gradcheck away from the kinks at the span's ends.
+  const Tensor p = Tensor::from_vector({-2.0, 0.7, 3.5, 1.2}, {2, 2}).to(DType::F64).set_requires_grad(true);
+  const GradcheckResult r = gradcheck([&](const TensorList& in) { return log_encoded_range_l2_from_log(in[0], 1.0, 10.0); }, {p});
+  EXPECT_TRUE(r.ok) << r.message;
+  EXPECT_THROW(log_encoded_range_l2_from_log(p, 2.0, 1.0), Error);
 }
 
 TEST(Losses, AngularL1IsTheAngleAndFiniteAtAgreement) {

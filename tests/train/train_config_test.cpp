@@ -86,6 +86,13 @@ TEST(TrainConfig, LdrPanoramaSharesAreCheckedNamingTheirKeys) {
   c["data"]["real_fraction"] = 0.2;
   c["data"]["ldr_val_crops"] = -1;
   EXPECT_NE(refusal(c).find("data.ldr_val_crops"), std::string::npos) << refusal(c);
+  c["data"]["ldr_val_crops"] = 8;
+  EXPECT_EQ(refusal(c), "");
+  for (const nlohmann::json& bad : {nlohmann::json({10.0, 1.0}), nlohmann::json({-1.0, 1.0}), nlohmann::json({1.0}),
+                                    nlohmann::json("1-10")}) {
+    c["loss"]["ldr_sun_energy_range"] = bad;
+    EXPECT_NE(refusal(c).find("loss.ldr_sun_energy_range"), std::string::npos) << bad.dump() << ": " << refusal(c);
+  }
 }
 
 }  // namespace

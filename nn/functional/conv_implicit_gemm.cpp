@@ -554,6 +554,28 @@ ShiftTriples shift_triples(const ConvGeometry& g, int inner, const std::vector<i
   return t;
 }
 
+// How the weight gradients cut their work: each batch item's len_total positions into `chunks`
+// chunks of equal length (a multiple of 16 positions, at most max_chunk; the last may be
+// shorter), and items shorter than a chunk grouped `items_per_call` to a kernel call, with the
+// calls holding equal numbers of items. The calls go to the threads in contiguous runs, so
+// unequal calls idle a thread: ResNet-18's 32×64 stage was cut 2048 + 62 (max_chunk 2048), and
+// its 16×32 stage's 4 items went 3 + 1 to two calls, one thread waiting through two items' work.
+struct WeightGradSplit {
+  int64_t chunk = 0, chunks = 0, tasks = 0, items_per_call = 0, calls = 0;
+};
+
+WeightGradSplit weight_grad_split(int64_t items, int64_t len_total, int64_t max_chunk) {
+  WeightGradSplit s;
+  s.chunks = (len_total + max_chunk - 1) / max_chunk;
+  s.chunk = std::min(max_chunk, ((len_total + s.chunks - 1) / s.chunks + 15) / 16 * 16);
+  s.tasks = items * s.chunks;
+  const int64_t most = s.chunks == 1 ? std::max<int64_t>(1, max_chunk / len_total) : 1;
+  const int64_t calls = (s.tasks + most - 1) / most;
+  s.items_per_call = (s.tasks + calls - 1) / calls;
+  s.calls = (s.tasks + s.items_per_call - 1) / s.items_per_call;
+  return s;
+}
+
 void weight_grad_outer(const ConvGeometry& g, const Padded& xp, const std::vector<int64_t>& taps,
                        const float* dy_base, int64_t dy_pitch, int64_t len_total, float* dw, int inner_axis) {
   const int64_t R = g.rows(), vectors = (g.O + 15) / 16, Op = 16 * vectors;
@@ -571,11 +593,10 @@ void weight_grad_outer(const ConvGeometry& g, const Padded& xp, const std::vecto
       }
     });
   }
-  const int64_t kChunk = weight_grad_chunk();
-  const int64_t chunks = (len_total + kChunk - 1) / kChunk, tasks = g.N * chunks;
+  const WeightGradSplit split_work = weight_grad_split(g.N, len_total, weight_grad_chunk());
+  const int64_t kChunk = split_work.chunk, chunks = split_work.chunks, tasks = split_work.tasks;
   const int64_t memory_cap = std::max<int64_t>(1, (int64_t{16} << 20) / (Op * R * 4));
-  const int64_t items_per_call = chunks == 1 ? std::max<int64_t>(1, kChunk / len_total) : 1;
-  const int64_t calls = (tasks + items_per_call - 1) / items_per_call;
+  const int64_t items_per_call = split_work.items_per_call, calls = split_work.calls;
   const int64_t groups = std::min({calls, int64_t{16}, memory_cap});  // 16: even split over 2-4 threads
   constexpr int64_t kTapTile = 24;  // a multiple of every register tile's tap count (6, 8, 12)
   const int64_t tiles = (R + kTapTile - 1) / kTapTile;
@@ -664,8 +685,9 @@ void weight_grad(const ConvGeometry& g, const Order& order, const Padded& xp, co
 #if defined(__AVX512F__)
   return weight_grad_outer(g, xp, taps, dy_base, dy_pitch, len_total, dw, phased ? -1 : order[2]);
 #endif
-  constexpr int64_t kChunk = 1024;  // positions per task: 8 rows of dy (32 KiB) stay in L1 across taps
-  const int64_t chunks = (len_total + kChunk - 1) / kChunk, tasks = g.N * chunks;
+  // Up to 1024 positions per task: 8 rows of dy (32 KiB) stay in L1 across taps.
+  const WeightGradSplit split_work = weight_grad_split(g.N, len_total, 1024);
+  const int64_t kChunk = split_work.chunk, chunks = split_work.chunks, tasks = split_work.tasks;
   // Partials are capped at 16 MiB: deep layers (512 channels × 4608 taps on a few positions)
   // would otherwise spend longer zeroing and adding partials than computing. Parallelism then
   // comes from splitting the output channels (8-row blocks) of each group across tasks, which
@@ -674,8 +696,7 @@ void weight_grad(const ConvGeometry& g, const Order& order, const Padded& xp, co
   // Items shorter than a chunk (a ResNet's 8×16 stage: 142 positions on the padded pitch) are
   // grouped, up to a chunk's worth (their dy rows stay in L1 as one chunk's do), into one kernel
   // call that sums them on the same accumulators: one reduction per group instead of one per item.
-  const int64_t items_per_call = chunks == 1 ? std::max<int64_t>(1, kChunk / len_total) : 1;
-  const int64_t calls = (tasks + items_per_call - 1) / items_per_call;
+  const int64_t items_per_call = split_work.items_per_call, calls = split_work.calls;
   const int64_t groups = std::min({calls, int64_t{16}, memory_cap});  // 16: even split over 2-4 threads
   const int64_t row_blocks = (g.O + kBlockRows - 1) / kBlockRows;
   const int64_t parts = groups >= 8 ? 1 : std::min(row_blocks, (16 + groups - 1) / groups);

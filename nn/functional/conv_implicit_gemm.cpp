@@ -523,6 +523,28 @@ void input_grad_from(const ConvGeometry& g, const Order& order, const Padded& pa
                  pack_weights_flipped(w, g.O, g.C, g.taps()).data(), nullptr, dx);
 }
 
+// How the weight gradients cut their work: each batch item's len_total positions into `chunks`
+// chunks of equal length (a multiple of 16 positions, at most max_chunk; the last may be
+// shorter), and items shorter than a chunk grouped `items_per_call` to a kernel call, with the
+// calls holding equal numbers of items. The calls go to the threads in contiguous runs, so
+// unequal calls idle a thread: ResNet-18's 32×64 stage was cut 2048 + 62 (max_chunk 2048), and
+// its 16×32 stage's 4 items went 3 + 1 to two calls, one thread waiting through two items' work.
+struct WeightGradSplit {
+  int64_t chunk = 0, chunks = 0, tasks = 0, items_per_call = 0, calls = 0;
+};
+
+WeightGradSplit weight_grad_split(int64_t items, int64_t len_total, int64_t max_chunk) {
+  WeightGradSplit s;
+  s.chunks = (len_total + max_chunk - 1) / max_chunk;
+  s.chunk = std::min(max_chunk, ((len_total + s.chunks - 1) / s.chunks + 15) / 16 * 16);
+  s.tasks = items * s.chunks;
+  const int64_t most = s.chunks == 1 ? std::max<int64_t>(1, max_chunk / len_total) : 1;
+  const int64_t calls = (s.tasks + most - 1) / most;
+  s.items_per_call = (s.tasks + calls - 1) / calls;
+  s.calls = (s.tasks + s.items_per_call - 1) / s.items_per_call;
+  return s;
+}
+
 #if defined(__AVX512F__)
 // weight_grad (below) on the outer-product kernel (conv_weight_grad_outer): dy, on the padded
 // pitch with zeros at the dropped positions (dy_base, dy_pitch floats per (n, o) plane), is
@@ -552,28 +574,6 @@ ShiftTriples shift_triples(const ConvGeometry& g, int inner, const std::vector<i
     t.tap.push_back(r);
   }
   return t;
-}
-
-// How the weight gradients cut their work: each batch item's len_total positions into `chunks`
-// chunks of equal length (a multiple of 16 positions, at most max_chunk; the last may be
-// shorter), and items shorter than a chunk grouped `items_per_call` to a kernel call, with the
-// calls holding equal numbers of items. The calls go to the threads in contiguous runs, so
-// unequal calls idle a thread: ResNet-18's 32×64 stage was cut 2048 + 62 (max_chunk 2048), and
-// its 16×32 stage's 4 items went 3 + 1 to two calls, one thread waiting through two items' work.
-struct WeightGradSplit {
-  int64_t chunk = 0, chunks = 0, tasks = 0, items_per_call = 0, calls = 0;
-};
-
-WeightGradSplit weight_grad_split(int64_t items, int64_t len_total, int64_t max_chunk) {
-  WeightGradSplit s;
-  s.chunks = (len_total + max_chunk - 1) / max_chunk;
-  s.chunk = std::min(max_chunk, ((len_total + s.chunks - 1) / s.chunks + 15) / 16 * 16);
-  s.tasks = items * s.chunks;
-  const int64_t most = s.chunks == 1 ? std::max<int64_t>(1, max_chunk / len_total) : 1;
-  const int64_t calls = (s.tasks + most - 1) / most;
-  s.items_per_call = (s.tasks + calls - 1) / calls;
-  s.calls = (s.tasks + s.items_per_call - 1) / s.items_per_call;
-  return s;
 }
 
 void weight_grad_outer(const ConvGeometry& g, const Padded& xp, const std::vector<int64_t>& taps,

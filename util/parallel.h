@@ -17,8 +17,9 @@ namespace sl {
 namespace detail {
 // The chunk length for n items at `grain`: `grain`, except that a loop of 2 to kBalancedChunks
 // chunks has its count rounded up to a multiple of 4 (shorter chunks; else to an even count), so
-// that 2 or 4 threads get equal shares under static scheduling; 3 chunks on 2 threads left one idle for a third of
-// the loop (ResNet-18's weight transforms). A function of (n, grain) only, never of the threads.
+// that 2 or 4 threads get near-equal shares under static scheduling. 3 chunks on 2 threads left
+// one idle for a third of the loop (the Winograd weight transform of ResNet-18's 128-channel
+// layers). A function of (n, grain) only, never of the thread count.
 inline constexpr int64_t kBalancedChunks = 32;
 inline int64_t balanced_grain(int64_t n, int64_t grain) {
   grain = std::max<int64_t>(grain, 1);

@@ -4,7 +4,8 @@
 // free-form --meta key=value notes (e.g. the commit). The teacher and optimiser state are
 // dropped, and so is the discriminator unless --with-discriminator keeps it (discriminator.*,
 // for streetlight-insert --refine, train/lighting_refinement.h). The output is written
-// atomically and checked by loading it back.
+// atomically and checked by loading it back. --blend B --blend-t T writes the weight-space
+// interpolation (1 − T)·CKPT + T·B of two checkpoints of one model (nn/weight_blend.h).
 #include <cstdio>
 #include <filesystem>
 
@@ -12,6 +13,7 @@
 
 #include "nn/checkpoint.h"
 #include "nn/safetensors.h"
+#include "nn/weight_blend.h"
 #include "tools/common/cli.h"
 #include "train/inference.h"
 #include "train/lighting_refinement.h"
@@ -25,14 +27,19 @@ using namespace sl;
 int run(int argc, char** argv) {
   cli::Args a("streetlight-export",
               "streetlight-export --checkpoint CKPT --out FILE.safetensors [--f32] [--with-discriminator] [--meta KEY=VALUE ...]\n"
+              "streetlight-export --checkpoint CKPT --blend CKPT2 --blend-t T --out FILE.safetensors\n"
               "streetlight-export --checkpoint CKPT --info\n\n"
               "Writes the released-weights form of a lighting checkpoint: predictor.* only, F16 unless --f32,\n"
-              "with its stage, step and config, so streetlight-insert and streetlight-eval can load it.",
+              "with its stage, step and config, so streetlight-insert and streetlight-eval can load it.\n"
+              "With --blend, the weights are (1 - T) * CKPT + T * CKPT2, tensor by tensor (WiSE-FT); the\n"
+              "stage, step and config are CKPT's.",
               {{"--checkpoint", "CKPT", "a lighting or adversarial stage checkpoint (streetlight-train)"},
                {"--out", "FILE", "output .safetensors file"},
                {"--f32", "", "keep float32 (default: float16, half the size)"},
                {"--with-discriminator", "", "also keep the stage-3 discriminator (discriminator.*) for streetlight-insert --refine"},
                {"--meta", "KEY=VALUE", "extra metadata entry", true},
+               {"--blend", "CKPT2", "a second checkpoint of the same model to interpolate with"},
+               {"--blend-t", "T", "the weight of CKPT2 in [0, 1] (default 0.5)"},
                {"--info", "", "print the checkpoint's metadata as JSON on stdout and exit (no --out needed)"}});
   if (!a.parse(argc, argv)) return 0;
   if (a.has("--info")) {
@@ -46,20 +53,42 @@ int run(int argc, char** argv) {
   const nn::CheckpointInfo info = nn::read_checkpoint_info(in);
   SL_CHECK(info.stage == train::kStageLighting || info.stage == train::kStageAdversarial, "checkpoint '", in,
            "' holds stage '", info.stage, "'; only lighting and adversarial checkpoints can be exported");
-  const nn::SafetensorsFile file = nn::read_safetensors(in);
-  nn::StateDict kept;
-  for (const auto& [name, t] : file.tensors)
-    if (name.rfind("predictor.", 0) == 0) kept.emplace(name, t);
-  SL_CHECK(!kept.empty(), "checkpoint '", in, "' holds no predictor.* tensors");
   const bool with_d = a.has("--with-discriminator");
+  // The released tensors of one checkpoint: predictor.*, and discriminator.* with --with-discriminator.
   size_t d_tensors = 0;
-  if (with_d) {
+  const auto released = [&](const std::string& path, const nn::SafetensorsFile& file) {
+    nn::StateDict kept;
     for (const auto& [name, t] : file.tensors)
-      if (name.rfind("discriminator.", 0) == 0) d_tensors += kept.emplace(name, t).second;
-    SL_CHECK(d_tensors > 0, "--with-discriminator: checkpoint '", in, "' holds no discriminator.* tensors (stage '",
-             info.stage, "'; only a stage-3 checkpoint trained with loss.adversarial > 0 has one)");
-  }
+      if (name.rfind("predictor.", 0) == 0) kept.emplace(name, t);
+    SL_CHECK(!kept.empty(), "checkpoint '", path, "' holds no predictor.* tensors");
+    if (with_d) {
+      d_tensors = 0;
+      for (const auto& [name, t] : file.tensors)
+        if (name.rfind("discriminator.", 0) == 0) d_tensors += kept.emplace(name, t).second;
+      SL_CHECK(d_tensors > 0, "--with-discriminator: checkpoint '", path, "' holds no discriminator.* tensors (only a",
+               " stage-3 checkpoint trained with loss.adversarial > 0 has one)");
+    }
+    return kept;
+  };
+  const nn::SafetensorsFile file = nn::read_safetensors(in);
+  nn::StateDict kept = released(in, file);
   nn::Metadata meta = file.metadata;
+  SL_CHECK(!a.has("--blend-t") || a.has("--blend"), "--blend-t needs --blend CKPT2");
+  if (a.has("--blend")) {
+    const std::string other = a.get("--blend");
+    const double t = a.number("--blend-t", 0.5);
+    SL_CHECK(t >= 0.0 && t <= 1.0, "--blend-t must be in [0, 1], got '", a.get("--blend-t"), "'");
+    const nn::CheckpointInfo other_info = nn::read_checkpoint_info(other);
+    SL_CHECK(other_info.stage == train::kStageLighting || other_info.stage == train::kStageAdversarial,
+             "--blend: checkpoint '", other, "' holds stage '", other_info.stage, "'; only lighting and adversarial checkpoints can be blended");
+    try {
+      kept = nn::blend_states(kept, released(other, nn::read_safetensors(other)), t);
+    } catch (const Error& e) {
+      fail("--blend: checkpoint '", other, "' does not blend with '", in, "': ", e.what());
+    }
+    meta["blended_with"] = std::filesystem::path(other).filename().string();
+    meta["blend_t"] = a.get("--blend-t", "0.5");
+  }
   for (auto it = meta.begin(); it != meta.end();) it = it->first.rfind("best", 0) == 0 ? meta.erase(it) : std::next(it);
   meta["exported_from"] = std::filesystem::path(in).filename().string();
   for (const auto& kv : a.all("--meta")) {

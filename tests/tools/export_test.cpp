@@ -1,8 +1,10 @@
 // streetlight-export: the released-weights form keeps predictor.* only, or with
-// --with-discriminator also the stage-3 discriminator that streetlight-insert --refine needs.
+// --with-discriminator also the stage-3 discriminator that streetlight-insert --refine needs;
+// --blend interpolates two checkpoints of one model.
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 
 #include "autodiff/ops.h"
@@ -63,6 +65,57 @@ TEST(ExportTool, WithDiscriminatorOnAStageWithoutOneIsACleanError) {
   EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
   EXPECT_NE(r.out.find(lighting), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(out));
+}
+
+// A copy of `path` with every float predictor tensor shifted by `shift` (drop: that tensor left out).
+std::string shifted_copy(const std::string& path, const std::string& out, double shift, const std::string& drop = "") {
+  nn::SafetensorsFile f = nn::read_safetensors(path);
+  nn::StateDict tensors;
+  for (const auto& [name, t] : f.tensors) {
+    if (name == drop) continue;
+    tensors.emplace(name, name.rfind("predictor.", 0) == 0 && t.dtype() == DType::F32 ? add(t, Tensor::scalar(shift)) : t);
+  }
+  nn::write_safetensors(out, tensors, f.metadata);
+  return out;
+}
+
+TEST(ExportTool, BlendWritesTheInterpolationOfTwoCheckpointsTensorByTensor) {
+  if (!tool_built("streetlight-export")) GTEST_SKIP();
+  const std::string dir = tool_dir("export_blend");
+  const std::string a = tiny_lighting_checkpoint(dir), b = shifted_copy(a, dir + "/b.safetensors", 0.5);
+  const std::string out = dir + "/blend.safetensors";
+  const auto r = run_tool("streetlight-export", "--checkpoint " + a + " --blend " + b + " --blend-t 0.25 --f32 --out " + out);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const nn::SafetensorsFile fa = nn::read_safetensors(a), fb = nn::read_safetensors(b), fo = nn::read_safetensors(out);
+  EXPECT_EQ(fo.metadata.at("blend_t"), "0.25");
+  EXPECT_EQ(fo.metadata.at("blended_with"), "b.safetensors");
+  size_t checked = 0;
+  for (const auto& [name, t] : fo.tensors) {
+    if (t.dtype() != DType::F32) continue;
+    const std::vector<double> o = t.to_vector(), va = fa.tensors.at(name).to_vector(), vb = fb.tensors.at(name).to_vector();
+    for (size_t i = 0; i < o.size(); ++i) {
+      const double want = 0.75 * va[i] + 0.25 * vb[i];
+      ASSERT_NEAR(o[i], want, 1e-6 * (1.0 + std::abs(want))) << name << "[" << i << "]";
+    }
+    ++checked;
+  }
+  EXPECT_GT(checked, 10u);
+
+  // Bad input: one line, exit 2, no file.
+  const std::string bad_out = dir + "/bad.safetensors";
+  const std::string some_tensor = fa.tensors.rbegin()->first;
+  const std::string missing = shifted_copy(a, dir + "/missing.safetensors", 0.0, some_tensor);
+  for (const auto& [args, named] : std::vector<std::pair<std::string, std::string>>{
+           {"--blend " + b + " --blend-t 1.5", "--blend-t"},
+           {"--blend " + b + " --blend-t nan", "--blend-t"},
+           {"--blend-t 0.5", "--blend-t"},
+           {"--blend " + missing, some_tensor}}) {
+    const auto e = run_tool("streetlight-export", "--checkpoint " + a + " " + args + " --out " + bad_out);
+    EXPECT_EQ(e.code, 2) << args << ": " << e.out;
+    EXPECT_EQ(std::count(e.out.begin(), e.out.end(), '\n'), 1) << e.out;
+    EXPECT_NE(e.out.find(named), std::string::npos) << e.out;
+    EXPECT_FALSE(fs::exists(bad_out)) << args;
+  }
 }
 
 }  // namespace

@@ -10,7 +10,7 @@ runs=${1:?usage: scripts/write_model_card.sh RUN_DIR}
 chosen=$(cat "$runs/chosen")
 secs() { cat "$runs/$1.done" 2>/dev/null || echo "?"; }
 total=0
-for s in datagen test_streets sky lighting sun adversarial eval; do v=$(secs $s); [ "$v" != "?" ] && total=$(( total + v )); done
+for s in datagen test_streets sky lighting sun sun_ldr streets eval; do v=$(secs $s); [ "$v" != "?" ] && total=$(( total + v )); done
 steps() { sed -n 's/.*"steps": *\([0-9]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
 samples() { sed -n 's/.*"samples": *\([0-9]*\).*/\1/p' "configs/release_$1.json" | head -n 1; }
 fraction() { sed -n "s/.*\"$2\": *\\([0-9.]*\\).*/\\1/p" "configs/release_$1.json" | head -n 1; }
@@ -42,10 +42,9 @@ cat <<EOF
 The lighting predictor of Streetlight (Wang et al., ECCV 2022, Sec 3.2: ResNet-18 backbone, sky head
 with the frozen sky decoder, volume branch with its 3D UNet), trained by \`scripts/train_release.sh\`
 on this repository's 2-core CPU machine. It is what \`streetlight-insert\` and \`streetlight-eval\` use
-when \`--checkpoint\` is omitted. Released stage: **$chosen** (of stages 2b and 3, the two that learned the
-sun's energy, the one with the lower validation sun error; stage 3 is the end-to-end fine-tuning through
-object insertion). Stored as F16
-($size); it loads into the float32 model. Made at commit \`$commit\`.
+when \`--checkpoint\` is omitted. Released stage: **$chosen**, the last of the recipe: stage 2, then the
+sun's energy (2b), the energy bounded on LDR crops, and 1000 steps on the generated streets alone (below).
+Stored as F16 ($size); it loads into the float32 model. Made at commit \`$commit\`.
 
 ## Data
 - **Real panoramas**: the $n_train training panoramas of \`configs/hdri_split.json\` (\`../shared/data/hdri\`,
@@ -63,7 +62,10 @@ $mixing
   the true sun's Σ L·Ω within 5° wherever the sky is HDR and the sun known (generated streets, hard-sun
   HDR crops), in place of the stage-1 encoder's intensity pseudo-label (\`loss.sky_intensity = 0\`), which
   sees a clipped sun: before it, the predicted sun held about a quarter of the light it should
-  (docs/RESULTS.md), and inserted objects cast faint shadows.
+  (docs/RESULTS.md), and inserted objects cast faint shadows. On the sunny LDR crops, which have no
+  energy label, \`loss.ldr_sun_energy\` keeps the energy inside the labelled span (\`release_sun_ldr.json\`).
+- The mix per step: stage 2 and 2b draw 20% HDR crops, 20% LDR crops and 60% streets; the LDR energy
+  step 10%, 10% and 80%; the last step streets alone.
 - The sun direction is supervised only where the sun is hard (data/panorama_sample.h: ≥ 25% of the
   panorama's light within 5° of its peak, above the horizon) or, for an LDR panorama, labelled with a
   position.
@@ -76,20 +78,20 @@ $mixing
 | stage 1, sky autoencoder | \`configs/release_sky.json\` | $(steps sky) | $(secs sky) s |
 | stage 2, lighting | \`configs/release_lighting.json\` | $(steps lighting) | $(secs lighting) s |
 | stage 2b, sun energy (from stage 2) | \`configs/release_sun.json\` | $(steps sun) | $(secs sun) s |
-| stage 3, adversarial (from stage 2b) | \`configs/release_adversarial.json\` | $(steps adversarial) | $(secs adversarial) s |
+| LDR energy span (from 2b) | \`configs/release_sun_ldr.json\` | $(steps sun_ldr) | $(secs sun_ldr) s |
+| streets (from the LDR energy span) | \`configs/release_streets.json\` | $(steps streets) | $(secs streets) s |
 | evaluation | \`streetlight-eval\` (below) | | $(secs eval) s |
 | **total** | | | **$total s** |
 
 Reproduce: \`bash scripts/train_release.sh\` (resumable; \`--runs DIR\` for the run folder). Wall times
 were measured while other jobs shared the machine unless the closing note of the release says otherwise.
 The release configs pin what this model was trained with, even where later defaults changed:
-- \`model.volume.spacing = "metric"\`;
-- in stage 3, \`insertion.importance_sampling = false\` and \`insertion.real = "path_traced"\`.
+\`model.volume.spacing = "metric"\`.
 
 ## Metrics (test splits, never trained or selected on)
 Command: \`streetlight-eval --data ../shared/data/hdri --hdri-split configs/hdri_split.json --split test
---crops 8 --data ../shared/data/pano_ldr --ldr-split configs/pano_ldr_split.json --data RUN/test_street --baseline-data RUN/street --checkpoint RUN/lighting/best.safetensors
---checkpoint RUN/sun/best.safetensors --checkpoint RUN/adversarial/best.safetensors\`. The generated test streets are a separate set
+--crops 8 --data ../shared/data/pano_ldr --ldr-split configs/pano_ldr_split.json --data RUN/test_street --baseline-data RUN/street
+--no-budgets --checkpoint RUN/sun_ldr/best.safetensors --checkpoint RUN/streets/best.safetensors\`. The generated test streets are a separate set
 (\`configs/release_datagen_test.json\`: its own seed, same generator settings), never trained or
 selected on; the constant baseline comes from the training streets. Each image's sun is the
 average of the network's answer for the image and for its mirror image (the estimator's default;

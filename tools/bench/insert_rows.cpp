@@ -15,7 +15,7 @@ std::vector<InsertRow> insert_rows(const train::PhotoInsertionOptions& productio
     InsertionOptions plain = train::insertion_options(production);
     plain.diffuse_control_variate = false;
     rows.push_back({"no_control_variate", plain});
-    for (int hn : {16, 32}) {
+    for (int hn : {16, 32, 64, 256}) {
       InsertionOptions o = train::insertion_options(production);
       o.cv_normals_height = hn;
       rows.push_back({"cv_normals" + std::to_string(hn), o});

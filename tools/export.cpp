@@ -50,9 +50,13 @@ int run(int argc, char** argv) {
   }
   SL_CHECK(a.has("--checkpoint") && a.has("--out"), "--checkpoint CKPT and --out FILE are required");
   const std::string in = a.get("--checkpoint"), out = a.get("--out");
-  const nn::CheckpointInfo info = nn::read_checkpoint_info(in);
-  SL_CHECK(info.stage == train::kStageLighting || info.stage == train::kStageAdversarial, "checkpoint '", in,
-           "' holds stage '", info.stage, "'; only lighting and adversarial checkpoints can be exported");
+  // Only lighting and adversarial checkpoints hold a predictor to release (or blend).
+  const auto check_stage = [](const std::string& path, const char* verb) {
+    const nn::CheckpointInfo info = nn::read_checkpoint_info(path);
+    SL_CHECK(info.stage == train::kStageLighting || info.stage == train::kStageAdversarial, "checkpoint '", path,
+             "' holds stage '", info.stage, "'; only lighting and adversarial checkpoints can be ", verb);
+  };
+  check_stage(in, "exported");
   const bool with_d = a.has("--with-discriminator");
   // The released tensors of one checkpoint: predictor.*, and discriminator.* with --with-discriminator.
   size_t d_tensors = 0;
@@ -78,9 +82,7 @@ int run(int argc, char** argv) {
     const std::string other = a.get("--blend");
     const double t = a.number("--blend-t", 0.5);
     SL_CHECK(t >= 0.0 && t <= 1.0, "--blend-t must be in [0, 1], got '", a.get("--blend-t"), "'");
-    const nn::CheckpointInfo other_info = nn::read_checkpoint_info(other);
-    SL_CHECK(other_info.stage == train::kStageLighting || other_info.stage == train::kStageAdversarial,
-             "--blend: checkpoint '", other, "' holds stage '", other_info.stage, "'; only lighting and adversarial checkpoints can be blended");
+    check_stage(other, "blended (--blend)");
     try {
       kept = nn::blend_states(kept, released(other, nn::read_safetensors(other)), t);
     } catch (const Error& e) {

@@ -268,7 +268,7 @@ double lighting_ms(const train::Photo& photo, const std::string& dir) {
 
 int run_production(const std::string& size, bool json, const std::string& data, const std::string& out, bool quick,
                    int reference_spp, bool reference_cache, const std::string& reference_dir, const std::string& only,
-                   const std::string& lighting) {
+                   const std::string& lighting, int bias_runs) {
   SL_CHECK(size == "kitti" || size == "nuscenes", "insert: --size must be kitti or nuscenes, got '", size, "'");
   std::filesystem::create_directories(out);
   const ProductionScene s = production_scene(size, data);
@@ -398,6 +398,35 @@ int run_production(const std::string& size, bool json, const std::string& data, 
     InsertionOptions other = row.opt;
     other.lighting_seed = 77;
     const RegionError noise = region_error(insert_objects(in, other), r);
+    // Bias alone (--bias-runs K): the mean of K more renders with independent light and shadow
+    // samples against the reference. Its noise is one run's / √K, subtracted in quadrature; the
+    // mean's error image (|mean − reference|, summed over channels, relative to the region's RMS
+    // reference) is written to OUT/bias_<row>.exr so the bias can be looked at, not only counted.
+    RegionError bias;
+    if (bias_runs > 0) {
+      InsertionResult mean = r;
+      Tensor sum;
+      for (int i = 0; i < bias_runs; ++i) {
+        InsertionOptions o = row.opt;
+        o.lighting_seed = 1000 + uint64_t(i);
+        const Tensor c = insert_objects(in, o).composite;
+        sum = i == 0 ? c : add(sum, c);
+      }
+      mean.composite = mul_scalar(sum, 1.0 / bias_runs).contiguous();
+      bias = region_error(mean, reference);
+      const double floor2 = noise.rel_rmse * noise.rel_rmse / 2.0 / bias_runs;
+      const double floor2_object = noise.object * noise.object / 2.0 / bias_runs;
+      bias.rel_rmse = std::sqrt(std::max(0.0, bias.rel_rmse * bias.rel_rmse - floor2));
+      bias.object = std::sqrt(std::max(0.0, bias.object * bias.object - floor2_object));
+      const auto d = sub(mean.composite, reference.composite).to_vector();
+      const int64_t hw = r.object_mask.numel();
+      std::vector<double> v(size_t(3 * hw), 0.0);
+      for (int64_t p = 0; p < hw; ++p) {
+        const double e = std::abs(d[p]) + std::abs(d[hw + p]) + std::abs(d[2 * hw + p]);
+        v[size_t((d[p] + d[hw + p] + d[2 * hw + p] > 0 ? 0 : 2) * hw + p)] = e;  // red: brighter than the reference; blue: darker
+      }
+      write_image(out + "/bias_" + row.name + ".exr", Tensor::from_vector(v, r.composite.shape()));
+    }
     const double total = light_ms + ms;
     if (json)
       std::printf("{\"bench\": \"insert_production\", \"size\": \"%s\", \"row\": \"%s\", \"width\": %d, \"height\": %d, "
@@ -407,14 +436,15 @@ int run_production(const std::string& size, bool json, const std::string& data, 
                   "\"exact_correction_rays\": %lld, \"shadow_texels_computed\": %lld, "
                   "\"rel_rmse_object\": %.5f, \"rel_rmse_edge\": %.5f, \"rel_rmse_shadow\": %.5f, \"object_pixels\": %lld, "
                   "\"edge_pixels\": %lld, \"shadow_pixels\": %lld, \"rel_noise\": %.5f, \"rel_noise_object\": %.5f, "
-                  "\"rel_noise_shadow\": %.5f, \"reference_ms\": %.0f}\n",
+                  "\"rel_noise_shadow\": %.5f, \"bias_runs\": %d, \"rel_bias\": %.5f, \"rel_bias_object\": %.5f, \"reference_ms\": %.0f}\n",
                   size.c_str(), row.name.c_str(), k.width, k.height, row.opt.aa_samples, row.opt.light_samples,
                   row.opt.shadow_rays, row.opt.shadow_width, row.opt.shadow_height, row.opt.radiance_cache ? "true" : "false",
                   light_ms, ms, total, err.rel_rmse, (long long)err.pixels, cpu_ms, (long long)r.stats.foreground_samples,
                   (long long)r.stats.query_rays, (long long)r.stats.exact_query_rays,
                   (long long)r.stats.exact_correction_rays, (long long)r.stats.shadow_pixels_computed, err.object, err.edge, err.shadow,
                   (long long)err.object_pixels, (long long)err.edge_pixels, (long long)err.shadow_pixels,
-                  noise.rel_rmse / std::sqrt(2.0), noise.object / std::sqrt(2.0), noise.shadow / std::sqrt(2.0), ref_ms);
+                  noise.rel_rmse / std::sqrt(2.0), noise.object / std::sqrt(2.0), noise.shadow / std::sqrt(2.0), bias_runs,
+                  bias.rel_rmse, bias.object, ref_ms);
     else
       std::printf("%-26s aa %d light %4d shadow %4d (%dx%d)  lighting %6.0f ms + insertion %7.0f ms = %7.0f ms  "
                   "rel RMSE %.4f over %lld px [object %.4f, edges %.4f, shadow %.4f]  noise %.4f [object %.4f, shadow "
@@ -426,6 +456,9 @@ int run_production(const std::string& size, bool json, const std::string& data, 
                   noise.shadow / std::sqrt(2.0), cpu_ms, (long long)r.stats.foreground_samples, (long long)r.stats.query_rays,
                   (long long)r.stats.exact_query_rays, (long long)r.stats.exact_correction_rays,
                   (long long)r.stats.shadow_pixels_computed);
+    if (!json && bias_runs > 0)
+      std::printf("%-26s bias %.4f [object %.4f] (the mean of %d more runs, less its noise)\n", row.name.c_str(), bias.rel_rmse,
+                  bias.object, bias_runs);
     std::fflush(stdout);
   }
   return 0;
@@ -434,7 +467,7 @@ int run_production(const std::string& size, bool json, const std::string& data, 
 int run_insert(const std::vector<std::string>& args) {
   bool json = false, quick = false;
   std::string out = "insert-bench", data = "../shared/data", size, reference_dir, only, lighting = "random";
-  int reference_spp = 4096;
+  int reference_spp = 4096, bias_runs = 0;
   bool reference_cache = false;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
@@ -454,6 +487,8 @@ int run_insert(const std::vector<std::string>& args) {
           "  --reference-dir DIR  keep the reference in DIR keyed by everything that determines it and reuse it\n"
           "                     (development only: the renderer's code is named by a version string, not hashed)\n"
           "  --rows A,B         with --size: only these rows (names as printed)\n"
+          "  --bias-runs K      with --size: each row's bias as the mean of K more renders against the reference,\n"
+          "                     less that mean's noise; its error image goes to OUT/bias_ROW.exr\n"
           "  --lighting L       with --size: the insertion's lighting. random (default): the chinese_garden sky and\n"
           "                     a VSG volume of uniform random parameters, a stress case whose volume is noise;\n"
           "                     released, or a checkpoint path: that model's estimate for the photo, as\n"
@@ -468,6 +503,9 @@ int run_insert(const std::vector<std::string>& args) {
     } else if (a == "--reference-spp" && i + 1 < args.size()) {
       reference_spp = std::stoi(args[++i]);
       SL_CHECK(reference_spp >= 1, "insert: --reference-spp must be >= 1");
+    } else if (a == "--bias-runs" && i + 1 < args.size()) {
+      bias_runs = std::stoi(args[++i]);
+      SL_CHECK(bias_runs >= 0, "insert: --bias-runs must be >= 0");
     } else if (a == "--rows" && i + 1 < args.size()) {
       only = args[++i];
     } else if (a == "--lighting" && i + 1 < args.size()) {
@@ -480,7 +518,7 @@ int run_insert(const std::vector<std::string>& args) {
     }
   }
   if (!size.empty())
-    return run_production(size, json, data, out, quick, reference_spp, reference_cache, reference_dir, only, lighting);
+    return run_production(size, json, data, out, quick, reference_spp, reference_cache, reference_dir, only, lighting, bias_runs);
   std::filesystem::create_directories(out);
   const Scene s = make_scene(data);
   const PlacedObject obj = place_object(s.object, {0.8, -10.0, 30.0, 1.0}, s.camera, s.depth);

@@ -82,9 +82,9 @@ std::vector<InsertRow> insert_rows(const train::PhotoInsertionOptions& productio
     InsertionOptions texel_env = train::insertion_options(production);
     texel_env.bilinear_env_sampling = false;
     rows.push_back({"texel_env_sampling", texel_env});
-    InsertionOptions per_sample = train::insertion_options(production);
-    per_sample.stratify_per_pixel = false;
-    rows.push_back({"strata_per_primary_sample", per_sample});
+    InsertionOptions per_pixel = train::insertion_options(production);  // the default until session 25
+    per_pixel.stratify_per_pixel = true;
+    rows.push_back({"strata_per_pixel", per_pixel});
     for (int n : {8, 16, 32}) {
       InsertionOptions o = train::insertion_options(production);
       o.light_samples = n;
@@ -221,6 +221,34 @@ std::vector<InsertRow> insert_rows(const train::PhotoInsertionOptions& productio
       o.cache_shadow_exact_rays = c.exact_shadow;
       o.cache_shadow_exact_filter_radius = c.shadow_radius;
       rows.push_back({c.name, o});
+    }
+    // The object's bias taken apart (run with --bias-runs): production less one approximation at
+    // a time, down to a row with no cache read left uncorrected, no filter and plain Eq. 2 (whose
+    // mean is the reference's).
+    struct Ablation {
+      const char* name;
+      bool residual_filter, correction_filter, all_exact, control_variate, fine_e;
+    };
+    for (const Ablation& a : std::vector<Ablation>{
+             {"bias_no_residual_filter", false, true, false, true, false},
+             {"bias_no_correction_filter", true, false, false, true, false},
+             {"bias_no_filters", false, false, false, true, false},
+             {"bias_no_filters_fine_e", false, false, false, true, true},
+             {"bias_all_exact_no_filters", false, false, true, true, false},
+             {"bias_all_exact_no_filters_fine_e", false, false, true, true, true},
+             {"bias_all_exact_plain", false, false, true, false, false},
+         }) {
+      InsertionOptions o = train::insertion_options(production);
+      if (!a.residual_filter) o.denoise_radius = 0;
+      if (!a.correction_filter) o.cache_exact_filter_radius = 0;
+      if (a.all_exact) o.cache_exact_light_rays = o.light_samples * (1 + o.adaptive_max_factor);
+      o.diffuse_control_variate = a.control_variate;
+      if (!a.control_variate) o.denoise_radius = 0;
+      if (a.fine_e) {
+        o.cv_normals_height = 256;
+        o.cv_quadrature_supersample = 2;
+      }
+      rows.push_back({a.name, o});
     }
     {  // the measured knobs together: object probes 8×4×8, 256 shadow rays over a 4×2×4 grid
       InsertionOptions o = train::insertion_options(production);

@@ -23,8 +23,9 @@
 // - build_irradiance(hn, ss, normals): E(probe, n) = ∫_{n·l>0} (n·l) L_probe(l) dΩ (and the
 //   same with (n·l)(1 − n·l)^5 for the control variate's grazing term) for the
 //   nodes of an hn × 2·hn grid of normals that bilinear reads of `normals` touch, as a sum over
-//   the texel centres of a grid with ss·max(2·env rows, cache rows) rows of square texels (at
-//   least ss × the env's and the cache's columns). irradiance(o, n) reads it like radiance(),
+//   the texels of a grid with ss·max(2·env rows, cache rows) rows of square texels (at least
+//   ss × the env's and the cache's columns), each read at its column's centre and its row's
+//   solid-angle centroid in elevation (exact for radiance linear in elevation across a row). irradiance(o, n) reads it like radiance(),
 //   for n among those normals.
 // Results do not depend on the thread count.
 #pragma once

@@ -76,6 +76,27 @@ InsertionOptions cached_options() {
   return o;
 }
 
+// ∫ max(0, n·l) L(o, l) dΩ and the same with (1 − n·l)^5, by an hq × 2·hq midpoint sum of the
+// cache's own radiance().
+insertion::RadianceCache::Irradiance brute_irradiance(const insertion::RadianceCache& cache, const glm::vec3& o,
+                                                       const glm::vec3& n, int hq) {
+  const int wq = 2 * hq;
+  glm::dvec3 brute(0.0), brute5(0.0);
+  for (int r = 0; r < hq; ++r) {
+    const double solid = equirect::pixel_solid_angle(r, wq, hq);
+    for (int c = 0; c < wq; ++c) {
+      const equirect::Dir d = equirect::uv_to_direction(c + 0.5, r + 0.5, wq, hq);
+      const glm::vec3 l(float(d.x), float(d.y), float(d.z));
+      const double cosine = glm::dot(n, l);
+      if (cosine <= 0) continue;
+      const glm::dvec3 L(cache.radiance(&o[0], &l[0]));
+      brute += L * cosine * solid;
+      brute5 += L * cosine * std::pow(1.0 - cosine, 5) * solid;
+    }
+  }
+  return {glm::vec3(brute), glm::vec3(brute5)};
+}
+
 // E(probe, n) against ∫ max(0, n·l) L(probe, l) dΩ (and E₅ with (1 − n·l)^5) by a 512 × 1024 midpoint sum of radiance()
 // itself: the two differ by the quadrature of build_irradiance() and the normal-grid reads.
 // Measured on this 16 × 32 sky with a one-texel sun: ≤ 1.02% at the default quadrature, ≤ 0.34%
@@ -92,22 +113,10 @@ TEST(RadianceCache, IrradianceMatchesABruteForceIntegralOfItsRadiance) {
     insertion::RadianceCache cache(s.in, opt, env_map, lo, hi, 3, 3);
     ASSERT_GT(cache.probes(), 0);
     cache.build_irradiance(64, ss, normals);
-    const int hq = 512, wq = 1024;
     for (const glm::vec3& o : {lo, hi, 0.5f * (lo + hi)})
       for (const glm::vec3& n : normals) {
-        glm::dvec3 brute(0.0), brute5(0.0);
-        for (int r = 0; r < hq; ++r) {
-          const double solid = equirect::pixel_solid_angle(r, wq, hq);
-          for (int c = 0; c < wq; ++c) {
-            const equirect::Dir d = equirect::uv_to_direction(c + 0.5, r + 0.5, wq, hq);
-            const glm::vec3 l(float(d.x), float(d.y), float(d.z));
-            const double cosine = glm::dot(n, l);
-            if (cosine <= 0) continue;
-            const glm::dvec3 L(cache.radiance(&o[0], &l[0]));
-            brute += L * cosine * solid;
-            brute5 += L * cosine * std::pow(1.0 - cosine, 5) * solid;
-          }
-        }
+        const auto b = brute_irradiance(cache, o, n, 512);
+        const glm::dvec3 brute(b.cosine), brute5(b.grazing);
         const auto e = cache.irradiance(o, n);
         for (int ch = 0; ch < 3; ++ch) {
           EXPECT_NEAR(e.cosine[ch], brute[ch], tol * brute[ch]) << "supersample " << ss << ", n " << n.x << "," << n.y << "," << n.z;
@@ -142,19 +151,9 @@ TEST(RadianceCache, IrradianceHoldsUnderASunNextToTheZenith) {
     normals.push_back(glm::normalize(n));
   insertion::RadianceCache cache(s.in, opt, env_map, lo, hi, 3, 3);
   cache.build_irradiance(128, 1, normals);
-  const int hq = 1024, wq = 2048;
   const glm::vec3 o = 0.5f * (lo + hi);
   for (const glm::vec3& n : normals) {
-    glm::dvec3 brute(0.0);
-    for (int r = 0; r < hq; ++r) {
-      const double solid = equirect::pixel_solid_angle(r, wq, hq);
-      for (int c = 0; c < wq; ++c) {
-        const equirect::Dir d = equirect::uv_to_direction(c + 0.5, r + 0.5, wq, hq);
-        const glm::vec3 l(float(d.x), float(d.y), float(d.z));
-        const double cosine = glm::dot(n, l);
-        if (cosine > 0) brute += glm::dvec3(cache.radiance(&o[0], &l[0])) * cosine * solid;
-      }
-    }
+    const glm::dvec3 brute(brute_irradiance(cache, o, n, 1024).cosine);
     const auto e = cache.irradiance(o, n);
     for (int ch = 0; ch < 3; ++ch)
       EXPECT_NEAR(e.cosine[ch], brute[ch], (n.y > 0.99f ? 0.001 : 0.015) * brute[ch]) << "n " << n.x << "," << n.y << "," << n.z;

@@ -75,7 +75,9 @@ struct PhotoInsertionOptions {
   // the zenith) the per-pixel sets left twice the variance. KITTI 000008, 16384-spp reference,
   // Intel Xeon (streetlight-bench insert --size kitti --lighting released --bias-runs 8): object
   // noise 0.91% → 0.54% at N = 8 (0.42% at N = 16); total 1.32% → 1.02% (N = 16: 0.92%, +7%
-  // time). Under the random stress lighting, 0.98% either way.
+  // time). Under the random stress lighting, 0.98% either way. Without the control variate the
+  // per-pixel sets are the better ones (N = 32: object noise 2.27% against 2.46%); with it each
+  // primary sample integrates its own residual over a quarter of the pixel's set.
   bool bilinear_env_sampling = true, stratify_per_pixel = false;  // render/object_insertion.h
   // The radiance cache's exact corrections (render/object_insertion.h, "Exact corrections"): 2
   // of each object sample's light rays and 16 of each texel's shadow rays also marched exactly,

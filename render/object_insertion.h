@@ -120,7 +120,9 @@ struct InsertionOptions {
   // variance) instead of piecewise-constant texels (EnvironmentMap::sample). Both unbiased.
   bool bilinear_env_sampling = false;
   // Inference: the aa_samples × N light samples of a pixel form one stratified set (interleaved
-  // over its primary samples) rather than aa_samples independent sets of N. Unbiased.
+  // over its primary samples) rather than aa_samples independent sets of N. Unbiased; with the
+  // control variate it raised the noise under a strong sun (train/photo_insertion.h), so the
+  // photo defaults leave it off.
   bool stratify_per_pixel = false;
   bool prune = true;            // skip pixels the object cannot affect
   uint64_t seed = 0;            // anti-aliasing jitter, and (with lighting_seed 0) every other sample

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <type_traits>
 
 #include "autodiff/ops.h"
+#include "autodiff/vector_math.h"
 #include "render/environment_map.h"
 #include "render/spherical_gaussian.h"
 #include "util/parallel.h"
@@ -54,6 +56,37 @@ struct LogProjection {
       v[a] = d >= 0 ? half_dims[a] + k_pos[a] * std::log1p(d * inv_r0) : half_dims[a] - k_neg[a] * std::log1p(-d * inv_r0);
     }
   }
+  // to_voxel() of the K points o + t_k·l at once (v: 3 per point). In float, the logarithms go
+  // through vm::log in one call (log(1 + x) for log1p(x): an absolute error of about 1e-7 voxel,
+  // the same on every SIMD level); the exact volume marches of inference spent 8% of their time
+  // in scalar log1pf. Forward and backward call this alike, so they still see the same samples.
+  void to_voxel_all(const T o[3], const T l[3], const std::vector<double>& t, std::vector<T>& v) const {
+    const size_t K = t.size();
+    v.resize(3 * K);
+    if constexpr (std::is_same_v<T, float>) {
+      thread_local std::vector<float> arg;
+      thread_local std::vector<unsigned char> positive;
+      arg.resize(3 * K);
+      positive.resize(3 * K);
+      for (size_t k = 0; k < K; ++k)
+        for (int a = 0; a < 3; ++a) {
+          const int w = world_axis[a];
+          const float d = float(o[w] + t[k] * l[w]) - centre[a];
+          positive[3 * k + a] = d >= 0;
+          arg[3 * k + a] = 1.0f + std::abs(d) * inv_r0;
+        }
+      vm::log(arg.data(), v.data(), int64_t(3 * K));
+      for (size_t i = 0; i < 3 * K; ++i) {
+        const int a = int(i % 3);
+        v[i] = positive[i] ? half_dims[a] + k_pos[a] * v[i] : half_dims[a] - k_neg[a] * v[i];
+      }
+    } else {
+      for (size_t k = 0; k < K; ++k) {
+        const T pw[3] = {T(o[0] + t[k] * l[0]), T(o[1] + t[k] * l[1]), T(o[2] + t[k] * l[2])};
+        to_voxel(pw, &v[3 * k]);
+      }
+    }
+  }
 };
 
 template <class T>
@@ -73,6 +106,7 @@ struct RayMarch {
   std::vector<T> alpha, t, g;           // per sample; g has 3 per sample
   std::vector<Tap<T>> taps;             // taps_per_sample per sample
   std::vector<double> tk, cumulative;   // sample distances and their arc-length table (scratch)
+  std::vector<T> voxel;                 // the samples' voxel coordinates, 3 each (scratch)
   int taps_per_sample = 1;
   int64_t considered = 0;               // samples inside the grid before pruning
   size_t count() const { return alpha.size(); }
@@ -158,11 +192,10 @@ void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& pro
   const bool grid_spacing = opt.spacing == SampleSpacing::kGrid;
   int64_t last_voxel = -1;
   sample_distances(proj, opt, origin, dir, t0, t1, m.tk, m.cumulative);
+  proj.to_voxel_all(o, m.dir, m.tk, m.voxel);
   for (int k = 0; k < opt.samples; ++k) {
     const double tk = m.tk[k];
-    const T pw[3] = {T(o[0] + tk * m.dir[0]), T(o[1] + tk * m.dir[1]), T(o[2] + tk * m.dir[2])};
-    T p[3];
-    proj.to_voxel(pw, p);
+    const T* p = &m.voxel[size_t(3 * k)];
     ++m.considered;
     int n_taps;
     if (!opt.trilinear) {

@@ -44,6 +44,20 @@ inline LobeEval<T> eval(const Lobe<T>& lobe, const T v[3]) {
   return r;
 }
 
+// eval()'s exponent −λ|v − μ̂|²/2 alone, by the same operations (for callers that take the
+// exponentials of many lobes in one vectorised call).
+template <class T>
+inline T exponent(const Lobe<T>& lobe, const T v[3]) {
+  const T len = std::sqrt(lobe.mu[0] * lobe.mu[0] + lobe.mu[1] * lobe.mu[1] + lobe.mu[2] * lobe.mu[2]);
+  const T mu_len = len > T(kAxisEps) ? len : T(kAxisEps);
+  T dist2 = 0;
+  for (int i = 0; i < 3; ++i) {
+    const T d = v[i] - lobe.mu[i] / mu_len;
+    dist2 += d * d;
+  }
+  return -lobe.sharpness * dist2 / 2;
+}
+
 // Accumulates into grads (c[3], mu[3], sharpness) the gradient of Σ_i g[i]·value[i].
 template <class T>
 inline void backward(const Lobe<T>& lobe, const T v[3], const LobeEval<T>& r, const T g[3], T gc[3], T gmu[3],

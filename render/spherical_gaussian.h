@@ -28,9 +28,9 @@ struct LobeEval {
   T mu_len;   // max(|μ|, kAxisEps)
 };
 
+// The lobe's normalised axis and |v − μ̂|² into r (the part of eval() before the exponential).
 template <class T>
-inline LobeEval<T> eval(const Lobe<T>& lobe, const T v[3]) {
-  LobeEval<T> r;
+inline void axis_distance(const Lobe<T>& lobe, const T v[3], LobeEval<T>& r) {
   const T len = std::sqrt(lobe.mu[0] * lobe.mu[0] + lobe.mu[1] * lobe.mu[1] + lobe.mu[2] * lobe.mu[2]);
   r.mu_len = len > T(kAxisEps) ? len : T(kAxisEps);
   r.dist2 = 0;
@@ -39,6 +39,12 @@ inline LobeEval<T> eval(const Lobe<T>& lobe, const T v[3]) {
     const T d = v[i] - r.muhat[i];
     r.dist2 += d * d;
   }
+}
+
+template <class T>
+inline LobeEval<T> eval(const Lobe<T>& lobe, const T v[3]) {
+  LobeEval<T> r;
+  axis_distance(lobe, v, r);
   r.e = std::exp(-lobe.sharpness * r.dist2 / 2);
   for (int i = 0; i < 3; ++i) r.value[i] = lobe.c[i] * r.e;
   return r;
@@ -48,14 +54,9 @@ inline LobeEval<T> eval(const Lobe<T>& lobe, const T v[3]) {
 // exponentials of many lobes in one vectorised call).
 template <class T>
 inline T exponent(const Lobe<T>& lobe, const T v[3]) {
-  const T len = std::sqrt(lobe.mu[0] * lobe.mu[0] + lobe.mu[1] * lobe.mu[1] + lobe.mu[2] * lobe.mu[2]);
-  const T mu_len = len > T(kAxisEps) ? len : T(kAxisEps);
-  T dist2 = 0;
-  for (int i = 0; i < 3; ++i) {
-    const T d = v[i] - lobe.mu[i] / mu_len;
-    dist2 += d * d;
-  }
-  return -lobe.sharpness * dist2 / 2;
+  LobeEval<T> r;
+  axis_distance(lobe, v, r);
+  return -lobe.sharpness * r.dist2 / 2;
 }
 
 // Accumulates into grads (c[3], mu[3], sharpness) the gradient of Σ_i g[i]·value[i].

@@ -400,8 +400,9 @@ int run_production(const std::string& size, bool json, const std::string& data, 
     const RegionError noise = region_error(insert_objects(in, other), r);
     // Bias alone (--bias-runs K): the mean of K more renders with independent light and shadow
     // samples against the reference. Its noise is one run's / √K, subtracted in quadrature; the
-    // mean's error image (|mean − reference|, summed over channels, relative to the region's RMS
-    // reference) is written to OUT/bias_<row>.exr so the bias can be looked at, not only counted.
+    // mean's error image (|mean − reference| summed over channels, in radiance: red where the mean
+    // is brighter, blue where darker) is written to OUT/bias_<row>.exr so the bias can be looked
+    // at, not only counted.
     RegionError bias;
     if (bias_runs > 0) {
       InsertionResult mean = r;
@@ -423,7 +424,7 @@ int run_production(const std::string& size, bool json, const std::string& data, 
       std::vector<double> v(size_t(3 * hw), 0.0);
       for (int64_t p = 0; p < hw; ++p) {
         const double e = std::abs(d[p]) + std::abs(d[hw + p]) + std::abs(d[2 * hw + p]);
-        v[size_t((d[p] + d[hw + p] + d[2 * hw + p] > 0 ? 0 : 2) * hw + p)] = e;  // red: brighter than the reference; blue: darker
+        v[size_t((d[p] + d[hw + p] + d[2 * hw + p] > 0 ? 0 : 2) * hw + p)] = e;
       }
       write_image(out + "/bias_" + row.name + ".exr", Tensor::from_vector(v, r.composite.shape()));
     }

@@ -4,6 +4,7 @@
 Usage (Debian's python3-torch; the pyenv `python3` on PATH has no torch):
   /usr/bin/python3 scripts/compare_torch_ops.py [build/tools/streetlight-bench] [--threads 2]
       [--repeat 5] [--rounds 3] [--skip-networks] [--skip-train] [--ours-networks-cmd "CMD"] [--cpu-time]
+      [--allocator jemalloc|system]
 
 Runs the four benchmark convolutions in PyTorch with torch.set_num_threads(threads), then
 `streetlight-bench conv --json` with OMP_NUM_THREADS=threads in the same invocation, and prints
@@ -25,6 +26,9 @@ table with its ratio.
 (time.process_time; `conv --cpu-time`, `networks --cpu-time`), a figure that other processes' load
 on a shared machine distorts far less; the core ops and the training step, which have no CPU-time
 mode on our side, are left out.
+
+--allocator: both sides run with jemalloc that never returns memory (the default when Debian's
+libjemalloc2 is installed) or with glibc's malloc; scripts/anchor_allocator.py says why.
 """
 import argparse
 import json
@@ -41,6 +45,7 @@ import torch.nn.functional as F
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from torch_mirrors import ResNet18  # noqa: E402
+import anchor_allocator  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -241,7 +246,9 @@ def main():
                          "(default: BENCH networks --json)")
     ap.add_argument("--cpu-time", action="store_true",
                     help="process CPU time on both sides (needs --threads 1); leaves out core ops and training")
+    anchor_allocator.add_argument(ap)
     args = ap.parse_args()
+    allocator = anchor_allocator.use(args.allocator)
     if args.cpu_time and args.threads != 1:
         print("error: --cpu-time needs --threads 1 (CPU time of several threads counts their waiting)", file=sys.stderr)
         return 2
@@ -260,7 +267,7 @@ def main():
                                               + (" --cpu-time" if args.cpu_time else ""))
     build = os.path.dirname(os.path.dirname(os.path.abspath(args.bench)))
     print(f"# torch {torch.__version__}, {args.threads} threads, {args.rounds} interleaved rounds, "
-          f"{'process CPU' if args.cpu_time else 'wall'} time; ours: {args.bench}; CPU: {cpu_model_name()}",
+          f"{'process CPU' if args.cpu_time else 'wall'} time; allocator {allocator}; ours: {args.bench}; CPU: {cpu_model_name()}",
           file=sys.stderr)
     # Alternate the two sides for several rounds and keep each side's best, so that load from
     # other processes during one side's turn does not bias the ratio.

@@ -2,6 +2,7 @@
 """Side-by-side training step of the lighting predictor: Streetlight vs PyTorch 1.13 (CPU).
 
 usage: /usr/bin/python3 scripts/compare_torch_train.py BUILD_DIR [--threads 2] [--batch 2] [--rounds 3]
+                                                   [--allocator jemalloc|system]
 
 Runs BUILD_DIR/tools/streetlight-bench predictor-step --json and the same step in PyTorch, with
 the same thread count, in one invocation, and prints both and the ratio. Use Debian's
@@ -32,6 +33,7 @@ import torch.nn.functional as F
 import os
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from torch_mirrors import ResNet18  # noqa: E402
+import anchor_allocator  # noqa: E402
 
 
 def lrelu():
@@ -177,7 +179,9 @@ def main():
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--batch", type=int, default=2)
     ap.add_argument("--rounds", type=int, default=3, help="alternate ours and PyTorch this many times")
+    anchor_allocator.add_argument(ap)
     args = ap.parse_args()
+    allocator = anchor_allocator.use(args.allocator)
     torch.set_num_threads(args.threads)
     best_t, best_o = math.inf, None
     for _ in range(args.rounds):
@@ -186,7 +190,7 @@ def main():
             best_o = o
         best_t = min(best_t, torch_step_ms(args.batch, 1))
     n_params = sum(p.numel() for p in LightingPredictor().parameters() if p.requires_grad)
-    print(f"lighting predictor training step, batch {args.batch}, {args.threads} threads; trainable parameters: "
+    print(f"lighting predictor training step, batch {args.batch}, {args.threads} threads, allocator {allocator}; trainable parameters: "
           f"PyTorch mirror {n_params}, ours {best_o.get('trainable_params')}")
     print(f"{'':10s} {'ms/step':>10s}")
     print(f"{'pytorch':10s} {best_t:10.1f}")

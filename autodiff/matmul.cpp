@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include "autodiff/elementwise.h"
+#include "autodiff/gemm_kernel.h"
 #include "autodiff/reduce.h"
 #include "autodiff/shape_ops.h"
 #include "autodiff/tape.h"
@@ -43,12 +44,62 @@ void gemm_serial(bool ta, bool tb, int64_t M, int64_t N, int64_t K, T alpha, con
   else if (ta && !tb) c.noalias() += alpha * a.transpose() * b;
   else c.noalias() += alpha * a.transpose() * b.transpose();
 }
+
+// Rows of C per task of the packed path: a block of packed A (kPackedRows × K) is reused across
+// every column panel of a task range before the next block is read.
+constexpr int64_t kPackedRows = 256;
+
+// C = op(A) · B through the packed kernel (autodiff/gemm_kernel.h): A packed once, then tasks of
+// kPackedRows rows × one 48-column panel. The last panel of B, narrower than 48 columns, is copied
+// into a zero-padded [K][48] block, since the kernel reads 48 floats per row. Each element of C is
+// the kernel's one FMA sequence over k, so the bits depend neither on threads nor on the task
+// split, and are the same with AVX-512 and AVX2 (they differ from Eigen's).
+void packed_gemm(bool ta, int64_t M, int64_t N, int64_t K, const float* A, const float* B, int64_t ldb, float* C,
+                 int64_t ldc) {
+  const PackedRows a = ta ? pack_rows_transposed(A, K, M) : pack_rows(A, M, K);
+  const int64_t panels = (N + kPanelCols - 1) / kPanelCols, tail = N - (panels - 1) * kPanelCols;
+  CachedFloats last;
+  if (tail < kPanelCols) {
+    last = cached_floats(K * kPanelCols);
+    const int64_t c0 = (panels - 1) * kPanelCols;
+    for (int64_t k = 0; k < K; ++k) {
+      float* dst = last.get() + k * kPanelCols;
+      std::copy(B + k * ldb + c0, B + k * ldb + N, dst);
+      std::fill(dst + tail, dst + kPanelCols, 0.0f);
+    }
+  }
+  const int64_t row_blocks = (M + kPackedRows - 1) / kPackedRows;
+  // Work per task: kPackedRows · 48 · K multiply-adds; at least ~1 M per chunk of tasks.
+  const int64_t grain = std::max<int64_t>(1, (int64_t{1} << 20) / std::max<int64_t>(kPackedRows * kPanelCols * K, 1));
+  parallel_for(row_blocks * panels, grain, [&](int64_t t0, int64_t t1) {
+    for (int64_t t = t0; t < t1; ++t) {
+      const int64_t r0 = (t / panels) * kPackedRows, p = t % panels, rows = std::min(kPackedRows, M - r0);
+      const bool narrow = p == panels - 1 && tail < kPanelCols;
+      const float* b = narrow ? last.get() : B + p * kPanelCols;
+      gemm_panel(a.data() + r0 * K, rows, K, b, narrow ? tail : kPanelCols, nullptr, C + r0 * ldc + p * kPanelCols,
+                 ldc, narrow ? kPanelCols : ldb);
+    }
+  });
+}
+
+// Whether packed_gemm serves this call: float, B not transposed, plain C = op(A)·B, A contiguous
+// (the packing reads it with its natural pitch), and enough work to pay for the packing.
+bool use_packed(bool ta, bool tb, int64_t M, int64_t N, int64_t K, double alpha, int64_t lda, double beta) {
+  return !tb && alpha == 1.0 && beta == 0.0 && lda == (ta ? M : K) && M >= kBlockRows && K >= 16 &&
+         M * N * K >= (int64_t{1} << 18) && gemm_kernel_available();
+}
 }  // namespace
 
 template <class T>
 void gemm(bool ta, bool tb, int64_t M, int64_t N, int64_t K, T alpha, const T* A, int64_t lda, const T* B,
           int64_t ldb, T beta, T* C, int64_t ldc) {
   if (M == 0 || N == 0) return;
+  if constexpr (std::is_same_v<T, float>) {
+    if (use_packed(ta, tb, M, N, K, alpha, lda, beta)) {
+      packed_gemm(ta, M, N, K, A, B, ldb, C, ldc);
+      return;
+    }
+  }
   const bool split_rows = M >= N;
   const int64_t extent = split_rows ? M : N;
   const int64_t panels = (extent + kPanel - 1) / kPanel;

@@ -11,7 +11,7 @@
 #include "nn/functional/conv_microkernel.h"
 #include "nn/functional/conv_winograd.h"
 #include "nn/functional/group_sums.h"
-#include "nn/functional/transpose16.h"
+#include "autodiff/transpose16.h"
 #include "nn/functional/work_grain.h"
 #include "util/parallel.h"
 
@@ -140,7 +140,7 @@ void conv_forward_panels(const ConvGeometry& g, const float* x, const float* pac
           detail::im2col_tile(xn, g, q0, len, col.data(), run);
         }
         for (int64_t q = q0; q < q0 + len; q += kCols)
-          detail::conv_gemm_panel(packed, g.O, R, col.data() + (q - q0), std::min(kCols, q0 + len - q), b,
+          detail::gemm_panel(packed, g.O, R, col.data() + (q - q0), std::min(kCols, q0 + len - q), b,
                                   y + n * g.O * P + q, P, run);
       }
     }
@@ -195,7 +195,7 @@ void conv_forward_folded(const ConvGeometry& g, const float* x, const float* pac
         const int64_t o0 = part * row_blocks / parts * kRows;
         const int64_t o1 = std::min(g.O, (part + 1) * row_blocks / parts * kRows);
         const int64_t c0 = p * kCols, c1 = std::min(cols, c0 + kCols);
-        detail::conv_gemm_panel(packed + o0 * R, o1 - o0, R, col.data() + (p - first) * R * kCols, c1 - c0,
+        detail::gemm_panel(packed + o0 * R, o1 - o0, R, col.data() + (p - first) * R * kCols, c1 - c0,
                                 b ? b + o0 : nullptr, tile.data(), kCols);
         for (int64_t c = c0; c < c1;) {
           const int64_t n = c / P, q = c % P, cnt = std::min(P - q, c1 - c);
@@ -240,14 +240,14 @@ bool conv_backward_weight_folded(const ConvGeometry& g, const float* x, const fl
   std::vector<float> a(static_cast<size_t>(g.O * NP));  // dY as [O][N·P]
   for (int64_t n = 0; n < g.N; ++n)
     for (int64_t o = 0; o < g.O; ++o) std::copy_n(dy + (n * g.O + o) * P, P, a.data() + o * NP + n * P);
-  const detail::PackedWeights packed = detail::pack_weights(a.data(), g.O, NP);
+  const detail::PackedRows packed = detail::pack_rows(a.data(), g.O, NP);
   // Tasks: (48-tap panel, 8-row block), rows fastest, so that one panel of colᵀ (N·P × 48 floats)
   // stays in cache across all row blocks.
   const int64_t row_blocks = (g.O + kRows - 1) / kRows, tap_panels = (R + kCols - 1) / kCols;
   parallel_for(tap_panels * row_blocks, detail::grain_for(kRows * NP * kCols), [&](int64_t t0, int64_t t1) {
     for (int64_t t = t0; t < t1; ++t) {
       const int64_t o0 = t % row_blocks * kRows, r0 = t / row_blocks * kCols;
-      detail::conv_gemm_panel(packed.data() + o0 * NP, std::min(kRows, g.O - o0), NP, col_t.get() + r0,
+      detail::gemm_panel(packed.data() + o0 * NP, std::min(kRows, g.O - o0), NP, col_t.get() + r0,
                               std::min(kCols, R - r0), nullptr, dw + o0 * R + r0, R, R);
     }
   });
@@ -257,7 +257,7 @@ bool conv_backward_weight_folded(const ConvGeometry& g, const float* x, const fl
 // Whether a float convolution runs on the micro-kernel (AVX-512): all but pointwise layers with
 // few positions, which stay on Eigen's GEMM.
 bool uses_kernels(const ConvGeometry& g) {
-  return detail::conv_gemm_available() && (g.out_plane() >= kMinDirectPositions || !is_pointwise(g));
+  return detail::gemm_kernel_available() && (g.out_plane() >= kMinDirectPositions || !is_pointwise(g));
 }
 
 // Winograd F(2, 3) (conv_winograd.h): on the implicit GEMM's windows for large rows and volumes,
@@ -267,7 +267,7 @@ bool uses_winograd_windows(const ConvGeometry& g) {
 }
 bool uses_winograd_rows(const ConvGeometry& g) { return !uses_winograd_windows(g) && detail::winograd_rows_supported(g); }
 
-// The micro-kernel forward passes (uses_kernels(g)) on weights packed by pack_weights. `keep`
+// The micro-kernel forward passes (uses_kernels(g)) on weights packed by pack_rows. `keep`
 // (optional) receives the implicit GEMM's padded copy of x, for the weight gradient.
 void conv_forward_kernels(const ConvGeometry& g, const float* x, const float* packed, const float* b, float* y,
                           detail::KeptInput* keep = nullptr) {
@@ -284,7 +284,7 @@ void conv_forward(const ConvGeometry& g, const T* x, const T* w, const T* b, T* 
     if (uses_kernels(g)) {
       if (uses_winograd_windows(g)) return detail::direct_forward_winograd(g, x, w, b, y, keep);
       if (uses_winograd_rows(g)) return detail::winograd_rows_forward(g, x, w, b, y);
-      return conv_forward_kernels(g, x, detail::pack_weights(w, g.O, g.rows()).data(), b, y, keep);
+      return conv_forward_kernels(g, x, detail::pack_rows(w, g.O, g.rows()).data(), b, y, keep);
     }
   }
   const int64_t P = g.out_plane(), R = g.rows();
@@ -335,11 +335,11 @@ template <class T>
 void conv_backward_weight(const ConvGeometry& g, const T* x, const T* dy, T* dw,
                           const detail::PaddedInput* kept = nullptr) {
   if constexpr (std::is_same_v<T, float>) {
-    if (detail::conv_gemm_available() && unit_stride(g) && g.out_plane() >= kMinDirectPositions)
+    if (detail::gemm_kernel_available() && unit_stride(g) && g.out_plane() >= kMinDirectPositions)
       return detail::direct_backward_weight(g, x, dy, dw, kept);
-    if (detail::conv_gemm_available() && detail::direct_strided_supported(g) && g.out_plane() >= kMinDirectPositions)
+    if (detail::gemm_kernel_available() && detail::direct_strided_supported(g) && g.out_plane() >= kMinDirectPositions)
       return detail::direct_backward_weight_strided(g, x, dy, dw);
-    if (detail::conv_gemm_available() && g.out_plane() < kMinDirectPositions && conv_backward_weight_folded(g, x, dy, dw))
+    if (detail::gemm_kernel_available() && g.out_plane() < kMinDirectPositions && conv_backward_weight_folded(g, x, dy, dw))
       return;
   }
   const int64_t P = g.out_plane(), R = g.rows(), per = g.O * R;
@@ -353,7 +353,7 @@ void conv_backward_weight(const ConvGeometry& g, const T* x, const T* dy, T* dw,
   T* const sums = groups > 1 ? partial.data() : dw;
   const bool pointwise = is_pointwise(g);
   const PhasedInput<T> phased = phase_input(g, x);
-  const bool use_kernel = detail::conv_gemm_available() && P >= kMinDirectPositions;
+  const bool use_kernel = detail::gemm_kernel_available() && P >= kMinDirectPositions;
   parallel_for(groups, detail::grain_for(per * cb.tile * tasks / groups), [&](int64_t g0, int64_t g1) {
     std::vector<T> col, dyb;
     std::vector<int64_t> row_offset;
@@ -457,7 +457,7 @@ std::vector<T> flipped_transposed(const ConvGeometry& g, const T* w) {
 // scatter race-free; writes all of dx.
 void input_grad_panels(const ConvGeometry& g, const float* w, const float* dy, float* dx) {
   const int64_t P = g.out_plane(), R = g.rows();
-  const detail::PackedWeights packed = detail::pack_weights_transposed(w, g.O, R);  // Wᵀ: [R, O]
+  const detail::PackedRows packed = detail::pack_rows_transposed(w, g.O, R);  // Wᵀ: [R, O]
   const detail::PhasedRows ph = detail::phased_rows(g);
   const int64_t rows = g.C * g.in[0] * g.in[1];  // input rows per item
   // Phased when the kernel covers every phase of a row; otherwise (a strided 1×1) most of the
@@ -516,7 +516,7 @@ void conv_backward_input(const ConvGeometry& g, const T* w, const T* dy, T* dx) 
   const int64_t P = g.out_plane();
   const ColumnBlocks cb = column_blocks<T>(g);
   if constexpr (std::is_same_v<T, float>) {
-    if (detail::conv_gemm_available() && P >= kMinDirectPositions)
+    if (detail::gemm_kernel_available() && P >= kMinDirectPositions)
       return input_grad_panels(g, w, dy, dx);  // every block holds a single item here
   }
   std::fill(dx, dx + g.N * g.C * g.in_plane(), T(0));
@@ -558,7 +558,7 @@ void conv_backward_input(const ConvGeometry& g, const T* w, const T* dy, T* dx) 
 // Not where the input gradient runs as Winograd on gathered row pairs (faster than sharing the copy).
 bool conv_backward_fused(const ConvGeometry& g, const float* x, const float* w, const float* dy, float* dx, float* dw,
                          const detail::PaddedInput* kept) {
-  return detail::conv_gemm_available() && g.out_plane() >= kMinDirectPositions &&
+  return detail::gemm_kernel_available() && g.out_plane() >= kMinDirectPositions &&
          !(input_grad_is_conv(g) && uses_winograd_rows(detail::input_grad_geometry(g))) &&
          detail::direct_backward_fused(g, x, w, dy, dx, dw, kept);
 }

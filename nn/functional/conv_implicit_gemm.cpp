@@ -16,7 +16,7 @@
 #include "nn/functional/conv_tuning.h"
 #include "nn/functional/conv_winograd.h"
 #include "nn/functional/group_sums.h"
-#include "nn/functional/transpose16.h"
+#include "autodiff/transpose16.h"
 #include "nn/functional/work_grain.h"
 #include "util/error.h"
 #include "util/parallel.h"

@@ -9,7 +9,7 @@
 //                    padded copy of dy; returns false (nothing written) for other shapes.
 // Every output element is produced by one fixed sequence of operations whatever the thread
 // count, and the weight gradient is summed over fixed groups in a fixed order, so results are
-// bitwise identical for any OMP_NUM_THREADS. Requires conv_gemm_available().
+// bitwise identical for any OMP_NUM_THREADS. Requires gemm_kernel_available().
 //
 // How: the input is zero-padded once into a scratch copy whose spatial axes are stored in an
 // order chosen per shape (see conv_direct.cpp). Output positions are enumerated on the padded
@@ -34,7 +34,7 @@ using KeptInput = std::shared_ptr<const PaddedInput>;
 
 bool direct_input_grad_supported(const ConvGeometry& g);
 
-// packed_w: the weights [O, C·taps] packed by pack_weights (conv_microkernel.h).
+// packed_w: the weights [O, C·taps] packed by pack_rows (autodiff/gemm_kernel.h).
 // keep (optional): receives the padded copy of x for the backward calls below.
 void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y,
                     KeptInput* keep = nullptr);

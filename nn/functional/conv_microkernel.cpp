@@ -2,65 +2,20 @@
 
 #include <algorithm>
 
-#include "autodiff/buffer_cache.h"
-
 #if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
 #include <immintrin.h>
 #endif
 
-#include "nn/functional/transpose16.h"
+#include "autodiff/gemm_tile.h"
 #include "nn/functional/transpose8.h"
 #include "nn/functional/work_grain.h"
 #include "util/parallel.h"
 
 namespace sl::nn::detail {
 
-void CachedFloatsDeleter::operator()(float* p) const { release_buffer({p, capacity}); }
-
-CachedFloats cached_floats(int64_t floats) {
-  const size_t bytes = (static_cast<size_t>(floats) * sizeof(float) + 63) / 64 * 64;
-  const Buffer b = acquire_buffer(bytes == 0 ? 64 : bytes);  // throws when memory runs out
-  return CachedFloats(static_cast<float*>(b.data), CachedFloatsDeleter{b.capacity});
-}
-
-PackedWeights pack_weights(const float* a, int64_t M, int64_t K) {
-  const int64_t blocks = (M + kBlockRows - 1) / kBlockRows;
-  PackedWeights packed{cached_floats(blocks * K * kBlockRows)};
-  parallel_for(blocks, grain_for(K * kBlockRows), [&](int64_t b0, int64_t b1) {
-    for (int64_t blk = b0; blk < b1; ++blk) {
-      float* dst = packed.buffer.get() + blk * K * kBlockRows;
-      const float* src = a + blk * kBlockRows * K;
-      const int64_t rows = std::min(kBlockRows, M - blk * kBlockRows);
-      int64_t k0 = 0;
-#if defined(__AVX512F__)
-      static_assert(kBlockRows == 8);
-      // 8 rows × 32 columns per step: r[i] holds columns k0..k0+15 of row i, r[8 + i] columns
-      // k0+16..k0+31; after the transpose r[j] = {rows 0-7 at column k0 + j, rows 0-7 at k0 + 16 + j}.
-      if (rows == kBlockRows)
-        for (; k0 + 32 <= K; k0 += 32) {
-          __m512 r[16];
-          for (int i = 0; i < 8; ++i) {
-            r[i] = _mm512_loadu_ps(src + i * K + k0);
-            r[8 + i] = _mm512_loadu_ps(src + i * K + k0 + 16);
-          }
-          transpose16(r);
-          for (int j = 0; j < 16; ++j) {
-            _mm256_storeu_ps(dst + (k0 + j) * kBlockRows, _mm512_castps512_ps256(r[j]));
-            _mm256_storeu_ps(dst + (k0 + 16 + j) * kBlockRows,
-                             _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(r[j]), 1)));
-          }
-        }
-#endif
-      for (int64_t k = k0; k < K; ++k)
-        for (int64_t i = 0; i < kBlockRows; ++i) dst[k * kBlockRows + i] = i < rows ? src[i * K + k] : 0.0f;
-    }
-  });
-  return packed;
-}
-
-PackedWeights pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t taps) {
+PackedRows pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t taps) {
   const int64_t blocks = (C + kBlockRows - 1) / kBlockRows, K = O * taps;
-  PackedWeights packed{cached_floats(blocks * K * kBlockRows)};
+  PackedRows packed{cached_floats(blocks * K * kBlockRows)};
   parallel_for(blocks, grain_for(K * kBlockRows), [&](int64_t b0, int64_t b1) {
     for (int64_t blk = b0; blk < b1; ++blk) {
       const int64_t c0 = blk * kBlockRows, rows = std::min(kBlockRows, C - c0);
@@ -89,95 +44,9 @@ PackedWeights pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t
   return packed;
 }
 
-PackedWeights pack_weights_transposed(const float* w, int64_t O, int64_t R) {
-  const int64_t blocks = (R + kBlockRows - 1) / kBlockRows;
-  PackedWeights packed{cached_floats(blocks * O * kBlockRows)};
-  parallel_for(blocks, grain_for(O * kBlockRows), [&](int64_t b0, int64_t b1) {
-    for (int64_t blk = b0; blk < b1; ++blk) {
-      const int64_t r0 = blk * kBlockRows, rows = std::min(kBlockRows, R - r0);
-      float* dst = packed.buffer.get() + blk * O * kBlockRows;
-      for (int64_t o = 0; o < O; ++o)
-        for (int64_t i = 0; i < kBlockRows; ++i) dst[o * kBlockRows + i] = i < rows ? w[o * R + r0 + i] : 0.0f;
-    }
-  });
-  return packed;
-}
-
 #if defined(__AVX512F__)
 
-bool conv_gemm_available() { return true; }
-
-namespace {
-
-constexpr int64_t kNearPrefetch = 24;  // taps (about 300 cycles at 2 FMAs per cycle)
-
-// One 8 × 48 tile: 24 named accumulators, so that they stay in registers (an array of them
-// made GCC spill every accumulator on each k step).
-// Row k of B starts at b + row(k): a packed panel (row(k) = 48·k) or a shifted window of a
-// padded input (row(k) = offset table), see conv_gemm.h.
-// prefetch > 0 touches, for every k, the window `prefetch` floats ahead (the next panel's, into
-// L2), so that its lines come from L3 while this panel computes: a padded 3-D input has one
-// stream per (channel, kz, ky), too many for the hardware prefetchers to follow. It also brings
-// the window kNearPrefetch taps ahead into L1: the next panel's lines fetched a whole panel early
-// (thousands of cycles with 4 Winograd components) are presumably evicted from L1 before use on an AVX-512
-// Xeon (48 KiB L1d). Measured there, 1 thread, CPU time, 4 alternating rounds under load:
-// forward 2×32×32³ 20.2 → 19.7 ms, 1×16×64×64×16 7.0 → 6.0 ms, 8×64×64² 13.0 → 12.5 ms
-// (24 taps ahead: 12 and 16 gained less, 32 about the same).
-// V: column vectors of 16 (3: the 8 × 48 tile; 2: an 8 × 32 one for narrow panels, whose third
-// accumulators, loads and stores the compiler drops).
-template <class Row, int V = 3>
-inline void micro_kernel(const float* a, const float* b, Row row, int64_t K, int64_t n, int64_t rows,
-                         const float* bias, float* c, int64_t ldc, int64_t prefetch = 0) {
-  static_assert(V == 2 || V == 3);
-#define SL_ROW(i) __m512 c##i##0 = _mm512_setzero_ps(), c##i##1 = c##i##0, c##i##2 = c##i##0;
-  SL_ROW(0) SL_ROW(1) SL_ROW(2) SL_ROW(3) SL_ROW(4) SL_ROW(5) SL_ROW(6) SL_ROW(7)
-#undef SL_ROW
-  for (int64_t k = 0; k < K; ++k) {
-    const float* bk = b + row(k);
-    if (prefetch) {
-      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch), _MM_HINT_T1);
-      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch + 16), _MM_HINT_T1);
-      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch + 32), _MM_HINT_T1);
-      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch + 47), _MM_HINT_T1);
-      if (k + kNearPrefetch < K) {
-        const float* bn = b + row(k + kNearPrefetch);
-        _mm_prefetch(reinterpret_cast<const char*>(bn), _MM_HINT_T0);
-        _mm_prefetch(reinterpret_cast<const char*>(bn + 16), _MM_HINT_T0);
-        _mm_prefetch(reinterpret_cast<const char*>(bn + 32), _MM_HINT_T0);
-        _mm_prefetch(reinterpret_cast<const char*>(bn + 47), _MM_HINT_T0);
-      }
-    }
-    const __m512 b0 = _mm512_loadu_ps(bk);
-    const __m512 b1 = _mm512_loadu_ps(bk + 16);
-    const __m512 b2 = V == 3 ? _mm512_loadu_ps(bk + 32) : _mm512_setzero_ps();
-    const float* ak = a + k * kBlockRows;
-#define SL_FMA(i)                                               \
-  {                                                             \
-    const __m512 ai = _mm512_set1_ps(ak[i]);                    \
-    c##i##0 = _mm512_fmadd_ps(ai, b0, c##i##0);                 \
-    c##i##1 = _mm512_fmadd_ps(ai, b1, c##i##1);                 \
-    if constexpr (V == 3) c##i##2 = _mm512_fmadd_ps(ai, b2, c##i##2); \
-  }
-    SL_FMA(0) SL_FMA(1) SL_FMA(2) SL_FMA(3) SL_FMA(4) SL_FMA(5) SL_FMA(6) SL_FMA(7)
-#undef SL_FMA
-  }
-  __mmask16 mask[3];
-  for (int j = 0; j < 3; ++j) {
-    const int64_t cols = j < V ? std::clamp<int64_t>(n - 16 * j, 0, 16) : 0;
-    mask[j] = static_cast<__mmask16>((1u << cols) - 1u);
-  }
-#define SL_STORE(i)                                                                  \
-  if (i < rows) {                                                                    \
-    const __m512 bi = _mm512_set1_ps(bias ? bias[i] : 0.0f);                         \
-    _mm512_mask_storeu_ps(c + i * ldc, mask[0], _mm512_add_ps(c##i##0, bi));         \
-    _mm512_mask_storeu_ps(c + i * ldc + 16, mask[1], _mm512_add_ps(c##i##1, bi));    \
-    if constexpr (V == 3) _mm512_mask_storeu_ps(c + i * ldc + 32, mask[2], _mm512_add_ps(c##i##2, bi)); \
-  }
-  SL_STORE(0) SL_STORE(1) SL_STORE(2) SL_STORE(3) SL_STORE(4) SL_STORE(5) SL_STORE(6) SL_STORE(7)
-#undef SL_STORE
-}
-
-}  // namespace
+using sl::detail::gemm_tile::micro_kernel;
 
 // {Σ lanes of v0, ..., Σ lanes of v7}: a shuffle tree (24 operations) instead of eight
 // independent horizontal reductions (about 64).
@@ -377,71 +246,12 @@ void conv_weight_grad_outer(const float* dyT, int64_t ldp, int64_t vectors, cons
 
 #elif defined(__AVX2__) && defined(__FMA__)
 
-// AVX2 + FMA: 16 vector registers of 8 floats, so the 8 × 48 tile is computed as four 4 × 24
-// sub-tiles of 12 accumulators (plus 3 B vectors and one broadcast). Every output element is the
-// same FMA sequence over k = 0..K-1 as with AVX-512, so both give the same bits.
-bool conv_gemm_available() { return true; }
+// AVX2 + FMA: the tile runs as 4 × 24 sub-tiles (autodiff/gemm_tile.h); the weight gradient below
+// has its own 4-row kernel.
+using sl::detail::gemm_tile::lane_mask;
+using sl::detail::gemm_tile::micro_kernel;
 
 namespace {
-
-// Lanes [0, n) of a row of 8 (n <= 8).
-inline __m256i lane_mask(int64_t n) {
-  alignas(32) static const int32_t ramp[8] = {0, 1, 2, 3, 4, 5, 6, 7};
-  return _mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int32_t>(std::clamp<int64_t>(n, 0, 8))),
-                            _mm256_load_si256(reinterpret_cast<const __m256i*>(ramp)));
-}
-
-// Rows r0..r0+3 (of a packed block of 8) × columns c0..c0+23 of the tile.
-template <class Row>
-inline void sub_kernel(const float* a, const float* b, Row row, int64_t K, int64_t c0, int64_t n, int64_t rows,
-                       const float* bias, float* c, int64_t ldc, int64_t prefetch) {
-#define SL_ROW(i) __m256 c##i##0 = _mm256_setzero_ps(), c##i##1 = c##i##0, c##i##2 = c##i##0;
-  SL_ROW(0) SL_ROW(1) SL_ROW(2) SL_ROW(3)
-#undef SL_ROW
-  for (int64_t k = 0; k < K; ++k) {
-    const float* bk = b + row(k) + c0;
-    if (prefetch) {
-      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch), _MM_HINT_T0);
-      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch + 16), _MM_HINT_T0);
-      _mm_prefetch(reinterpret_cast<const char*>(bk + prefetch + 32), _MM_HINT_T0);
-    }
-    const __m256 b0 = _mm256_loadu_ps(bk);
-    const __m256 b1 = _mm256_loadu_ps(bk + 8);
-    const __m256 b2 = _mm256_loadu_ps(bk + 16);
-    const float* ak = a + k * kBlockRows;
-#define SL_FMA(i)                                  \
-  {                                                \
-    const __m256 ai = _mm256_broadcast_ss(ak + i); \
-    c##i##0 = _mm256_fmadd_ps(ai, b0, c##i##0);    \
-    c##i##1 = _mm256_fmadd_ps(ai, b1, c##i##1);    \
-    c##i##2 = _mm256_fmadd_ps(ai, b2, c##i##2);    \
-  }
-    SL_FMA(0) SL_FMA(1) SL_FMA(2) SL_FMA(3)
-#undef SL_FMA
-  }
-  const __m256i m0 = lane_mask(n - c0), m1 = lane_mask(n - c0 - 8), m2 = lane_mask(n - c0 - 16);
-#define SL_STORE(i)                                                            \
-  if (i < rows) {                                                              \
-    const __m256 bi = _mm256_set1_ps(bias ? bias[i] : 0.0f);                   \
-    float* ci = c + i * ldc + c0;                                              \
-    _mm256_maskstore_ps(ci, m0, _mm256_add_ps(c##i##0, bi));                   \
-    _mm256_maskstore_ps(ci + 8, m1, _mm256_add_ps(c##i##1, bi));               \
-    _mm256_maskstore_ps(ci + 16, m2, _mm256_add_ps(c##i##2, bi));              \
-  }
-  SL_STORE(0) SL_STORE(1) SL_STORE(2) SL_STORE(3)
-#undef SL_STORE
-}
-
-// V is the AVX-512 kernel's column-vector count; here the sub-tiles of 24 columns cover n (a
-// narrow 32-column panel reads 48 columns per row: conv_gemm_panel_narrow's contract).
-template <class Row, int V = 3>
-inline void micro_kernel(const float* a, const float* b, Row row, int64_t K, int64_t n, int64_t rows,
-                         const float* bias, float* c, int64_t ldc, int64_t prefetch = 0) {
-  for (int64_t h = 0; h < 2 && 4 * h < rows; ++h)
-    for (int64_t c0 = 0; c0 < n; c0 += 24)
-      sub_kernel(a + 4 * h, b, row, K, c0, n, rows - 4 * h, bias ? bias + 4 * h : nullptr, c + 4 * h * ldc, ldc,
-                 h == 0 && c0 == 0 ? prefetch : 0);
-}
 
 inline float hsum(__m256 v) {
   const __m128 s = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
@@ -508,24 +318,6 @@ void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const floa
 
 #else
 
-bool conv_gemm_available() { return false; }
-
-void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                     const float* bias, float* c, int64_t ldc, int64_t ldb) {
-  for (int64_t m = 0; m < M; ++m)
-    for (int64_t j = 0; j < n; ++j) {
-      float acc = 0.0f;
-      for (int64_t k = 0; k < K; ++k)
-        acc += packed_a[((m / kBlockRows) * K + k) * kBlockRows + m % kBlockRows] * b_panel[k * ldb + j];
-      c[m * ldc + j] = acc + (bias ? bias[m] : 0.0f);
-    }
-}
-
-void conv_gemm_panel_narrow(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                            const float* bias, float* c, int64_t ldc, int64_t ldb) {
-  conv_gemm_panel(packed_a, M, K, b_panel, n, bias, c, ldc, ldb);
-}
-
 void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
                       float* tile) {
   for (int64_t m = 0; m < M; ++m)
@@ -551,26 +343,7 @@ void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const floa
 #endif
 
 #if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
-struct RowPitch {  // row k of a packed panel
-  int64_t ldb;
-  int64_t operator()(int64_t k) const { return k * ldb; }
-};
-
-// The 8-row blocks of A, each through the micro-kernel of the branch above.
-void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                     const float* bias, float* c, int64_t ldc, int64_t ldb) {
-  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
-    micro_kernel(packed_a + m0 * K, b_panel, [ldb](int64_t k) { return k * ldb; }, K, n,
-                 std::min(kBlockRows, M - m0), bias ? bias + m0 : nullptr, c + m0 * ldc, ldc);
-}
-
-void conv_gemm_panel_narrow(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                            const float* bias, float* c, int64_t ldc, int64_t ldb) {
-  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)
-    micro_kernel<RowPitch, 2>(packed_a + m0 * K, b_panel, RowPitch{ldb}, K, n, std::min(kBlockRows, M - m0),
-                              bias ? bias + m0 : nullptr, c + m0 * ldc, ldc);
-}
-
+// The 8-row blocks of A, each through the tile of autodiff/gemm_tile.h, on a window table.
 void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
                       float* tile) {
   for (int64_t m0 = 0; m0 < M; m0 += kBlockRows)

@@ -1,65 +1,41 @@
-// The register-blocked float GEMM behind convolution (internal to nn/functional/conv.cpp).
+// The convolution kernels on the packed float GEMM of autodiff/gemm_kernel.h (internal to
+// nn/functional/conv.cpp): the implicit GEMM over shifted windows and the weight gradients.
 //
-// Contract: C[M, n] = A[M, K] · B[K, n] (+ bias[m]) for one panel of n <= kPanelCols columns,
-// where A was packed once by pack_weights into row blocks [ceil(M / kBlockRows)][K][kBlockRows]
-// and B is one im2col panel [K][kPanelCols] (columns past n are ignored). C has leading
-// dimension ldc. Each output element is one fixed sequence of FMAs over k = 0..K-1, so the
-// result does not depend on threads or on which panel it is computed in.
+// Contract: as autodiff/gemm_kernel.h for the packed operand and the tile (the same FMA sequence
+// per output element with AVX-512 and with AVX2 + FMA, so the bits match); without either,
+// gemm_kernel_available() is false and conv.cpp uses autodiff's Eigen GEMM.
 // Why not Eigen here: im2col can write its panel directly in the layout the micro-kernel
 // streams, which saves Eigen's second packing copy of the column matrix, and the 8×48 tile keeps
-// 24 AVX-512 accumulators busy for the 16-64 output channels typical of these networks. With
-// AVX2 + FMA (no AVX-512) the same tile runs as four 4×24 sub-tiles of 12 accumulators, with the
-// same FMA sequence per output element, so the bits match. available() is false without either;
-// conv.cpp then uses autodiff's Eigen GEMM.
+// 24 AVX-512 accumulators busy for the 16-64 output channels typical of these networks.
 #pragma once
 #include <cstdint>
 #include <memory>
 #include <vector>
 
+#include "autodiff/gemm_kernel.h"
+#include "autodiff/transpose16.h"
+
 namespace sl::nn::detail {
 
-constexpr int64_t kBlockRows = 8;
-constexpr int64_t kPanelCols = 48;
+using sl::detail::cached_floats;
+using sl::detail::CachedFloats;
+using sl::detail::gemm_kernel_available;
+using sl::detail::gemm_panel;
+using sl::detail::gemm_panel_narrow;
+using sl::detail::kBlockRows;
+using sl::detail::kPanelCols;
+using sl::detail::pack_rows;
+using sl::detail::pack_rows_transposed;
+using sl::detail::PackedRows;
+#if defined(__AVX512F__)
+using sl::detail::transpose16;
+using sl::detail::transpose_copy;
+#endif
 
-bool conv_gemm_available();
-
-// 64-byte aligned float scratch (contents unspecified). Blocks of 1 MiB and more come from the
-// buffer cache (autodiff/buffer_cache.h): the packed weights and padded copies of every call have
-// the same sizes step after step, and fresh pages would fault and be zeroed on each call (a
-// quarter of the transform of ResNet-18's 512-channel weights).
-struct CachedFloatsDeleter {
-  size_t capacity = 0;
-  void operator()(float* p) const;
-};
-using CachedFloats = std::unique_ptr<float[], CachedFloatsDeleter>;
-CachedFloats cached_floats(int64_t floats);
-
-// Zero-padded row blocks of A [M, K] (row-major, leading dim K). The storage is written once,
-// block by block in parallel, without a zero fill first: deep layers have megabytes of weights
-// and only a few dozen positions per weight to amortise the packing over.
-struct PackedWeights {
-  CachedFloats buffer;
-  const float* data() const { return buffer.get(); }
-};
-PackedWeights pack_weights(const float* a, int64_t M, int64_t K);
-
-// pack_weights of the flipped, transposed kernel that turns a stride-1 convolution's input
+// pack_rows of the flipped, transposed kernel that turns a stride-1 convolution's input
 // gradient into a forward convolution: A[c][o·taps + t] = w[o][c][taps - 1 - t] for w [O, C, taps],
 // in one pass over w (no intermediate transposed copy).
-PackedWeights pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t taps);
-
-// pack_weights of Wᵀ for w [O, R] (a strided convolution's column gradient Wᵀ·dy): A[r][o] = w[o][r].
-PackedWeights pack_weights_transposed(const float* w, int64_t O, int64_t R);
-
-// ldb: the row pitch of B (a window of a wider column block; 48 columns are read per row).
-void conv_gemm_panel(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                     const float* bias, float* c, int64_t ldc, int64_t ldb = kPanelCols);
-
-// conv_gemm_panel for a narrow panel of n <= 32 columns, on an 8 × 32 tile: two thirds of the
-// 48-column tile's work where only 32 columns exist (the same FMA sequence per output, so the same
-// bits). Reads 48 floats per row of B with AVX2 (give the panel 16 floats of slack), 32 with AVX-512.
-void conv_gemm_panel_narrow(const float* packed_a, int64_t M, int64_t K, const float* b_panel, int64_t n,
-                            const float* bias, float* c, int64_t ldc, int64_t ldb);
+PackedRows pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t taps);
 
 // Implicit GEMM for stride-1 convolutions: B[k][j] = base[row_offset[k] + j] for j < 48, i.e.
 // every row of B is a shifted window of a zero-padded input, so no column matrix is built.

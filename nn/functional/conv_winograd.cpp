@@ -7,13 +7,13 @@
 #include <immintrin.h>
 #endif
 
-#include "nn/functional/transpose16.h"
+#include "autodiff/transpose16.h"
 #include "nn/functional/work_grain.h"
 #include "util/parallel.h"
 
 namespace sl::nn::detail {
 
-// Written straight in pack_weights' layout (row blocks [O / 8][R][8]), one block of 8 output
+// Written straight in pack_rows' layout (row blocks [O / 8][R][8]), one block of 8 output
 // channels per task: a separate transform pass and four packings took 11 ms for ResNet-18's
 // 512-channel layer, four times its GEMM.
 WinogradWeights winograd_weights(const ConvGeometry& g, int axis, const float* w, bool flipped) {
@@ -48,8 +48,8 @@ WinogradWeights winograd_weights(const ConvGeometry& g, int axis, const float* w
       static_assert(kBlockRows == 8);
       // Unflipped along the innermost axis, row r's taps are w[o][3r .. 3r + 2] (row_at[r] = 3r):
       // 32 rows of the block's 8 output channels per step, deinterleaved from 96 contiguous floats
-      // per channel, then put in pack_weights' [r][8] layout by the register transpose that
-      // pack_weights uses. The same arithmetic as the loop below, so the same bits; the scalar loop
+      // per channel, then put in pack_rows' [r][8] layout by the register transpose that
+      // pack_rows uses. The same arithmetic as the loop below, so the same bits; the scalar loop
       // (3 gathers and 4 scattered stores per value) was 22% of ResNet-18's 512-channel layer's
       // forward+backward (perf, 1 thread).
       if (!flipped && axis == 2 && step == 1 && g.k[2] == 3)
@@ -97,7 +97,7 @@ WinogradWeights winograd_weights(const ConvGeometry& g, int axis, const float* w
         const int64_t at = row_at[r];
         for (int64_t i = 0; i < kBlockRows; ++i) {
           const float* t = wo[i] + at;
-          const bool real = i < rows;  // rows past O: zeros, as pack_weights pads them
+          const bool real = i < rows;  // rows past O: zeros, as pack_rows pads them
           const float g0 = real ? t[0] : 0.0f, g1 = real ? t[step] : 0.0f, g2 = real ? t[2 * step] : 0.0f;
           d0[r * kBlockRows + i] = g0;
           d1[r * kBlockRows + i] = (g0 + g1 + g2) * 0.5f;
@@ -163,7 +163,7 @@ void winograd_pairs(const float* d, int64_t pairs, float* u, int64_t comp) {
 }
 
 bool winograd_rows_supported(const ConvGeometry& g) {
-  if (!conv_gemm_available() || g.in[0] != 1 || g.k[0] != 1 || g.k[2] != 3 || g.dil[2] != 1) return false;
+  if (!gemm_kernel_available() || g.in[0] != 1 || g.k[0] != 1 || g.k[2] != 3 || g.dil[2] != 1) return false;
   for (int a = 0; a < 3; ++a)
     if (g.stride[a] != 1) return false;
   const RowPairs rp(g);
@@ -221,7 +221,7 @@ void winograd_rows_forward(const ConvGeometry& g, const float* x, const float* w
       const int64_t o1 = std::min(g.O, (part + 1) * row_blocks / parts * kBlockRows);
       const int64_t n_cols = std::min(width, rp.Q - p * width), tile = (o1 - o0) * width;
       for (int64_t i = 0; i < 4; ++i)
-        (width == kPanelCols ? conv_gemm_panel : conv_gemm_panel_narrow)(
+        (width == kPanelCols ? gemm_panel : gemm_panel_narrow)(
             v.data(i) + o0 * K, o1 - o0, K, cols.get() + i * comp + p * panel_floats, n_cols, nullptr,
             m.data() + i * tile, width, width);
       for (int64_t col = 0; col < n_cols; ++col) {

@@ -22,7 +22,7 @@
 
 namespace sl::nn::detail {
 
-// V_i[o][r] for r = (c, the other axes' taps in weight order), in pack_weights' layout, from
+// V_i[o][r] for r = (c, the other axes' taps in weight order), in pack_rows' layout, from
 // w [O][C][k0][k1][k2], or with `flipped` from the kernel whose flipped transpose g convolves with
 // (w [C][O][taps], tap k of (o, c) = w[c][o][taps − 1 − k]: an input gradient); `axis` (0-2) is the
 // transformed one (g.k[axis] == 3). The four sets share one block, large enough for the buffer cache.

@@ -239,7 +239,7 @@ TEST(Conv, RepeatedForwardTakesItsPaddedCopyFromTheBufferCache) {
   if (buffer_cache_limit_bytes() == 0) GTEST_SKIP() << "buffer cache disabled (STREETLIGHT_BUFFER_CACHE_MB=0)";
   const Tensor x = Tensor::normal({2, 32, 96, 96}, 0, 1, 31).to(DType::F32);  // padded copy 2.4 MB
   const Tensor w = Tensor::normal({32, 32, 3, 3}, 0, 0.1, 32).to(DType::F32);
-  if (!nn::detail::conv_gemm_available()) GTEST_SKIP() << "no implicit-GEMM kernels on this CPU";
+  if (!nn::detail::gemm_kernel_available()) GTEST_SKIP() << "no implicit-GEMM kernels on this CPU";
   NoGradGuard ng;
   const std::vector<double> first = conv2d(x, w, Tensor(), {1, 1}, {1, 1}).to_vector();
   const BufferCacheStats before = buffer_cache_stats();
@@ -254,7 +254,7 @@ TEST(Conv, RepeatedForwardTakesItsPaddedCopyFromTheBufferCache) {
 // the same bits as a fresh copy, and x itself is not read again (a NaN-filled x changes
 // nothing), through both backward entry points. A plain 2-D copy is not kept.
 TEST(Conv, WeightGradientFromTheForwardsKeptCopyHasTheSameBitsAndDoesNotReadX) {
-  if (!nn::detail::conv_gemm_available()) GTEST_SKIP() << "no implicit-GEMM kernels on this CPU";
+  if (!nn::detail::gemm_kernel_available()) GTEST_SKIP() << "no implicit-GEMM kernels on this CPU";
   for (const std::array<int64_t, 3> in : {std::array<int64_t, 3>{40, 36, 16}, std::array<int64_t, 3>{1, 48, 40}}) {
     nn::detail::ConvGeometry g;
     g.N = 2, g.C = 3, g.O = 5, g.in = in;
@@ -273,7 +273,7 @@ TEST(Conv, WeightGradientFromTheForwardsKeptCopyHasTheSameBitsAndDoesNotReadX) {
     const std::vector<float> nan_x(x.size(), std::numeric_limits<float>::quiet_NaN());
     std::vector<float> y(static_cast<size_t>(g.N * g.O * g.out_plane()));
     nn::detail::KeptInput kept;
-    nn::detail::direct_forward(g, x.data(), nn::detail::pack_weights(w.data(), g.O, g.rows()).data(), nullptr,
+    nn::detail::direct_forward(g, x.data(), nn::detail::pack_rows(w.data(), g.O, g.rows()).data(), nullptr,
                                y.data(), &kept);
     if (!volume) {  // a plain copy is made again rather than kept
       EXPECT_FALSE(kept);
@@ -308,7 +308,7 @@ TEST(Conv, WeightGradientFromTheForwardsKeptCopyHasTheSameBitsAndDoesNotReadX) {
 // rounding of Σ|x|·Σ|g| (the row sums of the kernel along the transformed axis: Winograd's error
 // bound, looser than the direct sum's Σ|x|·|g| where one tap is near zero).
 TEST(Conv, WinogradForwardAndGradientsMatchFloat64) {
-  if (!nn::detail::conv_gemm_available()) GTEST_SKIP() << "no implicit-GEMM kernels on this CPU";
+  if (!nn::detail::gemm_kernel_available()) GTEST_SKIP() << "no implicit-GEMM kernels on this CPU";
   struct Case { Shape x, w; std::array<int64_t, 3> p, d; bool windows; };
   const std::vector<Case> cases = {
       {{2, 5, 36, 64}, {9, 5, 3, 3}, {0, 1, 1}, {1, 1, 1}, true},
@@ -386,7 +386,7 @@ TEST(Conv, WinogradForwardAndGradientsMatchFloat64) {
 }
 
 // winograd_weights (unflipped, along the innermost axis, where AVX-512 deinterleaves 32 rows of
-// taps per step and transposes them into pack_weights' layout) equals its definition bit for bit:
+// taps per step and transposes them into pack_rows' layout) equals its definition bit for bit:
 // V_0 = g0, V_1 = (g0 + g1 + g2) / 2, V_2 = (g0 − g1 + g2) / 2, V_3 = g2, rows past O zero.
 TEST(Conv, WinogradWeightsEqualTheirDefinitionBitForBit) {
   for (const auto& [O, C, k0] : {std::array<int64_t, 3>{13, 21, 1}, std::array<int64_t, 3>{16, 11, 3}}) {
@@ -424,7 +424,7 @@ TEST(Conv, FlippedWeightPackingIsTheTransposedReversedKernel) {
     const std::vector<double> wd = Tensor::normal({O * C * taps}, 0, 1, 7).to_vector();
     std::vector<float> w(wd.begin(), wd.end());
     w[0] = -0.0f, w[w.size() - 1] = std::numeric_limits<float>::quiet_NaN();
-    const nn::detail::PackedWeights packed = nn::detail::pack_weights_flipped(w.data(), O, C, taps);
+    const nn::detail::PackedRows packed = nn::detail::pack_weights_flipped(w.data(), O, C, taps);
     size_t mismatches = 0;
     for (int64_t b = 0; b < blocks; ++b)
       for (int64_t o = 0; o < O; ++o)

@@ -1,4 +1,5 @@
-// In-register transpose of a 16 × 16 float block (internal to the convolution kernels).
+// In-register transpose of a 16 × 16 float block (internal to the GEMM packing and the
+// convolution kernels).
 //
 // Contract: with AVX-512, transpose16(r) turns r[a] lane b into r[b] lane a for a, b < 16, in
 // 64 shuffles, and transpose_copy transposes a matrix through it; without AVX-512 this header
@@ -11,7 +12,7 @@
 #include <algorithm>
 #include <cstdint>
 
-namespace sl::nn::detail {
+namespace sl::detail {
 
 // In-register transpose of a 16 × 16 block: r[a][b] -> r[b][a].
 inline void transpose16(__m512 r[16]) {
@@ -58,5 +59,5 @@ inline void transpose_copy(const float* src, int64_t src_step, int64_t ni, int64
   }
 }
 
-}  // namespace sl::nn::detail
+}  // namespace sl::detail
 #endif

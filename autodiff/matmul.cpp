@@ -10,6 +10,7 @@
 #include "autodiff/reduce.h"
 #include "autodiff/shape_ops.h"
 #include "autodiff/tape.h"
+#include "autodiff/transpose16.h"
 #include "util/parallel.h"
 
 namespace sl {
@@ -49,17 +50,44 @@ void gemm_serial(bool ta, bool tb, int64_t M, int64_t N, int64_t K, T alpha, con
 // every column panel of a task range before the next block is read.
 constexpr int64_t kPackedRows = 256;
 
-// C = op(A) · B through the packed kernel (autodiff/gemm_kernel.h): A packed once, then tasks of
-// kPackedRows rows × one 48-column panel. The last panel of B, narrower than 48 columns, is copied
-// into a zero-padded [K][48] block, since the kernel reads 48 floats per row. Each element of C is
+// op(B) = Bᵀ for B stored [N, K] (leading dimension ldb), written as [K][Np] with Np = N rounded
+// up to whole 48-column panels and zeros past N: the layout the kernel streams.
+CachedFloats transposed_panels(const float* B, int64_t ldb, int64_t N, int64_t K, int64_t Np) {
+  CachedFloats bt = cached_floats(K * Np);
+  parallel_for(Np / kPanelCols, std::max<int64_t>(1, (int64_t{1} << 16) / std::max<int64_t>(K * kPanelCols, 1)),
+               [&](int64_t p0, int64_t p1) {
+                 for (int64_t p = p0; p < p1; ++p) {
+                   const int64_t j0 = p * kPanelCols, rows = std::min(kPanelCols, N - j0);
+                   float* dst = bt.get() + j0;
+#if defined(__AVX512F__)
+                   transpose_copy(B + j0 * ldb, ldb, rows, K, dst, Np);
+#else
+                   for (int64_t j = 0; j < rows; ++j)
+                     for (int64_t k = 0; k < K; ++k) dst[k * Np + j] = B[(j0 + j) * ldb + k];
+#endif
+                   if (rows < kPanelCols)
+                     for (int64_t k = 0; k < K; ++k) std::fill(dst + k * Np + rows, dst + k * Np + kPanelCols, 0.0f);
+                 }
+               });
+  return bt;
+}
+
+// C = op(A) · op(B) through the packed kernel (autodiff/gemm_kernel.h): A packed once, then tasks
+// of kPackedRows rows × one 48-column panel. The kernel reads 48 floats per row of B, so the last
+// panel of an untransposed B, when narrower, is copied into a zero-padded [K][48] block; a
+// transposed B is rewritten whole into padded panels (transposed_panels). Each element of C is
 // the kernel's one FMA sequence over k, so the bits depend neither on threads nor on the task
 // split, and are the same with AVX-512 and AVX2 (they differ from Eigen's).
-void packed_gemm(bool ta, int64_t M, int64_t N, int64_t K, const float* A, const float* B, int64_t ldb, float* C,
-                 int64_t ldc) {
+void packed_gemm(bool ta, bool tb, int64_t M, int64_t N, int64_t K, const float* A, const float* B, int64_t ldb,
+                 float* C, int64_t ldc) {
   const PackedRows a = ta ? pack_rows_transposed(A, K, M) : pack_rows(A, M, K);
   const int64_t panels = (N + kPanelCols - 1) / kPanelCols, tail = N - (panels - 1) * kPanelCols;
-  CachedFloats last;
-  if (tail < kPanelCols) {
+  CachedFloats bt, last;
+  if (tb) {
+    bt = transposed_panels(B, ldb, N, K, panels * kPanelCols);
+    B = bt.get();
+    ldb = panels * kPanelCols;
+  } else if (tail < kPanelCols) {
     last = cached_floats(K * kPanelCols);
     const int64_t c0 = (panels - 1) * kPanelCols;
     for (int64_t k = 0; k < K; ++k) {
@@ -74,18 +102,18 @@ void packed_gemm(bool ta, int64_t M, int64_t N, int64_t K, const float* A, const
   parallel_for(row_blocks * panels, grain, [&](int64_t t0, int64_t t1) {
     for (int64_t t = t0; t < t1; ++t) {
       const int64_t r0 = (t / panels) * kPackedRows, p = t % panels, rows = std::min(kPackedRows, M - r0);
-      const bool narrow = p == panels - 1 && tail < kPanelCols;
-      const float* b = narrow ? last.get() : B + p * kPanelCols;
-      gemm_panel(a.data() + r0 * K, rows, K, b, narrow ? tail : kPanelCols, nullptr, C + r0 * ldc + p * kPanelCols,
-                 ldc, narrow ? kPanelCols : ldb);
+      const int64_t n = std::min(kPanelCols, N - p * kPanelCols);
+      const bool padded = !tb && n < kPanelCols;
+      gemm_panel(a.data() + r0 * K, rows, K, padded ? last.get() : B + p * kPanelCols, n, nullptr,
+                 C + r0 * ldc + p * kPanelCols, ldc, padded ? kPanelCols : ldb);
     }
   });
 }
 
-// Whether packed_gemm serves this call: float, B not transposed, plain C = op(A)·B, A contiguous
-// (the packing reads it with its natural pitch), and enough work to pay for the packing.
+// Whether packed_gemm serves this call: float, plain C = op(A)·op(B), A and a transposed B
+// contiguous-rowed as the packing reads them, and enough work to pay for the packing.
 bool use_packed(bool ta, bool tb, int64_t M, int64_t N, int64_t K, double alpha, int64_t lda, double beta) {
-  return !tb && alpha == 1.0 && beta == 0.0 && lda == (ta ? M : K) && M >= kBlockRows && K >= 16 &&
+  return alpha == 1.0 && beta == 0.0 && lda == (ta ? M : K) && M >= kBlockRows && K >= 16 &&
          M * N * K >= (int64_t{1} << 18) && gemm_kernel_available();
 }
 }  // namespace
@@ -96,7 +124,7 @@ void gemm(bool ta, bool tb, int64_t M, int64_t N, int64_t K, T alpha, const T* A
   if (M == 0 || N == 0) return;
   if constexpr (std::is_same_v<T, float>) {
     if (use_packed(ta, tb, M, N, K, alpha, lda, beta)) {
-      packed_gemm(ta, M, N, K, A, B, ldb, C, ldc);
+      packed_gemm(ta, tb, M, N, K, A, B, ldb, C, ldc);
       return;
     }
   }

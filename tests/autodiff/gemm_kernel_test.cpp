@@ -1,5 +1,5 @@
-// The packed float GEMM (autodiff/gemm_kernel.h) as matmul uses it: forward C = A·B and the
-// weight-side gradient Aᵀ·G, on shapes with a partial last column panel and a partial last row
+// The packed float GEMM (autodiff/gemm_kernel.h) as matmul uses it: forward C = A·B and both
+// gradients, Aᵀ·G and G·Bᵀ, on shapes with a partial last column panel and a partial last row
 // block, against the same products in float64.
 //
 // Bound: each element of the float result is one sequence of K fused multiply-adds in float from
@@ -53,7 +53,7 @@ TEST(GemmKernel, MatmulAndItsWeightGradientStayWithinTheFmaBound) {
   // M: full and partial 8-row blocks, more than one 256-row task; N: full panels plus a tail of
   // 5 columns (the padded copy); K: odd. Every shape has the 2^18 multiply-adds that select the
   // packed path (autodiff/matmul.cpp use_packed).
-  for (const auto [M, K, N] : {std::tuple<int64_t, int64_t, int64_t>{37, 129, 101}, {300, 67, 53}, {8, 700, 48}}) {
+  for (const auto& [M, K, N] : {std::tuple<int64_t, int64_t, int64_t>{37, 129, 101}, {300, 67, 53}, {8, 700, 48}}) {
     SCOPED_TRACE("M " + std::to_string(M) + " K " + std::to_string(K) + " N " + std::to_string(N));
     Tensor a = Tensor::uniform({M, K}, -1, 1, 3, DType::F32).set_requires_grad(true);
     Tensor b = Tensor::uniform({K, N}, -1, 1, 4, DType::F32).set_requires_grad(true);
@@ -62,8 +62,10 @@ TEST(GemmKernel, MatmulAndItsWeightGradientStayWithinTheFmaBound) {
     backward(sum(mul(c, g)));
     const std::vector<double> av = a.to_vector(), bv = b.to_vector(), gv = g.to_vector();
     EXPECT_LE(worst_ratio(c.to_vector(), av, bv, M, N, K), 1.0) << "C = A·B";
-    // dB = Aᵀ·G: the packed path with A transposed in the packing ([K, M] · [M, N]).
+    // dB = Aᵀ·G: A transposed in the packing ([K, M] · [M, N]).
     EXPECT_LE(worst_ratio(b.grad().to_vector(), transposed(av, M, K), gv, K, N, M), 1.0) << "dB = Aᵀ·G";
+    // dA = G·Bᵀ: B rewritten as transposed, zero-padded panels ([M, N] · [N, K]).
+    EXPECT_LE(worst_ratio(a.grad().to_vector(), gv, transposed(bv, K, N), M, K, N), 1.0) << "dA = G·Bᵀ";
   }
 }
 

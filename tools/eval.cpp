@@ -14,9 +14,10 @@
 //     apart ("kind": "ldr_panoramas") and split by the label's scene (street / other) and with the
 //     low-confidence labels apart, each beside the constant baseline; panoramas without a sun
 //     position (none, or occluded without one) are counted and listed, not scored.
-//   confidence: each labelled image's flip spread (train/inference.h sun_flip_spread_deg) and sun
-//     height (sun_hedge) in "sun_per_image", and for each measure ("sun_confidence" by the flip
-//     spread, "sun_confidence_hedge" by the height) the median sun error of the most confident half of the
+//   confidence: each labelled image's flip spread (train/inference.h sun_flip_spread_deg), sun
+//     height (sun_hedge) and crop spread (sun_crop_spread_deg) in "sun_per_image", and for each
+//     measure ("sun_confidence" by the flip spread, "sun_confidence_hedge" by the height,
+//     "sun_confidence_crop" by the crop spread) the median sun error of the most confident half of the
 //     images against the rest's, each with its 95% interval (train/sun_confidence.h: does a small
 //     measure mean a small error?). The per-image "predicted_sun_share" is the predicted sky's
 //     share of its light near its sun.
@@ -323,11 +324,14 @@ std::string ci_text(const json& ci) {
   return b;
 }
 
-// One markdown line per result row and confidence measure (the flip spread, then the hedge).
+// One markdown line per result row and confidence measure (the flip spread, the hedge, the crop
+// spread).
 std::string confidence_markdown(const std::vector<json>& results) {
   std::string md;
   for (const auto& [key, what] : std::vector<std::pair<std::string, std::string>>{
-           {"sun_confidence", "flip spread (°)"}, {"sun_confidence_hedge", "sun height (hedge)"}})
+           {"sun_confidence", "flip spread (°)"},
+           {"sun_confidence_hedge", "sun height (hedge)"},
+           {"sun_confidence_crop", "crop spread (°)"}})
     for (const auto& r : results) {
       if (!r.contains(key) || r.at(key).is_null()) continue;
       const json& c = r.at(key);
@@ -345,8 +349,9 @@ std::string confidence_markdown(const std::vector<json>& results) {
     }
   return md.empty() ? md
                     : "\nConfidence (train/inference.h): the angle between the sun of the photo and of its mirror "
-                      "image; and the sun height sin(elevation) of the network's sun, a hedge toward the zenith when "
-                      "it cannot tell the azimuth (both 0 when the visible-sun cue set the direction):\n\n" +
+                      "image; the sun height sin(elevation) of the network's sun, a hedge toward the zenith when "
+                      "it cannot tell the azimuth; and the largest angle between the photo's sun and a centred "
+                      "crop's (crop averaging) (all 0 when the visible-sun cue set the direction):\n\n" +
                           md;
 }
 
@@ -448,26 +453,29 @@ double predicted_sun_share(const EstimatedLighting& l) {
 
 json eval_lighting(const std::string& ckpt, const std::string& data, const std::string& split, int64_t limit,
                    int view_rows, std::vector<cli::PlotPoint>* plot, const std::string& label, const RealSkyData* real,
-                   bool oracle, bool flip_average, bool visible_sun) {
+                   bool oracle, bool flip_average, bool visible_sun, const std::vector<double>& crop_scales) {
   LightingEstimator est(ckpt);
   est.set_flip_average(flip_average);
+  est.set_crop_scales(crop_scales);
   est.set_visible_sun(visible_sun);
   // Every score carries its group for the bootstrap: the street's id, or the real crop's panorama.
   Grouped sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, oracle_psnr, oracle_ratio;
   // One entry per image with a sun label: which image, the error and both directions (in the
   // input camera's canonical frame), so failures can be found and looked at.
   json per_image = json::array();
-  Confidence confidence{"sun_flip_spread_deg"}, confidence_hedge{"sun_hedge"};
+  Confidence confidence{"sun_flip_spread_deg"}, confidence_hedge{"sun_hedge"}, confidence_crop{"sun_crop_spread_deg"};
   const auto add_image = [&](const std::string& id, const glm::dvec3& predicted, const glm::dvec3& truth, double e,
                              const EstimatedLighting& l) {
-    const double spread = l.sun_flip_spread_deg, hedge = l.sun_hedge;
+    const double spread = l.sun_flip_spread_deg, hedge = l.sun_hedge, crop = l.sun_crop_spread_deg;
     per_image.push_back({{"id", id}, {"sun_error_deg", e}, {"predicted", {predicted.x, predicted.y, predicted.z}},
                          {"truth", {truth.x, truth.y, truth.z}},
                          {"sun_flip_spread_deg", std::isfinite(spread) ? json(spread) : json()},
-                         {"sun_hedge", std::isfinite(hedge) ? json(hedge) : json()}});
+                         {"sun_hedge", std::isfinite(hedge) ? json(hedge) : json()},
+                         {"sun_crop_spread_deg", std::isfinite(crop) ? json(crop) : json()}});
     const std::string group = id.substr(0, id.find('#'));  // a real crop's group is its panorama
     confidence.add(spread, e, group);
     confidence_hedge.add(hedge, e, group);
+    confidence_crop.add(crop, e, group);
   };
   std::vector<double> ms;
   size_t sun_unknown = 0;  // samples whose sun label is not usable (soft sun): no sun error
@@ -602,7 +610,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
     for (const auto& [t, e] : line) plot->push_back({label, t, e});
   }
   json r = {{"checkpoint", ckpt}, {"stage", est.stage()}, {"step", est.step()}, {"flip_average", flip_average},
-            {"visible_sun", visible_sun},
+            {"visible_sun", visible_sun}, {"crop_scales", crop_scales},
             {"sky_branch", est.predictor().options().sky_branch},
             {"volume_branch", est.predictor().options().volume_branch},
             {"images", count}, {"sun_unknown", sun_unknown},
@@ -616,6 +624,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   if (real && real->ldr) ldr_splits.write(r);
   r["sun_confidence"] = confidence.to_json();
   r["sun_confidence_hedge"] = confidence_hedge.to_json();
+  r["sun_confidence_crop"] = confidence_crop.to_json();
   json ci = {{"sun_error_median_deg", ci_json(sun_err.v, sun_err.g, Statistic::Median)},
              {"sun_error_mean_deg", ci_json(sun_err.v, sun_err.g, Statistic::Mean)},
              {"psnr", ci_json(ps.v, ps.g, Statistic::Mean)}, {"si_psnr", ci_json(sps.v, sps.g, Statistic::Mean)},
@@ -805,6 +814,9 @@ int run(int argc, char** argv) {
                {"--no-budgets", "", "skip the error-against-time sweep"},
                {"--no-flip-average", "", "one network pass per image for the sun, instead of averaging it with the left-right\n"
                                          "mirrored image's (the estimator's default)"},
+               {"--crop-scales", "LIST", "centred crops whose suns are averaged with the image's, as fractions of its size\n"
+                "                               (default none: off; 0.55,0.7,0.85 was chosen on validation,\n"
+                "                               docs/RESULTS.md; adds the crop-spread confidence)"},
                {"--no-visible-sun", "", "keep the network's sun even where the photo shows the sun disk (by default a visible\n"
                 "                               sun sets the direction, data/visible_sun.h); the sun rows count the images\n"
                 "                               where it fired (\"cue k\" in the table, visible_sun_fired in the JSON)"},
@@ -827,6 +839,10 @@ int run(int argc, char** argv) {
   const int64_t limit = a.integer("--limit", 0);
   const int rows = static_cast<int>(a.integer("--view-rows", 32));
   SL_CHECK(rows > 0, "--view-rows must be positive");
+  const std::vector<double> crop_scales = a.numbers(
+      "--crop-scales", {});
+  for (const double s : crop_scales)
+    SL_CHECK(std::isfinite(s) && s > 0.0 && s < 1.0, "--crop-scales: each scale must lie in (0, 1), got ", s);
   const int crops = static_cast<int>(a.integer("--crops", 8));
   SL_CHECK(crops > 0, "--crops must be positive, got ", crops);
   if (!hdri_split.empty()) (void)read_hdri_split(hdri_split);  // fail early on a bad file
@@ -866,7 +882,7 @@ int run(int argc, char** argv) {
         const bool want_oracle = street && !oracle_done;
         results.push_back(eval_lighting(ckpts[i], data, split, limit, rows, want_plot ? &plot : nullptr, names[i],
                                         real.get(), want_oracle, !a.has("--no-flip-average"),
-                                        !a.has("--no-visible-sun")));
+                                        !a.has("--no-visible-sun"), crop_scales));
         oracle_done = oracle_done || want_oracle;
         plotted = plotted || want_plot;
       }

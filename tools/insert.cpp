@@ -6,8 +6,8 @@
 // only when everything succeeded, so bad input leaves nothing behind:
 //   composite.png (+ composite.exr with --exr), object_mask.png, shadow_map.png, sky.exr,
 //   sky.png (tone-mapped, world azimuths), depth.exr (the depth used), result.json (sun, with
-//   flip_spread_deg and hedge: the network's confidences, train/inference.h sun_flip_spread_deg and
-//   sun_hedge (smaller is more confident for both), and
+//   flip_spread_deg, hedge and crop_spread_deg: the network's confidences, train/inference.h
+//   sun_flip_spread_deg, sun_hedge and sun_crop_spread_deg (smaller is more confident for all), and
 //   visible_sun: whether a sun disk in the photo set the direction, and its pixel; placement,
 //   boxes, KITTI label line, timings; with --refine N > 0 the discriminator loss and the sun
 //   before and after refinement), label.txt (the KITTI line).
@@ -172,6 +172,19 @@ json visible_sun_json(const EstimatedLighting& light) {
           {"pixel", {light.visible_sun_pixel.x, light.visible_sun_pixel.y}}, {"score", light.visible_sun_score}};
 }
 
+// The third confidence, from crop averaging (train/inference.h sun_crop_spread_deg), null when off.
+json crop_spread_json(const EstimatedLighting& light) {
+  return std::isfinite(light.sun_crop_spread_deg) ? json(light.sun_crop_spread_deg) : json();
+}
+
+// The estimator's options shared by the single-image and the batch mode.
+void configure_estimator(LightingEstimator& est, const cli::Args& a) {
+  est.set_flip_average(!a.has("--no-flip-average"));
+  est.set_visible_sun(!a.has("--no-visible-sun"));
+  est.set_crop_scales(a.numbers(
+      "--crop-scales", {}));
+}
+
 json sun_json(const EstimatedLighting& light) {
   const glm::dvec3 sun = light.sun_direction_world();
   return {{"direction_world", vec_json(sun)},
@@ -180,6 +193,7 @@ json sun_json(const EstimatedLighting& light) {
           {"intensity_rgb", vec_json(light.sun_intensity_rgb)},
           {"flip_spread_deg", spread_json(light)},
           {"hedge", hedge_json(light)},
+          {"crop_spread_deg", crop_spread_json(light)},
           {"visible_sun", visible_sun_json(light)}};
 }
 
@@ -310,8 +324,7 @@ int single(const cli::Args& a) {
   Refinement refine = refinement_from_args(a, checkpoint);
   AtomicDirectory out(a.get("--out"));
   LightingEstimator est(checkpoint);
-  est.set_flip_average(!a.has("--no-flip-average"));
-  est.set_visible_sun(!a.has("--no-visible-sun"));
+  configure_estimator(est, a);
   std::vector<InferenceView> views;
   for (const Photo& p : photos) views.push_back({p.ldr, p.depth, p.camera});
   std::optional<ShadowSunLighting> shadow;
@@ -633,8 +646,7 @@ int batch(const cli::Args& a) {
     }
   }
   LightingEstimator est(a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path());
-  est.set_flip_average(!a.has("--no-flip-average"));
-  est.set_visible_sun(!a.has("--no-visible-sun"));
+  configure_estimator(est, a);
   for (const char* d : {"image_2", "label_2", "calib"}) fs::create_directories(out / d);
   write_file_atomic((out / "batch.json").string(), marker.dump(2) + "\n");
   for (const char* d : {"image_2", "label_2", "calib"}) sweep_stale_temp_files((out / d).string());
@@ -691,6 +703,9 @@ int run(int argc, char** argv) {
                {"--out", "DIR", "output folder (written atomically)"},
                {"--no-flip-average", "", "take the sun from one pass of the network instead of averaging it with the\n"
                                          "mirrored photo's (saves one backbone pass)"},
+               {"--crop-scales", "LIST", "centred crops whose suns are averaged with the photo's, as fractions of its size\n"
+                "                               (default none: off; e.g. 0.55,0.7,0.85, docs/RESULTS.md; result.json\n"
+                "                               sun.crop_spread_deg is the largest angle between the photo's sun and a crop's)"},
                {"--no-visible-sun", "", "keep the network's sun even where the photo shows the sun disk (by default a\n"
                 "                               visible sun sets the direction, data/visible_sun.h; result.json sun.visible_sun)"},
                {"--exr", "", "also write the composite as linear EXR"},

@@ -150,6 +150,19 @@ LightingEstimator::LightingEstimator(const std::string& path) : path_(path) {
 
 RadianceQueryOptions LightingEstimator::volume_query() const { return volume_query_options(config_); }
 
+namespace {
+// The angle between two nonzero directions in degrees (atan2 form: exact near 0° and 180°).
+double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
+  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) * 180.0 / kPi;
+}
+}  // namespace
+
+void LightingEstimator::set_crop_scales(std::vector<double> scales) {
+  for (const double s : scales)
+    SL_CHECK(std::isfinite(s) && s > 0.0 && s < 1.0, "crop averaging: a crop scale must lie in (0, 1), got ", s);
+  crop_scales_ = std::move(scales);
+}
+
 LightingEstimator::Single LightingEstimator::predict_one(const InferenceView& v) {
   const LightingPredictorOptions& po = predictor_->options();
   SL_CHECK(v.ldr.defined() && v.ldr.dim() == 3 && v.ldr.size(0) == 3, "lighting inference: expected an LDR image [3, H, W], got ",
@@ -171,20 +184,54 @@ LightingEstimator::Single LightingEstimator::predict_one(const InferenceView& v)
     rgba = unsqueeze(unproject_rgba(v.ldr, v.depth, s.camera, s.grid), 0);
   }
   s.pred = predictor_->predict(image, rgba);
-  if (flip_average_ && s.pred.code.dir.defined()) {
-    const SkyCode m = predictor_->predict_sky_code(unsqueeze(data::flip_horizontal(select(image, 0, 0).contiguous()), 0));
-    const std::vector<double> d = to_doubles(s.pred.code.dir), md = to_doubles(m.dir);
-    const glm::dvec3 own(d[0], d[1], d[2]), mirrored(-md[0], md[1], md[2]);
-    if (glm::length(own) > 1e-12 && glm::length(mirrored) > 1e-12)  // atan2 form: exact near 0° and 180°
-      s.flip_spread_deg = std::atan2(glm::length(glm::cross(own, mirrored)), glm::dot(own, mirrored)) * 180.0 / kPi;
-    glm::dvec3 dir = own + mirrored;
-    if (glm::length(dir) > 1e-9) {
-      dir = glm::normalize(dir);
-      s.pred.code.dir = Tensor::from_vector({dir.x, dir.y, dir.z}, {1, 3}).to(s.pred.code.dir.dtype());
+  if (!s.pred.code.dir.defined()) return s;
+  // The sun of one network input, averaged with its mirror image's under flip averaging (the
+  // flipped pass's direction mirrored back: (x, y, z) → (−x, y, z), exact for a level camera).
+  // Returns the direction (not normalised) and, flipped, the mirror pass's log intensity.
+  const auto sun_of = [&](const Tensor& input, const SkyCode& own_code, std::vector<double>* mirror_log_i,
+                          double* spread_deg) {
+    const std::vector<double> d = to_doubles(own_code.dir);
+    glm::dvec3 dir(d[0], d[1], d[2]);
+    if (!flip_average_) return dir;
+    const SkyCode m = predictor_->predict_sky_code(unsqueeze(data::flip_horizontal(select(input, 0, 0).contiguous()), 0));
+    const std::vector<double> md = to_doubles(m.dir);
+    const glm::dvec3 mirrored(-md[0], md[1], md[2]);
+    if (spread_deg && glm::length(dir) > 1e-12 && glm::length(mirrored) > 1e-12)
+      *spread_deg = angle_deg(dir, mirrored);
+    if (mirror_log_i) *mirror_log_i = to_doubles(m.log_intensity);
+    return dir + mirrored;
+  };
+  std::vector<double> mirror_log_i;
+  glm::dvec3 dir = sun_of(image, s.pred.code, &mirror_log_i, &s.flip_spread_deg);
+  if (!crop_scales_.empty()) {
+    // Crop averaging: the centred crops, each estimated as the photo is, vote with unit weight.
+    const glm::dvec3 photo = glm::length(dir) > 1e-12 ? glm::normalize(dir) : glm::dvec3(0.0, 1.0, 0.0);
+    glm::dvec3 sum = photo;
+    s.crop_spread_deg = 0.0;
+    const int64_t H = v.ldr.size(1), W = v.ldr.size(2);
+    for (const double scale : crop_scales_) {
+      // Margins equal on both sides (the crop's size keeps the image's parity), so the crop of the
+      // mirror image is the mirror image of the crop and flip averaging stays exact.
+      const int64_t y0 = std::min<int64_t>((H - 1) / 2, std::lround(H * (1.0 - scale) / 2.0)),
+                    x0 = std::min<int64_t>((W - 1) / 2, std::lround(W * (1.0 - scale) / 2.0));
+      const int64_t h = H - 2 * y0, w = W - 2 * x0;
+      const Tensor crop = slice(slice(v.ldr, 1, y0, y0 + h), 2, x0, x0 + w).contiguous();
+      const Tensor input = unsqueeze(resize_bilinear(crop, po.image_height, po.image_width), 0);
+      glm::dvec3 c = sun_of(input, predictor_->predict_sky_code(input), nullptr, nullptr);
+      if (glm::length(c) <= 1e-12) continue;
+      c = glm::normalize(c);
+      s.crop_spread_deg = std::max(s.crop_spread_deg, angle_deg(photo, c));
+      sum += c;
     }
+    dir = sum;
+  }
+  if ((flip_average_ || !crop_scales_.empty()) && glm::length(dir) > 1e-9) {
+    dir = glm::normalize(dir);
+    s.pred.code.dir = Tensor::from_vector({dir.x, dir.y, dir.z}, {1, 3}).to(s.pred.code.dir.dtype());
+  }
+  if (!mirror_log_i.empty()) {
     std::vector<double> li = to_doubles(s.pred.code.log_intensity);
-    const std::vector<double> mli = to_doubles(m.log_intensity);
-    for (size_t i = 0; i < li.size(); ++i) li[i] = 0.5 * (li[i] + mli[i]);
+    for (size_t i = 0; i < li.size(); ++i) li[i] = 0.5 * (li[i] + mirror_log_i[i]);
     s.pred.code.log_intensity =
         Tensor::from_vector(li, s.pred.code.log_intensity.shape()).to(s.pred.code.log_intensity.dtype());
   }
@@ -199,8 +246,12 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
   for (const auto& v : views) singles.push_back(predict_one(v));
   const Single& ref = singles[0];
   EstimatedLighting out;
-  for (const Single& s : singles) out.sun_flip_spread_deg = std::fmax(out.sun_flip_spread_deg, s.flip_spread_deg);
+  for (const Single& s : singles) {
+    out.sun_flip_spread_deg = std::fmax(out.sun_flip_spread_deg, s.flip_spread_deg);
+    out.sun_crop_spread_deg = std::fmax(out.sun_crop_spread_deg, s.crop_spread_deg);
+  }
   out.network_sun_flip_spread_deg = out.sun_flip_spread_deg;
+  out.network_sun_crop_spread_deg = out.sun_crop_spread_deg;
   out.frame = ref.frame;
   out.camera = ref.camera;
   out.grid = ref.grid;
@@ -232,7 +283,8 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
         out.visible_sun_score = cue.sun.score;
         if (!sun.azimuth_deg) sun.azimuth_deg = azimuth_deg_of(cue.sun.direction);
         if (!sun.elevation_deg) sun.elevation_deg = elevation_deg_of(cue.sun.direction);
-        if (!edit.azimuth_deg && !edit.elevation_deg) out.sun_flip_spread_deg = 0.0, out.sun_hedge = 0.0;
+        if (!edit.azimuth_deg && !edit.elevation_deg)
+          out.sun_flip_spread_deg = 0.0, out.sun_crop_spread_deg = 0.0, out.sun_hedge = 0.0;
       }
     }
     // Sec 3.2: edit the sky vector before decoding.

@@ -128,6 +128,32 @@ TEST(EvalTool, MissingDataIsACleanError) {
   EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
 }
 
+// Crop averaging (train/inference.h set_crop_scales) from the command line: off by default, and
+// with --crop-scales each labelled image carries its crop spread and the report ranks by it; a
+// scale outside (0, 1) or a word is one error line naming the option, exit 2.
+TEST(EvalTool, CropScalesAddTheCropSpreadAndBadScalesAreRefused) {
+  if (!sl::test::tool_built("streetlight-eval")) GTEST_SKIP();
+  const std::string dir = sl::test::tool_dir("eval_crops");
+  const std::string data = sl::test::tiny_dataset("eval_tiny_dataset", 3);
+  const std::string ckpt = sl::test::tiny_lighting_checkpoint(dir);
+  const std::string base = "--checkpoint " + ckpt + " --data " + data + " --split train --view-rows 8 --no-budgets";
+  for (const char* bad : {"0.5,1.2", "0.5,x", "0"}) {
+    const auto r = sl::test::run_tool("streetlight-eval", base + " --crop-scales " + bad + " --out " + dir + "/bad");
+    EXPECT_EQ(r.code, 2) << bad << ": " << r.out;
+    EXPECT_NE(r.out.find("--crop-scales"), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(dir + "/bad")) << bad;
+  }
+  const auto r = sl::test::run_tool("streetlight-eval", base + " --crop-scales 0.6,0.8 --out " + dir + "/out");
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream jf(dir + "/out/results.json");
+  const auto j = nlohmann::json::parse(jf);
+  const auto& res = j["results"][0];
+  EXPECT_EQ(res["crop_scales"], nlohmann::json({0.6, 0.8}));
+  ASSERT_FALSE(res["sun_per_image"].empty());
+  for (const auto& e : res["sun_per_image"]) EXPECT_GE(e["sun_crop_spread_deg"].get<double>(), 0.0) << e.dump();
+  EXPECT_TRUE(res.contains("sun_confidence_crop"));
+}
+
 namespace {
 
 // A tiny folder of real-panorama stand-ins (clear skies with a hard sun) and a split file.

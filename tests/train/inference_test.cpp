@@ -85,10 +85,14 @@ TEST(Inference, EstimatorHoldsExactlyTheCheckpointsTensors) {
 
 // Flip averaging makes the estimate mirror-equivariant: the mirrored photo gets the mirrored sun
 // and the same intensity, which a single pass of a (here random) network does not give.
+// Also with crop averaging on: the centred crops of the mirror image are the mirror images of
+// the photo's crops, so the averaged sun still mirrors exactly.
 TEST(Inference, FlipAverageMirrorsTheSunWithThePhoto) {
   const std::string dir = test::tool_dir("inference_flip");
   LightingEstimator est(test::tiny_lighting_checkpoint(dir));
   EXPECT_TRUE(est.flip_average());  // the default
+  EXPECT_TRUE(est.crop_scales().empty());  // off by default
+  est.set_crop_scales({0.55, 0.7, 0.85});
   est.set_flip_average(false);
   const InferenceView v = view_at(0.0);
   InferenceView mirrored = v;
@@ -130,6 +134,64 @@ TEST(Inference, FlipSpreadIsTheAngleBetweenAPassAndItsMirroredPass) {
   turned.ldr = Tensor::uniform({3, 32, 64}, 0.0, 1.0, 11);
   const double s2 = est.estimate({turned}).sun_flip_spread_deg;
   EXPECT_NEAR(est.estimate({v, turned}).sun_flip_spread_deg, std::max(expect, s2), 1e-9);
+}
+
+// Crop averaging (issue 39): the view's sun and each centred crop's vote with unit weight; the
+// crop spread is the largest angle between the photo's sun and a crop's. Reproduced here from
+// single passes: the crop at scale 0.5 of a 64 × 32 photo is its pixels [8, 24) × [16, 48) (equal
+// margins), estimated as a photo of its own.
+TEST(Inference, CropAveragingAveragesThePhotosSunWithItsCentredCrops) {
+  const std::string dir = test::tool_dir("inference_crops");
+  LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  est.set_flip_average(false);
+  est.set_crop_scales({});
+  const InferenceView v = view_at(0.0);
+  const EstimatedLighting photo = est.estimate({v});
+  EXPECT_TRUE(std::isnan(photo.sun_crop_spread_deg));  // not measured when off
+  InferenceView crop = v;
+  crop.ldr = slice(slice(v.ldr, 1, 8, 24), 2, 16, 48).contiguous();
+  crop.camera = Camera(intrinsics_from_fov(1.2, 32, 16), v.camera.rotation(), v.camera.position());
+  crop.depth = ground_plane_depth(crop.camera);
+  const glm::dvec3 p = glm::normalize(photo.sun_direction_canonical),
+                   c = glm::normalize(est.estimate({crop}).sun_direction_canonical);
+  const double expect = std::atan2(glm::length(glm::cross(p, c)), glm::dot(p, c)) * 180.0 / kPi;
+  ASSERT_GT(expect, 1e-3);  // a random network's crop disagrees with the photo
+  est.set_crop_scales({0.5});
+  const EstimatedLighting averaged = est.estimate({v});
+  EXPECT_NEAR(averaged.sun_crop_spread_deg, expect, 1e-3);
+  EXPECT_LT(glm::length(averaged.sun_direction_canonical - glm::normalize(p + c)), 1e-5);
+  // The sun's intensity and the sky latent stay the photo's own.
+  EXPECT_EQ(averaged.sky_code.log_intensity.to_vector(), photo.sky_code.log_intensity.to_vector());
+  EXPECT_EQ(averaged.sky_code.latent.to_vector(), photo.sky_code.latent.to_vector());
+}
+
+// A photo whose every centred crop looks the same (one colour) gets the photo's own sun and a
+// crop spread of 0: crop averaging adds agreement, not a bias.
+TEST(Inference, CropAveragingOfAUniformPhotoChangesNothing) {
+  const std::string dir = test::tool_dir("inference_crops_uniform");
+  LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  InferenceView v = view_at(0.0);
+  v.ldr = Tensor::full({3, 32, 64}, 0.4, DType::F32);
+  est.set_crop_scales({});
+  const EstimatedLighting off = est.estimate({v});
+  est.set_crop_scales({0.55, 0.7, 0.85});
+  const EstimatedLighting on = est.estimate({v});
+  EXPECT_LT(glm::length(on.sun_direction_canonical - off.sun_direction_canonical), 1e-6);
+  EXPECT_LT(on.sun_crop_spread_deg, 1e-3);
+}
+
+TEST(Inference, CropScalesOutsideTheOpenUnitIntervalAreRefused) {
+  const std::string dir = test::tool_dir("inference_crops_bad");
+  LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  for (const double bad : {0.0, 1.0, -0.5, 1.5, std::nan("")}) {
+    try {
+      est.set_crop_scales({0.7, bad});
+      ADD_FAILURE() << "accepted scale " << bad;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("crop scale"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_TRUE(est.crop_scales().empty());  // a refused list leaves the setting as it was
 }
 
 // A street view (blue sky over grey ground) with, optionally, a clipped sun disk of radius 2.5 px

@@ -105,6 +105,28 @@ double Args::number(const std::string& name, double fallback) const {
   fail(program_, ": option ", name, " expects a number, got '", v, "'");
 }
 
+std::vector<double> Args::numbers(const std::string& name, const std::vector<double>& fallback) const {
+  if (!has(name)) return fallback;
+  const std::string v = get(name);
+  std::vector<double> out;
+  if (v == "none") return out;
+  size_t pos = 0;
+  while (pos <= v.size()) {
+    const size_t end = std::min(v.find(',', pos), v.size());
+    const std::string item = v.substr(pos, end - pos);
+    try {
+      size_t used = 0;
+      const double d = std::stod(item, &used);
+      if (used != item.size() || item.empty()) throw std::invalid_argument(item);
+      out.push_back(d);
+    } catch (const std::exception&) {
+      fail(program_, ": option ", name, " expects numbers separated by commas (or 'none'), got '", v, "'");
+    }
+    pos = end + 1;
+  }
+  return out;
+}
+
 int64_t Args::integer(const std::string& name, int64_t fallback) const {
   if (!has(name)) return fallback;
   const std::string v = get(name);

@@ -839,10 +839,7 @@ int run(int argc, char** argv) {
   const int64_t limit = a.integer("--limit", 0);
   const int rows = static_cast<int>(a.integer("--view-rows", 32));
   SL_CHECK(rows > 0, "--view-rows must be positive");
-  const std::vector<double> crop_scales = a.numbers(
-      "--crop-scales", {});
-  for (const double s : crop_scales)
-    SL_CHECK(std::isfinite(s) && s > 0.0 && s < 1.0, "--crop-scales: each scale must lie in (0, 1), got ", s);
+  const std::vector<double> crop_scales = a.numbers("--crop-scales", {}, 0.0, 1.0);
   const int crops = static_cast<int>(a.integer("--crops", 8));
   SL_CHECK(crops > 0, "--crops must be positive, got ", crops);
   if (!hdri_split.empty()) (void)read_hdri_split(hdri_split);  // fail early on a bad file

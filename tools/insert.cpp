@@ -181,10 +181,7 @@ json crop_spread_json(const EstimatedLighting& light) {
 void configure_estimator(LightingEstimator& est, const cli::Args& a) {
   est.set_flip_average(!a.has("--no-flip-average"));
   est.set_visible_sun(!a.has("--no-visible-sun"));
-  const std::vector<double> scales = a.numbers("--crop-scales", {});
-  for (const double s : scales)
-    SL_CHECK(std::isfinite(s) && s > 0.0 && s < 1.0, "--crop-scales: each scale must lie in (0, 1), got ", s);
-  est.set_crop_scales(scales);
+  est.set_crop_scales(a.numbers("--crop-scales", {}, 0.0, 1.0));
 }
 
 json sun_json(const EstimatedLighting& light) {

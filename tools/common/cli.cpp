@@ -105,7 +105,8 @@ double Args::number(const std::string& name, double fallback) const {
   fail(program_, ": option ", name, " expects a number, got '", v, "'");
 }
 
-std::vector<double> Args::numbers(const std::string& name, const std::vector<double>& fallback) const {
+std::vector<double> Args::numbers(const std::string& name, const std::vector<double>& fallback, double lo,
+                                  double hi) const {
   if (!has(name)) return fallback;
   const std::string v = get(name);
   std::vector<double> out;
@@ -124,6 +125,8 @@ std::vector<double> Args::numbers(const std::string& name, const std::vector<dou
     }
     pos = end + 1;
   }
+  for (const double d : out)
+    if (!(d > lo && d < hi)) fail(program_, ": option ", name, ": each value must lie in (", lo, ", ", hi, "), got ", d);
   return out;
 }
 

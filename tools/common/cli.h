@@ -47,8 +47,10 @@ class Args {
   std::string get(const std::string& name, const std::string& fallback = "") const;
   std::vector<std::string> all(const std::string& name) const;
   double number(const std::string& name, double fallback) const;
-  // A comma-separated list of numbers ("0.55,0.7"); "none" gives an empty list.
-  std::vector<double> numbers(const std::string& name, const std::vector<double>& fallback) const;
+  // A comma-separated list of numbers ("0.55,0.7"), each inside the open interval (lo, hi);
+  // "none" gives an empty list.
+  std::vector<double> numbers(const std::string& name, const std::vector<double>& fallback, double lo,
+                              double hi) const;
   int64_t integer(const std::string& name, int64_t fallback) const;
   std::string help_text() const;
 

@@ -30,6 +30,15 @@
 namespace sl::nn::detail {
 
 struct PaddedInput;  // opaque: the padded copy of x for one geometry
+
+// How direct_forward and direct_forward_strided walk the outputs: 48-position panels along the
+// padded pitch (then copied into y without the dropped positions), or each output row's panels
+// written straight into y (the last one possibly a narrow tile). kChoose takes the one
+// conv_window_cost (conv_microkernel.h) estimates cheaper; every output is the same FMA sequence
+// either way, so all three give the same bits. The other two are for tests and benchmarks.
+enum class ForwardPanels { kChoose, kRows, kPitch };
+// What kChoose picks for this geometry (strided: as direct_forward_strided lays it out).
+ForwardPanels chosen_forward_panels(const ConvGeometry& g, bool strided);
 using KeptInput = std::shared_ptr<const PaddedInput>;
 
 bool direct_input_grad_supported(const ConvGeometry& g);
@@ -37,7 +46,7 @@ bool direct_input_grad_supported(const ConvGeometry& g);
 // packed_w: the weights [O, C·taps] packed by pack_rows (autodiff/gemm_kernel.h).
 // keep (optional): receives the padded copy of x for the backward calls below.
 void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y,
-                    KeptInput* keep = nullptr);
+                    KeptInput* keep = nullptr, ForwardPanels how = ForwardPanels::kChoose);
 // Winograd F(2, 3) along the innermost storage axis (stride 1, 3 undilated taps on that axis;
 // conv_implicit_gemm.cpp, "Winograd"): the same contract as direct_forward, from unpacked weights
 // w [O, C·taps], with 2/3 of its multiply-adds and slightly different rounding. The fused and
@@ -58,7 +67,8 @@ bool direct_backward_fused(const ConvGeometry& g, const float* x, const float* w
 // bits of the im2col panel path (the same FMA sequence per output); the weight gradient is summed in
 // fixed chunks of the phase pitch.
 bool direct_strided_supported(const ConvGeometry& g);
-void direct_forward_strided(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y);
+void direct_forward_strided(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y,
+                            ForwardPanels how = ForwardPanels::kChoose);
 void direct_backward_weight_strided(const ConvGeometry& g, const float* x, const float* dy, float* dw);
 
 }  // namespace sl::nn::detail

@@ -320,14 +320,21 @@ void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const floa
 
 void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
                       float* tile) {
+  conv_gemm_window_store(packed_a, M, K, base, row_offset, kPanelCols, nullptr, tile, kPanelCols, 0);
+}
+
+void conv_gemm_window_store(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
+                            int64_t n, const float* bias, float* c, int64_t ldc, int64_t /*prefetch*/) {
   for (int64_t m = 0; m < M; ++m)
-    for (int64_t j = 0; j < kPanelCols; ++j) {
+    for (int64_t j = 0; j < n; ++j) {
       float acc = 0.0f;
       for (int64_t k = 0; k < K; ++k)
         acc += packed_a[((m / kBlockRows) * K + k) * kBlockRows + m % kBlockRows] * base[row_offset[k] + j];
-      tile[m * kPanelCols + j] = acc;
+      c[m * ldc + j] = acc + (bias ? bias[m] : 0.0f);
     }
 }
+
+double conv_window_cost(int64_t n) { return static_cast<double>(n) / kPanelCols; }
 
 void conv_weight_grad_window(const float* dy, int64_t ldy, int64_t M, const float* base, const int64_t* row_offset,
                              int64_t K, int64_t len, float* dw, int64_t items, int64_t dy_item, int64_t base_item) {
@@ -350,6 +357,31 @@ void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* 
     micro_kernel(packed_a + m0 * K, base, [row_offset](int64_t k) { return row_offset[k]; }, K, kPanelCols,
                  std::min(kBlockRows, M - m0), nullptr, tile + m0 * kPanelCols, kPanelCols,
                  m0 == 0 ? kPanelCols : 0);
+}
+
+void conv_gemm_window_store(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
+                            int64_t n, const float* bias, float* c, int64_t ldc, int64_t prefetch) {
+  const auto row = [row_offset](int64_t k) { return row_offset[k]; };
+  for (int64_t m0 = 0; m0 < M; m0 += kBlockRows) {
+    const int64_t rows = std::min(kBlockRows, M - m0);
+    const float* const a = packed_a + m0 * K;
+    const float* const bm = bias ? bias + m0 : nullptr;
+    const int64_t pf = m0 == 0 ? prefetch : 0;
+    if (n <= 2 * kPanelCols / 3)
+      micro_kernel<decltype(row), 2>(a, base, row, K, n, rows, bm, c + m0 * ldc, ldc, pf);
+    else
+      micro_kernel(a, base, row, K, n, rows, bm, c + m0 * ldc, ldc, pf);
+  }
+}
+
+// AVX-512: the 8 × 32 tile does 2/3 of the full tile's FMAs per k, and both are FMA-bound; AVX2
+// + FMA: the tile is computed in sub-tiles of 24 columns, each half of the full tile's work.
+double conv_window_cost(int64_t n) {
+#if defined(__AVX512F__)
+  return n <= 2 * kPanelCols / 3 ? 2.0 / 3.0 : 1.0;
+#else
+  return 0.5 * static_cast<double>((n + 23) / 24);
+#endif
 }
 #endif
 

@@ -43,6 +43,18 @@ PackedRows pack_weights_flipped(const float* w, int64_t O, int64_t C, int64_t ta
 void conv_gemm_window(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
                       float* tile);
 
+// conv_gemm_window for the first n <= 48 columns, written straight to the output: for m < M and
+// j < n, c[m·ldc + j] = Σ_k A[m][k] · base[row_offset[k] + j] (+ bias[m] when bias is not null),
+// with the same FMA sequence per element as conv_gemm_window (so the same bits as its tile plus
+// the bias). With AVX-512, n <= 32 runs the 8 × 32 tile. Reads 48 columns of every window, as
+// conv_gemm_window does. prefetch: as the tile's (autodiff/gemm_tile.h), for the first row block.
+void conv_gemm_window_store(const float* packed_a, int64_t M, int64_t K, const float* base, const int64_t* row_offset,
+                            int64_t n, const float* bias, float* c, int64_t ldc, int64_t prefetch);
+
+// The run time of conv_gemm_window_store for n columns relative to a full 48-column call, from
+// the instruction mix of the tile this build runs (both tiles are FMA-bound).
+double conv_window_cost(int64_t n);
+
 // Weight gradient of a stride-1 convolution on the same windows: for o < M and k < K,
 // dw[o·K + k] += Σ_{t < items} Σ_{i < len} dy[t·dy_item + o·ldy + i] · base[t·base_item + row_offset[k] + i],
 // where dy is the output gradient laid out on the padded pitch (zeros at dropped positions).

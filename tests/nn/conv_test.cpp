@@ -296,6 +296,80 @@ TEST(Conv, WeightGradientFromTheForwardsKeptCopyHasTheSameBitsAndDoesNotReadX) {
   }
 }
 
+// The two ways the implicit-GEMM forward walks its outputs (conv_implicit_gemm.h, ForwardPanels):
+// each output row's panels stored straight into y, and panels along the padded pitch copied into y
+// without the dropped positions, give the same bits, with and without a bias, on the strided
+// phase-split copy (the ResNet stem's 7×7/2) and on stride-1 2-D and 3-D copies; row widths with
+// a narrow last tile (≤ 32), a full one, and none. And both agree with float64.
+TEST(Conv, ForwardByRowsHasTheBitsOfPanelsAlongThePitch) {
+  if (!nn::detail::gemm_kernel_available()) GTEST_SKIP() << "no implicit-GEMM kernels on this CPU";
+  using nn::detail::ForwardPanels;
+  struct Case { std::array<int64_t, 3> in, k; int64_t stride, pad, O; };
+  const std::vector<Case> cases = {
+      {{1, 30, 256}, {1, 7, 7}, 2, 3, 10},   // stem: 128 = 48 + 48 + 32 per row, 10 channels (a partial row block)
+      {{1, 20, 120}, {1, 5, 5}, 2, 2, 9},    // 60 = 48 + 12
+      {{1, 17, 141}, {1, 5, 5}, 1, 2, 8},    // 141 = 2·48 + 45 (a full last tile)
+      {{1, 9, 96}, {1, 3, 3}, 1, 1, 16},     // 96 = 2·48: no partial tile
+      {{5, 12, 40}, {3, 3, 3}, 1, 1, 6},     // 3-D: rows of several planes
+  };
+  for (const Case& c : cases) {
+    nn::detail::ConvGeometry g;
+    g.N = 2, g.C = 3, g.O = c.O, g.in = c.in, g.k = c.k;
+    for (int a = 0; a < 3; ++a) {
+      const bool image_axis = a > 0 || c.in[0] > 1;
+      g.pad[a] = image_axis ? c.pad : 0;
+      g.stride[a] = image_axis ? c.stride : 1;
+      g.dil[a] = 1;
+      g.out[a] = (g.in[a] + 2 * g.pad[a] - g.k[a]) / g.stride[a] + 1;
+    }
+    const bool strided = c.stride > 1;
+    SCOPED_TRACE(shape_str(Shape{g.N, g.C, c.in[0], c.in[1], c.in[2]}) + (strided ? " strided" : ""));
+    if (strided) {
+      ASSERT_TRUE(nn::detail::direct_strided_supported(g));
+    }
+    const std::vector<double> xd = Tensor::normal({g.N * g.C * g.in_plane()}, 0, 1, 51).to_vector();
+    const std::vector<double> wd = Tensor::normal({g.O * g.rows()}, 0, 0.2, 52).to_vector();
+    const std::vector<double> bd = Tensor::normal({g.O}, 0, 1, 53).to_vector();
+    const std::vector<float> x(xd.begin(), xd.end()), w(wd.begin(), wd.end()), b(bd.begin(), bd.end());
+    const nn::detail::PackedRows packed = nn::detail::pack_rows(w.data(), g.O, g.rows());
+    auto forward = [&](ForwardPanels how, const float* bias) {
+      std::vector<float> y(static_cast<size_t>(g.N * g.O * g.out_plane()), -7.0f);
+      if (strided)
+        nn::detail::direct_forward_strided(g, x.data(), packed.data(), bias, y.data(), how);
+      else
+        nn::detail::direct_forward(g, x.data(), packed.data(), bias, y.data(), nullptr, how);
+      return y;
+    };
+    for (const float* bias : {static_cast<const float*>(nullptr), b.data()}) {
+      const std::vector<float> rows = forward(ForwardPanels::kRows, bias);
+      EXPECT_EQ(rows, forward(ForwardPanels::kPitch, bias)) << (bias ? "with" : "without") << " bias";
+      EXPECT_EQ(rows, forward(ForwardPanels::kChoose, bias));
+      if (!bias) continue;
+      // Against float64 (every output written, none left at the fill value): one rounding per
+      // FMA over rows() terms, |x| and |w| of a few units, so 1e-3 of Σ|x||w| is far above it.
+      Tensor x64 = Tensor::from_vector(xd, {g.N, g.C, c.in[0], c.in[1], c.in[2]});
+      Tensor w64 = Tensor::from_vector(wd, {g.O, g.C, c.k[0], c.k[1], c.k[2]});
+      const std::vector<double> ref =
+          conv3d(x64, w64, Tensor::from_vector(bd, {g.O}), {g.stride[0], g.stride[1], g.stride[2]},
+                 {g.pad[0], g.pad[1], g.pad[2]}).to_vector();
+      ASSERT_EQ(ref.size(), rows.size());
+      for (size_t i = 0; i < ref.size(); ++i) ASSERT_NEAR(rows[i], ref[i], 1e-3 * (1 + std::abs(ref[i]))) << i;
+    }
+  }
+#if defined(__AVX512F__)
+  // With the 8 × 32 tile a 128-wide stem row costs 2⅔ tiles by rows against 131/48 · 1.09 along
+  // its pitch: the stem is computed by rows. A 64-wide stride-1 row (66-pitch) stays on the pitch.
+  nn::detail::ConvGeometry stem;
+  stem.N = 4, stem.C = 3, stem.O = 64, stem.in = {1, 128, 256}, stem.k = {1, 7, 7};
+  stem.pad = {0, 3, 3}, stem.stride = {1, 2, 2}, stem.dil = {1, 1, 1}, stem.out = {1, 64, 128};
+  EXPECT_EQ(nn::detail::chosen_forward_panels(stem, true), ForwardPanels::kRows);
+  nn::detail::ConvGeometry block = stem;
+  block.C = 64, block.in = {1, 32, 64}, block.k = {1, 3, 3}, block.pad = {0, 1, 1}, block.stride = {1, 1, 1};
+  block.out = {1, 32, 64};
+  EXPECT_EQ(nn::detail::chosen_forward_panels(block, false), ForwardPanels::kPitch);
+#endif
+}
+
 // Winograd F(2, 3) (conv_winograd.h): the forward and all three gradients against float64, on
 // shapes that take it (checked). On the implicit GEMM's windows: 2-D with an even and an odd row
 // (the padded pitch gets one more zero column), a dilated other axis, a 3-D volume, one stored with

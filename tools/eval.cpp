@@ -317,44 +317,6 @@ struct Confidence {
   }
 };
 
-std::string ci_text(const json& ci) {
-  if (ci.is_null()) return "";
-  char b[64];
-  std::snprintf(b, sizeof b, " [%.1f, %.1f]", ci[0].get<double>(), ci[1].get<double>());
-  return b;
-}
-
-// One markdown line per result row and confidence measure (the flip spread, the hedge, the crop
-// spread).
-std::string confidence_markdown(const std::vector<json>& results) {
-  std::string md;
-  for (const auto& [key, what] : std::vector<std::pair<std::string, std::string>>{
-           {"sun_confidence", "flip spread (°)"},
-           {"sun_confidence_hedge", "sun height (hedge)"},
-           {"sun_confidence_crop", "crop spread (°)"}})
-    for (const auto& r : results) {
-      if (!r.contains(key) || r.at(key).is_null()) continue;
-      const json& c = r.at(key);
-      char b[512];
-      std::snprintf(b, sizeof b,
-                    "- %s, by %s: sun error median %.1f°%s on the most confident half (%zu images, ≤ %.2f) against "
-                    "%.1f°%s on the rest (%zu, ≥ %.2f)\n",
-                    r.at("name").get<std::string>().c_str(), what.c_str(),
-                    c["confident_half"]["sun_error_median_deg"].get<double>(),
-                    ci_text(c["confident_half"]["ci95"]).c_str(), c["confident_half"]["count"].get<size_t>(),
-                    c["confident_half"]["measure_max"].get<double>(),
-                    c["uncertain_half"]["sun_error_median_deg"].get<double>(), ci_text(c["uncertain_half"]["ci95"]).c_str(),
-                    c["uncertain_half"]["count"].get<size_t>(), c["uncertain_half"]["measure_min"].get<double>());
-      md += b;
-    }
-  return md.empty() ? md
-                    : "\nConfidence (train/inference.h): the angle between the sun of the photo and of its mirror "
-                      "image; the sun height sin(elevation) of the network's sun, a hedge toward the zenith when "
-                      "it cannot tell the azimuth; and the largest angle between the photo's sun and a centred "
-                      "crop's (crop averaging) (all 0 when the visible-sun cue set the direction):\n\n" +
-                          md;
-}
-
 // The constant baseline of a generated street dataset: the normalised mean of the canonical sun
 // directions (view 0's frame) of its TRAIN split's samples whose sun is hard. Read from meta.json
 // alone. has = false when the split is missing or holds no such sample.
@@ -761,23 +723,6 @@ json pooled_sun_in_crop(const json& datasets, const std::vector<std::string>& na
   return rows;
 }
 
-std::string pooled_markdown(const json& pooled, const json& datasets) {
-  std::string sets;
-  for (const auto& d : datasets)
-    if (d["kind"] != "street") sets += (sets.empty() ? "" : ", ") + d["data"].get<std::string>();
-  std::string md = "## Sun in crop, pooled over the real data sets (" + sets + ")\n\n| model | crops | median ° [95% CI] |\n|---|---|---|\n";
-  for (const auto& r : pooled) {
-    char b[256];
-    if (r["sun_error_median_deg"].is_null())
-      std::snprintf(b, sizeof b, "| %s | 0 | — |\n", r["name"].get<std::string>().c_str());
-    else
-      std::snprintf(b, sizeof b, "| %s | %zu | %.1f%s |\n", r["name"].get<std::string>().c_str(), r["count"].get<size_t>(),
-                    r["sun_error_median_deg"].get<double>(), ci_text(r["ci95"]).c_str());
-    md += b;
-  }
-  return md + "\n";
-}
-
 int run(int argc, char** argv) {
   cli::Args a("streetlight-eval",
               "streetlight-eval [--checkpoint CKPT ...] --data DIR [--data DIR2 ...] [--split test] [--hdri-split FILE]\n"
@@ -920,7 +865,7 @@ int run(int argc, char** argv) {
       md += "\nSun direction on real skies (crops whose sun is hard):\n\n" + cli::real_sky_markdown(results, baseline);
       if (baseline.is_null()) md += "\n(no baseline row: give --hdri-split with a \"train\" list)\n";
     }
-    md += confidence_markdown(results);
+    md += cli::confidence_markdown(results);
     md += "\n";
     datasets.push_back(entry);
   }
@@ -929,7 +874,7 @@ int run(int argc, char** argv) {
   const json pooled = pooled_sun_in_crop(datasets, names);
   if (!pooled.empty()) {
     all["sun_in_crop_pooled"] = pooled;
-    md += pooled_markdown(pooled, datasets);
+    md += cli::pooled_markdown(pooled, datasets);
   }
   if (a.has("--out")) {
     const std::string out = a.get("--out");

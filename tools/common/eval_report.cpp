@@ -2,6 +2,9 @@
 
 #include <cstdio>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace sl::cli {
 
@@ -23,6 +26,14 @@ std::string fmt_ci(const json& r, const char* key, int prec = 2) {
   char b[96];
   std::snprintf(b, sizeof b, " [%.*f, %.*f]", prec, r["ci95"][key][0].get<double>(), prec, r["ci95"][key][1].get<double>());
   return v + b;
+}
+
+// " [lo, hi]" of a 95% interval (a JSON pair), or "" for null.
+std::string ci_text(const json& ci) {
+  if (ci.is_null()) return "";
+  char b[64];
+  std::snprintf(b, sizeof b, " [%.1f, %.1f]", ci[0].get<double>(), ci[1].get<double>());
+  return b;
 }
 
 }  // namespace
@@ -111,6 +122,52 @@ std::string real_sky_markdown(const std::vector<json>& rows, const json& baselin
     if (r.contains("sun") && r.at("sun").contains("sun_in_crop")) row(r.at("name").get<std::string>(), r.at("sun"));
   if (!baseline.is_null()) row(baseline.at("name").get<std::string>(), baseline.at("sun"));
   return md.str();
+}
+
+std::string confidence_markdown(const std::vector<json>& results) {
+  std::string md;
+  for (const auto& [key, what] : std::vector<std::pair<std::string, std::string>>{
+           {"sun_confidence", "flip spread (°)"},
+           {"sun_confidence_hedge", "sun height (hedge)"},
+           {"sun_confidence_crop", "crop spread (°)"}})
+    for (const auto& r : results) {
+      if (!r.contains(key) || r.at(key).is_null()) continue;
+      const json& c = r.at(key);
+      char b[512];
+      std::snprintf(b, sizeof b,
+                    "- %s, by %s: sun error median %.1f°%s on the most confident half (%zu images, ≤ %.2f) against "
+                    "%.1f°%s on the rest (%zu, ≥ %.2f)\n",
+                    r.at("name").get<std::string>().c_str(), what.c_str(),
+                    c["confident_half"]["sun_error_median_deg"].get<double>(),
+                    ci_text(c["confident_half"]["ci95"]).c_str(), c["confident_half"]["count"].get<size_t>(),
+                    c["confident_half"]["measure_max"].get<double>(),
+                    c["uncertain_half"]["sun_error_median_deg"].get<double>(), ci_text(c["uncertain_half"]["ci95"]).c_str(),
+                    c["uncertain_half"]["count"].get<size_t>(), c["uncertain_half"]["measure_min"].get<double>());
+      md += b;
+    }
+  return md.empty() ? md
+                    : "\nConfidence (train/inference.h): the angle between the sun of the photo and of its mirror "
+                      "image; the sun height sin(elevation) of the network's sun, a hedge toward the zenith when "
+                      "it cannot tell the azimuth; and the largest angle between the photo's sun and a centred "
+                      "crop's (crop averaging) (all 0 when the visible-sun cue set the direction):\n\n" +
+                          md;
+}
+
+std::string pooled_markdown(const json& pooled, const json& datasets) {
+  std::string sets;
+  for (const auto& d : datasets)
+    if (d["kind"] != "street") sets += (sets.empty() ? "" : ", ") + d["data"].get<std::string>();
+  std::string md = "## Sun in crop, pooled over the real data sets (" + sets + ")\n\n| model | crops | median ° [95% CI] |\n|---|---|---|\n";
+  for (const auto& r : pooled) {
+    char b[256];
+    if (r["sun_error_median_deg"].is_null())
+      std::snprintf(b, sizeof b, "| %s | 0 | — |\n", r["name"].get<std::string>().c_str());
+    else
+      std::snprintf(b, sizeof b, "| %s | %zu | %.1f%s |\n", r["name"].get<std::string>().c_str(), r["count"].get<size_t>(),
+                    r["sun_error_median_deg"].get<double>(), ci_text(r["ci95"]).c_str());
+    md += b;
+  }
+  return md + "\n";
 }
 
 }  // namespace sl::cli

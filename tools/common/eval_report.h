@@ -1,7 +1,8 @@
 // The markdown tables of streetlight-eval's results (tools/eval.cpp writes results.json; these
 // render it): Tables 1-2 per data set, one row per checkpoint, the oracle-lighting and
 // constant-baseline rows, insertion PSNR by part of the region, the sky-autoencoder table, and the
-// real-sky sun table split by whether the sun is inside the crop.
+// real-sky sun table split by whether the sun is inside the crop, the confidence halves and the
+// pooled sun-in-crop table.
 //
 // Contract: rows are the JSON objects eval writes per checkpoint (keys as in results.json); a
 // missing key prints "—"; a key with a 95% interval under "ci95" prints "v [lo, hi]".
@@ -20,5 +21,11 @@ std::string eval_markdown(const std::vector<nlohmann::json>& rows, const std::ve
 // count_title heads the count column. A row whose count is 0 prints "—" for its statistics.
 std::string real_sky_markdown(const std::vector<nlohmann::json>& rows, const nlohmann::json& baseline,
                               const std::string& count_title = "crops with a hard sun");
+// The confidence lines (flip spread, hedge, crop spread): per row, the median sun error of the
+// most confident half against the rest, from the row's sun_confidence* objects; "" when none.
+std::string confidence_markdown(const std::vector<nlohmann::json>& rows);
+// The sun-in-crop table pooled over the real data sets: pooled holds {name, count,
+// sun_error_median_deg, ci95} per checkpoint; the data sets whose kind is not "street" are named.
+std::string pooled_markdown(const nlohmann::json& pooled, const nlohmann::json& datasets);
 
 }  // namespace sl::cli

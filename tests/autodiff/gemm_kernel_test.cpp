@@ -81,5 +81,25 @@ TEST(GemmKernel, PanelsOfOneMatrixGiveTheBitsOfTheWholeProduct) {
     for (int64_t j = 0; j < 48; ++j) ASSERT_EQ(corner[i * 48 + j], whole[i * 200 + j]) << i << ", " << j;
 }
 
+// The 8 × 32 tile of gemm_panel_narrow gives the bits of the 48-column tile on the columns both
+// compute, with and without a bias, for every width up to 32 and a partial last row block; B's
+// panel has 48 floats per row (the AVX2 path reads all of them).
+TEST(GemmKernel, NarrowPanelGivesTheBitsOfTheFullPanel) {
+  if (!detail::gemm_kernel_available()) GTEST_SKIP() << "no AVX2 + FMA or AVX-512";
+  const int64_t M = 21, K = 300, cols = detail::kPanelCols;
+  const std::vector<double> ad = Tensor::uniform({M * K}, -1, 1, 8).to_vector();
+  const std::vector<double> bd = Tensor::uniform({K * cols}, -1, 1, 9).to_vector();
+  const std::vector<double> biasd = Tensor::uniform({M}, -1, 1, 10).to_vector();
+  const std::vector<float> a(ad.begin(), ad.end()), b(bd.begin(), bd.end()), bias(biasd.begin(), biasd.end());
+  const detail::PackedRows packed = detail::pack_rows(a.data(), M, K);
+  for (const float* bi : {static_cast<const float*>(nullptr), bias.data()})
+    for (int64_t n : {1, 7, 16, 17, 31, 32}) {
+      std::vector<float> full(static_cast<size_t>(M * cols), 0.0f), narrow(static_cast<size_t>(M * cols), 0.0f);
+      detail::gemm_panel(packed.data(), M, K, b.data(), n, bi, full.data(), cols);
+      detail::gemm_panel_narrow(packed.data(), M, K, b.data(), n, bi, narrow.data(), cols, cols);
+      EXPECT_EQ(full, narrow) << "n = " << n << (bi ? " with bias" : "");
+    }
+}
+
 }  // namespace
 }  // namespace sl::test

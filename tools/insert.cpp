@@ -725,7 +725,7 @@ int run(int argc, char** argv) {
                {"--exact-shadow-rays", "M", "the same for the shadow rays of each shadow-map pixel (default 16; 0: off)"},
                {"--fast", "", "the settings before the exact corrections: --light-samples 6 --shadow-rays 128\n"
                 "                               --exact-light-rays 0 --exact-shadow-rays 0 (about half the time; KITTI:\n"
-                "                               1.6% error against 0.9%); flags given explicitly still win"},
+                "                               1.2-1.6% error against 0.9%); flags given explicitly still win"},
                {"--shadow-width", "N", "shadow-map width (default 160)"},
                {"--shadow-height", "N", "shadow-map height (default 90)"},
                {"--seed", "N", "sampling seed (default 0)"},

@@ -11,6 +11,9 @@ std::vector<InsertRow> insert_rows(const train::PhotoInsertionOptions& productio
   std::vector<InsertRow> rows;
   rows.push_back({"production", train::insertion_options(production)});
   if (!quick) {
+    // streetlight-insert --fast (train/photo_insertion.h fast_insertion_options): the production
+    // defaults without the exact corrections, at N = 6 and 128 shadow rays.
+    rows.push_back({"fast", train::insertion_options(train::fast_insertion_options())});
     // Eq. 2's diffuse control variate: off, and its two knobs (normal grid, quadrature).
     InsertionOptions plain = train::insertion_options(production);
     plain.diffuse_control_variate = false;

@@ -1,6 +1,7 @@
 // The rows of streetlight-bench insert's production table (see insert_rows.h).
 #include "tools/bench/insert_rows.h"
 
+#include <algorithm>
 #include <tuple>
 
 namespace sl::bench {
@@ -244,7 +245,13 @@ std::vector<InsertRow> insert_rows(const train::PhotoInsertionOptions& productio
       InsertionOptions o = train::insertion_options(production);
       if (!a.residual_filter) o.denoise_radius = 0;
       if (!a.correction_filter) o.cache_exact_filter_radius = 0;
-      if (a.all_exact) o.cache_exact_light_rays = o.light_samples * (1 + o.adaptive_max_factor);
+      if (a.all_exact) {
+        // Every light sample marched exactly: N·(1 + adaptive factor) per primary sample, within
+        // insert_objects' limit of 64 exact rays (N = 16: the adaptive factor drops from 8 to 3).
+        constexpr int kMaxExactLightRays = 64;
+        o.adaptive_max_factor = std::min(o.adaptive_max_factor, std::max(0, kMaxExactLightRays / o.light_samples - 1));
+        o.cache_exact_light_rays = std::min(kMaxExactLightRays, o.light_samples * (1 + o.adaptive_max_factor));
+      }
       o.diffuse_control_variate = a.control_variate;
       if (!a.control_variate) o.denoise_radius = 0;
       if (a.fine_e) {

@@ -21,6 +21,9 @@
 //     images against the rest's, each with its 95% interval (train/sun_confidence.h: does a small
 //     measure mean a small error?). The per-image "predicted_sun_share" is the predicted sky's
 //     share of its light near its sun.
+//   the sun error in parts ("sun_parts", train/sun_error_parts.h): the median azimuth error, the
+//     median elevation bias (predicted − true) and how often the predicted sun is in the other
+//     half of the sphere (in front of the view or behind it) than the true one.
 //   sun in crop, pooled: with two or more real data sets (e.g. the HDR and the LDR test splits),
 //     "sun_in_crop_pooled" holds each checkpoint's median error over every crop whose sun is
 //     inside it, from all of them, with its interval (whole panoramas resampled).
@@ -71,6 +74,7 @@
 #include "train/real_sky_benchmark.h"
 #include "train/street_batch.h"
 #include "train/sun_confidence.h"
+#include "train/sun_error_parts.h"
 #include "train/sky_autoencoder.h"
 #include "train/train_config.h"
 #include "util/file.h"
@@ -317,6 +321,21 @@ struct Confidence {
   }
 };
 
+// train/sun_error_parts.h as JSON (medians null when nothing was counted).
+json sun_parts_json(const sl::train::SunErrorParts& p) {
+  const auto num = [](double v) { return std::isfinite(v) ? json(v) : json(); };
+  return {{"count", p.count},
+          {"azimuth_count", p.azimuth_count},
+          {"azimuth_error_median_deg", num(p.azimuth_error_median_deg)},
+          {"elevation_bias_median_deg", num(p.elevation_bias_median_deg)},
+          {"true_elevation_median_deg", num(p.true_elevation_median_deg)},
+          {"predicted_elevation_median_deg", num(p.predicted_elevation_median_deg)},
+          {"truth_front", p.truth_front},
+          {"truth_front_predicted_back", p.truth_front_predicted_back},
+          {"truth_back", p.truth_back},
+          {"truth_back_predicted_front", p.truth_back_predicted_front}};
+}
+
 // The constant baseline of a generated street dataset: the normalised mean of the canonical sun
 // directions (view 0's frame) of its TRAIN split's samples whose sun is hard. Read from meta.json
 // alone. has = false when the split is missing or holds no such sample.
@@ -426,8 +445,11 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   // input camera's canonical frame), so failures can be found and looked at.
   json per_image = json::array();
   Confidence confidence{"sun_flip_spread_deg"}, confidence_hedge{"sun_hedge"}, confidence_crop{"sun_crop_spread_deg"};
+  std::vector<glm::dvec3> parts_predicted, parts_truth;  // for train/sun_error_parts.h
   const auto add_image = [&](const std::string& id, const glm::dvec3& predicted, const glm::dvec3& truth, double e,
                              const EstimatedLighting& l) {
+    parts_predicted.push_back(predicted);
+    parts_truth.push_back(truth);
     const double spread = l.sun_flip_spread_deg, hedge = l.sun_hedge, crop = l.sun_crop_spread_deg;
     per_image.push_back({{"id", id}, {"sun_error_deg", e}, {"predicted", {predicted.x, predicted.y, predicted.z}},
                          {"truth", {truth.x, truth.y, truth.z}},
@@ -584,6 +606,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   r["sun"]["all"]["visible_sun_fired"] = cue_all;
   if (real) r["sun"]["sun_in_crop"]["visible_sun_fired"] = cue_in, r["sun"]["sun_outside_crop"]["visible_sun_fired"] = cue_out;
   if (real && real->ldr) ldr_splits.write(r);
+  r["sun_parts"] = sun_parts_json(sl::train::sun_error_parts(parts_predicted, parts_truth));
   r["sun_confidence"] = confidence.to_json();
   r["sun_confidence_hedge"] = confidence_hedge.to_json();
   r["sun_confidence_crop"] = confidence_crop.to_json();
@@ -865,6 +888,7 @@ int run(int argc, char** argv) {
       md += "\nSun direction on real skies (crops whose sun is hard):\n\n" + cli::real_sky_markdown(results, baseline);
       if (baseline.is_null()) md += "\n(no baseline row: give --hdri-split with a \"train\" list)\n";
     }
+    md += cli::sun_parts_markdown(results);
     md += cli::confidence_markdown(results);
     md += "\n";
     datasets.push_back(entry);

@@ -19,6 +19,7 @@
 #include "data/sun_labels.h"
 #include "render/equirect.h"
 #include "train/real_sky_benchmark.h"
+#include "train/sun_error_parts.h"
 #include "train/street_batch.h"
 #include "util/math.h"
 
@@ -195,10 +196,21 @@ TEST(EvalTool, RealSkyBenchmarkReportsTable1BesideTheBaselineOfTheTrainingSplit)
   EXPECT_EQ(sun["all"]["count"].get<int>(), sun["sun_in_crop"]["count"].get<int>() + sun["sun_outside_crop"]["count"].get<int>());
   const auto& per = d["results"][0]["sun_per_image"];
   ASSERT_EQ(per.size(), sun["all"]["count"].get<size_t>());
+  std::vector<glm::dvec3> predicted, truth;
   for (const auto& e : per) {
     EXPECT_EQ(e["id"].get<std::string>().rfind("c_1k.exr#", 0), 0u) << e.dump();  // the test panorama's crops
     EXPECT_TRUE(e.contains("sun_in_crop"));
+    predicted.emplace_back(e["predicted"][0].get<double>(), e["predicted"][1].get<double>(), e["predicted"][2].get<double>());
+    truth.emplace_back(e["truth"][0].get<double>(), e["truth"][1].get<double>(), e["truth"][2].get<double>());
   }
+  // The error in parts is train/sun_error_parts.h of the per-image suns the JSON lists.
+  const auto& parts = d["results"][0]["sun_parts"];
+  const sl::train::SunErrorParts expect_parts = sl::train::sun_error_parts(predicted, truth);
+  EXPECT_EQ(parts["count"].get<size_t>(), per.size());
+  EXPECT_EQ(parts["truth_front"].get<size_t>() + parts["truth_back"].get<size_t>(), per.size());
+  EXPECT_EQ(parts["truth_front_predicted_back"].get<size_t>(), expect_parts.truth_front_predicted_back);
+  EXPECT_EQ(parts["truth_back_predicted_front"].get<size_t>(), expect_parts.truth_back_predicted_front);
+  EXPECT_NEAR(parts["elevation_bias_median_deg"].get<double>(), expect_parts.elevation_bias_median_deg, 1e-9);
   // The baseline comes from the training split only, computed as the library does.
   const auto& b = d["baseline"];
   EXPECT_EQ(b["from_panoramas"], nlohmann::json({"a_1k.hdr", "b_1k.hdr"}));
@@ -211,6 +223,7 @@ TEST(EvalTool, RealSkyBenchmarkReportsTable1BesideTheBaselineOfTheTrainingSplit)
   std::ifstream mf(dir + "/out/results.md");
   const std::string md((std::istreambuf_iterator<char>(mf)), std::istreambuf_iterator<char>());
   EXPECT_NE(md.find("constant baseline"), std::string::npos) << md;
+  EXPECT_NE(md.find("The sun error in parts"), std::string::npos) << md;
 }
 
 TEST(EvalTool, BadPanoramaInputIsOneLineNamingTheFileAndWritesNothing) {

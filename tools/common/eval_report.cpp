@@ -124,6 +124,31 @@ std::string real_sky_markdown(const std::vector<json>& rows, const json& baselin
   return md.str();
 }
 
+std::string sun_parts_markdown(const std::vector<json>& rows) {
+  std::string md;
+  for (const auto& r : rows) {
+    if (!r.contains("sun_parts") || r.at("sun_parts").value("count", 0) == 0) continue;
+    const json& p = r.at("sun_parts");
+    char b[512];
+    std::snprintf(b, sizeof b,
+                  "- %s: azimuth error median %s° (%zu of %zu images, suns below 85°); elevation predicted minus true, "
+                  "median %s° (true %s°, predicted %s°); in the wrong half %zu of %zu (true sun in front: %zu of %zu "
+                  "put behind; behind: %zu of %zu put in front)\n",
+                  r.at("name").get<std::string>().c_str(), fmt(p, "azimuth_error_median_deg", 1).c_str(),
+                  p["azimuth_count"].get<size_t>(), p["count"].get<size_t>(),
+                  fmt(p, "elevation_bias_median_deg", 1).c_str(), fmt(p, "true_elevation_median_deg", 1).c_str(),
+                  fmt(p, "predicted_elevation_median_deg", 1).c_str(),
+                  p["truth_front_predicted_back"].get<size_t>() + p["truth_back_predicted_front"].get<size_t>(),
+                  p["count"].get<size_t>(), p["truth_front_predicted_back"].get<size_t>(),
+                  p["truth_front"].get<size_t>(), p["truth_back_predicted_front"].get<size_t>(),
+                  p["truth_back"].get<size_t>());
+    md += b;
+  }
+  return md.empty() ? md
+                    : "\nThe sun error in parts (train/sun_error_parts.h; in the input camera's frame, front = the "
+                      "half the view looks into):\n\n" + md;
+}
+
 std::string confidence_markdown(const std::vector<json>& results) {
   std::string md;
   for (const auto& [key, what] : std::vector<std::pair<std::string, std::string>>{

@@ -21,6 +21,10 @@ std::string eval_markdown(const std::vector<nlohmann::json>& rows, const std::ve
 // count_title heads the count column. A row whose count is 0 prints "—" for its statistics.
 std::string real_sky_markdown(const std::vector<nlohmann::json>& rows, const nlohmann::json& baseline,
                               const std::string& count_title = "crops with a hard sun");
+// The sun error in parts (eval's "sun_parts", train/sun_error_parts.h): per row, the median
+// azimuth error, the median elevation bias with the true and predicted median elevations, and how
+// often the predicted sun is in the other half (front/back) than the true one; "" when no row has it.
+std::string sun_parts_markdown(const std::vector<nlohmann::json>& rows);
 // The confidence lines (flip spread, hedge, crop spread): per row, the median sun error of the
 // most confident half against the rest, from the row's sun_confidence* objects; "" when none.
 std::string confidence_markdown(const std::vector<nlohmann::json>& rows);

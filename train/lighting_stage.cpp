@@ -5,6 +5,8 @@
 #include <cmath>
 #include <future>
 #include <limits>
+#include <map>
+#include <utility>
 
 #include "autodiff/ops.h"
 #include "data/augment.h"
@@ -20,6 +22,7 @@
 #include "train/losses.h"
 #include "train/metrics.h"
 #include "train/phase_clock.h"
+#include "train/sun_error_parts.h"
 #include "train/train_config.h"
 #include "train/distributed.h"
 #include "train/gradient_allreduce.h"
@@ -346,6 +349,8 @@ Metrics LightingStage::validate() {
   const size_t n = val_.size;
   Metrics sum_m;
   std::vector<double> sun_err, real_err, ldr_err, street_err, psnrs, si_psnrs;
+  // Predicted and true suns per group (street, real HDR, LDR), for train/sun_error_parts.h.
+  std::map<std::string, std::pair<std::vector<glm::dvec3>, std::vector<glm::dvec3>>> parts;
   const int64_t val_h = config_.at("data").at("val_view_height").get<int64_t>();
   for (size_t s = 0; s < n; ++s) {
     const Forward f = forward_val(s);
@@ -363,6 +368,12 @@ Metrics LightingStage::validate() {
       sun_err.push_back(e);
       const std::string& id = f.samples[0].id;
       (id.rfind("hdri:", 0) == 0 ? real_err : id.rfind("ldr:", 0) == 0 ? ldr_err : street_err).push_back(e);
+      const double len = glm::length(dir) * glm::length(f.items[0].sun_direction);
+      if (std::isfinite(len) && len > 0.0) {  // sun_error_parts refuses a zero direction
+        auto& group = parts[id.rfind("hdri:", 0) == 0 ? "real" : id.rfind("ldr:", 0) == 0 ? "ldr" : "street"];
+        group.first.push_back(dir);
+        group.second.push_back(f.items[0].sun_direction);
+      }
     }
     // Novel views: every view but the input, rendered through the radiance query.
     for (size_t v = 1; v < f.samples[0].views.size(); ++v) {
@@ -391,6 +402,15 @@ Metrics LightingStage::validate() {
   if (!street_err.empty()) sum_m["val_street_sun_error_median_deg"] = median(street_err);
   if (!real_err.empty()) sum_m["val_real_sun_error_median_deg"] = median(real_err);
   if (!ldr_err.empty()) sum_m["val_ldr_sun_error_median_deg"] = median(ldr_err);
+  // The error in parts per group: the share of suns in the wrong half (in front of the view or
+  // behind it), the median elevation bias and, where defined, the median azimuth error.
+  for (const auto& [group, dirs] : parts) {
+    const SunErrorParts p = sun_error_parts(dirs.first, dirs.second);
+    const std::string pre = "val_" + group + "_sun_";
+    sum_m[pre + "wrong_half_share"] = static_cast<double>(p.front_back_wrong()) / static_cast<double>(p.count);
+    sum_m[pre + "elevation_bias_deg"] = p.elevation_bias_median_deg;
+    if (p.azimuth_count > 0) sum_m[pre + "azimuth_error_median_deg"] = p.azimuth_error_median_deg;
+  }
   if (!psnrs.empty()) {
     sum_m["val_psnr"] = mean_of(psnrs);
     sum_m["val_si_psnr"] = mean_of(si_psnrs);

@@ -93,6 +93,14 @@ TEST(LightingStage, LdrPanoramasTrainAndValidateApart) {
   const Metrics v = stage.validate();
   ASSERT_TRUE(v.count("val_ldr_sun_error_median_deg"));
   EXPECT_TRUE(std::isfinite(v.at("val_ldr_sun_error_median_deg")));
+  // The error in parts per group (train/sun_error_parts.h): a share in [0, 1] and a finite bias.
+  for (const char* g : {"ldr", "street"}) {
+    const std::string pre = std::string("val_") + g + "_sun_";
+    ASSERT_TRUE(v.count(pre + "wrong_half_share")) << g;
+    EXPECT_GE(v.at(pre + "wrong_half_share"), 0.0);
+    EXPECT_LE(v.at(pre + "wrong_half_share"), 1.0);
+    EXPECT_TRUE(std::isfinite(v.at(pre + "elevation_bias_deg"))) << g;
+  }
   EXPECT_TRUE(std::isfinite(v.at("val_loss")));
   // A panorama without a label row is refused, naming it and the labels file.
   {

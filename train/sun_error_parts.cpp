@@ -4,18 +4,16 @@
 #include <cmath>
 #include <limits>
 
+#include "train/metrics.h"
 #include "util/error.h"
+#include "util/math.h"
 
 namespace sl::train {
 namespace {
 
-constexpr double kDeg = 180.0 / 3.14159265358979323846;
-
-double median_of(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+// The median of the pairs counted, NaN when there are none (train/metrics.h's median gives 0).
+double median_or_nan(std::vector<double> v) {
+  return v.empty() ? std::numeric_limits<double>::quiet_NaN() : median(std::move(v));
 }
 
 struct Angles {
@@ -27,7 +25,7 @@ Angles angles(const glm::dvec3& d, const char* which, size_t i) {
   const double len = glm::length(d);
   SL_CHECK(std::isfinite(len) && len > 0.0, "sun_error_parts: ", which, " direction ", i, " is zero or not finite");
   const glm::dvec3 u = d / len;
-  return {std::atan2(u.x, -u.z) * kDeg, std::asin(std::clamp(u.y, -1.0, 1.0)) * kDeg, -u.z > 0.0};
+  return {degrees(std::atan2(u.x, -u.z)), degrees(std::asin(std::clamp(u.y, -1.0, 1.0))), -u.z > 0.0};
 }
 
 }  // namespace
@@ -56,10 +54,10 @@ SunErrorParts sun_error_parts(const std::vector<glm::dvec3>& predicted, const st
     }
   }
   p.azimuth_count = azimuth.size();
-  p.azimuth_error_median_deg = median_of(std::move(azimuth));
-  p.elevation_bias_median_deg = median_of(std::move(bias));
-  p.true_elevation_median_deg = median_of(std::move(true_el));
-  p.predicted_elevation_median_deg = median_of(std::move(predicted_el));
+  p.azimuth_error_median_deg = median_or_nan(std::move(azimuth));
+  p.elevation_bias_median_deg = median_or_nan(std::move(bias));
+  p.true_elevation_median_deg = median_or_nan(std::move(true_el));
+  p.predicted_elevation_median_deg = median_or_nan(std::move(predicted_el));
   return p;
 }
 

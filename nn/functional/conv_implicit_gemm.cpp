@@ -369,35 +369,25 @@ ForwardTasks forward_tasks(const ConvGeometry& g, const Order& order, const Padd
 // Against the panels along the padded pitch, it computes no dropped positions and skips
 // store_runs' copy, but a row's last panel may be a narrow tile. Each output is the same FMA
 // sequence either way, so the choice (forward_padded) does not change a bit.
-struct RowPanels {
-  bool use = false;
-  int64_t full = 0, rem = 0;  // per output row: full 48-position panels, then one of rem (0: none)
-};
 
 // Share of the window kernel's time that store_runs adds on the panels along the pitch: 9% on
 // the ResNet stem (perf, 1 thread, AMD EPYC family 25: 2.2% of samples against 24.4%).
 constexpr double kStoreShare = 0.09;
 
-// pitch: the padded copy's row pitch (xp.ext[2]).
-RowPanels row_panels(const ConvGeometry& g, const Order& order, int64_t pitch, ForwardPanels how) {
-  RowPanels rp;
+// Whether to walk the outputs by rows. pitch: the padded copy's row pitch (xp.ext[2]).
+bool by_rows(const ConvGeometry& g, const Order& order, int64_t pitch, ForwardPanels how) {
   const Axes out = permute(g.out, order), ys = permute(out_strides(g), order);
-  if (ys[2] != 1 || how == ForwardPanels::kPitch) return rp;
-  rp.full = out[2] / kPanelCols;
-  rp.rem = out[2] % kPanelCols;
-  if (how == ForwardPanels::kRows) {
-    rp.use = true;
-    return rp;
-  }
+  if (ys[2] != 1 || how == ForwardPanels::kPitch) return false;
+  if (how == ForwardPanels::kRows) return true;
+  const int64_t full = out[2] / kPanelCols, rem = out[2] % kPanelCols;  // per row: full panels, then rem
   const int64_t span = (out[1] - 1) * pitch + out[2];
-  const double by_rows = static_cast<double>(out[1]) * (rp.full + (rp.rem ? conv_window_cost(rp.rem) : 0.0));
-  const double by_pitch = static_cast<double>((span + kPanelCols - 1) / kPanelCols) * (1.0 + kStoreShare);
-  rp.use = by_rows < by_pitch;
-  return rp;
+  const double rows_cost = static_cast<double>(out[1]) * (full + (rem ? conv_window_cost(rem) : 0.0));
+  const double pitch_cost = static_cast<double>((span + kPanelCols - 1) / kPanelCols) * (1.0 + kStoreShare);
+  return rows_cost < pitch_cost;
 }
 
 void forward_rows(const ConvGeometry& g, const Order& order, const Padded& xp, const std::vector<int64_t>& taps,
-                  const float* packed, const float* b, float* y, const RowPanels& rp) {
+                  const float* packed, const float* b, float* y) {
   const int64_t R = g.rows(), Hp = xp.ext[1], Wp = xp.ext[2], P = g.out_plane();
   const Axes out = permute(g.out, order), ys = permute(out_strides(g), order);
   const int64_t rows = out[0] * out[1], cols = out[2];
@@ -417,8 +407,7 @@ void forward_rows(const ConvGeometry& g, const Order& order, const Padded& xp, c
 // (forward_rows) when that is estimated cheaper, else along the padded pitch.
 void forward_padded(const ConvGeometry& g, const Order& order, const Padded& xp, const std::vector<int64_t>& taps,
                     const float* packed, const float* b, float* y, ForwardPanels how = ForwardPanels::kChoose) {
-  const RowPanels rp = row_panels(g, order, xp.ext[2], how);
-  if (rp.use) return forward_rows(g, order, xp, taps, packed, b, y, rp);
+  if (by_rows(g, order, xp.ext[2], how)) return forward_rows(g, order, xp, taps, packed, b, y);
   const int64_t R = g.rows(), Hp = xp.ext[1], Wp = xp.ext[2];
   const ForwardTasks ft = forward_tasks(g, order, xp, kPanelCols);
   const OutputRuns& r = ft.runs;
@@ -819,7 +808,7 @@ ForwardPanels chosen_forward_panels(const ConvGeometry& g, bool strided) {
   const Order order = strided ? Order{0, 1, 2} : storage_order(g);
   const int64_t s = phase_stride(g);
   const int64_t pitch = strided ? (g.in[2] + 2 * g.pad[2] + s - 1) / s : permute(padded_extents(g, order), order)[2];
-  return row_panels(g, order, pitch, ForwardPanels::kChoose).use ? ForwardPanels::kRows : ForwardPanels::kPitch;
+  return by_rows(g, order, pitch, ForwardPanels::kChoose) ? ForwardPanels::kRows : ForwardPanels::kPitch;
 }
 
 bool direct_winograd_supported(const ConvGeometry& g) { return winograd_applies(g, storage_order(g)); }

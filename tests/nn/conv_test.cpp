@@ -345,15 +345,17 @@ TEST(Conv, ForwardByRowsHasTheBitsOfPanelsAlongThePitch) {
       EXPECT_EQ(rows, forward(ForwardPanels::kPitch, bias)) << (bias ? "with" : "without") << " bias";
       EXPECT_EQ(rows, forward(ForwardPanels::kChoose, bias));
       if (!bias) continue;
-      // Against float64 (every output written, none left at the fill value): one rounding per
-      // FMA over rows() terms, |x| and |w| of a few units, so 1e-3 of Σ|x||w| is far above it.
-      Tensor x64 = Tensor::from_vector(xd, {g.N, g.C, c.in[0], c.in[1], c.in[2]});
-      Tensor w64 = Tensor::from_vector(wd, {g.O, g.C, c.k[0], c.k[1], c.k[2]});
-      const std::vector<double> ref =
-          conv3d(x64, w64, Tensor::from_vector(bd, {g.O}), {g.stride[0], g.stride[1], g.stride[2]},
-                 {g.pad[0], g.pad[1], g.pad[2]}).to_vector();
+      // Against float64 (every output written, none left at the fill value): rows() FMAs and the
+      // bias's addition, one rounding each, so |ŷ − y| ≤ γ_{K+1}·(Σ|x||w| + |b|) (Higham §3.1,
+      // u = 2⁻²⁴), Σ|x||w| + |b| from the same convolution of the absolute values.
+      const Shape xs{g.N, g.C, c.in[0], c.in[1], c.in[2]}, ws{g.O, g.C, c.k[0], c.k[1], c.k[2]};
+      const std::array<int64_t, 3> st{g.stride[0], g.stride[1], g.stride[2]}, pd{g.pad[0], g.pad[1], g.pad[2]};
+      const Tensor x64 = Tensor::from_vector(xd, xs), w64 = Tensor::from_vector(wd, ws), b64 = Tensor::from_vector(bd, {g.O});
+      const std::vector<double> ref = conv3d(x64, w64, b64, st, pd).to_vector();
+      const std::vector<double> mag = conv3d(abs(x64), abs(w64), abs(b64), st, pd).to_vector();
+      const double u = std::ldexp(1.0, -24), K1 = static_cast<double>(g.rows() + 1), gamma = K1 * u / (1.0 - K1 * u);
       ASSERT_EQ(ref.size(), rows.size());
-      for (size_t i = 0; i < ref.size(); ++i) ASSERT_NEAR(rows[i], ref[i], 1e-3 * (1 + std::abs(ref[i]))) << i;
+      for (size_t i = 0; i < ref.size(); ++i) ASSERT_LE(std::abs(rows[i] - ref[i]), gamma * mag[i]) << i;
     }
   }
 #if defined(__AVX512F__)

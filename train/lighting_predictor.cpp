@@ -101,7 +101,9 @@ LightingPredictor::LightingPredictor(const LightingPredictorOptions& options)
 
 void LightingPredictor::set_training(bool on) {
   train(on);
-  if (sky_decoder_) sky_decoder_->eval();
+  // A frozen part (the sky decoder always; train.freeze's parts) keeps its batch-norm statistics.
+  for (const auto& [name, child] : children())
+    if (child->is_frozen()) child->eval();
 }
 
 Tensor LightingPredictor::head_features(const Tensor& image) {

@@ -69,7 +69,8 @@ class LightingPredictor : public nn::Module {
   // The frozen decoder (null unless sky_branch is "sky_decoder").
   const std::shared_ptr<SkyDecoder>& sky_decoder() const { return sky_decoder_; }
   nn::ResNet& backbone() { return *backbone_; }
-  // Restores train/eval recursively, keeping the frozen decoder in eval mode.
+  // Restores train/eval recursively, keeping every frozen part (the sky decoder, and what
+  // train.freeze names) in eval mode: a frozen backbone's batch norms keep their statistics.
   void set_training(bool on);
 
  private:

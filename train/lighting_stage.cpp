@@ -15,6 +15,7 @@
 #include "data/panorama.h"
 #include "data/sun_extraction.h"
 #include "nn/checkpoint.h"
+#include "nn/safetensors.h"
 #include "render/environment_map.h"
 #include "render/radiance_query.h"
 #include "train/adversarial_stage.h"
@@ -109,6 +110,19 @@ LightingStage::LightingStage(const nlohmann::json& config, SampleSource train, S
                              .seed = seed_ + 2}));
     discriminator_->init_parameters(seed_ + 2);
   }
+  // train.freeze: parts of the predictor that keep their weights (and batch-norm statistics):
+  // fine-tuning the heads on a new data mix over a fixed backbone (configs/README.md).
+  for (const auto& part : config.at("train").value("freeze", nlohmann::json::array())) {
+    const std::string name = part.get<std::string>();
+    std::string known;
+    std::shared_ptr<nn::Module> part_module;
+    for (const auto& [n, child] : predictor_->children()) {
+      known += (known.empty() ? "" : ", ") + n;
+      if (n == name) part_module = child;
+    }
+    SL_CHECK(part_module != nullptr, "train.freeze: the predictor has no part '", name, "' (its parts: ", known, ")");
+    part_module->freeze(true);
+  }
   optim_ = std::make_unique<nn::AdamW>(trainable(*model_),
                                        nn::AdamOptions{.lr = config.at("optim").at("lr").get<double>(),
                                                        .weight_decay = config.at("optim").at("weight_decay").get<double>()});
@@ -120,17 +134,44 @@ void LightingStage::initialise() {
   const std::string prev = init.at("checkpoint").get<std::string>();
   if (!prev.empty()) {
     // Start from a stage-2 checkpoint: predictor and teacher (no discriminator, no optimiser).
+    // An exported model (models/streetlight.safetensors) holds the predictor alone; its teacher
+    // then comes from init.sky_checkpoint.
+    bool has_teacher = false;
+    for (const auto& [name, t] : nn::read_safetensors(prev).tensors) has_teacher |= name.rfind("teacher.", 0) == 0;
     LightingModel previous;
     previous.register_module("predictor", predictor_);
-    if (teacher_) previous.register_module("teacher", teacher_);
+    if (teacher_ && has_teacher) previous.register_module("teacher", teacher_);
     nn::load_checkpoint(prev, previous, nullptr);
-    return;
-  }
-  if (teacher_) {
+    if (teacher_ && !has_teacher) {
+      // Without pseudo-labels the teacher never runs, and may stay as initialised: a later stage
+      // that needs it finds its decoder differs from the predictor's (below) and refuses.
+      SL_CHECK(!sky.empty() || !teacher_pseudo_labels(), "stage ", name(), ": init.checkpoint '", prev,
+               "' holds no teacher (an exported model); init.sky_checkpoint must name a stage-1 checkpoint, ",
+               "or loss.sky_intensity and loss.sky_latent be 0");
+      if (!sky.empty()) nn::load_checkpoint(sky, *teacher_, nullptr);
+    }
+  } else if (teacher_) {
     SL_CHECK(!sky.empty(), "stage ", name(), ": init.sky_checkpoint must name the stage-1 checkpoint");
     nn::load_checkpoint(sky, *teacher_, nullptr);
     if (predictor_->sky_decoder()) predictor_->sky_decoder()->load_state_dict(teacher_->decoder()->state_dict());
   }
+  // The pseudo-labels f̃_int, f̃_lat live in the latent space of the teacher's decoder: they mean
+  // something to the predictor only when that decoder is its own frozen one, bit for bit.
+  if (teacher_ && predictor_->sky_decoder() && teacher_pseudo_labels()) {
+    const nn::StateDict mine = predictor_->sky_decoder()->state_dict(), teachers = teacher_->decoder()->state_dict();
+    bool same = mine.size() == teachers.size();
+    for (const auto& [n, t] : mine) same = same && teachers.count(n) && teachers.at(n).to_vector() == t.to_vector();
+    SL_CHECK(same, "stage ", name(), ": the teacher's decoder",
+             prev.empty() ? "" : " (init.sky_checkpoint '" + sky + "')",
+             " is not the predictor's frozen sky decoder, so its sky_intensity / sky_latent pseudo-labels ",
+             "would be in another latent space: give the stage-1 checkpoint the predictor was trained with, ",
+             "or set loss.sky_intensity and loss.sky_latent to 0");
+  }
+}
+
+bool LightingStage::teacher_pseudo_labels() const {
+  const auto& w = config_.at("loss");
+  return w.at("sky_intensity").get<double>() != 0 || w.at("sky_latent").get<double>() != 0;
 }
 
 LightingStage::Batch LightingStage::make_batch(std::vector<StreetSample> samples, const std::vector<size_t>& views,
@@ -242,14 +283,19 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
   }
   const Tensor pano_b = stack(pano, 0), mask_b = stack(mask, 0);
   if (branch != "constant") {
+    // The teacher runs only for a loss that reads it (with sky_intensity = sky_latent = 0 the
+    // sky-decoder branch needs none of its pseudo-labels).
     SkyAutoencoder::Output teacher;
-    {
+    const bool need_teacher = branch != "sky_decoder" || teacher_pseudo_labels();
+    if (need_teacher) {
       NoGradGuard no_grad;
       teacher = teacher_->run(pano_b);
     }
     if (branch == "sky_decoder") {
-      add_term("sky_intensity", log_encoded_l2_from_log(f.pred.code.log_intensity, teacher.code.intensity()));
-      add_term("sky_latent", l1(f.pred.code.latent, teacher.code.latent));
+      if (need_teacher) {
+        add_term("sky_intensity", log_encoded_l2_from_log(f.pred.code.log_intensity, teacher.code.intensity()));
+        add_term("sky_latent", l1(f.pred.code.latent, teacher.code.latent));
+      }
       const bool split = w.at("sky_direction_form").get<std::string>() == "elevation_azimuth";
       add_term("sky_direction",
                suns.empty() ? Tensor::scalar(0.0)

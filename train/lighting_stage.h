@@ -19,6 +19,12 @@
 //   constant branch: no sky term (the volume-only baseline learns the sky from rays);
 //   volume terms on radiance-queried rays (Eq. 1; env lookup only without the volume):
 //     radiance L2 in LDR, depth consistency, sky_separation BCE(τ_K, sky mask).
+// Init (initialise()): a stage-1 checkpoint (init.sky_checkpoint: the teacher, and the predictor's
+// frozen decoder copied from it), or a stage-2/3 checkpoint (init.checkpoint: predictor and
+// teacher; an exported predictor-only file takes its teacher from init.sky_checkpoint). The
+// teacher runs only when sky_intensity or sky_latent is on, and then its decoder must be the
+// predictor's frozen decoder bit for bit (else sl::Error). train.freeze names predictor parts
+// that keep their weights and batch-norm statistics.
 // Data order: sample (step·B + i) of the epoch permutation epoch_order(n, seed, epoch); the
 // input view and the rays come from Rng(seed, step·B + i): resume is bit-identical. Sources
 // (train/sample_source.h): the street dataset, mixed with crops of real HDR panoramas at
@@ -84,6 +90,8 @@ class LightingStage : public Stage {
   Tensor supervised_loss(const Forward& f, Metrics& m);
 
  protected:
+  // loss.sky_intensity or loss.sky_latent is on: the stage-1 teacher's pseudo-labels are used.
+  bool teacher_pseudo_labels() const;
   // The composite shown in the training strip (undefined: none); stage 3 overrides it.
   virtual Tensor strip_composite(const Forward& f) { return Tensor(); }
   struct Batch {

@@ -2,6 +2,7 @@
 // documented in configs/README.md.
 #include "train/train_config.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -107,7 +108,8 @@ json default_train_config() {
         {"checkpoint_every", 200},
         {"image_every", 200},
         {"best_metric", "val_loss"},
-        {"global_batch", 0}}},
+        {"global_batch", 0},
+        {"freeze", json::array()}}},
       {"insertion",
        {{"placement", "dataset"},
         {"aa_samples", 1},
@@ -138,6 +140,11 @@ void check_train_config(const json& c) {
     positive(c, "train", k);
   SL_CHECK(c.at("train").at("global_batch").get<int64_t>() >= 0, "train.global_batch must be >= 0 (0: ranks × "
            "train.batch_size), got ", c.at("train").at("global_batch").get<int64_t>());
+  const json& freeze = c.at("train").at("freeze");
+  SL_CHECK(freeze.is_array() && std::all_of(freeze.begin(), freeze.end(), [](const json& v) { return v.is_string(); }),
+           "train.freeze must be a list of module names, got ", freeze.dump());
+  SL_CHECK(freeze.empty() || stage != kStageSky, "train.freeze names parts of the lighting predictor; the ",
+           kStageSky, " stage has none to freeze, got ", freeze.dump());
   positive(c, "optim", "lr");
   SL_CHECK(c.at("optim").at("min_lr").get<double>() >= 0, "optim.min_lr must be >= 0");
   const double ema = c.at("optim").at("ema_decay").get<double>();

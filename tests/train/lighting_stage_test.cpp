@@ -14,8 +14,10 @@
 #include "data/panorama.h"
 #include "data/sky_model.h"
 #include "data/sun_extraction.h"
+#include "nn/checkpoint.h"
 #include "render/equirect.h"
 #include "support/tiny_stage.h"
+#include "train/sky_autoencoder.h"
 #include "util/error.h"
 #include "util/math.h"
 
@@ -34,6 +36,108 @@ TEST(LightingStage, TwentyStepsOverfitATinyBatch) {
   stage.initialise();
   const auto [first, last] = overfit(stage, 20);
   EXPECT_LT(last, 0.8 * first) << first << " -> " << last;
+}
+
+// train.freeze: a frozen backbone keeps every weight and batch-norm statistic bit for bit
+// through training steps, while the sky head moves; an unknown part is refused by name.
+TEST(LightingStage, FrozenPartsKeepTheirWeightsAndStatistics) {
+  const std::string dir = temp_dir("lighting_freeze");
+  nlohmann::json c = tiny_config(kStageLighting);
+  c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  c["train"]["freeze"] = {"backbone"};
+  LightingStage stage(c, memory_source(2), memory_source(1));
+  stage.initialise();
+  const auto copy = [](const nn::NamedTensors& ts) {
+    std::vector<std::pair<std::string, std::vector<double>>> out;
+    for (const auto& [n, t] : ts) out.emplace_back(n, t.to_vector());
+    return out;
+  };
+  const auto backbone_params = copy(stage.predictor().backbone().named_parameters());
+  const auto backbone_stats = copy(stage.predictor().backbone().named_buffers());
+  const auto head_before = copy(stage.predictor().child("sky_head")->named_parameters());
+  ASSERT_FALSE(backbone_stats.empty());  // the batch norms' running statistics
+  for (int64_t s = 0; s < 3; ++s) stage.step(s);
+  stage.validate();
+  EXPECT_EQ(copy(stage.predictor().backbone().named_parameters()), backbone_params);
+  EXPECT_EQ(copy(stage.predictor().backbone().named_buffers()), backbone_stats);
+  EXPECT_NE(copy(stage.predictor().child("sky_head")->named_parameters()), head_before);
+  for (const auto& [n, t] : stage.predictor().backbone().named_parameters()) EXPECT_FALSE(t.requires_grad()) << n;
+
+  c["train"]["freeze"] = {"backbone", "trunk"};
+  try {
+    LightingStage bad(c, memory_source(2), memory_source(1));
+    FAIL() << "an unknown part was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("'trunk'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("sky_head"), std::string::npos) << e.what();
+  }
+}
+
+// init.checkpoint may be an exported model (the predictor alone, as models/streetlight.safetensors
+// ships): the teacher then comes from init.sky_checkpoint. Its pseudo-labels are used only when its
+// decoder is the predictor's frozen one, bit for bit; with sky_intensity = sky_latent = 0 any
+// stage-1 checkpoint will do, and steps run without the teacher.
+TEST(LightingStage, StartsFromAnExportedPredictorWithATeacherThatMatchesItsDecoder) {
+  const std::string dir = temp_dir("lighting_exported");
+  nlohmann::json c = tiny_config(kStageLighting);
+  const std::string sky = save_sky_checkpoint(c, dir);
+  c["init"]["sky_checkpoint"] = sky;
+  const std::string exported = dir + "/exported.safetensors";
+  std::vector<double> trained_head;
+  {
+    LightingStage stage(c, memory_source(2), memory_source(1));
+    stage.initialise();
+    overfit(stage, 2);
+    nn::Module holder("Exported");
+    holder.register_module("predictor", std::shared_ptr<nn::Module>(&stage.predictor(), [](nn::Module*) {}));
+    nn::save_checkpoint(exported, holder, nullptr, nn::CheckpointInfo{.stage = kStageLighting});
+    trained_head = stage.predictor().child("sky_head")->named_parameters().front().second.to_vector();
+  }
+  // A stage-1 checkpoint whose decoder differs from the predictor's in one weight.
+  const std::string other = dir + "/other_sky.safetensors";
+  {
+    train::SkyAutoencoder ae(train::sky_options(c));
+    nn::load_checkpoint(sky, ae, nullptr);
+    nn::StateDict sd = ae.decoder()->state_dict();
+    Tensor w = sd.begin()->second.clone();
+    w.data<float>()[0] += 0.25f;
+    sd[sd.begin()->first] = w;
+    ae.decoder()->load_state_dict(sd);
+    nn::save_checkpoint(other, ae, nullptr, nn::CheckpointInfo{.stage = train::kStageSky});
+  }
+  c["init"]["checkpoint"] = exported;
+  {
+    LightingStage stage(c, memory_source(2), memory_source(1));
+    stage.initialise();
+    EXPECT_EQ(stage.predictor().child("sky_head")->named_parameters().front().second.to_vector(), trained_head);
+    EXPECT_TRUE(std::isfinite(stage.step(0).at("loss")));
+  }
+  const auto refused = [&](const nlohmann::json& config, const std::string& what) {
+    LightingStage stage(config, memory_source(2), memory_source(1));
+    try {
+      stage.initialise();
+      ADD_FAILURE() << "accepted: " << what;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  };
+  nlohmann::json no_teacher = c;
+  no_teacher["init"]["sky_checkpoint"] = "";
+  refused(no_teacher, "holds no teacher");
+  nlohmann::json mismatched = c;
+  mismatched["init"]["sky_checkpoint"] = other;
+  refused(mismatched, "is not the predictor's frozen sky decoder");
+  mismatched["loss"]["sky_intensity"] = 0.0;
+  mismatched["loss"]["sky_latent"] = 0.0;
+  no_teacher["loss"]["sky_intensity"] = 0.0;
+  no_teacher["loss"]["sky_latent"] = 0.0;
+  for (const nlohmann::json& config : {mismatched, no_teacher}) {
+    LightingStage stage(config, memory_source(2), memory_source(1));
+    stage.initialise();
+    const Metrics m = stage.step(0);
+    EXPECT_TRUE(std::isfinite(m.at("loss")));
+    EXPECT_EQ(m.count("sky_latent"), 0u);  // the teacher did not run
+  }
 }
 
 // Two labelled LDR panoramas (one sun at a pixel, one "none") written as PNG files with their

@@ -173,9 +173,10 @@ void check_train_config(const json& c) {
   }
   if (stage == kStageLighting) {
     const std::string branch = c.at("model").at("sky_branch").get<std::string>();
-    SL_CHECK(branch == "constant" || !c.at("init").at("sky_checkpoint").get<std::string>().empty(),
+    SL_CHECK(branch == "constant" || !c.at("init").at("sky_checkpoint").get<std::string>().empty() ||
+                 !c.at("init").at("checkpoint").get<std::string>().empty(),
              "stage lighting starts from the frozen sky autoencoder: set init.sky_checkpoint to the stage-1 "
-             "checkpoint (e.g. runs/sky/last.safetensors)");
+             "checkpoint (e.g. runs/sky/last.safetensors), or init.checkpoint to a lighting checkpoint");
     SL_CHECK(!c.at("data").at("dataset").get<std::string>().empty(),
              "stage lighting needs data.dataset (a street-scene dataset folder)");
   }

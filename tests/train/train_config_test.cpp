@@ -95,5 +95,34 @@ TEST(TrainConfig, LdrPanoramaSharesAreCheckedNamingTheirKeys) {
   }
 }
 
+// train.freeze is a list of names, for the lighting stages only; a lighting stage may start from
+// a lighting checkpoint (an exported model) instead of a stage-1 one.
+TEST(TrainConfig, FreezeListAndTheLightingStagesStartingPoints) {
+  const auto refusal = [](const nlohmann::json& c) {
+    try {
+      train::check_train_config(c);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  nlohmann::json c = default_train_config();
+  c["stage"] = "lighting";
+  c["data"]["dataset"] = "streets";
+  EXPECT_NE(refusal(c).find("init.sky_checkpoint"), std::string::npos) << refusal(c);
+  c["init"]["checkpoint"] = "models/streetlight.safetensors";
+  EXPECT_EQ(refusal(c), "");
+  c["train"]["freeze"] = {"backbone", "volume_unet"};
+  EXPECT_EQ(refusal(c), "");
+  c["train"]["freeze"] = "backbone";
+  EXPECT_NE(refusal(c).find("train.freeze"), std::string::npos) << refusal(c);
+  c["train"]["freeze"] = {"backbone", 3};
+  EXPECT_NE(refusal(c).find("train.freeze"), std::string::npos) << refusal(c);
+  nlohmann::json sky = default_train_config();
+  sky["stage"] = "sky_autoencoder";
+  sky["train"]["freeze"] = {"encoder"};
+  EXPECT_NE(refusal(sky).find("train.freeze"), std::string::npos) << refusal(sky);
+}
+
 }  // namespace
 }  // namespace sl::test

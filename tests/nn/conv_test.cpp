@@ -461,31 +461,51 @@ TEST(Conv, WinogradForwardAndGradientsMatchFloat64) {
   EXPECT_LT(worst_dx, 1e-5 * scale) << "input gradient";
 }
 
-// winograd_weights (unflipped, along the innermost axis, where AVX-512 deinterleaves 32 rows of
-// taps per step and transposes them into pack_rows' layout) equals its definition bit for bit:
-// V_0 = g0, V_1 = (g0 + g1 + g2) / 2, V_2 = (g0 − g1 + g2) / 2, V_3 = g2, rows past O zero.
+// winograd_weights equals its definition bit for bit: V_0 = g0, V_1 = (g0 + g1 + g2) / 2,
+// V_2 = (g0 − g1 + g2) / 2, V_3 = g2, rows past O zero, with g_m the taps of the transformed axis of
+// row r = (c, the other axes' taps) of channel o: w[o][c][k + m·s] or, flipped (an input
+// gradient's kernel, w [C][O][taps]), w[c][o][taps − 1 − k − m·s]. Covers the AVX-512 path
+// (unflipped innermost axis: 32 rows deinterleaved per step) and the scalar loop (flipped
+// kernels, the other axes, the last rows), with partial channel blocks.
 TEST(Conv, WinogradWeightsEqualTheirDefinitionBitForBit) {
-  for (const auto& [O, C, k0] : {std::array<int64_t, 3>{13, 21, 1}, std::array<int64_t, 3>{16, 11, 3}}) {
-    nn::detail::ConvGeometry g;
-    g.N = 1, g.C = C, g.O = O;
-    for (int a = 0; a < 3; ++a) g.in[a] = 8, g.k[a] = 3, g.stride[a] = 1, g.pad[a] = 1, g.dil[a] = 1, g.out[a] = 8;
-    g.k[0] = k0;
-    const int64_t taps = g.taps(), R = g.rows() / 3;
-    const std::vector<double> wd = rand64({O, C * taps}, 61).to_vector();
-    const std::vector<float> w(wd.begin(), wd.end());
-    const nn::detail::WinogradWeights v = nn::detail::winograd_weights(g, 2, w.data());
-    for (int64_t o = 0; o < (O + 7) / 8 * 8; ++o)
-      for (int64_t r = 0; r < R; ++r) {
-        const bool real = o < O;
-        const float g0 = real ? w[o * C * taps + 3 * r] : 0.0f, g1 = real ? w[o * C * taps + 3 * r + 1] : 0.0f;
-        const float g2 = real ? w[o * C * taps + 3 * r + 2] : 0.0f;
-        const float expect[4] = {g0, (g0 + g1 + g2) * 0.5f, (g0 - g1 + g2) * 0.5f, g2};
-        for (int i = 0; i < 4; ++i) {
-          const float got = v.data(i)[(o / 8 * R + r) * 8 + o % 8];
-          ASSERT_EQ(std::memcmp(&got, &expect[i], sizeof(float)), 0) << "V_" << i << " o " << o << " r " << r;
+  for (const auto& [O, C, k0] : {std::array<int64_t, 3>{13, 21, 1}, std::array<int64_t, 3>{16, 11, 3},
+                                 std::array<int64_t, 3>{8, 5, 3}, std::array<int64_t, 3>{3, 7, 1}})
+    for (const bool flipped : {false, true})
+      for (int axis = 0; axis < 3; ++axis) {
+        nn::detail::ConvGeometry g;
+        g.N = 1, g.C = C, g.O = O;
+        for (int a = 0; a < 3; ++a) g.in[a] = 8, g.k[a] = 3, g.stride[a] = 1, g.pad[a] = 1, g.dil[a] = 1, g.out[a] = 8;
+        g.k[0] = k0;
+        if (g.k[axis] != 3) continue;
+        SCOPED_TRACE("O " + std::to_string(O) + " C " + std::to_string(C) + " k0 " + std::to_string(k0) + " axis " +
+                     std::to_string(axis) + (flipped ? " flipped" : ""));
+        const int64_t taps = g.taps(), R = g.rows() / 3;
+        const std::vector<double> wd = rand64({O, C * taps}, 61).to_vector();
+        const std::vector<float> w(wd.begin(), wd.end());
+        const nn::detail::WinogradWeights v = nn::detail::winograd_weights(g, axis, w.data(), flipped);
+        const std::array<int64_t, 3> ws = {g.k[1] * g.k[2], g.k[2], 1};
+        size_t mismatches = 0;
+        for (int64_t o = 0; o < (O + 7) / 8 * 8; ++o) {
+          int64_t r = 0;
+          for (int64_t c = 0; c < C; ++c)
+            for (int64_t a0 = 0; a0 < (axis == 0 ? 1 : g.k[0]); ++a0)
+              for (int64_t a1 = 0; a1 < (axis == 1 ? 1 : g.k[1]); ++a1)
+                for (int64_t a2 = 0; a2 < (axis == 2 ? 1 : g.k[2]); ++a2, ++r) {
+                  const int64_t k = a0 * ws[0] + a1 * ws[1] + a2 * ws[2];
+                  float t[3] = {0.0f, 0.0f, 0.0f};
+                  for (int64_t m = 0; m < 3 && o < O; ++m)
+                    t[m] = flipped ? w[(c * O + o) * taps + taps - 1 - (k + m * ws[axis])]
+                                   : w[(o * C + c) * taps + k + m * ws[axis]];
+                  const float expect[4] = {t[0], (t[0] + t[1] + t[2]) * 0.5f, (t[0] - t[1] + t[2]) * 0.5f, t[2]};
+                  for (int i = 0; i < 4; ++i) {
+                    const float got = v.data(i)[(o / 8 * R + r) * 8 + o % 8];
+                    mismatches += std::memcmp(&got, &expect[i], sizeof(float)) != 0;
+                  }
+                }
+          ASSERT_EQ(r, R);
         }
+        EXPECT_EQ(mismatches, 0u);
       }
-  }
 }
 
 TEST(Conv, FlippedWeightPackingIsTheTransposedReversedKernel) {

@@ -64,7 +64,10 @@
 #include "render/gltf_loader.h"
 #include "render/radiance_query.h"
 #include "tools/common/cli.h"
+#include "tools/common/eval_baselines.h"
 #include "tools/common/eval_report.h"
+#include "tools/common/eval_sun_stats.h"
+#include "tools/common/insertion_score.h"
 #include "tools/common/plot.h"
 #include "train/bootstrap.h"
 #include "train/inference.h"
@@ -106,6 +109,21 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using namespace sl;
 using namespace sl::train;
+using sl::cli::ci_json;
+using sl::cli::Confidence;
+using sl::cli::Grouped;
+using sl::cli::InsertionScore;
+using sl::cli::interval_json;
+using sl::cli::LdrSunSplits;
+using sl::cli::not_scored_json;
+using sl::cli::PartScores;
+using sl::cli::real_sky_baseline_json;
+using sl::cli::score_insertion;
+using sl::cli::street_baseline;
+using sl::cli::street_baseline_json;
+using sl::cli::StreetBaseline;
+using sl::cli::sun_parts_json;
+using sl::cli::sun_stats_json;
 
 namespace {
 
@@ -154,256 +172,12 @@ std::vector<Budget> budgets() {
   return b;
 }
 
-struct InsertionScore {
-  double psnr = 0, shadow_ratio_error = 0, ms = 0;
-  // The region's parts: object interior (coverage ≥ 0.98 in the truth), object edge (0 < coverage
-  // < 0.98) and shadow (the rest of the region); NaN where a part is empty.
-  double psnr_object = 0, psnr_edge = 0, psnr_shadow = 0;
-  bool valid = false;
-};
-
-// Mean PSNR of each region part over the samples where the part is not empty.
-struct PartScores {
-  std::vector<double> object, edge, shadow;
-  void add(const InsertionScore& s) {
-    if (std::isfinite(s.psnr_object)) object.push_back(s.psnr_object);
-    if (std::isfinite(s.psnr_edge)) edge.push_back(s.psnr_edge);
-    if (std::isfinite(s.psnr_shadow)) shadow.push_back(s.psnr_shadow);
-  }
-  json to_json() const {
-    json j = json::object();
-    if (!object.empty()) j["object"] = mean_of(object);
-    if (!edge.empty()) j["edge"] = mean_of(edge);
-    if (!shadow.empty()) j["shadow"] = mean_of(shadow);
-    return j;
-  }
-};
-
-// Sec 4.3 measured: PSNR over the object ∪ shadow region of the ground truth, and the mean
-// absolute error of the shadow ratio S on the region's background pixels.
-InsertionScore score_insertion(const EstimatedLighting& l, const StreetSample& s, const Mesh& mesh,
-                               const PhotoInsertionOptions& o) {
-  const StreetView& v = s.views[0];
-  Placement pose{s.object_x, s.object_z, s.object_yaw_deg, s.object_scale};
-  const Tensor with = to_ldr(s.insert_with_object_hdr.contiguous(), s.exposure);
-  const Tensor without = to_ldr(s.insert_without_object_hdr.defined() ? s.insert_without_object_hdr.contiguous()
-                                                                      : v.hdr.contiguous(), s.exposure);
-  // The photo we insert into is the truth's own "without" image: the same render as view 0
-  // normally, and its cleaner re-render with datagen insertion.spp, whose noise would otherwise
-  // count as our error in every background pixel of the region.
-  const PhotoInsertion ins = insert_into_photo(l, without, v.depth, v.camera, mesh, pose, o);
-  const Tensor gm = s.insert_object_mask.contiguous(), sm = ins.shadow_map.contiguous();
-  const int64_t n = with.size(1) * with.size(2);
-  const float *wp = with.data<float>(), *np = without.data<float>(), *mp = gm.data<float>(), *sp = sm.data<float>();
-  std::vector<char> region(n, 0);
-  double ratio_err = 0;
-  int64_t ratio_n = 0;
-  for (int64_t i = 0; i < n; ++i) {
-    double lw = 0, ln = 0;
-    for (int c = 0; c < 3; ++c) lw += ldr_decode(wp[c * n + i]), ln += ldr_decode(np[c * n + i]);
-    const double true_ratio = ln > 1e-6 ? std::min(lw / ln, 1.5) : 1.0;
-    const bool object = mp[i] > 0.5 / 255.0;
-    const bool shadow = !object && std::abs(true_ratio - 1.0) > 0.02;
-    region[i] = object || shadow || sp[i] < 0.98;
-    if (region[i] && !object) ratio_err += std::abs(static_cast<double>(sp[i]) - true_ratio), ++ratio_n;
-  }
-  InsertionScore r;
-  const PsnrScores p = masked_psnr(ins.composite_ldr, with, region);
-  r.valid = p.valid;
-  r.psnr = p.psnr;
-  std::vector<char> object(n, 0), edge(n, 0), shadow(n, 0);
-  for (int64_t i = 0; i < n; ++i) {
-    object[i] = mp[i] >= 0.98f;
-    edge[i] = mp[i] > 0.5f / 255.0f && mp[i] < 0.98f;
-    shadow[i] = region[i] && !object[i] && !edge[i];
-  }
-  auto part = [&](const std::vector<char>& m) {
-    const PsnrScores q = masked_psnr(ins.composite_ldr, with, m);
-    return q.valid ? q.psnr : std::nan("");
-  };
-  r.psnr_object = part(object), r.psnr_edge = part(edge), r.psnr_shadow = part(shadow);
-  r.shadow_ratio_error = ratio_n ? ratio_err / ratio_n : 0.0;
-  r.ms = ins.render_ms;
-  return r;
-}
-
 constexpr double kHalfPi = 1.57079632679489661923;
 
 using RealSkyData = RealSkyFolder;  // train/real_sky_benchmark.h
 
-// The JSON of a panorama left unscored (its label has no sun position).
-json not_scored_json(const data::PanoramaSunLabel& l) {
-  return {{"file", l.file}, {"sun", data::to_string(l.sun)}, {"confidence", data::to_string(l.confidence)},
-          {"scene", data::to_string(l.scene)}};
-}
-
 std::string labels_file_for(const std::string& dir, const std::string& sun_labels) {
   return sun_labels.empty() ? (fs::path(dir) / "sun_labels.csv").string() : sun_labels;
-}
-
-// The 95% bootstrap interval (train/bootstrap.h) as [lo, hi], or null without values. Values of one
-// group (the crops of one panorama, the views of one street) are resampled together.
-json ci_json(const std::vector<double>& v, const std::vector<std::string>& groups, Statistic statistic) {
-  const Interval i = bootstrap_ci95(v, groups, statistic);
-  return i.valid ? json::array({i.lo, i.hi}) : json();
-}
-
-// Values with their group labels.
-struct Grouped {
-  std::vector<double> v;
-  std::vector<std::string> g;
-  void add(double value, const std::string& group) { v.push_back(value), g.push_back(group); }
-};
-
-json stats_json(const Grouped& e) {
-  const SunErrorStats s = sun_error_stats(e.v);
-  return {{"count", s.count}, {"median_deg", s.median_deg}, {"mean_deg", s.mean_deg},
-          {"ci95", {{"median_deg", ci_json(e.v, e.g, Statistic::Median)}, {"mean_deg", ci_json(e.v, e.g, Statistic::Mean)}}},
-          {"within_15", s.within_15}, {"within_30", s.within_30}, {"within_45", s.within_45}};
-}
-
-json sun_stats_json(const Grouped& all, const Grouped& in, const Grouped& out, bool split_by_crop) {
-  json j = {{"all", stats_json(all)}};
-  if (split_by_crop) j["sun_in_crop"] = stats_json(in), j["sun_outside_crop"] = stats_json(out);
-  return j;
-}
-
-// Sun errors of real crops: all, sun inside the crop, sun outside; for LDR panoramas also by the
-// label's scene (street / other) and for the low-confidence labels apart.
-struct SunSplit {
-  Grouped all, in, out;
-  void add(double e, const std::string& group, bool in_crop) {
-    all.add(e, group);
-    (in_crop ? in : out).add(e, group);
-  }
-  json to_json() const { return sun_stats_json(all, in, out, true); }
-};
-struct LdrSunSplits {
-  std::map<std::string, SunSplit> scene;  // "street", "other"
-  SunSplit low_confidence;
-  void add(const RealSkyCrop& c, double e) {
-    scene[c.scene].add(e, c.panorama, c.sun_in_crop);
-    if (c.label_confidence == "low") low_confidence.add(e, c.panorama, c.sun_in_crop);
-  }
-  void write(json& j) const {
-    json s = json::object();
-    for (const char* k : {"street", "other"}) {
-      const auto it = scene.find(k);
-      s[k] = it == scene.end() ? SunSplit().to_json() : it->second.to_json();
-    }
-    j["sun_by_scene"] = s;
-    j["sun_low_confidence"] = low_confidence.to_json();
-  }
-};
-
-// Does the network know when it is right? Each labelled image's sun error beside its confidence,
-// the flip spread (train/inference.h sun_flip_spread_deg): the median error of the most confident
-// half against that of the rest, each with its 95% interval resampling whole panoramas
-// (train/sun_confidence.h). null when the spread was not measured (--no-flip-average, or a
-// checkpoint without a sky vector) or fewer than 2 images.
-json interval_json(const sl::train::Interval& ci) { return ci.valid ? json{ci.lo, ci.hi} : json(); }
-
-// One confidence measure (smaller = more confident) over the labelled images of a result row.
-struct Confidence {
-  explicit Confidence(std::string m) : measure(std::move(m)) {}
-  std::string measure;  // the per-image key it is read from
-  std::vector<double> value, error;
-  std::vector<std::string> group;
-  void add(double v, double e, const std::string& g) { value.push_back(v), error.push_back(e), group.push_back(g); }
-  json to_json() const {
-    const sl::train::ConfidenceHalves h = sl::train::confidence_halves(value, error, group);
-    if (!h.valid) return json();
-    return {{"measure", measure}, {"measure_median", h.spread_median},
-            {"confident_half", {{"count", h.confident.count}, {"sun_error_median_deg", h.confident.median},
-                                {"ci95", interval_json(h.confident.ci)}, {"measure_max", h.confident_spread_max}}},
-            {"uncertain_half", {{"count", h.uncertain.count}, {"sun_error_median_deg", h.uncertain.median},
-                                {"ci95", interval_json(h.uncertain.ci)}, {"measure_min", h.uncertain_spread_min}}}};
-  }
-};
-
-// train/sun_error_parts.h as JSON (medians null when nothing was counted).
-json sun_parts_json(const sl::train::SunErrorParts& p) {
-  const auto num = [](double v) { return std::isfinite(v) ? json(v) : json(); };
-  return {{"count", p.count},
-          {"azimuth_count", p.azimuth_count},
-          {"azimuth_error_median_deg", num(p.azimuth_error_median_deg)},
-          {"elevation_bias_median_deg", num(p.elevation_bias_median_deg)},
-          {"true_elevation_median_deg", num(p.true_elevation_median_deg)},
-          {"predicted_elevation_median_deg", num(p.predicted_elevation_median_deg)},
-          {"truth_front", p.truth_front},
-          {"truth_front_predicted_back", p.truth_front_predicted_back},
-          {"truth_back", p.truth_back},
-          {"truth_back_predicted_front", p.truth_back_predicted_front}};
-}
-
-// The constant baseline of a generated street dataset: the normalised mean of the canonical sun
-// directions (view 0's frame) of its TRAIN split's samples whose sun is hard. Read from meta.json
-// alone. has = false when the split is missing or holds no such sample.
-struct StreetBaseline {
-  bool has = false;
-  glm::dvec3 direction{0.0, 1.0, 0.0};
-  std::string from;  // the dataset folder
-  size_t samples = 0;
-};
-
-StreetBaseline street_baseline(const std::string& dir) {
-  StreetBaseline b;
-  b.from = dir;
-  std::unique_ptr<StreetDataset> ds;
-  try {
-    ds = std::make_unique<StreetDataset>(dir, "train");
-  } catch (const Error&) {
-    return b;  // no train split: no baseline row
-  }
-  glm::dvec3 sum(0.0);
-  for (size_t i = 0; i < ds->size(); ++i) {
-    const data::SunLabel l = ds->load_sun_label(i);
-    if (!l.sun_known) continue;
-    sum += canonical_frame(l.camera).direction(l.sun_direction);
-    ++b.samples;
-  }
-  if (b.samples == 0 || glm::length(sum) < 1e-12) return b;
-  b.direction = glm::normalize(sum);
-  b.has = true;
-  return b;
-}
-
-// The baseline row on a street dataset's evaluated split (the same samples as the checkpoints').
-json street_baseline_json(const StreetBaseline& b, const std::string& data, const std::string& split, int64_t limit) {
-  const StreetDataset ds(data, split);
-  const size_t count = limit > 0 ? std::min<size_t>(ds.size(), static_cast<size_t>(limit)) : ds.size();
-  Grouped e;
-  for (size_t i = 0; i < count; ++i) {
-    const data::SunLabel l = ds.load_sun_label(i);
-    if (l.sun_known) e.add(angular_error_deg(b.direction, canonical_frame(l.camera).direction(l.sun_direction)), ds.ids()[i]);
-  }
-  return {{"name", "constant baseline (mean training sun)"}, {"direction", {b.direction.x, b.direction.y, b.direction.z}},
-          {"from", b.from}, {"from_samples", b.samples}, {"sun_error_median_deg", median(e.v)},
-          {"sun_error_mean_deg", mean_of(e.v)},
-          {"ci95", {{"sun_error_median_deg", ci_json(e.v, e.g, Statistic::Median)},
-                    {"sun_error_mean_deg", ci_json(e.v, e.g, Statistic::Mean)}}},
-          {"sun", sun_stats_json(e, {}, {}, false)}};
-}
-
-// The baseline row: the constant direction scored on the same test crops.
-json baseline_json(const RealSkyData& r) {
-  Grouped all, in, out;
-  LdrSunSplits ldr;
-  for (const auto& c : r.test) {
-    if (!c.sun_known) continue;
-    const double e = angular_error_deg(r.baseline, c.sun_canonical);
-    all.add(e, c.panorama);
-    (c.sun_in_crop ? in : out).add(e, c.panorama);
-    if (r.ldr) ldr.add(c, e);
-  }
-  json j = {{"name", "constant baseline (mean training sun)"}, {"direction", {r.baseline.x, r.baseline.y, r.baseline.z}},
-            {"from_panoramas", r.baseline_from}, {"sun_error_median_deg", median(all.v)},
-            {"sun_error_mean_deg", mean_of(all.v)},
-            {"ci95", {{"sun_error_median_deg", ci_json(all.v, all.g, Statistic::Median)},
-                      {"sun_error_mean_deg", ci_json(all.v, all.g, Statistic::Mean)}}},
-            {"sun", sun_stats_json(all, in, out, true)}};
-  if (r.ldr) ldr.write(j);
-  return j;
 }
 
 // The LDR a camera at the panorama's centre sees (bilinear, render/equirect.h convention).
@@ -872,7 +646,7 @@ int run(int argc, char** argv) {
         entry["hdri_split"] = hdri_split;
       }
       entry["crops_per_panorama"] = crops;
-      if (real->has_baseline) baseline = entry["baseline"] = baseline_json(*real);
+      if (real->has_baseline) baseline = entry["baseline"] = real_sky_baseline_json(*real);
     }
     const std::string& split_file = ldr ? ldr_split : hdri_split;
     md += "## " + data + (street ? " (generated streets, split " + split + ")\n\n"

@@ -60,17 +60,19 @@ TEST(TrainConfig, ConfigsWithoutTheGridHeadKeyBuildThePooledHead) {
 namespace sl::test {
 namespace {
 
+// check_train_config's message for c, or "" when it accepts c.
+std::string refusal(const nlohmann::json& c) {
+  try {
+    train::check_train_config(c);
+  } catch (const Error& e) {
+    return std::string(e.what());
+  }
+  return std::string();
+}
+
 // The LDR panorama keys (configs/README.md, "Mixing"): the shares leave room for the streets, and
 // a share without its folder is refused naming the key.
 TEST(TrainConfig, LdrPanoramaSharesAreCheckedNamingTheirKeys) {
-  const auto refusal = [](const nlohmann::json& c) {
-    try {
-      train::check_train_config(c);
-    } catch (const Error& e) {
-      return std::string(e.what());
-    }
-    return std::string();
-  };
   nlohmann::json c = default_train_config();
   c["stage"] = "lighting";
   c["init"]["sky_checkpoint"] = "sky.safetensors";
@@ -98,14 +100,6 @@ TEST(TrainConfig, LdrPanoramaSharesAreCheckedNamingTheirKeys) {
 // train.freeze is a list of names, for the lighting stages only; a lighting stage may start from
 // a lighting checkpoint (an exported model) instead of a stage-1 one.
 TEST(TrainConfig, FreezeListAndTheLightingStagesStartingPoints) {
-  const auto refusal = [](const nlohmann::json& c) {
-    try {
-      train::check_train_config(c);
-    } catch (const Error& e) {
-      return std::string(e.what());
-    }
-    return std::string();
-  };
   nlohmann::json c = default_train_config();
   c["stage"] = "lighting";
   c["data"]["dataset"] = "streets";

@@ -14,7 +14,7 @@
 // --refine N (paper Fig. 7): N Adam steps on the sky vector (and with --refine-volume the volume)
 // against the stage-3 discriminator, train/lighting_refinement.h; the composite then uses the
 // refined lighting. N = 0 (the default) changes nothing.
-// Batch mode writes a KITTI folder in place, frame by frame (see batch() below), and resumes.
+// Batch mode writes a KITTI folder in place, frame by frame, and resumes (tools/common/insert_batch.h).
 #include <algorithm>
 #include <csignal>
 #include <cmath>
@@ -37,6 +37,8 @@
 #include "data/procedural_car.h"
 #include "render/gltf_loader.h"
 #include "tools/common/cli.h"
+#include "tools/common/insert_batch.h"
+#include "tools/common/insert_options.h"
 #include "train/batch_list.h"
 #include "train/inference.h"
 #include "train/lighting_refinement.h"
@@ -75,6 +77,10 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using namespace sl;
 using namespace sl::train;
+using sl::cli::configure_estimator;
+using sl::cli::insertion_options;
+using sl::cli::load_object;
+using sl::cli::warn_if_no_shadow_sun;
 
 namespace {
 
@@ -105,12 +111,6 @@ std::vector<double> parse_list(const std::string& flag, const std::string& v, si
   return out;
 }
 
-Mesh load_object(const std::string& spec) {
-  if (spec == "procedural:car") return to_object_frame(make_procedural_car());
-  SL_CHECK(fs::exists(spec), "object file '", spec, "' does not exist");
-  return to_object_frame(load_gltf(spec));
-}
-
 // Refuses to replace an --out folder that is not a previous streetlight-insert output.
 void check_replaceable(const std::string& out) {
   if (!fs::exists(out)) return;
@@ -123,32 +123,6 @@ void write_text(const std::string& path, const std::string& text) {
   std::ofstream f(path);
   f << text;
   SL_CHECK(f.good(), "cannot write '", path, "'");
-}
-
-PhotoInsertionOptions insertion_options(const cli::Args& a, const RadianceQueryOptions& volume_query) {
-  PhotoInsertionOptions o = a.has("--fast") ? train::fast_insertion_options() : PhotoInsertionOptions{};
-  o.aa_samples = static_cast<int>(a.integer("--aa", o.aa_samples));
-  o.light_samples = static_cast<int>(a.integer("--light-samples", o.light_samples));
-  o.shadow_rays = static_cast<int>(a.integer("--shadow-rays", o.shadow_rays));
-  o.shadow_width = static_cast<int>(a.integer("--shadow-width", o.shadow_width));
-  o.shadow_height = static_cast<int>(a.integer("--shadow-height", o.shadow_height));
-  o.adaptive_light_samples = a.number("--adaptive-samples", o.adaptive_light_samples);
-  o.denoise_radius = static_cast<int>(a.integer("--denoise-radius", o.denoise_radius));
-  o.exact_light_rays = static_cast<int>(a.integer("--exact-light-rays", o.exact_light_rays));
-  o.shadow_exact_rays = static_cast<int>(a.integer("--exact-shadow-rays", o.shadow_exact_rays));
-  o.radiance_cache = !a.has("--exact");
-  o.seed = static_cast<uint64_t>(a.integer("--seed", 0));
-  o.volume_query = volume_query;
-  SL_CHECK(o.aa_samples > 0 && o.light_samples > 0 && o.shadow_rays > 0 && o.shadow_width > 0 && o.shadow_height > 0,
-           "--aa, --light-samples, --shadow-rays, --shadow-width and --shadow-height must be positive");
-  SL_CHECK(std::isfinite(o.adaptive_light_samples) && o.adaptive_light_samples >= 0 && o.adaptive_light_samples <= 1024,
-           "--adaptive-samples must be in [0, 1024], got ", o.adaptive_light_samples);
-  SL_CHECK(o.denoise_radius >= 0 && o.denoise_radius <= 16, "--denoise-radius must be in [0, 16], got ", o.denoise_radius);
-  SL_CHECK(o.exact_light_rays >= 0 && o.exact_light_rays <= 64, "--exact-light-rays must be in [0, 64], got ",
-           o.exact_light_rays);
-  SL_CHECK(o.shadow_exact_rays >= 0 && o.shadow_exact_rays <= 64, "--exact-shadow-rays must be in [0, 64], got ",
-           o.shadow_exact_rays);
-  return o;
 }
 
 json vec_json(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
@@ -177,13 +151,6 @@ json crop_spread_json(const EstimatedLighting& light) {
   return std::isfinite(light.sun_crop_spread_deg) ? json(light.sun_crop_spread_deg) : json();
 }
 
-// The estimator's options shared by the single-image and the batch mode.
-void configure_estimator(LightingEstimator& est, const cli::Args& a) {
-  est.set_flip_average(!a.has("--no-flip-average"));
-  est.set_visible_sun(!a.has("--no-visible-sun"));
-  est.set_crop_scales(a.numbers("--crop-scales", {}, 0.0, 1.0));
-}
-
 json sun_json(const EstimatedLighting& light) {
   const glm::dvec3 sun = light.sun_direction_world();
   return {{"direction_world", vec_json(sun)},
@@ -194,14 +161,6 @@ json sun_json(const EstimatedLighting& light) {
           {"hedge", hedge_json(light)},
           {"crop_spread_deg", crop_spread_json(light)},
           {"visible_sun", visible_sun_json(light)}};
-}
-
-// --sun-from-shadows without a confident fit: say so on stderr (the network's sun stays).
-void warn_if_no_shadow_sun(const ShadowSunFit& fit, const std::string& depth_source, const std::string& frame) {
-  if (fit.found) return;
-  std::fprintf(stderr, "warning: --sun-from-shadows found no shadow the depth explains%s%s (score %.2f, %d ground "
-               "samples, depth: %s); keeping the network's sun\n", frame.empty() ? "" : " in ", frame.c_str(), fit.score,
-               fit.ground_samples, depth_source.c_str());
 }
 
 // --refine N, --refine-lr, --refine-volume, --discriminator: checked before anything is estimated
@@ -449,231 +408,6 @@ int single(const cli::Args& a) {
   return 0;
 }
 
-// Batch mode (Sec 4.4 augmentation). Inputs: a KITTI-layout folder (image_2/<id>.png with
-// calib/<id>.txt, optional label_2/<id>.txt, velodyne/<id>.bin for depth, or depth/<id>.png) or
-// a LIST.json of {image, intrinsics, depth?, lidar?, calib?, labels?, id?} (e.g. nuScenes front
-// cameras with a per-image intrinsics JSON). Output: a KITTI-layout folder with the same ids.
-struct BatchItem {
-  std::string id, labels, calib;
-  PhotoSources sources;
-};
-
-std::vector<BatchItem> batch_items(const std::string& spec, const cli::Args& a) {
-  std::vector<BatchItem> out;
-  auto base = [&](PhotoSources s) {
-    s.camera_height_m = a.number("--camera-height", 1.65);
-    s.pitch_deg = a.number("--pitch", 0.0);
-    return s;
-  };
-  if (fs::is_directory(spec)) {
-    const fs::path dir(spec);
-    SL_CHECK(fs::is_directory(dir / "image_2"), "batch folder '", spec, "' has no image_2/ subfolder");
-    std::vector<fs::path> images;
-    for (const auto& e : fs::directory_iterator(dir / "image_2"))
-      if (e.path().extension() == ".png" || e.path().extension() == ".jpg") images.push_back(e.path());
-    std::sort(images.begin(), images.end());
-    for (const auto& img : images) {
-      BatchItem it;
-      it.id = img.stem().string();
-      it.calib = (dir / "calib" / (it.id + ".txt")).string();
-      SL_CHECK(fs::exists(it.calib), "batch folder '", spec, "': image ", it.id, " has no calib/", it.id, ".txt");
-      if (fs::exists(dir / "label_2" / (it.id + ".txt"))) it.labels = (dir / "label_2" / (it.id + ".txt")).string();
-      PhotoSources s;
-      s.image = img.string();
-      s.intrinsics = it.calib;
-      if (fs::exists(dir / "depth" / (it.id + ".png"))) {
-        s.depth = (dir / "depth" / (it.id + ".png")).string();
-      } else if (fs::exists(dir / "velodyne" / (it.id + ".bin"))) {
-        s.lidar = (dir / "velodyne" / (it.id + ".bin")).string();
-        s.calib = it.calib;
-      }
-      it.sources = base(s);
-      out.push_back(it);
-    }
-  } else {
-    for (const BatchListEntry& entry : read_batch_list(spec)) {
-      BatchItem it;
-      it.id = entry.id;
-      it.labels = entry.labels;
-      it.calib = entry.sources.calib;
-      it.sources = base(entry.sources);
-      out.push_back(it);
-    }
-  }
-  SL_CHECK(!out.empty(), "--batch '", spec, "' lists no images");
-  std::set<std::string> ids;
-  for (const auto& it : out) SL_CHECK(ids.insert(it.id).second, "--batch '", spec, "': id '", it.id, "' appears twice");
-  return out;
-}
-
-// The fraction of `box` (x1 y1 x2 y2) covered by mask [H, W] values above 0.5.
-double covered_fraction(const std::vector<float>& mask, int W, int H, const std::array<double, 4>& box) {
-  const int x0 = std::clamp(int(std::floor(box[0])), 0, W), x1 = std::clamp(int(std::ceil(box[2])), 0, W);
-  const int y0 = std::clamp(int(std::floor(box[1])), 0, H), y1 = std::clamp(int(std::ceil(box[3])), 0, H);
-  if (x1 <= x0 || y1 <= y0) return 0.0;
-  int64_t n = 0;
-  for (int y = y0; y < y1; ++y)
-    for (int x = x0; x < x1; ++x) n += mask[size_t(y) * W + x] > 0.5f;
-  return double(n) / (double(x1 - x0) * (y1 - y0));
-}
-
-// Whether a new box's footprint comes within 0.3 m of a labelled object's (input labels and
-// objects inserted before). DontCare regions (no 3D box) do not count.
-bool overlaps_any(const std::array<double, 7>& b, const std::vector<KittiLabel>& a, const std::vector<KittiLabel>& c) {
-  for (const auto* list : {&a, &c})
-    for (const KittiLabel& l : *list)
-      if (l.box3d[1] > 0 && l.box3d[2] > 0 && l.box3d[5] > -100 && footprints_within(b, l.box3d, 0.3)) return true;
-  return false;
-}
-
-// Test hook: STREETLIGHT_INSERT_KILL_AFTER=k kills the process (SIGKILL) after k images, in the
-// middle of image k + 1 with its files written under temporary names: what a kill can leave.
-int kill_after() {
-  const char* v = std::getenv("STREETLIGHT_INSERT_KILL_AFTER");
-  return v ? std::atoi(v) : -1;
-}
-
-struct BatchResult {
-  int placed = 0;
-  std::string depth_source;
-  std::optional<bool> sun_from_shadows;  // with --sun-from-shadows: whether the fit was used
-};
-
-BatchResult augment_one(const cli::Args& a, LightingEstimator& est, const std::vector<Mesh>& objects,
-                        const BatchItem& item, uint64_t item_index, const fs::path& out, int done_so_far) {
-  Photo photo = load_photo(item.sources);
-  std::vector<KittiLabel> labels = item.labels.empty() ? std::vector<KittiLabel>{} : read_kitti_labels(item.labels);
-  const std::string calib = item.calib.empty() ? kitti_calibration_from_intrinsics(photo.camera.intrinsics())
-                                               : kitti_calibration_text(item.calib);
-  std::optional<ShadowSunLighting> shadow;
-  if (a.has("--sun-from-shadows")) {
-    shadow = estimate_with_shadow_sun(est, {photo.ldr, photo.depth, photo.camera});
-    warn_if_no_shadow_sun(shadow->fit, photo.depth_source, item.id);
-  }
-  const EstimatedLighting light = shadow ? shadow->lighting : est.estimate({{photo.ldr, photo.depth, photo.camera}});
-  const int per_image = static_cast<int>(a.integer("--objects-per-image", 1));
-  const uint64_t seed = static_cast<uint64_t>(a.integer("--seed", 0));
-  const Intrinsics& k = photo.camera.intrinsics();
-  std::vector<float> inserted(size_t(k.width) * k.height, 0.0f);  // union of the inserted objects' masks
-  std::vector<KittiLabel> added;
-  Rng rng(seed, item_index);
-  BatchResult res;
-  res.depth_source = photo.depth_source;
-  if (shadow) res.sun_from_shadows = shadow->fit.found;
-  for (int attempt = 0; attempt < 40 * per_image && res.placed < per_image; ++attempt) {
-    // A random spot on the road ahead: 6-25 m forward, within ±4 m of the centre line.
-    Placement pose;
-    pose.x_m = rng.uniform(-4.0, 4.0);
-    pose.z_m = -rng.uniform(6.0, 25.0);
-    pose.yaw_deg = rng.uniform(0.0, 360.0);
-    const Mesh& obj = objects[static_cast<size_t>(rng.randint(static_cast<int64_t>(objects.size())))];
-    if (overlaps_any(kitti_box3d(obj, pose, photo.camera), labels, added)) continue;  // never park in a real car
-    PhotoInsertion ins;
-    try {
-      PhotoInsertionOptions o = insertion_options(a, est.volume_query());
-      o.seed = hash_counter(seed, item_index, static_cast<uint64_t>(attempt));
-      ins = insert_into_photo(light, photo.ldr, photo.depth, photo.camera, obj, pose, o);
-    } catch (const Error&) {
-      continue;  // not on the ground / outside the view: draw another spot
-    }
-    if (!ins.visible) continue;
-    photo.ldr = ins.composite_ldr;  // later objects go into the augmented photo...
-    const float* m = ins.object_mask.data<float>();
-    const float* z = ins.object_depth.data<float>();
-    float* d = photo.depth.data<float>();
-    for (size_t p = 0; p < inserted.size(); ++p)
-      if (m[p] > 0.5f) {
-        inserted[p] = 1.0f;
-        d[p] = z[p];  // ...and stand in front of what they cover
-      }
-    KittiLabel l;
-    l.type = "Car";
-    l.box2d = ins.box2d;
-    l.box3d = ins.box3d;
-    l.truncated = ins.truncated;
-    l.occluded = occlusion_level(ins.hidden_fraction);
-    l.alpha = std::remainder(ins.box3d[6] - std::atan2(ins.box3d[3], ins.box3d[5]), 2 * kPi);
-    const std::vector<float> this_mask(m, m + inserted.size());
-    for (KittiLabel& prev : added) cover_label(prev, covered_fraction(this_mask, k.width, k.height, prev.box2d));
-    added.push_back(l);
-    ++res.placed;
-  }
-  for (KittiLabel& l : labels) cover_label(l, covered_fraction(inserted, k.width, k.height, l.box2d));
-  std::string text;
-  for (const auto* list : {&labels, &added})
-    for (const KittiLabel& l : *list) text += format_kitti_label(l) + "\n";
-  // Image last: its presence marks the frame finished (resume skips it).
-  const std::string label_path = (out / "label_2" / (item.id + ".txt")).string();
-  const std::string calib_path = (out / "calib" / (item.id + ".txt")).string();
-  const std::string image_path = (out / "image_2" / (item.id + ".png")).string();
-  AtomicFile label_file(label_path), calib_file(calib_path);
-  label_file.write(text.data(), text.size());
-  calib_file.write(calib.data(), calib.size());
-  if (kill_after() == done_so_far) std::raise(SIGKILL);
-  label_file.commit();
-  calib_file.commit();
-  ImageWriteOptions lin;
-  lin.transfer = Transfer::Linear;
-  write_image(image_path, photo.ldr, lin);
-  return res;
-}
-
-int batch(const cli::Args& a) {
-  SL_CHECK(a.has("--out"), "--batch needs --out DIR");
-  const std::vector<BatchItem> items = batch_items(a.get("--batch"), a);
-  const std::vector<std::string> specs = a.has("--object") ? a.all("--object") : std::vector<std::string>{"procedural:car"};
-  std::vector<Mesh> objects;
-  for (const auto& s : specs) objects.push_back(load_object(s));
-  // The output folder is written in place, frame by frame, so that a run can resume: batch.json
-  // marks it as this tool's, a frame is finished when its image exists (written last), and
-  // leftovers of a killed run (util/file.h temporaries of a process that is gone) are removed first.
-  const fs::path out(a.get("--out"));
-  const json marker = {{"tool", "streetlight-insert --batch"}, {"input", fs::absolute(a.get("--batch")).string()}};
-  if (fs::exists(out)) {
-    SL_CHECK(fs::is_directory(out), "--out '", out.string(), "' exists and is not a folder");
-    if (fs::exists(out / "batch.json")) {
-      std::ifstream f(out / "batch.json");
-      json prev;
-      try {
-        prev = json::parse(f);
-      } catch (const std::exception&) {
-      }
-      SL_CHECK(prev.value("input", "") == marker["input"], "--out '", out.string(), "' holds a batch of another input ('",
-               prev.value("input", "?"), "'); choose another folder");
-    } else {
-      SL_CHECK(fs::is_empty(out), "--out '", out.string(), "' exists and is not a streetlight-insert batch; choose another folder");
-    }
-  }
-  LightingEstimator est(a.has("--checkpoint") ? a.get("--checkpoint") : cli::released_model_path());
-  configure_estimator(est, a);
-  for (const char* d : {"image_2", "label_2", "calib"}) fs::create_directories(out / d);
-  write_file_atomic((out / "batch.json").string(), marker.dump(2) + "\n");
-  for (const char* d : {"image_2", "label_2", "calib"}) sweep_stale_temp_files((out / d).string());
-  std::vector<size_t> todo;
-  for (size_t i = 0; i < items.size(); ++i)
-    if (!fs::exists(out / "image_2" / (items[i].id + ".png"))) todo.push_back(i);
-  if (todo.size() < items.size())
-    std::fprintf(stderr, "resuming: %zu of %zu images already finished\n", items.size() - todo.size(), items.size());
-  cli::Progress progress("insert", static_cast<int64_t>(todo.size()));
-  int done = 0, placed = 0;
-  json this_run = json::array();
-  for (size_t i : todo) {
-    const BatchResult r = augment_one(a, est, objects, items[i], i, out, done);
-    placed += r.placed;
-    this_run.push_back({{"id", items[i].id}, {"objects", r.placed}, {"depth", r.depth_source}});
-    if (r.sun_from_shadows) this_run.back()["sun_from_shadows"] = *r.sun_from_shadows;
-    progress.update(++done, items[i].id);
-  }
-  progress.finish();
-  std::vector<std::string> ids;
-  for (const auto& it : items) ids.push_back(it.id);
-  const json summary = {{"images", items.size()}, {"objects_this_run", placed}, {"ids", ids}, {"this_run", this_run}};
-  write_file_atomic((out / "result.json").string(), summary.dump(2) + "\n");
-  if (a.has("--json")) std::cout << summary.dump() << "\n";
-  std::fprintf(stderr, "wrote %zu images to %s (%d this run)\n", items.size(), out.string().c_str(), done);
-  return 0;
-}
-
 int run(int argc, char** argv) {
   cli::Args a("streetlight-insert",
               "streetlight-insert --image PHOTO --intrinsics FILE --object MODEL.glb --at X,Z [--yaw DEG] [--scale S]\n"
@@ -745,7 +479,7 @@ int run(int argc, char** argv) {
                {"--json", "", "print result.json on stdout"}});
   if (!a.parse(argc, argv)) return 0;
   SL_CHECK(!a.has("--batch") || a.integer("--refine", 0) == 0, "--refine works on one image; it is not available with --batch");
-  return a.has("--batch") ? batch(a) : single(a);
+  return a.has("--batch") ? cli::insert_batch(a) : single(a);
 }
 
 }  // namespace

@@ -1,0 +1,27 @@
+// The flags both modes of streetlight-insert share (a single photo, and --batch): the object to
+// insert, the insertion's sampling options (train/photo_insertion.h), the estimator's options, and
+// the warning when --sun-from-shadows finds no shadow to fit.
+// Throws: sl::Error naming the flag or the file (exit 2 through cli::run_main).
+#pragma once
+#include <string>
+
+#include "data/sun_from_shadows.h"
+#include "render/mesh.h"
+#include "render/radiance_query.h"
+#include "tools/common/cli.h"
+#include "train/inference.h"
+#include "train/photo_insertion.h"
+
+namespace sl::cli {
+
+// "procedural:car" or a glTF file, in the object frame (data/procedural_car.h, to_object_frame).
+render::Mesh load_object(const std::string& spec);
+// --fast, --aa, --light-samples, --shadow-rays, --shadow-width, --shadow-height,
+// --adaptive-samples, --denoise-radius, --exact-light-rays, --exact-shadow-rays, --exact, --seed.
+train::PhotoInsertionOptions insertion_options(const Args& a, const render::RadianceQueryOptions& volume_query);
+// --no-flip-average, --no-visible-sun, --crop-scales.
+void configure_estimator(train::LightingEstimator& est, const Args& a);
+// --sun-from-shadows without a confident fit: one warning line on stderr (the network's sun stays).
+void warn_if_no_shadow_sun(const data::ShadowSunFit& fit, const std::string& depth_source, const std::string& frame);
+
+}  // namespace sl::cli

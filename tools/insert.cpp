@@ -49,29 +49,14 @@
 #include "util/math.h"
 #include "util/random.h"
 
-using sl::data::cover_label;
-using sl::data::footprints_within;
-using sl::data::format_kitti_label;
 using sl::data::ImageWriteOptions;
-using sl::data::kitti_box3d;
-using sl::data::kitti_calibration_from_intrinsics;
-using sl::data::kitti_calibration_text;
-using sl::data::KittiLabel;
-using sl::data::make_procedural_car;
-using sl::data::occlusion_level;
-using sl::data::read_kitti_labels;
-using sl::data::ShadowSunFit;
 using sl::train::estimate_with_shadow_sun;
 using sl::train::ShadowSunLighting;
-using sl::data::to_object_frame;
 using sl::data::Transfer;
 using sl::data::write_depth;
 using sl::data::write_image;
-using sl::render::Intrinsics;
-using sl::render::load_gltf;
 using sl::render::Mesh;
 using sl::render::Placement;
-using sl::render::RadianceQueryOptions;
 
 namespace fs = std::filesystem;
 using nlohmann::json;

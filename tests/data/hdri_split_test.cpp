@@ -122,19 +122,20 @@ TEST(HdriSplit, TheHdriSplitCoversAll64PanoramasAndKeepsTheFirst40WhereTheyWere)
   expect_covers_exactly(s, folder, images_in(folder, {".hdr", ".exr"}));
 }
 
-TEST(HdriSplit, TheLdrPanoramaSplitKeepsEveryPlaceInOneSplit) {
-  const HdriSplit s = read_hdri_split(config("pano_ldr_split.json"));
-  const auto split = split_of(s);
-  EXPECT_EQ(split.size(), 69u);
-  // Places: a repository is one place (forks of one repository name are one), except those
-  // MANIFEST says hold several (googlearchive, All4Gis, pchen66: one place per file, All4Gis'
-  // two commits of image.jpg together); VGiudicelli1/TSI_panoramax by capture (Strasbourg, Lyon,
-  // the car-mounted uuid files).
+namespace {
+
+// The first split's 69 panoramas (configs/pano_ldr_split_69.json): places from their file names.
+// A repository is one place (forks of one repository name are one), except those MANIFEST says
+// hold several (googlearchive, All4Gis, pchen66: one place per file, All4Gis' two commits of
+// image.jpg together); VGiudicelli1/TSI_panoramax by capture (Strasbourg, Lyon, the car-mounted
+// uuid files).
+std::map<std::string, std::set<std::string>> first_split_places(const std::map<std::string, std::string>& split) {
   const std::regex uuid("^[0-9a-f]{8}-[0-9a-f]{4}-.*");
   std::map<std::string, std::set<std::string>> places;
   for (const auto& [file, sp] : split) {
     const size_t a = file.find("__"), b = file.find("__", a + 2);
-    ASSERT_TRUE(a != std::string::npos && b != std::string::npos) << file << " is not owner__repository__name";
+    EXPECT_TRUE(a != std::string::npos && b != std::string::npos) << file << " is not owner__repository__name";
+    if (a == std::string::npos || b == std::string::npos) continue;
     const std::string owner = file.substr(0, a), repo = file.substr(a + 2, b - a - 2), name = file.substr(b + 2);
     std::string place = repo;
     if (owner == "googlearchive" || owner == "pchen66") place = file;
@@ -143,32 +144,84 @@ TEST(HdriSplit, TheLdrPanoramaSplitKeepsEveryPlaceInOneSplit) {
       place = name.rfind("lyon_", 0) == 0 ? "Lyon" : std::regex_match(name, uuid) ? "water tower" : "Strasbourg";
     places[place].insert(file);
   }
-  expect_groups_whole(split, places);
+  return places;
+}
+
+// places.csv (file,place) of the panoramas added on 2026-11-28: place → files.
+std::map<std::string, std::set<std::string>> read_places(const std::string& path) {
+  std::map<std::string, std::set<std::string>> places;
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  if (!line.empty() && line.back() == '\r') line.pop_back();  // the file has CRLF line ends
+  EXPECT_EQ(line, "file,place") << path;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const size_t comma = line.find(',');
+    if (comma == std::string::npos) continue;
+    std::string place = line.substr(comma + 1);
+    if (place.size() >= 2 && place.front() == '"') place = place.substr(1, place.size() - 2);
+    places[place].insert(line.substr(0, comma));
+  }
+  return places;
+}
+
+}  // namespace
+
+TEST(HdriSplit, TheFirstLdrPanoramaSplitKeepsEveryPlaceInOneSplit) {
+  const HdriSplit s = read_hdri_split(config("pano_ldr_split_69.json"));
+  const auto split = split_of(s);
+  EXPECT_EQ(split.size(), 69u);
+  expect_groups_whole(split, first_split_places(split));
   // The near-duplicates MANIFEST names, explicitly.
   const std::string t = "VGiudicelli1__TSI_panoramax__", p = "proysm__Univ-Street-View__";
   expect_groups_whole(split, {{"lyon_1", {t + "lyon_1_1.jpg", t + "lyon_1_2.jpg", t + "lyon_1_3.jpg"}},
                               {"stra_3", {t + "stra_3_2.jpg", t + "stra_3_3.jpg", t + "stra_3_4.jpg"}},
                               {"street_view", {p + "Street_View_3602_1.jpg", p + "Street_View_360_1.jpg"}}});
+}
+
+TEST(HdriSplit, TheLdrPanoramaSplitKeepsEveryPlaceInOneSplit) {
+  const HdriSplit s = read_hdri_split(config("pano_ldr_split.json"));
+  const auto split = split_of(s);
+  const HdriSplit first = read_hdri_split(config("pano_ldr_split_69.json"));
+  // The first split's panoramas keep their split, so that its test figures stay comparable.
+  for (const auto& [file, sp] : split_of(first)) {
+    ASSERT_TRUE(split.count(file)) << file << " of pano_ldr_split_69.json is missing";
+    EXPECT_EQ(split.at(file), sp) << file;
+  }
   std::map<std::string, size_t> count;
   for (const auto& [f, sp] : split) ++count[sp];
-  EXPECT_GE(count["train"], 38u);  // about 60 / 15 / 25
-  EXPECT_GE(count["val"], 8u);
-  EXPECT_GE(count["test"], 15u);
+  EXPECT_GE(count["train"], 450u);  // about 60 / 15 / 25 (scripts/make_pano_ldr_split.py)
+  EXPECT_GE(count["val"], 100u);
+  EXPECT_GE(count["test"], 180u);
   const std::string folder = shared_data("pano_ldr");
   if (!fs::is_directory(folder)) GTEST_SKIP() << "needs ../shared/data/pano_ldr (not in a fresh clone) for the folder check";
   expect_covers_exactly(s, folder, images_in(folder, {".jpg"}));
-  // The test split has enough labelled suns and streets to report on (data/sun_labels.h).
+  // One place, one split: places.csv names the place of every added panorama.
+  const auto places = read_places(folder + "/places.csv");
+  EXPECT_EQ(places.size(), 111u);
+  size_t placed = 0;
+  for (const auto& [place, files] : places) placed += files.size();
+  EXPECT_EQ(placed, 804u);
+  expect_groups_whole(split, places);
+  // The test split has enough labelled suns, streets and places to report on (data/sun_labels.h).
   const sl::data::SunLabels labels = sl::data::read_sun_labels(folder + "/sun_labels.csv");
-  size_t visible = 0, street = 0, scored = 0;
+  size_t visible = 0, street = 0, scored = 0, street_visible = 0;
   for (const auto& l : labels.rows) {
     if (split.at(l.file) != "test") continue;
     visible += l.sun == sl::data::SunVisibility::Visible;
     street += l.scene == sl::data::SceneKind::Street;
     scored += l.has_position;
+    street_visible += l.scene == sl::data::SceneKind::Street && l.sun == sl::data::SunVisibility::Visible;
   }
-  EXPECT_GE(visible, 6u);
-  EXPECT_GE(street, 12u);
-  EXPECT_GE(scored, 12u);
+  EXPECT_GE(visible, 60u);
+  EXPECT_GE(street, 60u);
+  EXPECT_GE(scored, 60u);
+  EXPECT_GE(street_visible, 25u);
+  std::set<std::string> test_places;
+  for (const auto& [place, files] : places)
+    if (split.at(*files.begin()) == "test") test_places.insert(place);
+  EXPECT_GE(test_places.size(), 20u) << "the test split's suns come from too few places";
 }
 
 TEST(HdriSplit, ANameInTwoSplitsIsRefusedNamingTheFileAndTheName) {

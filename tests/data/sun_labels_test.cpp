@@ -240,7 +240,7 @@ TEST(SunLabels, TheSharedPanoramaLabelsParseWithTheirManifestCounts) {
   const std::string path = shared_data("pano_ldr/sun_labels.csv");
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "needs ../shared/data/pano_ldr (not in a fresh clone)";
   const SunLabels l = read_sun_labels(path);
-  ASSERT_EQ(l.rows.size(), 69u);
+  ASSERT_EQ(l.rows.size(), 873u);
   std::map<SunVisibility, int> sun;
   std::map<LabelConfidence, int> conf;
   std::map<SceneKind, int> scene;
@@ -253,16 +253,18 @@ TEST(SunLabels, TheSharedPanoramaLabelsParseWithTheirManifestCounts) {
       EXPECT_NEAR(glm::length(l.direction(r, 2048, 1024)), 1.0, 1e-12);
     }
   }
-  // MANIFEST.md: 31 visible, 19 occluded (most with a position), 19 none.
-  EXPECT_EQ(sun[SunVisibility::Visible], 31);
-  EXPECT_EQ(sun[SunVisibility::Occluded], 19);
-  EXPECT_EQ(sun[SunVisibility::None], 19);
-  EXPECT_EQ(occluded_placed, 13);
-  EXPECT_EQ(conf[LabelConfidence::High], 38);
-  EXPECT_EQ(conf[LabelConfidence::Medium], 22);
-  EXPECT_EQ(conf[LabelConfidence::Low], 9);
-  EXPECT_EQ(scene[SceneKind::Street], 51);
-  EXPECT_EQ(scene[SceneKind::Other], 18);
+  // MANIFEST.md: the first 69 (31 visible, 19 occluded of which 13 placed, 19 none; 51 streets)
+  // and the 804 added on 2026-11-28 (396 visible, 146 occluded of which 7 placed, 262 none; 440
+  // streets).
+  EXPECT_EQ(sun[SunVisibility::Visible], 31 + 396);
+  EXPECT_EQ(sun[SunVisibility::Occluded], 19 + 146);
+  EXPECT_EQ(sun[SunVisibility::None], 19 + 262);
+  EXPECT_EQ(occluded_placed, 13 + 7);
+  EXPECT_EQ(conf[LabelConfidence::High], 195);
+  EXPECT_EQ(conf[LabelConfidence::Medium], 321);
+  EXPECT_EQ(conf[LabelConfidence::Low], 357);
+  EXPECT_EQ(scene[SceneKind::Street], 51 + 440);
+  EXPECT_EQ(scene[SceneKind::Other], 18 + 364);
   // A note with commas is one field (it was quoted in the file).
   const auto* image = l.find("All4Gis__EquirectangularViewer__image.jpg");
   ASSERT_NE(image, nullptr);

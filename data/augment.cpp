@@ -85,6 +85,8 @@ StreetSample flip_sample(const StreetSample& s) {
   out.pano_position = mirror(s.pano_position);
   out.sun_direction = mirror(s.sun_direction);
   out.sun_known = s.sun_known;
+  out.sun_weight = s.sun_weight;
+  out.input_tone_gamma = s.input_tone_gamma;
   out.hdr_sky = s.hdr_sky;
   out.exposure = s.exposure;
   out.insert_light_probe_hdr = flip_pano(s.insert_light_probe_hdr);

@@ -82,6 +82,8 @@ StreetSample ldr_panorama_street_sample(const LdrPanorama& pano, const std::stri
   const glm::dvec3 sun = rotate_direction_azimuth(pano.sun_direction, delta);
   s.sun_direction = draw.flip ? flip_panorama_direction(sun) : sun;
   s.sun_known = pano.sun_known;
+  s.sun_weight = pano.sun_weight;
+  s.input_tone_gamma = draw.tone_gamma;
   s.hdr_sky = false;  // codes^2.2 are clipped where the sun is: no measure of its energy
   StreetView v;
   v.camera = rc.crop.camera;

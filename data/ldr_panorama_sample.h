@@ -50,6 +50,7 @@ struct LdrPanorama {
   // again (the same bits); undefined: computed per sample.
   Tensor linear;
   bool sun_known = false;
+  double sun_weight = 1.0;  // StreetSample::sun_weight of its samples
   glm::dvec3 sun_direction{0.0, 1.0, 0.0};  // world, unrotated panorama
 };
 

@@ -84,6 +84,7 @@ PanoramaSampleDraw draw_panorama_sample(uint64_t seed, uint64_t stream, int64_t 
   for (double& g : d.gain) g = std::exp2(rng.uniform(-1.0, 1.0) * o.white_balance_stops);
   d.exposure_jitter = std::exp2(rng.uniform(-1.0, 1.0) * o.exposure_stops);
   d.crop_stream = rng.next_u64();
+  if (o.tone_stops > 0.0) d.tone_gamma = std::exp2(rng.uniform(-1.0, 1.0) * o.tone_stops);
   return d;
 }
 
@@ -135,6 +136,7 @@ StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id
   StreetView v;
   v.hdr = hdr;
   v.ldr = to_ldr(hdr, exposure);
+  s.input_tone_gamma = draw.tone_gamma;
   v.depth = Tensor::zeros({o.crop.height, o.crop.width}, DType::F32);
   v.sky_mask = view_mask;
   v.camera = crop.crop.camera;

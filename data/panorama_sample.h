@@ -50,6 +50,8 @@ struct PanoramaSampleOptions {
   bool rotate = true;                        // false only for tests
   double hard_sun_share = 0.25;
   double hard_sun_radius_deg = 5.0;
+  double low_label_weight = 1.0;             // LDR panoramas: sun_weight of a low-confidence label
+  double tone_stops = 0.0;                   // input tone curve: gamma 2^u, u uniform in ±tone_stops
 };
 
 struct SunHardness {
@@ -81,6 +83,7 @@ struct PanoramaSampleDraw {
   double gain[3] = {1.0, 1.0, 1.0};
   double exposure_jitter = 1.0;
   uint64_t crop_stream = 0;
+  double tone_gamma = 1.0;  // drawn after everything else, so draws without it are unchanged
 };
 PanoramaSampleDraw draw_panorama_sample(uint64_t seed, uint64_t stream, int64_t width,
                                         const PanoramaSampleOptions& options = {});

@@ -46,6 +46,14 @@ struct StreetSample {
   // False where the sun direction is not a usable label (a real panorama whose sun is soft or
   // below the horizon, data/panorama_sample.h): the direction loss and sun metrics skip it.
   bool sun_known = true;
+  // The weight of that label in the direction losses: 1, or data.ldr_low_label_weight for an LDR
+  // panorama whose label is of low confidence (a hazy glare, a sun placed by hand).
+  double sun_weight = 1.0;
+  // A tone curve on the network's INPUT only (the view's LDR raised to this power before it is
+  // resized into the image and unprojected; the rays' targets keep the view's LDR): the
+  // tone-curve jitter of real crops (data/panorama_sample.h tone_stops), so photos from
+  // cameras with other curves look like one domain. 1: none.
+  double input_tone_gamma = 1.0;
   // False where sky_hdr is not linear radiance but a stand-in: an LDR panorama's codes^2.2, clipped
   // at the sun (data/ldr_panorama_sample.h). Its sun's energy is then no label.
   bool hdr_sky = true;

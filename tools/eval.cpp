@@ -17,7 +17,8 @@
 //   confidence: each labelled image's flip spread (train/inference.h sun_flip_spread_deg), sun
 //     height (sun_hedge) and crop spread (sun_crop_spread_deg) in "sun_per_image", and for each
 //     measure ("sun_confidence" by the flip spread, "sun_confidence_hedge" by the height,
-//     "sun_confidence_crop" by the crop spread) the median sun error of the most confident half of the
+//     "sun_confidence_crop" by the crop spread, "sun_confidence_probability" by the sun head's
+//     probability near its mode, per image "sun_probability" and its complement "sun_doubt") the median sun error of the most confident half of the
 //     images against the rest's, each with its 95% interval (train/sun_confidence.h: does a small
 //     measure mean a small error?). The per-image "predicted_sun_share" is the predicted sky's
 //     share of its light near its sun.
@@ -219,6 +220,9 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   // input camera's canonical frame), so failures can be found and looked at.
   json per_image = json::array();
   Confidence confidence{"sun_flip_spread_deg"}, confidence_hedge{"sun_hedge"}, confidence_crop{"sun_crop_spread_deg"};
+  // The sun head's probability near its mode (train/inference.h sun_probability; larger is more
+  // confident), ranked as 1 − p so that, as for the spreads, smaller ranks first.
+  Confidence confidence_probability{"sun_doubt"};
   std::vector<glm::dvec3> parts_predicted, parts_truth;  // for train/sun_error_parts.h
   const auto add_image = [&](const std::string& id, const glm::dvec3& predicted, const glm::dvec3& truth, double e,
                              const EstimatedLighting& l) {
@@ -229,11 +233,14 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
                          {"truth", {truth.x, truth.y, truth.z}},
                          {"sun_flip_spread_deg", std::isfinite(spread) ? json(spread) : json()},
                          {"sun_hedge", std::isfinite(hedge) ? json(hedge) : json()},
-                         {"sun_crop_spread_deg", std::isfinite(crop) ? json(crop) : json()}});
+                         {"sun_crop_spread_deg", std::isfinite(crop) ? json(crop) : json()},
+                         {"sun_probability", std::isfinite(l.sun_probability) ? json(l.sun_probability) : json()},
+                         {"sun_doubt", std::isfinite(l.sun_probability) ? json(1.0 - l.sun_probability) : json()}});
     const std::string group = id.substr(0, id.find('#'));  // a real crop's group is its panorama
     confidence.add(spread, e, group);
     confidence_hedge.add(hedge, e, group);
     confidence_crop.add(crop, e, group);
+    confidence_probability.add(1.0 - l.sun_probability, e, group);
   };
   std::vector<double> ms;
   size_t sun_unknown = 0;  // samples whose sun label is not usable (soft sun): no sun error
@@ -384,6 +391,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
   r["sun_confidence"] = confidence.to_json();
   r["sun_confidence_hedge"] = confidence_hedge.to_json();
   r["sun_confidence_crop"] = confidence_crop.to_json();
+  r["sun_confidence_probability"] = confidence_probability.to_json();
   json ci = {{"sun_error_median_deg", ci_json(sun_err.v, sun_err.g, Statistic::Median)},
              {"sun_error_mean_deg", ci_json(sun_err.v, sun_err.g, Statistic::Mean)},
              {"psnr", ci_json(ps.v, ps.g, Statistic::Mean)}, {"si_psnr", ci_json(sps.v, sps.g, Statistic::Mean)},

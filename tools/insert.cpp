@@ -7,7 +7,8 @@
 //   composite.png (+ composite.exr with --exr), object_mask.png, shadow_map.png, sky.exr,
 //   sky.png (tone-mapped, world azimuths), depth.exr (the depth used), result.json (sun, with
 //   flip_spread_deg, hedge and crop_spread_deg: the network's confidences, train/inference.h
-//   sun_flip_spread_deg, sun_hedge and sun_crop_spread_deg (smaller is more confident for all), and
+//   sun_flip_spread_deg, sun_hedge and sun_crop_spread_deg (smaller is more confident for all),
+//   probability: train/inference.h sun_probability (models with a sun head; larger is more confident), and
 //   visible_sun: whether a sun disk in the photo set the direction, and its pixel; placement,
 //   boxes, KITTI label line, timings; with --refine N > 0 the discriminator loss and the sun
 //   before and after refinement), label.txt (the KITTI line).
@@ -145,6 +146,7 @@ json sun_json(const EstimatedLighting& light) {
           {"flip_spread_deg", spread_json(light)},
           {"hedge", hedge_json(light)},
           {"crop_spread_deg", crop_spread_json(light)},
+          {"probability", std::isfinite(light.sun_probability) ? json(light.sun_probability) : json()},
           {"visible_sun", visible_sun_json(light)}};
 }
 

@@ -185,6 +185,7 @@ LightingEstimator::Single LightingEstimator::predict_one(const InferenceView& v)
   }
   s.pred = predictor_->predict(image, rgba);
   if (!s.pred.code.dir.defined()) return s;
+  if (s.pred.sun_logits.defined()) return sun_from_distribution(v, image, std::move(s));
   // The sun of one network input, averaged with its mirror image's under flip averaging (the
   // flipped pass's direction mirrored back: (x, y, z) → (−x, y, z), exact for a level camera).
   // Returns the direction (not normalised) and, flipped, the mirror pass's log intensity.
@@ -238,6 +239,59 @@ LightingEstimator::Single LightingEstimator::predict_one(const InferenceView& v)
   return s;
 }
 
+LightingEstimator::Single LightingEstimator::sun_from_distribution(const InferenceView& v, const Tensor& image,
+                                                                  Single s) {
+  // The sun's distribution (train/sun_distribution.h), averaged over the photo's pass and the
+  // mirror image of the mirrored photo's pass (flip averaging) and over the centred crops (crop
+  // averaging), then read at its mode: probabilities are averaged, never directions, so two
+  // passes that disagree keep two peaks instead of meeting between them.
+  const LightingPredictorOptions& po = predictor_->options();
+  const SunGrid& grid = po.sun_grid;
+  const auto probs_of = [&](const Tensor& logits) { return softmax_row(select(logits, 0, 0).to_vector()); };
+  std::vector<double> log_i = to_doubles(s.pred.code.log_intensity);
+  std::vector<double> p = probs_of(s.pred.sun_logits);
+  double passes = 1.0;
+  const auto add_input = [&](const Tensor& input, const std::vector<double>* own, bool keep_intensity) {
+    std::vector<double> q = own ? *own : probs_of(predictor_->predict_sky(input).sun_logits);
+    if (!own) {
+      for (size_t k = 0; k < p.size(); ++k) p[k] += q[k];
+      passes += 1.0;
+    }
+    if (!flip_average_) return q;
+    const SkyPrediction m = predictor_->predict_sky(unsqueeze(data::flip_horizontal(select(input, 0, 0).contiguous()), 0));
+    const std::vector<double> mq = mirror_cells(grid, probs_of(m.sun_logits));
+    for (size_t k = 0; k < p.size(); ++k) p[k] += mq[k];
+    passes += 1.0;
+    if (keep_intensity) {
+      const std::vector<double> ml = to_doubles(m.code.log_intensity);
+      for (size_t i = 0; i < log_i.size(); ++i) log_i[i] = 0.5 * (log_i[i] + ml[i]);
+      s.flip_spread_deg = angle_deg(read_sun_distribution(grid, q).direction, read_sun_distribution(grid, mq).direction);
+    }
+    return q;
+  };
+  const std::vector<double> own = p;
+  add_input(image, &own, true);
+  if (!crop_scales_.empty()) {
+    const glm::dvec3 photo = read_sun_distribution(grid, p).direction;
+    s.crop_spread_deg = 0.0;
+    const int64_t H = v.ldr.size(1), W = v.ldr.size(2);
+    for (const double scale : crop_scales_) {
+      const int64_t y0 = std::min<int64_t>((H - 1) / 2, std::lround(H * (1.0 - scale) / 2.0)),
+                    x0 = std::min<int64_t>((W - 1) / 2, std::lround(W * (1.0 - scale) / 2.0));
+      const Tensor crop = slice(slice(v.ldr, 1, y0, H - y0), 2, x0, W - x0).contiguous();
+      const Tensor input = unsqueeze(resize_bilinear(crop, po.image_height, po.image_width), 0);
+      const std::vector<double> q = add_input(input, nullptr, false);
+      s.crop_spread_deg = std::max(s.crop_spread_deg, angle_deg(photo, read_sun_distribution(grid, q).direction));
+    }
+  }
+  for (double& x : p) x /= passes;
+  const SunReadout r = read_sun_distribution(grid, p);
+  s.sun_probability = r.confidence;
+  s.pred.code.dir = Tensor::from_vector({r.direction.x, r.direction.y, r.direction.z}, {1, 3}).to(s.pred.code.dir.dtype());
+  s.pred.code.log_intensity = Tensor::from_vector(log_i, s.pred.code.log_intensity.shape()).to(s.pred.code.log_intensity.dtype());
+  return s;
+}
+
 EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& views, const SunEdit& edit) {
   SL_CHECK(!views.empty(), "lighting inference: no views");
   NoGradGuard no_grad;
@@ -251,6 +305,11 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
     out.sun_crop_spread_deg = std::fmax(out.sun_crop_spread_deg, s.crop_spread_deg);
   }
   out.network_sun_flip_spread_deg = out.sun_flip_spread_deg;
+  for (const Single& s : singles)
+    if (std::isfinite(s.sun_probability))
+      out.sun_probability = std::isfinite(out.sun_probability) ? std::min(out.sun_probability, s.sun_probability)
+                                                               : s.sun_probability;
+  out.network_sun_probability = out.sun_probability;
   out.network_sun_crop_spread_deg = out.sun_crop_spread_deg;
   out.frame = ref.frame;
   out.camera = ref.camera;
@@ -284,7 +343,8 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
         if (!sun.azimuth_deg) sun.azimuth_deg = azimuth_deg_of(cue.sun.direction);
         if (!sun.elevation_deg) sun.elevation_deg = elevation_deg_of(cue.sun.direction);
         if (!edit.azimuth_deg && !edit.elevation_deg)
-          out.sun_flip_spread_deg = 0.0, out.sun_crop_spread_deg = 0.0, out.sun_hedge = 0.0;
+          out.sun_flip_spread_deg = 0.0, out.sun_crop_spread_deg = 0.0, out.sun_hedge = 0.0,
+          out.sun_probability = std::isfinite(out.sun_probability) ? 1.0 : out.sun_probability;
       }
     }
     // Sec 3.2: edit the sky vector before decoding.

@@ -34,6 +34,9 @@
 //   When nothing is found the estimate is bit-identical to the cue being off.
 // - Crop averaging (set_crop_scales, off by default): each view's sun also averaged over centred
 //   crops of it; see set_crop_scales. Off, the estimate is bit-identical to before it existed.
+// - Sun distribution (checkpoints with model.sun_grid, issue 53): the sky vector's direction is
+//   the mode of the sun head's distribution, refined locally (train/sun_distribution.h), with
+//   flip and crop averaging done on the probabilities; the sky head's own direction is unused.
 // - Deterministic; no tape (runs under NoGradGuard).
 #pragma once
 #include <limits>
@@ -107,6 +110,13 @@ struct EstimatedLighting {
   // right. Neither measure ranks errors reliably yet (docs/RESULTS.md, "Which confidence"):
   // streetlight-eval reports both. NaN without a sky vector.
   double sun_hedge = std::numeric_limits<double>::quiet_NaN();
+  // The confidence of a checkpoint with a sun head (model.sun_grid, train/sun_distribution.h;
+  // issue 53): the probability the network puts within 20° of its sun, in [0, 1] (LARGER is more
+  // confident, unlike the spreads), after flip and crop averaging, the smallest over the views.
+  // 1 when the visible-sun cue set the direction; the network's own in network_sun_probability.
+  // NaN for checkpoints without a sun head.
+  double sun_probability = std::numeric_limits<double>::quiet_NaN();
+  double network_sun_probability = std::numeric_limits<double>::quiet_NaN();
   // The visible-sun cue (see LightingEstimator::set_visible_sun): whether it found a sun disk,
   // in which view, where (continuous pixel coordinates of that view's image, render/camera.h)
   // and its score (data/visible_sun.h). False when the cue is off or the checkpoint has no sky
@@ -170,8 +180,11 @@ class LightingEstimator {
     LightingPrediction pred;
     double flip_spread_deg = std::numeric_limits<double>::quiet_NaN();  // see EstimatedLighting
     double crop_spread_deg = std::numeric_limits<double>::quiet_NaN();  // see EstimatedLighting
+    double sun_probability = std::numeric_limits<double>::quiet_NaN();  // see EstimatedLighting
   };
   Single predict_one(const InferenceView& view);
+  // predict_one's sun for a checkpoint with a sun head (model.sun_grid).
+  Single sun_from_distribution(const InferenceView& view, const Tensor& image, Single s);
 
   std::string path_, stage_;
   int64_t step_ = 0;

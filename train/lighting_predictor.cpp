@@ -32,6 +32,9 @@ void validate(const LightingPredictorOptions& o) {
   SL_CHECK(o.image_height >= 32 && o.image_width >= 32, "model.image: at least 32×32, got ", o.image_height, "×",
            o.image_width);
   SL_CHECK(o.head_hidden >= 1, "model.head_hidden must be positive, got ", o.head_hidden);
+  validate(o.sun_grid);
+  SL_CHECK(!o.sun_grid.enabled() || o.sky_branch == "sky_decoder", "model.sun_grid needs the \"sky_decoder\" sky branch, got \"",
+           o.sky_branch, "\"");
   SL_CHECK(o.head_grid_channels >= 0, "model.head_grid_channels must be >= 0, got ", o.head_grid_channels);
   if (o.volume_branch) {
     const int64_t f = int64_t{1} << o.unet_depth;
@@ -60,6 +63,9 @@ LightingPredictor::LightingPredictor(const LightingPredictorOptions& options)
     sky_head_ = register_module("sky_head", std::make_shared<nn::MLP>(nn::MlpOptions{
                                                 .widths = {feat, opt_.head_hidden, sky.code_dim}}));
     sky_decoder_ = register_module("sky_decoder", std::make_shared<SkyDecoder>(sky));
+    if (opt_.sun_grid.enabled())
+      sun_head_ = register_module("sun_head", std::make_shared<nn::MLP>(nn::MlpOptions{
+                                                  .widths = {feat, opt_.head_hidden, opt_.sun_grid.cells()}}));
   } else if (opt_.sky_branch == "direct") {
     // Without sky modelling: g → 4×16 feature map → (upsample, conv) per level → log env.
     const int levels = direct_levels(sky.height);
@@ -122,6 +128,16 @@ SkyCode LightingPredictor::predict_sky_code(const Tensor& image) {
   return sky_code_from_raw(sky_head_->forward(head_features(image)));
 }
 
+SkyPrediction LightingPredictor::predict_sky(const Tensor& image) {
+  SL_CHECK(opt_.sky_branch == "sky_decoder", "LightingPredictor: the '", opt_.sky_branch,
+           "' sky branch has no sky vector");
+  const Tensor g = head_features(image);
+  SkyPrediction out;
+  out.code = sky_code_from_raw(sky_head_->forward(g));
+  if (sun_head_) out.sun_logits = sun_head_->forward(g);
+  return out;
+}
+
 LightingPrediction LightingPredictor::predict(const Tensor& image, const Tensor& rgba) {
   const Tensor g = head_features(image);
   const int64_t n = image.size(0);
@@ -129,6 +145,7 @@ LightingPrediction LightingPredictor::predict(const Tensor& image, const Tensor&
   const SkyAutoencoderOptions& sky = opt_.sky;
   if (opt_.sky_branch == "sky_decoder") {
     out.code = sky_code_from_raw(sky_head_->forward(g));
+    if (sun_head_) out.sun_logits = sun_head_->forward(g);
     SkyDecoding d = sky_decoder_->decode(out.code);
     out.log_env = d.log_hdr;
   } else if (opt_.sky_branch == "direct") {

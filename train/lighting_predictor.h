@@ -5,6 +5,9 @@
 //     flattened ([N, r·h/32·w/32], "head_grid.*"), so the heads see WHERE things are in the image
 //     (the sun, the bright side of the sky, the shadows), which a global average discards
 //     (a) sky head: MLP(g) → raw f̂ → SkyCode → FROZEN sky decoder → HDR sky [N, 3, Hs, Ws]
+//         with sun_grid on, also a sun head: MLP(g) → logits [N, K] of a distribution over sun
+//         directions on the upper hemisphere (train/sun_distribution.h, issue 53); inference
+//         reads the sky vector's direction at its mode (train/inference.h)
 //     (b) volume: MLP(g) → coarse feature volume [N, C, X/s, Y/s, Z/s] → trilinear ×s,
 //         concatenated with the unprojected RGBα volume [N, 4, X, Y, Z] (unprojection.h),
 //         → UNet3D → raw [N, 8, X, Y, Z] → vsg_activate → VSG parameters
@@ -22,7 +25,7 @@
 // Contract: forward(image, rgba) with image [N, 3, image_height, image_width] (LDR in [0, 1])
 // and rgba [N, 4, X, Y, Z] (ignored, may be undefined, without the volume branch). Outputs are
 // exposure-normalised radiance (sky_autoencoder.h). Shapes are checked, naming the input.
-// Parameter names: backbone.*, head_grid.* (with head_grid_channels > 0), sky_head.*, sky_decoder.*, env_decoder.*, env_constant,
+// Parameter names: backbone.*, head_grid.* (with head_grid_channels > 0), sky_head.*, sun_head.* (sun_grid on), sky_decoder.*, env_decoder.*, env_constant,
 // volume_mlp.*, volume_unet.*. Deterministic init from options.seed.
 #pragma once
 #include <array>
@@ -32,6 +35,7 @@
 #include "nn/module.h"
 #include "nn/modules/resnet.h"
 #include "train/sky_autoencoder.h"
+#include "train/sun_distribution.h"
 
 namespace sl::train {
 
@@ -49,6 +53,7 @@ struct LightingPredictorOptions {
   int64_t unet_channels = 8;
   int unet_depth = 3;
   SkyAutoencoderOptions sky;    // dome size and code size (must match the stage-1 model)
+  SunGrid sun_grid;             // off (0 × 0): the sky vector's direction alone (releases up to 2026-11-27)
   uint64_t seed = 0;
 };
 
@@ -57,6 +62,13 @@ struct LightingPrediction {
   Tensor log_env;   // [N, 3, Hs, Ws]
   Tensor env;       // [N, 3, Hs, Ws] = exp(log_env) (clamped)
   Tensor vsg;       // [N, 8, X, Y, Z] activated, or undefined without the volume branch
+  Tensor sun_logits;  // [N, K] over options.sun_grid's cells, or undefined (sun_grid off)
+};
+
+// The sky half of a prediction: the sky vector and, with sun_grid on, the sun's logits.
+struct SkyPrediction {
+  SkyCode code;
+  Tensor sun_logits;
 };
 
 class LightingPredictor : public nn::Module {
@@ -65,6 +77,8 @@ class LightingPredictor : public nn::Module {
   LightingPrediction predict(const Tensor& image, const Tensor& rgba);
   // The sky vector alone (backbone and sky head; no decoding, no volume): "sky_decoder" only.
   SkyCode predict_sky_code(const Tensor& image);
+  // The sky vector and the sun's logits (backbone, sky head and sun head; no decoding, no volume).
+  SkyPrediction predict_sky(const Tensor& image);
   const LightingPredictorOptions& options() const { return opt_; }
   // The frozen decoder (null unless sky_branch is "sky_decoder").
   const std::shared_ptr<SkyDecoder>& sky_decoder() const { return sky_decoder_; }
@@ -78,7 +92,7 @@ class LightingPredictor : public nn::Module {
 
   LightingPredictorOptions opt_;
   std::shared_ptr<nn::ResNet> backbone_;
-  std::shared_ptr<nn::Module> head_grid_, sky_head_, env_decoder_, volume_mlp_, volume_unet_;
+  std::shared_ptr<nn::Module> head_grid_, sky_head_, sun_head_, env_decoder_, volume_mlp_, volume_unet_;
   std::shared_ptr<SkyDecoder> sky_decoder_;
   std::array<int64_t, 3> coarse_{};
 };

@@ -23,6 +23,7 @@
 #include "train/losses.h"
 #include "train/metrics.h"
 #include "train/phase_clock.h"
+#include "train/sun_distribution.h"
 #include "train/sun_error_parts.h"
 #include "train/train_config.h"
 #include "train/distributed.h"
@@ -136,12 +137,30 @@ void LightingStage::initialise() {
     // Start from a stage-2 checkpoint: predictor and teacher (no discriminator, no optimiser).
     // An exported model (models/streetlight.safetensors) holds the predictor alone; its teacher
     // then comes from init.sky_checkpoint.
-    bool has_teacher = false;
-    for (const auto& [name, t] : nn::read_safetensors(prev).tensors) has_teacher |= name.rfind("teacher.", 0) == 0;
+    bool has_teacher = false, has_sun_head = false;
+    for (const auto& [name, t] : nn::read_safetensors(prev).tensors) {
+      has_teacher |= name.rfind("teacher.", 0) == 0;
+      has_sun_head |= name.rfind("predictor.sun_head.", 0) == 0;
+    }
+    // A model from before the sun head (model.sun_grid) starts one: everything else is loaded
+    // into a predictor without it, then copied over; the new head keeps its initialisation.
+    std::shared_ptr<LightingPredictor> loaded = predictor_;
+    const bool new_sun_head = predictor_->options().sun_grid.enabled() && !has_sun_head;
+    if (new_sun_head) {
+      LightingPredictorOptions without = predictor_->options();
+      without.sun_grid = SunGrid{};
+      loaded = std::make_shared<LightingPredictor>(without);
+    }
     LightingModel previous;
-    previous.register_module("predictor", predictor_);
+    previous.register_module("predictor", loaded);
     if (teacher_ && has_teacher) previous.register_module("teacher", teacher_);
     nn::load_checkpoint(prev, previous, nullptr);
+    if (new_sun_head) {
+      nn::StateDict merged = predictor_->state_dict();
+      for (auto& [name, t] : merged) t = t.clone();
+      for (const auto& [name, t] : loaded->state_dict()) merged.at(name) = t;
+      predictor_->load_state_dict(merged);
+    }
     if (teacher_ && !has_teacher) {
       // Without pseudo-labels the teacher never runs, and may stay as initialised: a later stage
       // that needs it finds its decoder differs from the predictor's (below) and refuses.
@@ -297,6 +316,24 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
         add_term("sky_latent", l1(f.pred.code.latent, teacher.code.latent));
       }
       const bool split = w.at("sky_direction_form").get<std::string>() == "elevation_azimuth";
+      // The sun as a distribution over the hemisphere (issue 53, train/sun_distribution.h):
+      // cross-entropy against a soft target around the true sun, each label at its weight.
+      if (f.pred.sun_logits.defined()) {
+        const SunGrid& grid = predictor_->options().sun_grid;
+        const double width = w.value("sun_distribution_width_deg", 8.0);
+        std::vector<double> targets, weights;
+        for (size_t i = 0; i < f.items.size(); ++i) {
+          const bool known = f.samples[i].sun_known;
+          const std::vector<double> t =
+              known ? soft_target(grid, f.items[i].sun_direction, width)
+                    : std::vector<double>(static_cast<size_t>(grid.cells()), 1.0 / static_cast<double>(grid.cells()));
+          targets.insert(targets.end(), t.begin(), t.end());
+          weights.push_back(known ? f.samples[i].sun_weight : 0.0);
+        }
+        add_term("sun_distribution",
+                 sun_distribution_loss(f.pred.sun_logits, Tensor::from_vector(targets, {n, grid.cells()}),
+                                       Tensor::from_vector(weights, {n})));
+      }
       add_term("sky_direction",
                suns.empty() ? Tensor::scalar(0.0)
                             : mul_scalar(split ? elevation_azimuth_l1(stack(known_dirs, 0), dvec_rows(suns))
@@ -379,6 +416,16 @@ Metrics LightingStage::supervised_step(int64_t step) {
   check_finite_gradients(optim_->params(), step);
   m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
   optim_->step();
+  // The share of this batch's labelled suns that the input view shows (issue 53: crops that
+  // show the sun must be common enough to learn from).
+  int in_view = 0, labelled = 0;
+  for (size_t i = 0; i < f.items.size(); ++i) {
+    if (!f.samples[i].sun_known) continue;
+    ++labelled;
+    const StreetItem& it = f.items[i];
+    in_view += it.camera.project(it.camera.position() + 1e4 * it.sun_direction).in_image;
+  }
+  m["sun_in_view_share"] = labelled ? static_cast<double>(in_view) / labelled : 0.0;
   m["time_data_ms"] = last_data_ms_;
   m["time_forward_ms"] = forward_ms - last_data_ms_;
   m["time_render_ms"] = 0.0;
@@ -404,7 +451,11 @@ Metrics LightingStage::validate() {
     supervised_loss(f, m);
     for (const auto& [k, v] : m) sum_m["val_" + k] += v / static_cast<double>(n);
     glm::dvec3 dir;
-    if (f.pred.code.dir.defined()) {
+    if (f.pred.sun_logits.defined()) {  // the distribution's mode, as inference reads it
+      dir = read_sun_distribution(predictor_->options().sun_grid,
+                                  softmax_row(select(f.pred.sun_logits, 0, 0).to(DType::F64).contiguous().to_vector()))
+                .direction;
+    } else if (f.pred.code.dir.defined()) {
       dir = row3(f.pred.code.dir, 0);
     } else {
       dir = extract_sun(select(f.pred.env, 0, 0).contiguous().to(DType::F32)).direction;
@@ -490,6 +541,8 @@ PanoramaSampleOptions real_sample_options(const nlohmann::json& config) {
   o.crop.height = static_cast<int>(po.image_height);
   o.white_balance_stops = d.at("real_white_balance_stops").get<double>();
   o.exposure_stops = d.at("real_exposure_stops").get<double>();
+  o.low_label_weight = d.value("ldr_low_label_weight", 1.0);
+  o.tone_stops = d.value("real_tone_stops", 0.0);
   return o;
 }
 
@@ -515,7 +568,9 @@ std::unique_ptr<Stage> make_lighting_stage(const nlohmann::json& config) {
     const auto paths = configured_ldr_paths(config, "hdri_train_split");
     SL_CHECK(!paths.empty(), "data.ldr_fraction > 0 but no LDR panoramas were found (data.ldr_dir, data.ldr_split)");
     train = mixed_source(std::move(train),
-                         ldr_panorama_source(paths, configured_ldr_labels(config), ro, seed, paths.size(), true), ldr);
+                         ldr_panorama_source(paths, configured_ldr_labels(config), ro, seed, paths.size(), true,
+                                             static_cast<int>(d.value("ldr_working_width", int64_t{1024}))),
+                         ldr);
   }
   // Validation: real crops of the validation panoramas whenever a split names them (also in a
   // stage that trains on streets alone, so stages 2 and 3 are selected on the same samples).
@@ -523,6 +578,8 @@ std::unique_ptr<Stage> make_lighting_stage(const nlohmann::json& config) {
   vo.flip = false;
   vo.white_balance_stops = 0.0;
   vo.exposure_stops = 0.0;
+  vo.tone_stops = 0.0;
+  vo.low_label_weight = 1.0;
   const auto hdr_crops = static_cast<size_t>(d.at("real_val_crops").get<int64_t>());
   if (hdr_crops > 0 && (real > 0 || !d.at("hdri_split").get<std::string>().empty())) {
     const auto val_paths = configured_hdri_paths(config, "hdri_val_split");

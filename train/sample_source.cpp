@@ -133,6 +133,7 @@ SampleSource ldr_panorama_source(const std::vector<std::string>& paths, const st
     p.linear = data::ldr_linear(p.ldr);
     p.sky_mask = data::estimate_sky_mask(p.linear);  // ldr_sky_mask's rule, on the linear radiance kept
     p.sun_known = label->has_position;
+    p.sun_weight = label->confidence == data::LabelConfidence::Low ? options.low_label_weight : 1.0;
     if (p.sun_known) p.sun_direction = labels.direction(*label, static_cast<int>(full.size(2)), static_cast<int>(full.size(1)));
     panos->push_back(std::move(p));
     names->push_back(name);

@@ -57,6 +57,11 @@ SampleSource panorama_source(const std::vector<std::string>& paths, const data::
 // train/real_sky_benchmark.h), each with its sky mask (ldr_sky_mask). Items as panorama_source.
 // Panoramas labelled none, or occluded without a position, are kept: their samples have
 // sun_known = false and still teach the sky, the pseudo-labels and the radiance.
+// Memory: every panorama is held decoded, 14·W² bytes at working width W (its codes and
+// linear radiance as float, 3 channels each, and its mask): 14.7 MB at 1024, 3.7 MB at 512. The
+// 522 training panoramas of configs/pano_ldr_split.json take 7.7 GB at 1024 and 1.9 GB at 512
+// (data.ldr_working_width; the real-sky benchmark always reads at 1024). A sample's low-confidence
+// label weighs options.low_label_weight (StreetSample::sun_weight).
 SampleSource ldr_panorama_source(const std::vector<std::string>& paths, const std::string& labels_path,
                                  const data::PanoramaSampleOptions& options, uint64_t seed, size_t items,
                                  bool vary_with_draw, int working_width = 1024);

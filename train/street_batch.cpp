@@ -106,8 +106,16 @@ StreetItem make_street_item(const StreetSample& sample, size_t input_view, const
   it.camera = it.frame.camera(view.camera);
   it.grid = grid_template;
   it.grid.center = it.camera.position();
-  it.image = resize_bilinear(view.ldr, opt.image_height, opt.image_width);
-  if (opt.need_volume) it.rgba = unproject_rgba(view.ldr, view.depth, it.camera, it.grid);
+  // The network's input, with the sample's tone curve (data/street_dataset.h input_tone_gamma).
+  Tensor input = view.ldr;
+  if (sample.input_tone_gamma != 1.0) {
+    input = view.ldr.to(DType::F32).clone().contiguous();
+    float* p = input.data<float>();
+    const float g = static_cast<float>(sample.input_tone_gamma);
+    for (int64_t i = 0; i < input.numel(); ++i) p[i] = std::pow(std::max(p[i], 0.0f), g);
+  }
+  it.image = resize_bilinear(input, opt.image_height, opt.image_width);
+  if (opt.need_volume) it.rgba = unproject_rgba(input, view.depth, it.camera, it.grid);
   const Tensor pano_ldr = it.frame.panorama(sample.pano_ldr.contiguous());
   const Tensor pano_mask = it.frame.panorama(sample.pano_sky_mask.contiguous());
   it.pano_ldr_dome = resize_area(pano_ldr, static_cast<int>(opt.dome_height), static_cast<int>(opt.dome_width));

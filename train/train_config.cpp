@@ -43,6 +43,9 @@ json default_train_config() {
         {"ldr_labels", ""},
         {"ldr_fraction", 0.0},
         {"ldr_val_crops", 4},
+        {"ldr_low_label_weight", 1.0},
+        {"real_tone_stops", 0.0},
+        {"ldr_working_width", 1024},
         {"exposure_stops", 1.0},
         {"ldr_key", 0.25},
         {"val_size", 16},
@@ -60,6 +63,7 @@ json default_train_config() {
         {"backbone_width", 64},
         {"head_hidden", 256},
         {"head_grid_channels", 0},
+        {"sun_grid", {{"elevation_bins", 0}, {"azimuth_bins", 0}}},
         {"sky_branch", "sky_decoder"},
         {"volume_branch", true},
         {"volume",
@@ -86,6 +90,8 @@ json default_train_config() {
         {"sun_energy", 0.0},
         {"ldr_sun_energy", 0.0},
         {"ldr_sun_energy_range", {1.0, 10.0}},
+        {"sun_distribution", 0.0},
+        {"sun_distribution_width_deg", 8.0},
         {"sky_ldr", 1.0},
         {"sky_hdr", 1.0},
         {"radiance", 1.0},
@@ -196,6 +202,19 @@ void check_train_config(const json& c) {
   const std::string form = c.at("loss").at("sky_direction_form").get<std::string>();
   SL_CHECK(form == "elevation_azimuth" || form == "angular",
            "loss.sky_direction_form must be \"elevation_azimuth\" or \"angular\", got \"", form, "\"");
+  const int64_t ldr_width = c.at("data").at("ldr_working_width").get<int64_t>();
+  SL_CHECK(ldr_width >= 64 && ldr_width <= 8192 && ldr_width % 2 == 0,
+           "data.ldr_working_width must be even and in [64, 8192], got ", ldr_width);
+  const double tone = c.at("data").at("real_tone_stops").get<double>();
+  SL_CHECK(std::isfinite(tone) && tone >= 0 && tone <= 2, "data.real_tone_stops must lie in [0, 2], got ", tone);
+  const double low = c.at("data").at("ldr_low_label_weight").get<double>();
+  SL_CHECK(std::isfinite(low) && low >= 0 && low <= 1, "data.ldr_low_label_weight must lie in [0, 1], got ", low);
+  const double width = c.at("loss").at("sun_distribution_width_deg").get<double>();
+  SL_CHECK(std::isfinite(width) && width > 0 && width <= 90, "loss.sun_distribution_width_deg must lie in (0, 90], got ",
+           width);
+  SL_CHECK(c.at("loss").at("sun_distribution").get<double>() == 0 ||
+               c.at("model").at("sun_grid").at("elevation_bins").get<int64_t>() > 0,
+           "loss.sun_distribution > 0 needs model.sun_grid (elevation_bins and azimuth_bins)");
   const json& range = c.at("loss").at("ldr_sun_energy_range");
   SL_CHECK(range.is_array() && range.size() == 2 && range[0].is_number() && range[1].is_number() &&
                range[0].get<double>() >= 0 && range[0].get<double>() <= range[1].get<double>() &&
@@ -229,6 +248,10 @@ LightingPredictorOptions predictor_options(const json& c) {
   o.head_hidden = m.at("head_hidden").get<int64_t>();
   // Checkpoints written before the key existed pooled globally.
   o.head_grid_channels = m.value("head_grid_channels", int64_t{0});
+  // Checkpoints written before the key existed had no sun head.
+  const json grid = m.value("sun_grid", json::object());
+  o.sun_grid.elevation_bins = grid.value("elevation_bins", int64_t{0});
+  o.sun_grid.azimuth_bins = grid.value("azimuth_bins", int64_t{0});
   o.sky_branch = m.at("sky_branch").get<std::string>();
   o.volume_branch = m.at("volume_branch").get<bool>();
   const auto dims = v.at("dims").get<std::vector<int64_t>>();

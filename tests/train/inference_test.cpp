@@ -112,6 +112,60 @@ TEST(Inference, FlipAverageMirrorsTheSunWithThePhoto) {
 // The confidence of an estimate is the angle between the sun of the photo's pass and the mirror
 // image of the mirrored photo's pass: what the two single passes give, the same for the photo and
 // its mirror image, the larger of two views', and not measured without flip averaging.
+// A checkpoint with a sun head (model.sun_grid, issue 53): the estimate's sun is the mode of the
+// distribution averaged over the photo's pass and its mirrored pass (mirrored back), not the sky
+// head's direction; its confidence is the probability near that mode; the mirror image of the
+// photo gets the mirror image of the sun.
+TEST(Inference, ASunHeadsModeIsTheSunAndItsMassTheConfidence) {
+  const std::string dir = test::tool_dir("inference_sun_head");
+  nlohmann::json c = tiny_lighting_config();
+  c["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
+  const std::string path = dir + "/sun_head.safetensors";
+  auto predictor = std::make_shared<LightingPredictor>(predictor_options(c));
+  {
+    nn::Module holder("LightingModel");
+    holder.register_module("predictor", predictor);
+    nn::save_checkpoint(path, holder, nullptr, nn::CheckpointInfo{.stage = "lighting", .step = 1, .config_json = c.dump()});
+  }
+  LightingEstimator est(path);
+  est.set_visible_sun(false);
+  const InferenceView v = view_at(0.0);
+  const SunGrid grid{4, 16};
+  for (const bool flip : {false, true}) {
+    est.set_flip_average(flip);
+    const EstimatedLighting l = est.estimate({v});
+    // The same readout by hand, from the predictor's own passes.
+    NoGradGuard ng;
+    const Tensor image = unsqueeze(resize_bilinear(v.ldr, c["model"]["image_height"].get<int64_t>(),
+                                                   c["model"]["image_width"].get<int64_t>()),
+                                   0);
+    std::vector<double> p = softmax_row(select(est.predictor().predict_sky(image).sun_logits, 0, 0).to_vector());
+    if (flip) {
+      const std::vector<double> m = mirror_cells(
+          grid, softmax_row(select(est.predictor().predict_sky(unsqueeze(data::flip_horizontal(select(image, 0, 0).contiguous()), 0))
+                                       .sun_logits,
+                                   0, 0)
+                                .to_vector()));
+      for (size_t k = 0; k < p.size(); ++k) p[k] = 0.5 * (p[k] + m[k]);
+    }
+    const SunReadout r = read_sun_distribution(grid, p);
+    EXPECT_LT(glm::length(l.sun_direction_canonical - r.direction), 1e-5) << "flip " << flip;
+    EXPECT_NEAR(l.sun_probability, r.confidence, 1e-9);
+    EXPECT_GT(l.sun_probability, 0.0);
+    EXPECT_LE(l.sun_probability, 1.0);
+  }
+  // Flip averaging makes the sun of the mirror image the mirror image of the sun.
+  est.set_flip_average(true);
+  InferenceView mirrored = v;
+  mirrored.ldr = data::flip_horizontal(v.ldr);
+  mirrored.depth = data::flip_horizontal(v.depth);
+  const glm::dvec3 a = est.estimate({v}).sun_direction_canonical, b = est.estimate({mirrored}).sun_direction_canonical;
+  EXPECT_LT(glm::length(a - glm::dvec3(-b.x, b.y, b.z)), 1e-5);
+  // A checkpoint without a sun head reports no probability.
+  LightingEstimator plain(test::tiny_lighting_checkpoint(dir));
+  EXPECT_TRUE(std::isnan(plain.estimate({v}).sun_probability));
+}
+
 TEST(Inference, FlipSpreadIsTheAngleBetweenAPassAndItsMirroredPass) {
   const std::string dir = test::tool_dir("inference_spread");
   LightingEstimator est(test::tiny_lighting_checkpoint(dir));

@@ -140,6 +140,66 @@ TEST(LightingStage, StartsFromAnExportedPredictorWithATeacherThatMatchesItsDecod
   }
 }
 
+// Issue 53: a sun head (model.sun_grid) trained by loss.sun_distribution can start from a model
+// exported before it existed: every other tensor is the file's, the new head keeps its
+// initialisation, and a step trains it (its weights move; the loss term is finite). Validation
+// scores the distribution's mode.
+TEST(LightingStage, ASunHeadStartsFromAModelWithoutOne) {
+  const std::string dir = temp_dir("lighting_sun_head");
+  nlohmann::json c = tiny_config(kStageLighting);
+  c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  const std::string exported = dir + "/exported.safetensors";
+  nn::StateDict before;
+  {
+    LightingStage stage(c, memory_source(2), memory_source(1));
+    stage.initialise();
+    overfit(stage, 2);
+    nn::Module holder("Exported");
+    holder.register_module("predictor", std::shared_ptr<nn::Module>(&stage.predictor(), [](nn::Module*) {}));
+    nn::save_checkpoint(exported, holder, nullptr, nn::CheckpointInfo{.stage = kStageLighting});
+    for (const auto& [name, t] : stage.predictor().state_dict()) before[name] = t.clone();
+  }
+  nlohmann::json g = c;
+  g["init"]["checkpoint"] = exported;
+  g["init"]["sky_checkpoint"] = "";
+  g["loss"]["sky_intensity"] = 0.0;
+  g["loss"]["sky_latent"] = 0.0;
+  g["loss"]["sun_distribution"] = 1.0;
+  g["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
+  LightingStage stage(g, memory_source(2), memory_source(1));
+  stage.initialise();
+  std::vector<double> head;
+  for (const auto& [name, t] : stage.predictor().state_dict()) {
+    if (name.rfind("sun_head.", 0) == 0) {
+      if (head.empty()) head = t.to_vector();
+      continue;
+    }
+    ASSERT_TRUE(before.count(name)) << name;
+    EXPECT_EQ(t.to_vector(), before.at(name).to_vector()) << name;
+  }
+  ASSERT_FALSE(head.empty()) << "no sun head";
+  const Metrics m = stage.step(0);
+  ASSERT_TRUE(m.count("sun_distribution"));
+  EXPECT_TRUE(std::isfinite(m.at("sun_distribution")));
+  EXPECT_GT(m.at("sun_distribution"), 0.0);
+  EXPECT_TRUE(m.count("sun_in_view_share"));
+  EXPECT_NE(stage.predictor().child("sun_head")->named_parameters().front().second.to_vector(), head);
+  const Metrics v = stage.validate();
+  EXPECT_TRUE(std::isfinite(v.at("val_sun_error_median_deg")));
+  // The loss needs the grid, and says so naming the key.
+  nlohmann::json bad = train::default_train_config();
+  bad["stage"] = kStageLighting;
+  bad["data"]["dataset"] = "streets";
+  bad["init"]["checkpoint"] = exported;
+  bad["loss"]["sun_distribution"] = 1.0;
+  try {
+    train::check_train_config(bad);
+    ADD_FAILURE() << "accepted loss.sun_distribution without model.sun_grid";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("model.sun_grid"), std::string::npos) << e.what();
+  }
+}
+
 // Two labelled LDR panoramas (one sun at a pixel, one "none") written as PNG files with their
 // labels, read by ldr_panorama_source: mixed into training, they give finite steps; in
 // validation, their suns are scored apart as val_ldr_*.

@@ -1,0 +1,156 @@
+// train/sun_distribution.h: the sun as a distribution over the upper hemisphere (issue 53).
+// Cells of equal solid angle, a soft target peaked at the true sun, a cross-entropy that passes a
+// float64 gradcheck and stays finite for extreme logits, the mirror image, and a readout at the
+// mode that picks the larger of two separated peaks instead of a direction between them.
+#include "train/sun_distribution.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "autodiff/gradcheck.h"
+#include "autodiff/ops.h"
+#include "util/error.h"
+
+namespace sl::test {
+namespace {
+
+using train::SunGrid;
+
+glm::dvec3 sun(double azimuth_deg, double elevation_deg) {
+  const double a = azimuth_deg * M_PI / 180.0, e = elevation_deg * M_PI / 180.0;
+  return {std::cos(e) * std::sin(a), std::sin(e), -std::cos(e) * std::cos(a)};
+}
+
+double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
+  return std::acos(std::clamp(glm::dot(glm::normalize(a), glm::normalize(b)), -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+const SunGrid kGrid{8, 32};
+
+// A peaked distribution: the soft target of a narrow lobe at `s`, scaled to `mass`.
+std::vector<double> peak(const glm::dvec3& s, double mass, double width_deg = 6.0) {
+  std::vector<double> t = train::soft_target(kGrid, s, width_deg);
+  for (double& v : t) v *= mass;
+  return t;
+}
+
+TEST(SunDistribution, CellsAreUnitAboveTheHorizonAndOfEqualSolidAngle) {
+  const Tensor d = train::cell_directions(kGrid, DType::F64);
+  ASSERT_EQ(d.shape(), (Shape{256, 3}));
+  const std::vector<double> v = d.to_vector();
+  for (int64_t k = 0; k < 256; ++k) {
+    const glm::dvec3 c(v[3 * k], v[3 * k + 1], v[3 * k + 2]);
+    EXPECT_NEAR(glm::length(c), 1.0, 1e-12);
+    EXPECT_GT(c.y, 0.0);
+    // Ring r holds sin(elevation) in [r/8, (r+1)/8): equal areas on the sphere (Archimedes).
+    const int64_t ring = k / 32;
+    EXPECT_NEAR(c.y, (ring + 0.5) / 8.0, 1e-12);
+  }
+  // Sector 16's centre is at azimuth +5.625°, just right of the view's axis (−Z).
+  const glm::dvec3 c16(v[3 * 16], v[3 * 16 + 1], v[3 * 16 + 2]);
+  EXPECT_NEAR(std::atan2(c16.x, -c16.z) * 180.0 / M_PI, 5.625, 1e-9);
+}
+
+TEST(SunDistribution, TheSoftTargetPeaksAtTheSunAndSumsToOne) {
+  // Within a cell of the 8 × 32 grid: its rings are 7.2° tall at the horizon and 29° at the top
+  // (equal areas), so a sun above about 60° is read coarsely by this grid (the release's is 16 × 64).
+  for (const glm::dvec3& s : {sun(0, 20), sun(-170, 5), sun(95, 55), sun(40, -10)}) {
+    const std::vector<double> t = train::soft_target(kGrid, s, 8.0);
+    double total = 0.0;
+    for (const double v : t) {
+      EXPECT_TRUE(std::isfinite(v) && v >= 0.0);
+      total += v;
+    }
+    EXPECT_NEAR(total, 1.0, 1e-12);
+    const train::SunReadout r = train::read_sun_distribution(kGrid, t);
+    const glm::dvec3 expected = s.y < 0 ? sun(40, 0) : s;
+    EXPECT_LT(angle_deg(r.direction, expected), 7.2) << "sun (" << s.x << ", " << s.y << ", " << s.z << ")";
+  }
+  // Far narrower than a cell: all the mass on the nearest cell, never 0/0.
+  const std::vector<double> t = train::soft_target(kGrid, sun(10, 30), 1e-4);
+  double total = 0.0;
+  for (const double v : t) total += v;
+  EXPECT_NEAR(total, 1.0, 1e-12);
+  EXPECT_THROW(train::soft_target(kGrid, glm::dvec3(0.0), 8.0), Error);
+  EXPECT_THROW(train::soft_target(kGrid, sun(0, 20), 0.0), Error);
+}
+
+// The issue's test: two separated peaks read out at the larger one, not between them. The mean
+// of these two suns (in front and behind, both at 20°) would be near the zenith.
+TEST(SunDistribution, TwoSeparatedPeaksReadOutAtTheLargerOne) {
+  const glm::dvec3 front = sun(10, 20), back = sun(-170, 20);
+  for (const double larger : {0.55, 0.7}) {
+    std::vector<double> p = peak(front, larger), q = peak(back, 1.0 - larger);
+    for (size_t k = 0; k < p.size(); ++k) p[k] += q[k];
+    const train::SunReadout r = train::read_sun_distribution(kGrid, p);
+    EXPECT_LT(angle_deg(r.direction, front), 4.0);
+    EXPECT_NEAR(r.confidence, larger, 0.02);
+    // And the other way round.
+    std::vector<double> m = peak(back, larger), n = peak(front, 1.0 - larger);
+    for (size_t k = 0; k < m.size(); ++k) m[k] += n[k];
+    EXPECT_LT(angle_deg(train::read_sun_distribution(kGrid, m).direction, back), 4.0);
+  }
+  // A uniform distribution is as unsure as it gets: its confidence is the cap's share.
+  const std::vector<double> uniform(256, 1.0 / 256);
+  EXPECT_LT(train::read_sun_distribution(kGrid, uniform).confidence, 0.1);
+}
+
+TEST(SunDistribution, TheMirrorImageMirrorsTheReadout) {
+  const glm::dvec3 s = sun(37, 25);
+  const std::vector<double> m = train::mirror_cells(kGrid, train::soft_target(kGrid, s, 8.0));
+  const train::SunReadout r = train::read_sun_distribution(kGrid, m);
+  EXPECT_LT(angle_deg(r.direction, glm::dvec3(-s.x, s.y, s.z)), 4.0);
+  // Twice is the identity.
+  const std::vector<double> t = train::soft_target(kGrid, s, 8.0);
+  EXPECT_EQ(train::mirror_cells(kGrid, train::mirror_cells(kGrid, t)), t);
+}
+
+TEST(SunDistribution, TheCrossEntropyPassesAFloat64Gradcheck) {
+  const int64_t n = 3, k = kGrid.cells();
+  std::vector<double> z(n * k), t;
+  for (int64_t i = 0; i < n * k; ++i) z[i] = std::sin(0.37 * i) * 2.0;
+  for (const glm::dvec3& s : {sun(0, 20), sun(120, 50), sun(-60, 5)}) {
+    const auto row = train::soft_target(kGrid, s, 8.0);
+    t.insert(t.end(), row.begin(), row.end());
+  }
+  const Tensor logits = Tensor::from_vector(z, {n, k}, DType::F64);
+  const Tensor targets = Tensor::from_vector(t, {n, k}, DType::F64),
+               weights = Tensor::from_vector({1.0, 0.5, 0.0}, {n}, DType::F64);
+  const GradcheckResult r = gradcheck(
+      [&](const TensorList& in) { return train::sun_distribution_loss(in[0], targets, weights); }, {logits});
+  EXPECT_TRUE(r.ok) << r.message;
+  // The value: the weighted mean of logsumexp(z) − Σ t z.
+  const Tensor loss = train::sun_distribution_loss(logits, targets, weights);
+  double expected = 0.0;
+  for (int64_t i = 0; i < n; ++i) {
+    double m = -1e300, s = 0.0, tz = 0.0;
+    for (int64_t j = 0; j < k; ++j) m = std::max(m, z[i * k + j]);
+    for (int64_t j = 0; j < k; ++j) s += std::exp(z[i * k + j] - m), tz += t[i * k + j] * z[i * k + j];
+    expected += (i == 0 ? 1.0 : i == 1 ? 0.5 : 0.0) * (m + std::log(s) - tz);
+  }
+  EXPECT_NEAR(loss.item(), expected / n, 1e-12);
+}
+
+TEST(SunDistribution, ExtremeLogitsGiveAFiniteLossAndGradient) {
+  const int64_t k = kGrid.cells();
+  std::vector<double> z(k, -1e4);
+  z[7] = 1e4;  // a certain network, certain of the wrong cell
+  Tensor logits = Tensor::from_vector(z, {1, k}).to(DType::F32);
+  logits.set_requires_grad(true);
+  const auto t = train::soft_target(kGrid, sun(90, 40), 8.0);
+  const Tensor loss = train::sun_distribution_loss(logits, Tensor::from_vector(t, {1, k}), Tensor::from_vector({1.0}, {1}));
+  EXPECT_TRUE(std::isfinite(loss.item()));
+  backward(loss);
+  for (const double g : logits.grad().to_vector()) EXPECT_TRUE(std::isfinite(g));
+  // Bad probabilities are refused, naming the value.
+  std::vector<double> p(k, 0.0);
+  EXPECT_THROW(train::read_sun_distribution(kGrid, p), Error);
+  p[3] = std::nan("");
+  EXPECT_THROW(train::read_sun_distribution(kGrid, p), Error);
+  EXPECT_THROW(train::validate(SunGrid{8, 0}), Error);
+  EXPECT_THROW(train::validate(SunGrid{8, 31}), Error);
+}
+
+}  // namespace
+}  // namespace sl::test

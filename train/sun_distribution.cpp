@@ -1,0 +1,157 @@
+// The sun as a distribution over the upper hemisphere. See sun_distribution.h.
+#include "train/sun_distribution.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "autodiff/ops.h"
+#include "util/error.h"
+#include "util/math.h"
+
+namespace sl::train {
+
+namespace {
+
+// Centre of cell (ring r, sector j): sector centre azimuth, ring centre in sin(elevation).
+glm::dvec3 cell_centre(const SunGrid& g, int64_t ring, int64_t sector) {
+  const double s = (static_cast<double>(ring) + 0.5) / static_cast<double>(g.elevation_bins);  // sin(elevation)
+  const double phi = -kPi + (static_cast<double>(sector) + 0.5) * 2.0 * kPi / static_cast<double>(g.azimuth_bins);
+  const double c = std::sqrt(std::max(0.0, 1.0 - s * s));
+  // Azimuth φ = atan2(x, −z) (render/equirect.h): x = cos(el) sin φ, z = −cos(el) cos φ.
+  return {c * std::sin(phi), s, -c * std::cos(phi)};
+}
+
+std::vector<glm::dvec3> centres(const SunGrid& g) {
+  std::vector<glm::dvec3> out;
+  out.reserve(static_cast<size_t>(g.cells()));
+  for (int64_t r = 0; r < g.elevation_bins; ++r)
+    for (int64_t j = 0; j < g.azimuth_bins; ++j) out.push_back(cell_centre(g, r, j));
+  return out;
+}
+
+}  // namespace
+
+void validate(const SunGrid& g) {
+  SL_CHECK((g.elevation_bins == 0) == (g.azimuth_bins == 0),
+           "model.sun_grid: elevation_bins and azimuth_bins are both 0 (off) or both positive, got ",
+           g.elevation_bins, " and ", g.azimuth_bins);
+  SL_CHECK(g.elevation_bins >= 0 && g.azimuth_bins >= 0 && g.elevation_bins <= 90 && g.azimuth_bins <= 360,
+           "model.sun_grid: elevation_bins must lie in [0, 90] and azimuth_bins in [0, 360], got ", g.elevation_bins,
+           " and ", g.azimuth_bins);
+  SL_CHECK(!g.enabled() || g.azimuth_bins % 2 == 0, "model.sun_grid.azimuth_bins must be even (the mirror image ",
+           "maps sectors onto sectors), got ", g.azimuth_bins);
+}
+
+Tensor cell_directions(const SunGrid& g, DType dtype) {
+  validate(g);
+  SL_CHECK(g.enabled(), "cell_directions: the sun grid is off");
+  std::vector<double> flat;
+  for (const auto& d : centres(g)) flat.insert(flat.end(), {d.x, d.y, d.z});
+  return Tensor::from_vector(flat, {g.cells(), 3}, dtype);
+}
+
+std::vector<double> soft_target(const SunGrid& g, const glm::dvec3& sun, double width_deg) {
+  validate(g);
+  SL_CHECK(g.enabled(), "soft_target: the sun grid is off");
+  SL_CHECK(std::isfinite(width_deg) && width_deg > 0.0, "soft_target: width_deg must be positive, got ", width_deg);
+  const double len = glm::length(sun);
+  SL_CHECK(std::isfinite(len) && len > 0.0, "soft_target: the sun direction (", sun.x, ", ", sun.y, ", ", sun.z,
+           ") is not a direction");
+  glm::dvec3 s = sun / len;
+  if (s.y < 0.0) {  // below the horizon: lifted onto it (no cell lies below)
+    const double h = std::hypot(s.x, s.z);
+    s = h > 1e-12 ? glm::dvec3(s.x / h, 0.0, s.z / h) : glm::dvec3(0.0, 0.0, -1.0);
+  }
+  const double sigma = width_deg * kPi / 180.0, kappa = 1.0 / (sigma * sigma);
+  std::vector<double> t;
+  t.reserve(static_cast<size_t>(g.cells()));
+  double total = 0.0;
+  for (const auto& d : centres(g)) {
+    // exp(κ(d·s − 1)) = exp(−κ|d − s|²/2): the stable form, ≤ 1 and exact at the peak.
+    const glm::dvec3 diff = d - s;
+    t.push_back(std::exp(-0.5 * kappa * glm::dot(diff, diff)));
+    total += t.back();
+  }
+  if (!(total > 0.0)) {  // a lobe narrower than the cells' spacing: all mass on the nearest cell
+    const auto c = centres(g);
+    size_t best = 0;
+    for (size_t k = 1; k < c.size(); ++k)
+      if (glm::dot(c[k], s) > glm::dot(c[best], s)) best = k;
+    std::fill(t.begin(), t.end(), 0.0);
+    t[best] = 1.0;
+    return t;
+  }
+  for (double& v : t) v /= total;
+  return t;
+}
+
+Tensor sun_distribution_loss(const Tensor& logits, const Tensor& targets, const Tensor& weights) {
+  SL_CHECK(logits.dim() == 2 && targets.shape() == logits.shape(), "sun_distribution_loss: logits ",
+           logits.describe(), " and targets ", targets.describe(), " must both be [N, K]");
+  SL_CHECK(weights.dim() == 1 && weights.size(0) == logits.size(0), "sun_distribution_loss: weights ",
+           weights.describe(), " must be [N] for logits ", logits.describe());
+  const int64_t n = logits.size(0);
+  SL_CHECK(n > 0, "sun_distribution_loss: an empty batch");
+  const Tensor t = targets.dtype() == logits.dtype() ? targets : targets.to(logits.dtype());
+  const Tensor w = weights.dtype() == logits.dtype() ? weights : weights.to(logits.dtype());
+  // CE(t, softmax(z)) = logsumexp(z) − Σ_k t_k z_k when Σ_k t_k = 1.
+  const Tensor ce = sub(logsumexp(logits, 1), sum(mul(t, logits), {1}));  // [N]
+  return mul_scalar(sum(mul(w, ce)), 1.0 / static_cast<double>(n));
+}
+
+std::vector<double> mirror_cells(const SunGrid& g, const std::vector<double>& p) {
+  SL_CHECK(static_cast<int64_t>(p.size()) == g.cells(), "mirror_cells: ", p.size(), " values for a grid of ",
+           g.cells(), " cells");
+  std::vector<double> out(p.size());
+  for (int64_t r = 0; r < g.elevation_bins; ++r)
+    for (int64_t j = 0; j < g.azimuth_bins; ++j)
+      out[static_cast<size_t>(r * g.azimuth_bins + (g.azimuth_bins - 1 - j))] = p[static_cast<size_t>(r * g.azimuth_bins + j)];
+  return out;
+}
+
+std::vector<double> softmax_row(const std::vector<double>& z) {
+  SL_CHECK(!z.empty(), "softmax_row: no logits");
+  double m = -std::numeric_limits<double>::infinity();
+  for (const double v : z) {
+    SL_CHECK(std::isfinite(v), "softmax_row: a logit is not finite (", v, ")");
+    m = std::max(m, v);
+  }
+  std::vector<double> p(z.size());
+  double total = 0.0;
+  for (size_t k = 0; k < z.size(); ++k) total += p[k] = std::exp(z[k] - m);
+  for (double& v : p) v /= total;
+  return p;
+}
+
+SunReadout read_sun_distribution(const SunGrid& g, const std::vector<double>& p, double radius_deg) {
+  validate(g);
+  SL_CHECK(g.enabled(), "read_sun_distribution: the sun grid is off");
+  SL_CHECK(static_cast<int64_t>(p.size()) == g.cells(), "read_sun_distribution: ", p.size(),
+           " probabilities for a grid of ", g.cells(), " cells");
+  SL_CHECK(std::isfinite(radius_deg) && radius_deg > 0.0, "read_sun_distribution: radius_deg must be positive, got ",
+           radius_deg);
+  double total = 0.0;
+  for (const double v : p) {
+    SL_CHECK(std::isfinite(v) && v >= 0.0, "read_sun_distribution: a probability is not finite and >= 0 (", v, ")");
+    total += v;
+  }
+  SL_CHECK(total > 0.0, "read_sun_distribution: the probabilities sum to 0");
+  const auto c = centres(g);
+  SunReadout out;
+  out.mode_cell = std::max_element(p.begin(), p.end()) - p.begin();
+  const glm::dvec3 mode = c[static_cast<size_t>(out.mode_cell)];
+  const double cos_r = std::cos(radius_deg * kPi / 180.0);
+  glm::dvec3 acc(0.0);
+  double mass = 0.0;
+  for (size_t k = 0; k < c.size(); ++k)
+    if (glm::dot(c[k], mode) >= cos_r) {
+      acc += p[k] * c[k];
+      mass += p[k];
+    }
+  out.direction = glm::length(acc) > 1e-12 ? glm::normalize(acc) : mode;
+  out.confidence = mass / total;
+  return out;
+}
+
+}  // namespace sl::train

@@ -1,0 +1,67 @@
+// A probability over sun directions on the upper hemisphere, in place of one averaged direction
+// (issue 53). A network trained to regress one direction with an angular L1 loss pays to put a
+// sun whose azimuth it cannot tell near the zenith, the direction nearest on average to every
+// azimuth, and every shadow it casts is then short. A distribution can keep two guesses apart
+// (in front of the camera, or behind it) and its answer is read at the MODE, not the mean.
+//
+// The grid: `elevation_bins` rings × `azimuth_bins` sectors over elevations [0°, 90°] of the
+// canonical frame (train/street_batch.h: the camera looks at azimuth 0, −Z). The rings are equal
+// in sin(elevation), so every cell has the same solid angle 2π / K (K = rings × sectors): a
+// cell's probability is a density up to one constant, and the mode of the cells is the mode of
+// the density. Cell k = ring · azimuth_bins + sector; ring 0 touches the horizon; sector j
+// spans azimuths [−π + j·2π/A, −π + (j+1)·2π/A) (render/equirect.h: azimuth φ = atan2(x, −z)).
+//
+// Contract:
+// - cell_directions(grid) → [K, 3] unit cell centres (sector centre azimuth, ring centre in
+//   sin(elevation)).
+// - soft_target(grid, sun) → [K] probabilities ∝ exp(κ(d_k·s − 1)), κ from width_deg (the
+//   lobe's standard deviation in degrees: κ = 1/σ²). A sun below the horizon is lifted to it
+//   (no cell lies below); a zero vector throws.
+// - sun_distribution_loss(logits [N, K], targets [N, K], weights [N]) → scalar
+//   Σ_i w_i · CE(t_i, softmax(logits_i)) / N, the cross-entropy −Σ_k t_k log p_k computed as
+//   logsumexp(logits) − Σ_k t_k logits_k (stable for any finite logits; differentiable in
+//   logits).
+// - mirror_cells(grid, p) → p of the mirrored image: azimuth φ → −φ maps sector j to A − 1 − j.
+// - read_sun_distribution(grid, p, radius_deg) → the mode cell, refined locally to the
+//   probability-weighted mean direction of the cells within radius_deg of the mode cell's
+//   centre, and its confidence: the probability inside that radius (in [0, 1]; 1 = certain).
+//   With two separated peaks it answers at the larger one, never between them.
+//   Throws for a p that is not K finite non-negative values with a positive sum.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "autodiff/tensor.h"
+
+namespace sl::train {
+
+struct SunGrid {
+  int64_t elevation_bins = 0, azimuth_bins = 0;
+  bool enabled() const { return elevation_bins > 0 && azimuth_bins > 0; }
+  int64_t cells() const { return elevation_bins * azimuth_bins; }
+};
+
+void validate(const SunGrid& grid);
+
+Tensor cell_directions(const SunGrid& grid, DType dtype = DType::F32);
+
+std::vector<double> soft_target(const SunGrid& grid, const glm::dvec3& sun, double width_deg);
+
+Tensor sun_distribution_loss(const Tensor& logits, const Tensor& targets, const Tensor& weights);
+
+std::vector<double> mirror_cells(const SunGrid& grid, const std::vector<double>& p);
+
+// softmax of one row of logits, in double.
+std::vector<double> softmax_row(const std::vector<double>& logits);
+
+struct SunReadout {
+  glm::dvec3 direction{0.0, 1.0, 0.0};
+  int64_t mode_cell = 0;
+  double confidence = 0.0;  // probability within the readout radius of the mode
+};
+
+SunReadout read_sun_distribution(const SunGrid& grid, const std::vector<double>& p, double radius_deg = 20.0);
+
+}  // namespace sl::train

@@ -1,0 +1,84 @@
+#!/usr/bin/env bash
+# Trains the sun head of the 0.7.0 release (issue 53) and publishes it as models/streetlight.safetensors.
+# It continues the previous release (0.6.0, 2026-11-27: scripts/train_release.sh, taken from git at
+# commit 42f2b6d) with a new sun head (model.sun_grid, train/sun_distribution.h) and the enlarged
+# real data: configs/release_sun_grid.json, on 480 generated streets (configs/release_datagen.json,
+# 480 samples), crops of the 39 training HDR skies (configs/hdri_split.json) and of the 522 training
+# LDR panoramas (configs/pano_ldr_split.json). Steps, each resumable:
+#   1. the streets, rendered by two processes (--skip-existing);
+#   2. the previous release's weights, from git;
+#   3. the stage (best.safetensors follows the validation sun error);
+#   4. evaluation of the previous release and the new model on the real test splits (8 crops per
+#      panorama) and on the held-out streets when DIR/test_street exists (configs/release_datagen_test.json);
+#   5. the release: best.safetensors exported (F16) to models/streetlight.safetensors.
+# Usage: scripts/train_sun_grid.sh [--runs DIR] [--build-dir DIR] [--no-publish] [--stop-after STEP]
+#   --runs DIR   run folder (default ../streetlight-runs/sun_grid, outside the repository)
+#   --stop-after STEP  datagen, previous, train or eval
+set -euo pipefail
+cd "$(dirname "$0")/.."
+runs=../streetlight-runs/sun_grid; build_dir=build; publish=1; stop_after=
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --runs) runs="$2"; shift ;;
+    --build-dir) build_dir="$2"; shift ;;
+    --no-publish) publish=0 ;;
+    --stop-after) stop_after="$2"; shift
+      case "$stop_after" in datagen|previous|train|eval) ;;
+        *) echo "error: --stop-after '$stop_after': expected datagen, previous, train or eval" >&2; exit 2 ;;
+      esac ;;
+    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    *) echo "error: unknown option '$1' (try --help)" >&2; exit 2 ;;
+  esac
+  shift
+done
+hdri=../shared/data/hdri; ldr=../shared/data/pano_ldr
+[ -d "$hdri" ] || { echo "error: $hdri is missing: the sun head trains on the real panoramas there" >&2; exit 2; }
+[ -f "$ldr/places.csv" ] || { echo "error: $ldr/places.csv is missing: the 873-panorama folder is needed" >&2; exit 2; }
+bin="$build_dir/tools"
+[ -x "$bin/streetlight-train" ] || { echo "error: $bin/streetlight-train is missing: run bash scripts/build.sh first" >&2; exit 2; }
+mkdir -p "$runs"; runs=$(cd "$runs" && pwd); hdri=$(cd "$hdri" && pwd); ldr=$(cd "$ldr" && pwd)
+start=$(date +%s)
+say() { echo "train_sun_grid: [$(( $(date +%s) - start )) s] $*" >&2; }
+timed() {  # timed NAME CMD...: runs CMD unless NAME is done; records its wall time
+  local name=$1; shift
+  if [ -f "$runs/$name.done" ]; then say "$name: done before ($(cat "$runs/$name.done") s)"
+  else local t0; t0=$(date +%s); "$@"; echo $(( $(date +%s) - t0 )) > "$runs/$name.done"; fi
+  if [ "$name" = "$stop_after" ]; then say "stopping after $name (--stop-after)"; exit 0; fi
+}
+datagen() {
+  local pids=()
+  for k in 0 1; do
+    OMP_NUM_THREADS=1 "$bin/streetlight-datagen" --config configs/release_datagen.json --set samples=480 \
+      --set "sky.hdri_folder=$hdri" --set sky.hdri_split=configs/hdri_split.json \
+      --out "$runs/street" --shard "$k/2" --skip-existing --json > "$runs/street_datagen_$k.json" 2> "$runs/street_datagen_$k.log" &
+    pids+=($!)
+  done
+  for p in "${pids[@]}"; do wait "$p" || { echo "error: streetlight-datagen failed, see $runs/street_datagen_*.log" >&2; exit 1; }; done
+}
+previous() { git show 42f2b6d:models/streetlight.safetensors > "$runs/previous.safetensors.tmp" && mv "$runs/previous.safetensors.tmp" "$runs/previous.safetensors"; }
+train() {
+  local resume=()
+  [ -f "$runs/sun_grid/last.safetensors" ] && resume=(--resume "$runs/sun_grid/last.safetensors")
+  "$bin/streetlight-train" --config configs/release_sun_grid.json --set "data.dataset=$runs/street" \
+    --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" --set "init.checkpoint=$runs/previous.safetensors" \
+    "${resume[@]}" --out "$runs/sun_grid" --json > "$runs/sun_grid.json" 2> >(tee -a "$runs/sun_grid.log" >&2)
+}
+evaluate() {
+  local streets=()
+  [ -f "$runs/test_street/index.json" ] && streets=(--data "$runs/test_street" --baseline-data "$runs/street")
+  "$bin/streetlight-eval" --data "$hdri" --hdri-split configs/hdri_split.json --split test --crops 8 \
+    --data "$ldr" --ldr-split configs/pano_ldr_split.json "${streets[@]}" --no-budgets --out "$runs/eval" \
+    --checkpoint "$runs/previous.safetensors" --name "0.6.0 (2026-11-27)" \
+    --checkpoint "$runs/sun_grid/best.safetensors" --name "0.7.0 sun head" > /dev/null
+}
+say "1/5 streets"; timed datagen datagen
+say "2/5 the previous release"; timed previous previous
+say "3/5 the sun head (configs/release_sun_grid.json)"; timed train train
+say "4/5 evaluation on the test splits"; timed eval evaluate
+if [ "$publish" = 1 ]; then
+  commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
+  "$bin/streetlight-export" --checkpoint "$runs/sun_grid/best.safetensors" --out models/streetlight.safetensors \
+    --meta "commit=$commit" --meta "script=scripts/train_sun_grid.sh" --meta "version=0.7.0" --meta "license=see models/README.md"
+  say "5/5 published models/streetlight.safetensors (write its card in models/README.md from $runs/eval/results.md)"
+fi
+say "done in $(( $(date +%s) - start )) s (this invocation); per-step wall times in $runs/*.done"

@@ -62,7 +62,7 @@ for s in "$runs"/street/samples/*; do  # the first test-split sample
   id=$(basename "$s")
   if tr -d ' \n' < "$runs/street/index.json" | grep -q "\"test\":\[[^]]*\"$id\""; then sample="$s"; break; fi
 done
-"$bin/streetlight-insert" --sample "$sample" --object procedural:car \
+"$bin/streetlight-insert" --sample "$sample" \
   --checkpoint "$runs/adversarial/last.safetensors" --out "$out/insertion"
 cp "$sample/insert_with_object_ldr.png" "$out/insertion/path_traced_truth.png" 2>/dev/null || true
 cp "$sample/view_0_ldr.png" "$out/insertion/input.png"

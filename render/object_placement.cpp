@@ -17,6 +17,14 @@ glm::dvec3 rotate_yaw(const glm::dvec3& v, double yaw_rad) {
   return {c * v.x + s * v.z, v.y, -s * v.x + c * v.z};
 }
 
+Placement placement_in_camera_ground_frame(const Camera& camera, double right_m, double forward_m, double yaw_deg,
+                                           double scale) {
+  const glm::dvec3 right = camera.rotation()[0], fwd = camera.rotation()[2];
+  const glm::dvec3 r_h = glm::normalize(glm::dvec3(right.x, 0, right.z)), f_h = glm::normalize(glm::dvec3(fwd.x, 0, fwd.z));
+  const glm::dvec3 ground = camera.position() + right_m * r_h + forward_m * f_h;
+  return Placement{ground.x, ground.z, yaw_deg, scale};
+}
+
 void check_placement(const Mesh& mesh, const Placement& p, const char* fn) {
   SL_CHECK(mesh.triangle_count() > 0 && !mesh.bounds().empty(), fn, ": the object mesh is empty");
   SL_CHECK(std::isfinite(p.x_m) && std::isfinite(p.z_m) && std::isfinite(p.yaw_deg), fn, ": placement (x ", p.x_m,

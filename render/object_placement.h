@@ -32,6 +32,12 @@ struct Placement {
 // R_y(yaw) of the header: +X → (cos yaw, 0, −sin yaw).
 glm::dvec3 rotate_yaw(const glm::dvec3& v, double yaw_rad);
 
+// The placement at (right_m, forward_m) in the camera's ground frame: from the camera's position,
+// right_m along its right axis and forward_m along its viewing direction, both projected onto the
+// ground plane (the frame of streetlight-insert --at X,Z). Yaw and scale are copied.
+Placement placement_in_camera_ground_frame(const Camera& camera, double right_m, double forward_m, double yaw_deg,
+                                           double scale = 1.0);
+
 // Throws unless the mesh has triangles and the placement is finite with scale > 0; `fn` names
 // the caller in the message.
 void check_placement(const Mesh& mesh, const Placement& placement, const char* fn);

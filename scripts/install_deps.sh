@@ -2,19 +2,20 @@
 # Installs Streetlight's build and test dependencies from Debian 12 packages. Idempotent: it
 # only calls apt-get when a package is missing. Usage: scripts/install_deps.sh [--anchors] [--mpi] [--clang]
 #   --anchors  also install the comparison anchors (python3-torch with OpenBLAS, jemalloc for it
-#              (scripts/anchor_allocator.py), libembree-dev, numpy)
+#              (scripts/anchor_allocator.py), libembree-dev)
 #   --mpi      also install Open MPI (data-parallel training, docs/DISTRIBUTED.md)
 #   --clang    also install clang 14 and its sanitizer and libFuzzer runtimes (scripts/fuzz.sh)
 set -euo pipefail
 
 packages=(cmake g++ make ccache pkg-config
           libeigen3-dev libopenimageio-dev libopenexr-dev libtinygltf-dev libstb-dev
-          libglm-dev nlohmann-json3-dev libgtest-dev)
+          libglm-dev nlohmann-json3-dev libgtest-dev
+          pybind11-dev python3-dev python3-numpy python3-pytest)
 for arg in "$@"; do
   case "$arg" in
     # OpenBLAS: without it (--no-install-recommends) PyTorch multiplies with the reference BLAS,
-    # 15x slower (1024^3: 374 against 21-27 ms on the AMD EPYC of session 26).
-    --anchors) packages+=(python3-torch python3-numpy libopenblas0-pthread libjemalloc2 libembree-dev) ;;
+    # 15x slower (1024^3: 374 against 21-27 ms on an AMD EPYC, 2026-11-27).
+    --anchors) packages+=(python3-torch libopenblas0-pthread libjemalloc2 libembree-dev) ;;
     --mpi) packages+=(libopenmpi-dev openmpi-bin) ;;
     --clang) packages+=(clang libclang-rt-14-dev) ;;
     -h|--help) sed -n '2,7p' "$0"; exit 0 ;;

@@ -2,7 +2,7 @@
 # The README's first command: installs what it needs, builds, then runs the main job on data the
 # project makes itself: generate a small synthetic street dataset, train the three quickstart
 # stages (sky autoencoder, lighting predictor, end to end with insertion), evaluate on the held-out
-# split, and insert a procedurally generated car into a held-out image. Writes a Markdown report
+# split, and insert a held-out image's own object into it (beside its path-traced truth). Writes a Markdown report
 # with the metrics table and PNGs under the output folder (default streetlight-out/).
 # Usage: scripts/quickstart.sh [--out DIR] [--skip-install] [--build-dir DIR [--skip-build]]
 # Works without ../shared (the sky stage then trains on sky-model skies only).
@@ -56,13 +56,13 @@ step "4/5 evaluating on the test split"
   --checkpoint "$runs/lighting/last.safetensors" --name "stage 2 (lighting)" \
   --checkpoint "$runs/adversarial/last.safetensors" --name "stage 3 (adversarial)" > /dev/null
 
-step "5/5 inserting a procedural car into a held-out generated image"
+step "5/5 inserting a held-out generated image's own car into it"
 sample=$(ls -d "$runs"/street/samples/* | tail -n 1)
 for s in "$runs"/street/samples/*; do  # the first test-split sample
   id=$(basename "$s")
   if tr -d ' \n' < "$runs/street/index.json" | grep -q "\"test\":\[[^]]*\"$id\""; then sample="$s"; break; fi
 done
-"$bin/streetlight-insert" --sample "$sample" --object procedural:car \
+"$bin/streetlight-insert" --sample "$sample" \
   --checkpoint "$runs/adversarial/last.safetensors" --out "$out/insertion"
 cp "$sample/insert_with_object_ldr.png" "$out/insertion/path_traced_truth.png" 2>/dev/null || true
 cp "$sample/view_0_ldr.png" "$out/insertion/input.png"

@@ -20,7 +20,7 @@
 #      of the labelled ones;
 #   6. the streets (configs/release_streets.json): 1000 steps on the generated streets alone at a
 #      lower rate, which gives back the streets' accuracy the real crops cost and, on validation,
-#      also lowered the real errors (docs/RESULTS.md, session 24); its checkpoint is the one with the
+#      also lowered the real errors (docs/RESULTS.md, 2026-11-27); its checkpoint is the one with the
 #      lowest validation error on the streets;
 #   7. evaluation of steps 5 and 6 on the real HDR and LDR test splits and the synthetic test split;
 #   8. the release: step 6's checkpoint, exported (F16) with a model card that lists data, configs,

@@ -58,6 +58,7 @@ using sl::data::write_depth;
 using sl::data::write_image;
 using sl::render::Mesh;
 using sl::render::Placement;
+using sl::train::street_sample_object;
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -218,7 +219,7 @@ PhotoSources sources_from_args(const cli::Args& a, size_t i) {
 
 int single(const cli::Args& a) {
   SL_CHECK(a.has("--image") || a.has("--sample"), "--image PHOTO is required (or --sample, or --batch)");
-  SL_CHECK(a.has("--object"), "--object MODEL.glb is required (or procedural:car)");
+  SL_CHECK(a.has("--object") || a.has("--sample"), "--object MODEL.glb is required (or procedural:car)");
   SL_CHECK(a.has("--out"), "--out DIR is required");
   std::vector<Photo> photos;
   Placement sample_place;
@@ -229,7 +230,9 @@ int single(const cli::Args& a) {
     for (size_t i = 0; i < a.all("--image").size(); ++i) photos.push_back(load_photo(sources_from_args(a, i)));
   }
   const Photo& photo = photos[0];
-  const Mesh object = load_object(a.get("--object"));
+  // A sample is compared with its path-traced truth, so by default it gets the generator's object.
+  const std::string object_spec = a.has("--object") ? a.get("--object") : street_sample_object(a.get("--sample"));
+  const Mesh object = load_object(object_spec);
   SL_CHECK(a.has("--at") || has_sample_place, "--at X,Z is required (metres right of and ahead of the first camera)");
   Placement pose;
   pose.yaw_deg = 90.0;
@@ -237,12 +240,7 @@ int single(const cli::Args& a) {
   if (a.has("--at")) {
     std::tie(ax, az) = parse_pair("--at", a.get("--at"));
     // --at is in the first camera's ground frame: X right, Z forward.
-    const glm::dvec3 right = photo.camera.rotation()[0], fwd = photo.camera.rotation()[2];
-    const glm::dvec3 r_h = glm::normalize(glm::dvec3(right.x, 0, right.z)), f_h = glm::normalize(glm::dvec3(fwd.x, 0, fwd.z));
-    const glm::dvec3 ground = photo.camera.position() + ax * r_h + az * f_h;
-    pose.x_m = ground.x;
-    pose.z_m = ground.z;
-    pose.yaw_deg = a.number("--yaw", 90.0);
+    pose = render::placement_in_camera_ground_frame(photo.camera, ax, az, a.number("--yaw", 90.0));
   } else {
     pose.x_m = sample_place.x_m;
     pose.z_m = sample_place.z_m;
@@ -327,6 +325,7 @@ int single(const cli::Args& a) {
             {"checkpoint_step", est.step()},
             {"image", a.has("--sample") ? a.get("--sample") : a.all("--image")[0]},
             {"views", photos.size()},
+            {"object", object_spec},
             {"depth_source", photo.depth_source},
             {"sun", sun_json(light)},
             {"placement", {{"at_camera_ground_xz", {ax, az}},
@@ -408,7 +407,7 @@ int run(int argc, char** argv) {
               {{"--image", "PHOTO", "street photo (PNG/JPEG; several for multi-view, with --pose)", true},
                {"--intrinsics", "FILE", "KITTI 3x4 projection file (P2) or JSON {fx, fy, cx, cy}", true},
                {"--sample", "DIR", "a generated street sample (DIR/samples/<id>): view 0 with its depth and pose;\n"
-                "                               without --at, the generator's own placement"},
+                "                               without --at, the generator's own placement; without --object, its object"},
                {"--pose", "X,Y,Z,YAW[,PITCH]", "multi-view: world pose of each camera (metres, degrees)", true},
                {"--depth", "FILE", "metric depth: EXR (metres) or KITTI 16-bit PNG (metres*256)"},
                {"--lidar", "BIN", "KITTI velodyne .bin, projected and densified (needs --calib)"},
@@ -435,7 +434,7 @@ int run(int argc, char** argv) {
                {"--sun-from-shadows", "", "set the sun's direction and strength from the photo's own cast shadows and its\n"
                 "                               depth (needs real geometry: --lidar or --depth); else the network's sun stays"},
                {"--aa", "N", "primary rays per pixel (default 4)"},
-               {"--light-samples", "N", "light samples per primary ray, Eq. 2 (default 8)"},
+               {"--light-samples", "N", "light samples per primary ray, Eq. 2 (default 16)"},
                {"--adaptive-samples", "X", "on average X more per primary ray where the neighbouring pixels were noisy\n"
                 "                               (default 2; 0: off)"},
                {"--denoise-radius", "N", "smooth the sampled part of Eq. 2 over (2N+1)^2 pixels, guided by normals, depth\n"

@@ -60,9 +60,20 @@ Intrinsics read_intrinsics(const std::string& path, int width, int height) {
   } else {
     k = kitti_projection_from_file(path, width, height).intrinsics;
   }
-  SL_CHECK(k.cx > 0 && k.cx < width && k.cy > 0 && k.cy < height, "intrinsics file '", path, "': principal point (",
-           k.cx, ", ", k.cy, ") lies outside the ", width, "x", height, " image; the intrinsics belong to another image");
+  check_principal_point(k, "intrinsics file '" + path + "'");
   return k;
+}
+
+void check_principal_point(const Intrinsics& k, const std::string& where) {
+  SL_CHECK(k.cx > 0 && k.cx < k.width && k.cy > 0 && k.cy < k.height, where, ": principal point (", k.cx, ", ", k.cy,
+           ") lies outside the ", k.width, "x", k.height, " image; the intrinsics belong to another image");
+}
+
+Camera photo_camera(const Intrinsics& k, const PhotoSources& s) {
+  SL_CHECK(s.camera_height_m > 0 && std::isfinite(s.camera_height_m), "--camera-height ", s.camera_height_m,
+           " must be positive");
+  const glm::dvec3 pos = s.position.value_or(glm::dvec3(0.0, s.camera_height_m, 0.0));
+  return Camera(k, rotation_from_yaw_pitch_roll(s.yaw_deg * kPi / 180.0, s.pitch_deg * kPi / 180.0, 0.0), pos);
 }
 
 Photo load_photo(const PhotoSources& s) {
@@ -80,10 +91,7 @@ Photo load_photo(const PhotoSources& s) {
     SL_CHECK(!s.calib.empty(), "--intrinsics FILE is required (or --calib with --lidar)");
     k = read_kitti_calibration(s.calib, w, h).p2.intrinsics;
   }
-  SL_CHECK(s.camera_height_m > 0 && std::isfinite(s.camera_height_m), "--camera-height ", s.camera_height_m,
-           " must be positive");
-  const glm::dvec3 pos = s.position.value_or(glm::dvec3(0.0, s.camera_height_m, 0.0));
-  p.camera = Camera(k, rotation_from_yaw_pitch_roll(s.yaw_deg * kPi / 180.0, s.pitch_deg * kPi / 180.0, 0.0), pos);
+  p.camera = photo_camera(k, s);
   if (!s.depth.empty()) {
     const Tensor d = read_depth(s.depth);
     SL_CHECK(d.size(1) == h && d.size(2) == w, "depth file '", s.depth, "' is ", d.size(2), "x", d.size(1),
@@ -145,6 +153,20 @@ Photo load_street_view(const std::string& dir, int view, Placement* placement, b
     SL_CHECK(false, "street sample '", meta_path, "': ", e.what());
   }
   return p;
+}
+
+std::string street_sample_object(const std::string& dir) {
+  const std::string meta_path = dir + "/meta.json";
+  std::ifstream f(meta_path);
+  SL_CHECK(f.good(), "street sample '", dir, "' has no meta.json");
+  try {
+    const nlohmann::json m = nlohmann::json::parse(f);
+    SL_CHECK(m.contains("object") && !m.at("object").is_null(), "street sample '", dir,
+             "' has no inserted object (generated without insertion); give --object");
+    return dir + "/" + m.at("object").at("file").get<std::string>();
+  } catch (const nlohmann::json::exception& e) {
+    fail("street sample '", meta_path, "': ", e.what());
+  }
 }
 
 }  // namespace sl::train

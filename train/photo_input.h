@@ -24,6 +24,9 @@
 namespace sl::train {
 
 render::Intrinsics read_intrinsics(const std::string& path, int width, int height);
+// Throws naming `where` unless the principal point lies inside the k.width x k.height image
+// (intrinsics that belong to another image).
+void check_principal_point(const render::Intrinsics& k, const std::string& where);
 
 struct PhotoSources {
   std::string image, intrinsics, depth, lidar, calib;
@@ -41,10 +44,17 @@ struct Photo {
 };
 
 Photo load_photo(const PhotoSources& sources);
+// load_photo()'s camera for intrinsics k: at sources.position, else (0, camera_height_m, 0), with
+// sources' yaw and pitch. Throws unless camera_height_m is finite and positive.
+render::Camera photo_camera(const render::Intrinsics& k, const PhotoSources& sources);
 
 // View `view` of a generated street sample folder (docs/DATASET.md: DIR/samples/<id>): its LDR,
 // depth and full camera pose from meta.json (depth_source "dataset"). When the sample has an
 // inserted object, *placement receives its world placement (x, z, yaw, scale) and true is returned.
 Photo load_street_view(const std::string& sample_dir, int view, render::Placement* placement, bool* has_placement);
+// The object the generator inserted into a street sample (meta.json object.file, in the object
+// frame), so an insertion into the sample compares like with like against its path-traced truth.
+// Throws naming the sample when it has no inserted object.
+std::string street_sample_object(const std::string& sample_dir);
 
 }  // namespace sl::train

@@ -10,6 +10,10 @@
 #include <nlohmann/json.hpp>
 
 #include "data/image_io.h"
+#include "autodiff/ops.h"
+#include "data/procedural_car.h"
+#include "render/gltf_writer.h"
+#include "train/photo_insertion.h"
 #include "util/math.h"
 #include "support/tool_fixture.h"
 
@@ -70,6 +74,66 @@ TEST(InsertTool, WritesEveryOutputWithTheGroundPlaneFallback) {
   const sl::Tensor comp = sl::data::read_image(out + "/composite.png");
   EXPECT_EQ(comp.size(1), 32);
   EXPECT_EQ(comp.size(2), 64);
+}
+
+// A generated street sample (docs/DATASET.md) as streetlight-datagen writes one: view 0's LDR and
+// depth of a 64x32 camera looking down -Z from 1.65 m, and its inserted object, a green car 8 m ahead.
+std::string green_car_sample(const std::string& dir) {
+  const std::string sample = dir + "/samples/000000";
+  fs::create_directories(sample);
+  sl::test::tiny_photo(sample);
+  fs::rename(sample + "/photo.png", sample + "/view_0_ldr.png");
+  const render::Intrinsics k{.fx = 38.4, .fy = 38.4, .cx = 32, .cy = 16, .width = 64, .height = 32};
+  const glm::dmat3 cam_to_world(glm::dvec3(1, 0, 0), glm::dvec3(0, -1, 0), glm::dvec3(0, 0, -1));
+  const render::Camera camera(k, cam_to_world, glm::dvec3(0, 1.65, 0));
+  data::write_depth(sample + "/view_0_depth.exr", unsqueeze(train::ground_plane_depth(camera), 0));
+  data::ProceduralCarParams green;
+  green.paint_rgb = glm::vec3(0.05f, 0.6f, 0.05f);
+  render::write_glb(data::make_procedural_car(green), sample + "/object.glb");
+  const nlohmann::json view = {
+      {"intrinsics", {{"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}, {"width", 64}, {"height", 32}}},
+      {"rotation_cam_to_world", {1, 0, 0, 0, -1, 0, 0, 0, -1}},
+      {"position", {0, 1.65, 0}},
+      {"files", {{"ldr", "view_0_ldr.png"}, {"depth", "view_0_depth.exr"}}}};
+  const nlohmann::json meta = {
+      {"views", {view}},
+      {"object", {{"file", "object.glb"}, {"placement", {{"x_m", 0}, {"z_m", -8}, {"yaw_deg", 90}, {"scale", 1}}}}}};
+  std::ofstream(sample + "/meta.json") << meta.dump(2);
+  return sample;
+}
+
+TEST(InsertTool, SampleInsertsItsOwnObjectUnlessOneIsGiven) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP() << "streetlight-insert not built";
+  const std::string dir = sl::test::tool_dir("insert_sample");
+  const std::string ckpt = sl::test::tiny_lighting_checkpoint(dir);
+  const std::string sample = green_car_sample(dir);
+  const std::string knobs = " --checkpoint " + ckpt + " --aa 1 --light-samples 4 --shadow-rays 8 --shadow-width 16"
+                            " --shadow-height 8 --no-visible-sun";
+  auto r = run_tool("streetlight-insert", "--sample " + sample + " --out " + dir + "/own" + knobs);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream jf(dir + "/own/result.json");
+  const auto j = nlohmann::json::parse(jf);
+  EXPECT_EQ(j["object"], sample + "/object.glb");
+  // The composite's object is the sample's green car, not the default red one.
+  const Tensor comp = data::read_image(dir + "/own/composite.png");
+  const Tensor mask = data::read_image(dir + "/own/object_mask.png");
+  double red = 0, green = 0;
+  for (int64_t y = 0; y < 32; ++y)
+    for (int64_t x = 0; x < 64; ++x)
+      if (mask.at({0, y, x}) > 0.99) red += comp.at({0, y, x}), green += comp.at({1, y, x});
+  EXPECT_GT(green, 1.5 * red) << "green " << green << ", red " << red;
+  r = run_tool("streetlight-insert", "--sample " + sample + " --object procedural:car --out " + dir + "/given" + knobs);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream gf(dir + "/given/result.json");
+  EXPECT_EQ(nlohmann::json::parse(gf)["object"], "procedural:car");
+}
+
+TEST(InsertTool, VersionPrintsTheRelease) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP() << "streetlight-insert not built";
+  const auto r = run_tool("streetlight-insert", "--version");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.rfind("streetlight-insert ", 0), 0u) << r.out;
+  EXPECT_NE(r.out.find('.'), std::string::npos) << r.out;
 }
 
 TEST(InsertTool, SunEditingMovesTheEstimatedSun) {

@@ -12,6 +12,7 @@
 
 #include "tools/common/config.h"
 #include "util/error.h"
+#include "util/version.h"
 
 namespace sl::cli {
 
@@ -28,6 +29,7 @@ std::string Args::help_text() const {
     s += left + " " + f.help + (f.repeatable ? " (repeatable)" : "") + "\n";
   }
   s += "  --help                       print this help\n";
+  s += "  --version                    print the release (CHANGELOG.md)\n";
   return s;
 }
 
@@ -38,6 +40,10 @@ bool Args::parse(int argc, char** argv) {
     std::string a = argv[i];
     if (a == "--help" || a == "-h") {
       std::fputs(help_text().c_str(), stdout);
+      return false;
+    }
+    if (a == "--version") {
+      std::printf("%s %s\n", program_.c_str(), version());
       return false;
     }
     std::string value;

@@ -1,7 +1,8 @@
 // The shared style of every Streetlight executable (docs/DESIGN.md, "Executables").
 //
 // Contract:
-// - Args: --help prints the synopsis and every flag and returns false from parse(); an unknown
+// - Args: --help prints the synopsis and every flag, and --version the release (util/version.h,
+//   "streetlight-insert 0.6.0"); both return false from parse(). An unknown
 //   flag is an error naming it and the nearest known flag; a flag missing its value is an
 //   error. Flags may repeat when declared repeatable (--set, --checkpoint).
 // - run_main(): sl::Error -> one line "error: <message>" on stderr and exit 2 (bad input);

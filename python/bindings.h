@@ -32,6 +32,7 @@ void bind_photo(py::module_& m);
 void bind_lighting(py::module_& m);
 void bind_insertion(py::module_& m);
 void bind_training(py::module_& m);
+void bind_evaluation(py::module_& m);
 
 // The thread count of streetlight.set_num_threads() (0: OpenMP's own default).
 void set_thread_count(int threads);

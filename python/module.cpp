@@ -73,4 +73,5 @@ PYBIND11_MODULE(streetlight, m) {
   bind_lighting(m);
   bind_insertion(m);
   bind_training(m);
+  bind_evaluation(m);
 }

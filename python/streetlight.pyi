@@ -1,5 +1,6 @@
 # Type stub of the `streetlight` extension module (python/*.cpp): the signatures help() and
 # editors show. Keep in step with the bindings; tests/python/test_module.py checks the names.
+import os
 from typing import Callable, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -138,3 +139,13 @@ def insert(image: np.ndarray, intrinsics: Intrinsics, lighting: Lighting, obj: s
 def train(config: Union[str, Mapping], *, out: Optional[str] = None, resume: Optional[str] = None,
           overrides: Sequence[str] = (),
           progress: Optional[Callable[[str, int, Mapping[str, float]], None]] = None) -> dict: ...
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+def evaluate(checkpoints: Union[PathLike, Sequence[PathLike], None] = None,
+             data: Union[PathLike, Sequence[PathLike], None] = None, *,
+             names: Optional[Sequence[str]] = None, split: str = "test", hdri_split: Optional[PathLike] = None,
+             ldr_split: Optional[PathLike] = None, sun_labels: Optional[PathLike] = None, crops: int = 8,
+             limit: Optional[int] = None, view_rows: int = 32, baseline_data: Optional[PathLike] = None,
+             budgets: bool = True, flip_average: bool = True, visible_sun: bool = True,
+             crop_scales: Sequence[float] = (), out: Optional[PathLike] = None) -> dict: ...

@@ -106,6 +106,7 @@ py::dict confidence(const PyLighting& l) {
   d["flip_spread_deg"] = nan_to_none(e.sun_flip_spread_deg);
   d["hedge"] = nan_to_none(e.sun_hedge);
   d["crop_spread_deg"] = nan_to_none(e.sun_crop_spread_deg);
+  d["probability"] = nan_to_none(e.sun_probability);
   d["visible_sun"] = e.visible_sun_found;
   if (e.visible_sun_found) d["visible_sun_pixel"] = py::make_tuple(e.visible_sun_pixel.x, e.visible_sun_pixel.y);
   return d;
@@ -153,7 +154,9 @@ void bind_lighting(py::module_& m) {
                              "the sun's RGB intensity f_intensity (0 without a sky vector)")
       .def_property_readonly("confidence", &confidence,
                              "the tools' confidences: flip_spread_deg, hedge, crop_spread_deg (smaller is more\n"
-                             "confident; None when not measured) and visible_sun (a sun disk in the photo set it)")
+                             "confident; None when not measured), probability (models with a sun head: the\n"
+                             "probability within 20 degrees of the sun, larger is more confident) and visible_sun\n"
+                             "(a sun disk in the photo set it)")
       .def_property_readonly("has_sky_vector", [](const PyLighting& l) { return l.lighting.has_sky_code; })
       .def_property_readonly("sun_from_shadows", [](const PyLighting& l) -> py::object {
             if (!l.shadow_fit) return py::none();

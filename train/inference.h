@@ -171,7 +171,14 @@ class LightingEstimator {
     double flip_spread_deg = std::numeric_limits<double>::quiet_NaN();  // see EstimatedLighting
     double crop_spread_deg = std::numeric_limits<double>::quiet_NaN();  // see EstimatedLighting
   };
-  Single predict_one(const InferenceView& view);
+  // estimate()'s steps for one view: the frame, camera and grid (checks the view); the RGBα
+  // unprojection; the network's input (the LDR resized); the sky code of that input's mirror
+  // image; the sun's flip and crop averaging into s.pred.code (sky-vector checkpoints).
+  Single prepare_view(const InferenceView& view) const;
+  Tensor unproject_view(const InferenceView& view, const Single& s) const;
+  Tensor network_input(const Tensor& ldr) const;
+  SkyCode mirror_sky_code(const Tensor& input);
+  void average_sun(const InferenceView& view, Single& s, const SkyCode& mirror);
 
   std::string path_, stage_;
   int64_t step_ = 0;

@@ -9,9 +9,11 @@
 // cue, and the whole estimate(). Each figure is the best of --runs calls after one warm-up, in
 // wall time and process CPU time (all threads). The parts are timed one by one, under
 // NoGradGuard as estimate() runs them; their sum need not equal the whole (allocation reuse,
-// caches). --json prints one object per part.
+// caches). The whole estimate is also timed against the plain path it replaced (the same calls
+// in sequence), alternating run by run. --json prints one object per part.
 #include <omp.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
@@ -108,6 +110,8 @@ int run_inference(const std::vector<std::string>& args) {
   if (po.volume_branch)
     part("unprojection", [&] { rgba = unsqueeze(train::unproject_rgba(photo.ldr, photo.depth, cam, grid), 0); });
   part("backbone", [&] { g = net.backbone().forward_features(image).pooled; });
+  const Tensor pair = concat({image, unsqueeze(data::flip_horizontal(select(image, 0, 0).contiguous()), 0)}, 0);
+  part("backbone, N=2 (photo + mirror)", [&] { net.backbone().forward_features(pair); });
   if (po.sky_branch == "sky_decoder") {
     part("sky_head", [&] { code = train::sky_code_from_raw(net.child("sky_head")->forward(g)); });
     part("sky_decoder", [&] { net.sky_decoder()->decode(code); });
@@ -126,13 +130,46 @@ int run_inference(const std::vector<std::string>& args) {
   }
   part("predict (network, N=1)", [&] { net.predict(image, rgba); });
   part("visible_sun", [&] { data::find_visible_sun(photo.ldr, photo.camera, est.visible_sun_params()); });
-  part("estimate (all)", [&] { est.estimate({view}); });
+  // The whole estimate against the plain path it replaced (the same calls in sequence, each op
+  // with its own parallel loops, the photo's dome decoded and unread), alternating run by run so
+  // that a load beside them weighs on both alike: best and median of --runs each.
+  const auto plain = [&] {
+    const Tensor im = unsqueeze(train::resize_bilinear(photo.ldr, po.image_height, po.image_width), 0);
+    const Tensor r = po.volume_branch ? unsqueeze(train::unproject_rgba(photo.ldr, photo.depth, cam, grid), 0) : Tensor();
+    const train::LightingPrediction p = net.predict(im, r);
+    if (po.sky_branch == "sky_decoder") {
+      if (est.flip_average()) net.predict_sky_code(unsqueeze(data::flip_horizontal(select(im, 0, 0).contiguous()), 0));
+      if (est.visible_sun()) data::find_visible_sun(photo.ldr, photo.camera, est.visible_sun_params());
+      net.sky_decoder()->decode(p.code);
+    }
+  };
+  const auto fast = [&] { est.estimate({view}); };
+  plain();
+  fast();
+  std::vector<double> pw, pc, fw, fc;
+  for (int i = 0; i < runs; ++i)
+    for (int which = 0; which < 2; ++which) {
+      const double w0 = now_ms(), c0 = cpu_now_ms();
+      which == 0 ? plain() : fast();
+      const double c = cpu_now_ms() - c0, w = now_ms() - w0;
+      (which == 0 ? pw : fw).push_back(w);
+      (which == 0 ? pc : fc).push_back(c);
+    }
+  const auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  const auto best = [](const std::vector<double>& v) { return *std::min_element(v.begin(), v.end()); };
+  rows.emplace_back("plain path (before), best", PartTime{best(pw), best(pc)});
+  rows.emplace_back("plain path (before), median", PartTime{median(pw), median(pc)});
+  rows.emplace_back("estimate (all), best", PartTime{best(fw), best(fc)});
+  rows.emplace_back("estimate (all), median", PartTime{median(fw), median(fc)});
   for (const auto& [name, t] : rows) {
     if (json)
       std::printf("{\"bench\": \"inference\", \"part\": \"%s\", \"threads\": %d, \"ms\": %.2f, \"cpu_ms\": %.2f}\n",
                   name.c_str(), omp_get_max_threads(), t.wall_ms, t.cpu_ms);
     else
-      std::printf("%-24s %9.2f ms   (CPU %9.2f ms)\n", name.c_str(), t.wall_ms, t.cpu_ms);
+      std::printf("%-32s %9.2f ms   (CPU %9.2f ms)\n", name.c_str(), t.wall_ms, t.cpu_ms);
   }
   return 0;
 }

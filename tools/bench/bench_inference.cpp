@@ -112,6 +112,17 @@ int run_inference(const std::vector<std::string>& args) {
   part("backbone", [&] { g = net.backbone().forward_features(image).pooled; });
   const Tensor pair = concat({image, unsqueeze(data::flip_horizontal(select(image, 0, 0).contiguous()), 0)}, 0);
   part("backbone, N=2 (photo + mirror)", [&] { net.backbone().forward_features(pair); });
+  {
+    // The same backbone with its batch norms folded into the convs (nn/modules/batch_norm_folding.h).
+    train::LightingEstimator folded(checkpoint);
+    folded.predictor().backbone().fold_batch_norms();
+    part("backbone, batch norms folded", [&] { folded.predictor().backbone().forward_features(image); });
+    const double diff = max(abs(sub(folded.predictor().backbone().forward_features(image).pooled,
+                                    net.backbone().forward_features(image).pooled))).item();
+    const double scale = max(abs(net.backbone().forward_features(image).pooled)).item();
+    std::fprintf(stderr, "backbone, batch norms folded: max |difference| of the pooled features %.3g (features up to %.3g)\n",
+                 diff, scale);
+  }
   if (po.sky_branch == "sky_decoder") {
     part("sky_head", [&] { code = train::sky_code_from_raw(net.child("sky_head")->forward(g)); });
     part("sky_decoder", [&] { net.sky_decoder()->decode(code); });

@@ -34,6 +34,7 @@ Tensor unproject_rgba(const Tensor& image, const Tensor& depth, const Camera& ca
   // The sums below then run in pixel order on one thread, so the result does not depend on the
   // thread count (and equals the plain loop's bits).
   std::vector<int64_t> voxel(static_cast<size_t>(h * w));
+  const render::VoxelMapper to_voxel(grid);  // grid.to_voxel, bit for bit, its constants computed once
   parallel_for(h, 8, [&](int64_t r0, int64_t r1) {
     for (int64_t r = r0; r < r1; ++r)
       for (int64_t c = 0; c < w; ++c) {
@@ -43,7 +44,7 @@ Tensor unproject_rgba(const Tensor& image, const Tensor& depth, const Camera& ca
         if (!(std::isfinite(d) && d > 0)) continue;
         const glm::dvec3 p = camera.unproject(c + 0.5, r + 0.5, d);
         if (!grid.contains(p)) continue;
-        const glm::dvec3 v = grid.to_voxel(p);
+        const glm::dvec3 v = to_voxel(p);
         const int64_t ix = std::clamp<int64_t>(static_cast<int64_t>(std::floor(v.x)), 0, X - 1);
         const int64_t iy = std::clamp<int64_t>(static_cast<int64_t>(std::floor(v.y)), 0, Y - 1);
         const int64_t iz = std::clamp<int64_t>(static_cast<int64_t>(std::floor(v.z)), 0, Z - 1);

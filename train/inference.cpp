@@ -20,6 +20,7 @@
 #include "train/train_config.h"
 #include "train/unprojection.h"
 #include "util/math.h"
+#include "util/parallel.h"
 
 using sl::data::rotate_azimuth;
 using sl::data::rotate_direction_azimuth;
@@ -254,6 +255,9 @@ void LightingEstimator::average_sun(const InferenceView& v, Single& s, const Sky
 EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& views, const SunEdit& edit) {
   SL_CHECK(!views.empty(), "lighting inference: no views");
   NoGradGuard no_grad;
+  // Every loop outside the team below runs on this thread: the fusion and the decoding are a few
+  // milliseconds, and each parallel loop could cost a scheduler tick on a loaded machine.
+  const SerialLoops serial;
   const auto t0 = std::chrono::steady_clock::now();
   // The parts of an estimate are independent until the fusion below: each view's unprojection,
   // the visible-sun cue, each view's backbone pass and its mirror image's, and each view's 3D

@@ -35,6 +35,13 @@
 // - Crop averaging (set_crop_scales, off by default): each view's sun also averaged over centred
 //   crops of it; see set_crop_scales. Off, the estimate is bit-identical to before it existed.
 // - Deterministic; no tape (runs under NoGradGuard).
+// - Threads (issue 52): estimate() opens ONE OpenMP team whose tasks are each view's RGBα
+//   unprojection, its mirror image's backbone pass, the visible-sun cue and each view's 3D UNet,
+//   beside the photo's own pass; every loop inside runs on the thread of its task, and the fusion
+//   and decoding after the team on the calling thread (util/parallel.h, SerialLoops). So a loaded
+//   machine costs it at most a few scheduler waits, not one per op. The result is the same bits
+//   for any thread count, and the same as the plain sequence of predictor calls
+//   (tests/train/inference_test.cpp). Only the dome of the fused sky vector is decoded.
 #pragma once
 #include <limits>
 #include <memory>

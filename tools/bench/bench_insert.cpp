@@ -245,7 +245,7 @@ ProductionScene production_scene(const std::string& size, const std::string& dat
   return s;
 }
 
-// Lighting inference time, wall and process CPU (best of 3 after a warm-up), of what
+// Lighting inference time, wall and process CPU (best of 5 after a warm-up), of what
 // streetlight-insert runs for the photo: LightingEstimator::estimate() with its defaults (flip
 // averaging, the visible-sun cue) on `model`, a lighting checkpoint: the released model unless
 // --lighting names another. Without one (a checkout without models/), the default-size model
@@ -268,7 +268,7 @@ LightingTime lighting_ms(const train::Photo& photo, std::string model, const std
   LightingTime t{1e300, 1e300, model};
   const train::InferenceView view{photo.ldr, photo.depth, photo.camera};
   est.estimate({view});  // warm-up
-  for (int i = 0; i < 3; ++i) {
+  for (int i = 0; i < 5; ++i) {
     const double w0 = now_ms(), c0 = cpu_now_ms();
     est.estimate({view});
     t.cpu_ms = std::min(t.cpu_ms, cpu_now_ms() - c0);

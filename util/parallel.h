@@ -22,7 +22,8 @@ inline int& serial_loops_depth() {
 }  // namespace detail
 
 // While a SerialLoops lives on a thread, the loops below called on that thread run on it alone,
-// as inside a parallel region (same chunks, so the same results). For code that schedules its
+// as inside a parallel region: one call of the body for the whole range, which by the contract
+// above gives the same results. For code that schedules its
 // own parallelism or must not wait on other threads: lighting inference (train/inference.cpp)
 // runs its independent parts as tasks of one team and everything else on one thread, since on a
 // loaded machine every parallel loop can wait a scheduler tick for a descheduled thread.

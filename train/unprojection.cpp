@@ -35,7 +35,9 @@ Tensor unproject_rgba(const Tensor& image, const Tensor& depth, const Camera& ca
   // thread count (and equals the plain loop's bits).
   std::vector<int64_t> voxel(static_cast<size_t>(h * w));
   const render::VoxelMapper to_voxel(grid);  // grid.to_voxel, bit for bit, its constants computed once
-  parallel_for(h, 8, [&](int64_t r0, int64_t r1) {
+  // Chunks of at least 64K pixels (as nn/functional/work_grain.h): a training view (256×128) stays
+  // on the calling thread, a KITTI photo (1242×375) is 8 chunks.
+  parallel_for(h, std::max<int64_t>(1, (int64_t{1} << 16) / std::max<int64_t>(w, 1)), [&](int64_t r0, int64_t r1) {
     for (int64_t r = r0; r < r1; ++r)
       for (int64_t c = 0; c < w; ++c) {
         int64_t& out = voxel[static_cast<size_t>(r * w + c)];

@@ -61,7 +61,7 @@ def torch_parts(runs):
         out["volume_mlp"] = best_ms(lambda: torch.cat([F.interpolate(volume_mlp(g).reshape(1, 8, 8, 8, 2), scale_factor=8,
                                                                       mode="trilinear", align_corners=False), rgba], 1), runs)
         out["unet3d"] = best_ms(lambda: unet(x), runs)
-        out["vsg_activate"] = best_ms(lambda: torch.cat([F.softplus(r[:, 0:3]), F.normalize(r[:, 3:6], dim=1),
+        out["vsg_activate"] = best_ms(lambda: torch.cat([F.softplus(r[:, 0:3]), r[:, 3:6],
                                                           F.softplus(r[:, 6:7]) + 1e-3, torch.sigmoid(r[:, 7:8])], 1), runs)
     return out
 

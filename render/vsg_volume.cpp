@@ -45,6 +45,27 @@ glm::dvec3 VsgGrid::to_voxel(const glm::dvec3& world) const {
   return v;
 }
 
+VoxelMapper::VoxelMapper(const VsgGrid& g) : center_(g.center), r0_(g.log_scale_m) {
+  for (int a = 0; a < 3; ++a) {
+    const int w = kWorldAxisOf[a];
+    denom_neg_[a] = std::log1p(g.extent_neg[w] / r0_);
+    denom_pos_[a] = std::log1p(g.extent_pos[w] / r0_);
+    dims_[a] = static_cast<double>(g.dims[a]);
+  }
+}
+
+glm::dvec3 VoxelMapper::operator()(const glm::dvec3& world) const {
+  glm::dvec3 v;
+  for (int a = 0; a < 3; ++a) {
+    // log_forward with its denominator log1p(h/r0) precomputed: the same operations on the same
+    // values, so the same bits.
+    const double d = world[kWorldAxisOf[a]] - center_[kWorldAxisOf[a]];
+    const double s = d >= 0 ? std::log1p(d / r0_) / denom_pos_[a] : -std::log1p(-d / r0_) / denom_neg_[a];
+    v[a] = (s + 1.0) * 0.5 * dims_[a];
+  }
+  return v;
+}
+
 glm::dvec3 VsgGrid::to_world(const glm::dvec3& voxel) const {
   glm::dvec3 p;
   for (int a = 0; a < 3; ++a) {

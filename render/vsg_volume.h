@@ -45,6 +45,20 @@ struct VsgGrid {
   void validate() const;  // throws naming the bad field
 };
 
+// VsgGrid::to_voxel with the log projection's per-axis denominators log(1 + h/r0) computed once,
+// for loops over many points (train/unprojection.cpp): the same value as to_voxel, bit for bit
+// (to_voxel is this mapping built for one point). Copies the grid's fields it needs.
+class VoxelMapper {
+ public:
+  explicit VoxelMapper(const VsgGrid& grid);
+  glm::dvec3 operator()(const glm::dvec3& world) const;
+
+ private:
+  glm::dvec3 center_;
+  std::array<double, 3> denom_neg_{}, denom_pos_{}, dims_{};  // per voxel axis
+  double r0_;
+};
+
 // Raw network output [.., 8, ...] -> VSG parameters (see the header comment). Differentiable.
 Tensor vsg_activate(const Tensor& raw, int64_t channel_dim = -4);
 

@@ -1,7 +1,7 @@
 """PyTorch mirrors of Streetlight's networks, shared by the comparison scripts (never the library).
 
-ResNet18 mirrors nn/modules/resnet.h (torchvision BasicBlock layout, width 64); head=None returns the
-pooled 512-vector (the lighting predictor's backbone), head=K adds a 512 -> K linear layer.
+ResNet18 mirrors nn/modules/resnet.h (torchvision BasicBlock layout, width 64, or `width`); head=None
+returns the pooled 8·width vector (the lighting predictor's backbone), head=K adds a linear layer to K.
 """
 import torch.nn as nn
 import torch.nn.functional as F
@@ -25,16 +25,17 @@ class BasicBlock(nn.Module):
 
 
 class ResNet18(nn.Module):
-    def __init__(self, head=None):
+    def __init__(self, head=None, width=64):
         super().__init__()
-        self.stem = nn.Sequential(nn.Conv2d(3, 64, 7, 2, 3, bias=False), nn.BatchNorm2d(64), nn.ReLU(),
+        w = width
+        self.stem = nn.Sequential(nn.Conv2d(3, w, 7, 2, 3, bias=False), nn.BatchNorm2d(w), nn.ReLU(),
                                   nn.MaxPool2d(3, 2, 1))
-        layers, cin = [], 64
-        for cout, stride in ((64, 1), (128, 2), (256, 2), (512, 2)):
+        layers, cin = [], w
+        for cout, stride in ((w, 1), (2 * w, 2), (4 * w, 2), (8 * w, 2)):
             layers += [BasicBlock(cin, cout, stride), BasicBlock(cout, cout, 1)]
             cin = cout
         self.layers = nn.Sequential(*layers)
-        self.fc = nn.Linear(512, head) if head else None
+        self.fc = nn.Linear(8 * w, head) if head else None
 
     def forward(self, x):
         pooled = self.layers(self.stem(x)).mean(dim=(2, 3))

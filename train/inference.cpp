@@ -3,9 +3,12 @@
 
 #include "render/equirect.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <exception>
 
 #include "autodiff/ops.h"
 #include "autodiff/tape.h"
@@ -17,6 +20,7 @@
 #include "train/train_config.h"
 #include "train/unprojection.h"
 #include "util/math.h"
+#include "util/parallel.h"
 
 using sl::data::rotate_azimuth;
 using sl::data::rotate_direction_azimuth;
@@ -163,47 +167,60 @@ void LightingEstimator::set_crop_scales(std::vector<double> scales) {
   crop_scales_ = std::move(scales);
 }
 
-LightingEstimator::Single LightingEstimator::predict_one(const InferenceView& v) {
+LightingEstimator::Single LightingEstimator::prepare_view(const InferenceView& v) const {
   const LightingPredictorOptions& po = predictor_->options();
   SL_CHECK(v.ldr.defined() && v.ldr.dim() == 3 && v.ldr.size(0) == 3, "lighting inference: expected an LDR image [3, H, W], got ",
            v.ldr.defined() ? v.ldr.describe() : std::string("undefined"));
   const Intrinsics& k = v.camera.intrinsics();
   SL_CHECK(v.ldr.size(1) == k.height && v.ldr.size(2) == k.width, "lighting inference: image ", v.ldr.describe(),
            " does not match the camera's ", k.width, "x", k.height);
+  if (po.volume_branch)
+    SL_CHECK(v.depth.defined() && v.depth.dim() == 2 && v.depth.size(0) == k.height && v.depth.size(1) == k.width,
+             "lighting inference: the volume branch needs a depth map [", k.height, ", ", k.width, "], got ",
+             v.depth.defined() ? v.depth.describe() : std::string("undefined"));
   Single s;
   s.frame = canonical_frame(v.camera);
   s.camera = s.frame.camera(v.camera);
   s.grid = grid_template_;
   s.grid.center = s.camera.position();
-  const Tensor image = unsqueeze(resize_bilinear(v.ldr, po.image_height, po.image_width), 0);
-  Tensor rgba;
-  if (po.volume_branch) {
-    SL_CHECK(v.depth.defined() && v.depth.dim() == 2 && v.depth.size(0) == k.height && v.depth.size(1) == k.width,
-             "lighting inference: the volume branch needs a depth map [", k.height, ", ", k.width, "], got ",
-             v.depth.defined() ? v.depth.describe() : std::string("undefined"));
-    rgba = unsqueeze(unproject_rgba(v.ldr, v.depth, s.camera, s.grid), 0);
+  return s;
+}
+
+Tensor LightingEstimator::unproject_view(const InferenceView& v, const Single& s) const {
+  return unsqueeze(unproject_rgba(v.ldr, v.depth, s.camera, s.grid), 0);
+}
+
+Tensor LightingEstimator::network_input(const Tensor& ldr) const {
+  const LightingPredictorOptions& po = predictor_->options();
+  return unsqueeze(resize_bilinear(ldr, po.image_height, po.image_width), 0);
+}
+
+SkyPrediction LightingEstimator::mirror_sky(const Tensor& input) {
+  return predictor_->predict_sky(unsqueeze(data::flip_horizontal(select(input, 0, 0).contiguous()), 0));
+}
+
+void LightingEstimator::average_sun(const InferenceView& v, Single& s, const SkyPrediction& mirror_pass) {
+  if (s.pred.sun_logits.defined()) {
+    sun_from_distribution(v, s, mirror_pass);
+    return;
   }
-  s.pred = predictor_->predict(image, rgba);
-  if (!s.pred.code.dir.defined()) return s;
-  if (s.pred.sun_logits.defined()) return sun_from_distribution(v, image, std::move(s));
+  const SkyCode& mirror = mirror_pass.code;
   // The sun of one network input, averaged with its mirror image's under flip averaging (the
   // flipped pass's direction mirrored back: (x, y, z) → (−x, y, z), exact for a level camera).
   // Returns the direction (not normalised) and, flipped, the mirror pass's log intensity.
-  const auto sun_of = [&](const Tensor& input, const SkyCode& own_code, std::vector<double>* mirror_log_i,
-                          double* spread_deg) {
-    const std::vector<double> d = to_doubles(own_code.dir);
+  const auto sun_of = [&](const SkyCode& own, const SkyCode* m, std::vector<double>* mirror_log_i, double* spread_deg) {
+    const std::vector<double> d = to_doubles(own.dir);
     glm::dvec3 dir(d[0], d[1], d[2]);
     if (!flip_average_) return dir;
-    const SkyCode m = predictor_->predict_sky_code(unsqueeze(data::flip_horizontal(select(input, 0, 0).contiguous()), 0));
-    const std::vector<double> md = to_doubles(m.dir);
+    const std::vector<double> md = to_doubles(m->dir);
     const glm::dvec3 mirrored(-md[0], md[1], md[2]);
     if (spread_deg && glm::length(dir) > 1e-12 && glm::length(mirrored) > 1e-12)
       *spread_deg = angle_deg(dir, mirrored);
-    if (mirror_log_i) *mirror_log_i = to_doubles(m.log_intensity);
+    if (mirror_log_i) *mirror_log_i = to_doubles(m->log_intensity);
     return dir + mirrored;
   };
   std::vector<double> mirror_log_i;
-  glm::dvec3 dir = sun_of(image, s.pred.code, &mirror_log_i, &s.flip_spread_deg);
+  glm::dvec3 dir = sun_of(s.pred.code, &mirror, &mirror_log_i, &s.flip_spread_deg);
   if (!crop_scales_.empty()) {
     // Crop averaging: the centred crops, each estimated as the photo is, vote with unit weight.
     const glm::dvec3 photo = glm::length(dir) > 1e-12 ? glm::normalize(dir) : glm::dvec3(0.0, 1.0, 0.0);
@@ -217,8 +234,10 @@ LightingEstimator::Single LightingEstimator::predict_one(const InferenceView& v)
                     x0 = std::min<int64_t>((W - 1) / 2, std::lround(W * (1.0 - scale) / 2.0));
       const int64_t h = H - 2 * y0, w = W - 2 * x0;
       const Tensor crop = slice(slice(v.ldr, 1, y0, y0 + h), 2, x0, x0 + w).contiguous();
-      const Tensor input = unsqueeze(resize_bilinear(crop, po.image_height, po.image_width), 0);
-      glm::dvec3 c = sun_of(input, predictor_->predict_sky_code(input), nullptr, nullptr);
+      const Tensor input = network_input(crop);
+      const SkyCode own = predictor_->predict_sky_code(input);
+      const SkyCode m = flip_average_ ? mirror_sky(input).code : SkyCode{};
+      glm::dvec3 c = sun_of(own, &m, nullptr, nullptr);
       if (glm::length(c) <= 1e-12) continue;
       c = glm::normalize(c);
       s.crop_spread_deg = std::max(s.crop_spread_deg, angle_deg(photo, c));
@@ -236,11 +255,9 @@ LightingEstimator::Single LightingEstimator::predict_one(const InferenceView& v)
     s.pred.code.log_intensity =
         Tensor::from_vector(li, s.pred.code.log_intensity.shape()).to(s.pred.code.log_intensity.dtype());
   }
-  return s;
 }
 
-LightingEstimator::Single LightingEstimator::sun_from_distribution(const InferenceView& v, const Tensor& image,
-                                                                  Single s) {
+void LightingEstimator::sun_from_distribution(const InferenceView& v, Single& s, const SkyPrediction& photo_mirror) {
   // The sun's distribution (train/sun_distribution.h), averaged over the photo's pass and the
   // mirror image of the mirrored photo's pass (flip averaging) and over the centred crops (crop
   // averaging), then read at its mode: probabilities are averaged, never directions, so two
@@ -251,6 +268,8 @@ LightingEstimator::Single LightingEstimator::sun_from_distribution(const Inferen
   std::vector<double> log_i = to_doubles(s.pred.code.log_intensity);
   std::vector<double> p = probs_of(s.pred.sun_logits);
   double passes = 1.0;
+  // input: a crop's network input, or undefined for the photo itself (whose own and mirror passes
+  // are done: s.pred and photo_mirror).
   const auto add_input = [&](const Tensor& input, const std::vector<double>* own, bool keep_intensity) {
     std::vector<double> q = own ? *own : probs_of(predictor_->predict_sky(input).sun_logits);
     if (!own) {
@@ -258,7 +277,7 @@ LightingEstimator::Single LightingEstimator::sun_from_distribution(const Inferen
       passes += 1.0;
     }
     if (!flip_average_) return q;
-    const SkyPrediction m = predictor_->predict_sky(unsqueeze(data::flip_horizontal(select(input, 0, 0).contiguous()), 0));
+    const SkyPrediction m = input.defined() ? mirror_sky(input) : photo_mirror;
     const std::vector<double> mq = mirror_cells(grid, probs_of(m.sun_logits));
     for (size_t k = 0; k < p.size(); ++k) p[k] += mq[k];
     passes += 1.0;
@@ -270,7 +289,7 @@ LightingEstimator::Single LightingEstimator::sun_from_distribution(const Inferen
     return q;
   };
   const std::vector<double> own = p;
-  add_input(image, &own, true);
+  add_input(Tensor(), &own, true);
   if (!crop_scales_.empty()) {
     const glm::dvec3 photo = read_sun_distribution(grid, p).direction;
     s.crop_spread_deg = 0.0;
@@ -279,8 +298,7 @@ LightingEstimator::Single LightingEstimator::sun_from_distribution(const Inferen
       const int64_t y0 = std::min<int64_t>((H - 1) / 2, std::lround(H * (1.0 - scale) / 2.0)),
                     x0 = std::min<int64_t>((W - 1) / 2, std::lround(W * (1.0 - scale) / 2.0));
       const Tensor crop = slice(slice(v.ldr, 1, y0, H - y0), 2, x0, W - x0).contiguous();
-      const Tensor input = unsqueeze(resize_bilinear(crop, po.image_height, po.image_width), 0);
-      const std::vector<double> q = add_input(input, nullptr, false);
+      const std::vector<double> q = add_input(network_input(crop), nullptr, false);
       s.crop_spread_deg = std::max(s.crop_spread_deg, angle_deg(photo, read_sun_distribution(grid, q).direction));
     }
   }
@@ -289,15 +307,85 @@ LightingEstimator::Single LightingEstimator::sun_from_distribution(const Inferen
   s.sun_probability = r.confidence;
   s.pred.code.dir = Tensor::from_vector({r.direction.x, r.direction.y, r.direction.z}, {1, 3}).to(s.pred.code.dir.dtype());
   s.pred.code.log_intensity = Tensor::from_vector(log_i, s.pred.code.log_intensity.shape()).to(s.pred.code.log_intensity.dtype());
-  return s;
 }
 
 EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& views, const SunEdit& edit) {
   SL_CHECK(!views.empty(), "lighting inference: no views");
   NoGradGuard no_grad;
+  // Every loop outside the team below runs on this thread: the fusion and the decoding are a few
+  // milliseconds, and each parallel loop could cost a scheduler tick on a loaded machine.
+  const SerialLoops serial;
   const auto t0 = std::chrono::steady_clock::now();
+  // The parts of an estimate are independent until the fusion below: each view's unprojection,
+  // the visible-sun cue, each view's backbone pass and its mirror image's, and each view's 3D
+  // UNet once its unprojection is done. They run as OpenMP tasks in ONE team, each on one thread
+  // (parallel.h opens no nested team), instead of one parallel region per op: on a loaded
+  // machine every parallel op could wait a scheduler slice for a descheduled thread
+  // (docs/benchmarks-inference.md). Every value is computed as on one thread, by the same calls
+  // on the same shapes (one image per pass), so the estimate does not depend on the thread count
+  // or on which thread ran what, and equals the plain sequential path bit for bit.
   std::vector<Single> singles;
-  for (const auto& v : views) singles.push_back(predict_one(v));
+  for (const auto& v : views) singles.push_back(prepare_view(v));  // checks throw here, outside the team
+  const LightingPredictorOptions& po = predictor_->options();
+  const bool sky_code_branch = po.sky_branch == "sky_decoder";
+  const bool want_cue = visible_sun_ && sky_code_branch;
+  const size_t n = views.size();
+  VisibleSunCue cue;
+  std::vector<Tensor> images(n), rgba(n), g(n);
+  std::vector<SkyPrediction> mirror(n);
+  for (size_t k = 0; k < n; ++k) images[k] = network_input(views[k].ldr);
+  std::vector<std::exception_ptr> errors(3 * n + 2);
+  const auto guarded = [](std::exception_ptr& error, auto&& f) {
+    try {
+      const NoGradGuard no_grad_here;  // grad mode is per thread; a task may run on any
+      f();
+    } catch (...) {
+      error = std::current_exception();
+    }
+  };
+#pragma omp parallel if (!omp_in_parallel())
+#pragma omp single
+  {
+    if (po.volume_branch)
+      for (size_t k = 0; k < n; ++k) {
+        Tensor* r = &rgba[k];
+#pragma omp task firstprivate(k, r) shared(views, singles, errors, guarded) depend(out : r[0])
+        guarded(errors[k], [&] { *r = unproject_view(views[k], singles[k]); });
+      }
+    if (sky_code_branch && flip_average_)
+      for (size_t k = 0; k < n; ++k) {
+#pragma omp task firstprivate(k) shared(images, mirror, errors, guarded)
+        guarded(errors[n + k], [&] { mirror[k] = mirror_sky(images[k]); });
+      }
+    if (want_cue) {
+#pragma omp task shared(cue, views, errors, guarded)
+      guarded(errors[3 * n], [&] { cue = find_visible_sun_cue(views, visible_sun_params_); });
+    }
+    guarded(errors[3 * n + 1], [&] {
+      if (!sky_code_branch) return;
+      for (size_t k = 0; k < n; ++k) {
+        g[k] = predictor_->features(images[k]);
+        singles[k].pred.code = predictor_->sky_code(g[k]);
+        singles[k].pred.sun_logits = predictor_->sun_logits(g[k]);
+      }
+    });
+    if (sky_code_branch && po.volume_branch && !errors[3 * n + 1])
+      for (size_t k = 0; k < n; ++k) {
+        Tensor* r = &rgba[k];
+#pragma omp task firstprivate(k, r) shared(singles, g, errors, guarded) depend(in : r[0])
+        guarded(errors[2 * n + k], [&] {
+          if (r->defined()) singles[k].pred.vsg = predictor_->volume(g[k], *r);
+        });
+      }
+  }
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
+  if (sky_code_branch)
+    for (size_t k = 0; k < n; ++k) average_sun(views[k], singles[k], mirror[k]);
+  if (!sky_code_branch) {
+    // No sky vector (ablations): the predictor's own dome is the estimate; no flip, crops or cue.
+    for (size_t k = 0; k < n; ++k) singles[k].pred = predictor_->predict(images[k], rgba[k]);
+  }
   const Single& ref = singles[0];
   EstimatedLighting out;
   for (const Single& s : singles) {
@@ -333,8 +421,7 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
     out.sun_hedge = std::clamp(dir.y, 0.0, 1.0);
     // The visible sun fills the direction fields the caller's edit leaves unset.
     SunEdit sun = edit;
-    if (visible_sun_) {
-      const VisibleSunCue cue = find_visible_sun_cue(views, visible_sun_params_);
+    if (want_cue) {
       if (cue.found) {
         out.visible_sun_found = true;
         out.visible_sun_view = cue.view;

@@ -38,6 +38,13 @@
 //   the mode of the sun head's distribution, refined locally (train/sun_distribution.h), with
 //   flip and crop averaging done on the probabilities; the sky head's own direction is unused.
 // - Deterministic; no tape (runs under NoGradGuard).
+// - Threads (issue 52): estimate() opens ONE OpenMP team whose tasks are each view's RGBα
+//   unprojection, its mirror image's backbone pass, the visible-sun cue and each view's 3D UNet,
+//   beside the photo's own pass; every loop inside runs on the thread of its task, and the fusion
+//   and decoding after the team on the calling thread (util/parallel.h, SerialLoops). So a loaded
+//   machine costs it at most a few scheduler waits, not one per op. The result is the same bits
+//   for any thread count, and the same as the plain sequence of predictor calls
+//   (tests/train/inference_test.cpp). Only the dome of the fused sky vector is decoded.
 #pragma once
 #include <limits>
 #include <memory>
@@ -182,9 +189,16 @@ class LightingEstimator {
     double crop_spread_deg = std::numeric_limits<double>::quiet_NaN();  // see EstimatedLighting
     double sun_probability = std::numeric_limits<double>::quiet_NaN();  // see EstimatedLighting
   };
-  Single predict_one(const InferenceView& view);
-  // predict_one's sun for a checkpoint with a sun head (model.sun_grid).
-  Single sun_from_distribution(const InferenceView& view, const Tensor& image, Single s);
+  // estimate()'s steps for one view: the frame, camera and grid (checks the view); the RGBα
+  // unprojection; the network's input (the LDR resized); the sky prediction of that input's
+  // mirror image; the sun's flip and crop averaging into s.pred.code (sky-vector checkpoints),
+  // on the sun head's distribution when there is one (sun_from_distribution).
+  Single prepare_view(const InferenceView& view) const;
+  Tensor unproject_view(const InferenceView& view, const Single& s) const;
+  Tensor network_input(const Tensor& ldr) const;
+  SkyPrediction mirror_sky(const Tensor& input);
+  void average_sun(const InferenceView& view, Single& s, const SkyPrediction& mirror);
+  void sun_from_distribution(const InferenceView& view, Single& s, const SkyPrediction& photo_mirror);
 
   std::string path_, stage_;
   int64_t step_ = 0;

@@ -122,19 +122,35 @@ Tensor LightingPredictor::head_features(const Tensor& image) {
   return concat({features.pooled, flatten(relu(head_grid_->forward(features.features.back())), 1)}, 1);
 }
 
-SkyCode LightingPredictor::predict_sky_code(const Tensor& image) {
+SkyCode LightingPredictor::sky_code(const Tensor& g) {
   SL_CHECK(opt_.sky_branch == "sky_decoder", "LightingPredictor: the '", opt_.sky_branch,
            "' sky branch has no sky vector");
-  return sky_code_from_raw(sky_head_->forward(head_features(image)));
+  return sky_code_from_raw(sky_head_->forward(g));
 }
 
+SkyCode LightingPredictor::predict_sky_code(const Tensor& image) { return sky_code(head_features(image)); }
+
+Tensor LightingPredictor::volume(const Tensor& g, const Tensor& rgba) {
+  SL_CHECK(opt_.volume_branch, "LightingPredictor: this model has no volume branch");
+  const int64_t n = g.size(0);
+  const auto& d = opt_.vsg_dims;
+  SL_CHECK(rgba.defined() && rgba.dim() == 5 && rgba.size(0) == n && rgba.size(1) == 4 && rgba.size(2) == d[0] &&
+               rgba.size(3) == d[1] && rgba.size(4) == d[2],
+           "LightingPredictor: expected an RGBα volume [", n, ", 4, ", d[0], ", ", d[1], ", ", d[2], "], got ",
+           rgba.defined() ? rgba.describe() : std::string("undefined"));
+  Tensor coarse = reshape(volume_mlp_->forward(g), {n, opt_.coarse_channels, coarse_[0], coarse_[1], coarse_[2]});
+  if (opt_.coarse_scale > 1) coarse = nn::upsample_trilinear3d(coarse, opt_.coarse_scale);
+  const Tensor rgba_t = rgba.dtype() == g.dtype() ? rgba : rgba.to(g.dtype());
+  return vsg_activate(volume_unet_->forward(concat({coarse, rgba_t}, 1)), 1);
+}
+
+Tensor LightingPredictor::sun_logits(const Tensor& g) { return sun_head_ ? sun_head_->forward(g) : Tensor(); }
+
 SkyPrediction LightingPredictor::predict_sky(const Tensor& image) {
-  SL_CHECK(opt_.sky_branch == "sky_decoder", "LightingPredictor: the '", opt_.sky_branch,
-           "' sky branch has no sky vector");
   const Tensor g = head_features(image);
   SkyPrediction out;
-  out.code = sky_code_from_raw(sky_head_->forward(g));
-  if (sun_head_) out.sun_logits = sun_head_->forward(g);
+  out.code = sky_code(g);
+  out.sun_logits = sun_logits(g);
   return out;
 }
 
@@ -144,8 +160,8 @@ LightingPrediction LightingPredictor::predict(const Tensor& image, const Tensor&
   LightingPrediction out;
   const SkyAutoencoderOptions& sky = opt_.sky;
   if (opt_.sky_branch == "sky_decoder") {
-    out.code = sky_code_from_raw(sky_head_->forward(g));
-    if (sun_head_) out.sun_logits = sun_head_->forward(g);
+    out.code = sky_code(g);
+    out.sun_logits = sun_logits(g);
     SkyDecoding d = sky_decoder_->decode(out.code);
     out.log_env = d.log_hdr;
   } else if (opt_.sky_branch == "direct") {
@@ -163,17 +179,7 @@ LightingPrediction LightingPredictor::predict(const Tensor& image, const Tensor&
     out.log_env = expand(up, {n, 3, sky.height, sky.width});
   }
   out.env = exp(clamp(out.log_env, -16.0, 16.0));
-  if (opt_.volume_branch) {
-    const auto& d = opt_.vsg_dims;
-    SL_CHECK(rgba.defined() && rgba.dim() == 5 && rgba.size(0) == n && rgba.size(1) == 4 && rgba.size(2) == d[0] &&
-                 rgba.size(3) == d[1] && rgba.size(4) == d[2],
-             "LightingPredictor: expected an RGBα volume [", n, ", 4, ", d[0], ", ", d[1], ", ", d[2], "], got ",
-             rgba.defined() ? rgba.describe() : std::string("undefined"));
-    Tensor coarse = reshape(volume_mlp_->forward(g), {n, opt_.coarse_channels, coarse_[0], coarse_[1], coarse_[2]});
-    if (opt_.coarse_scale > 1) coarse = nn::upsample_trilinear3d(coarse, opt_.coarse_scale);
-    const Tensor rgba_t = rgba.dtype() == image.dtype() ? rgba : rgba.to(image.dtype());
-    out.vsg = vsg_activate(volume_unet_->forward(concat({coarse, rgba_t}, 1)), 1);
-  }
+  if (opt_.volume_branch) out.vsg = volume(g, rgba);
   return out;
 }
 

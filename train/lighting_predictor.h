@@ -79,6 +79,17 @@ class LightingPredictor : public nn::Module {
   SkyCode predict_sky_code(const Tensor& image);
   // The sky vector and the sun's logits (backbone, sky head and sun head; no decoding, no volume).
   SkyPrediction predict_sky(const Tensor& image);
+  // The parts predict() composes, for inference that needs only some outputs or batches images
+  // whose volumes it does not want (train/inference.cpp): predict(image, rgba) computes
+  // g = features(image), code = sky_code(g) (decoded to log_env), sun_logits(g), vsg = volume(g,
+  // rgba), each the same ops on the same values as here. features: image [N, 3, h, w] -> g [N, feat];
+  // sky_code: g [N, feat] -> SkyCode ("sky_decoder" only; throws otherwise); sun_logits: g -> [N, K]
+  // (undefined without a sun head); volume: g [N, feat] and rgba [N, 4, X, Y, Z] -> activated VSG
+  // [N, 8, X, Y, Z] (volume branch only; throws otherwise). Shapes are checked as predict() checks them.
+  Tensor features(const Tensor& image) { return head_features(image); }
+  SkyCode sky_code(const Tensor& g);
+  Tensor sun_logits(const Tensor& g);
+  Tensor volume(const Tensor& g, const Tensor& rgba);
   const LightingPredictorOptions& options() const { return opt_; }
   // The frozen decoder (null unless sky_branch is "sky_decoder").
   const std::shared_ptr<SkyDecoder>& sky_decoder() const { return sky_decoder_; }

@@ -15,6 +15,27 @@
 namespace sl {
 
 namespace detail {
+inline int& serial_loops_depth() {
+  thread_local int depth = 0;
+  return depth;
+}
+}  // namespace detail
+
+// While a SerialLoops lives on a thread, the loops below called on that thread run on it alone,
+// as inside a parallel region: one call of the body for the whole range, which by the contract
+// above gives the same results. For code that schedules its
+// own parallelism or must not wait on other threads: lighting inference (train/inference.cpp)
+// runs its independent parts as tasks of one team and everything else on one thread, since on a
+// loaded machine every parallel loop can wait a scheduler tick for a descheduled thread.
+class SerialLoops {
+ public:
+  SerialLoops() { ++detail::serial_loops_depth(); }
+  ~SerialLoops() { --detail::serial_loops_depth(); }
+  SerialLoops(const SerialLoops&) = delete;
+  SerialLoops& operator=(const SerialLoops&) = delete;
+};
+
+namespace detail {
 // The chunk length for n items at `grain`: `grain`, except that a loop of 2 to kBalancedChunks
 // chunks has its count rounded up to a multiple of 4 (shorter chunks; else to an even count), so
 // that 2 or 4 threads get near-equal shares under static scheduling. 3 chunks on 2 threads left
@@ -40,7 +61,7 @@ void for_chunks(int64_t n, int64_t grain, Body&& body) {
   if (n <= 0) return;
   grain = balanced_grain(n, grain);
   const int64_t chunks = (n + grain - 1) / grain;
-  if (chunks == 1 || omp_in_parallel()) {
+  if (chunks == 1 || omp_in_parallel() || serial_loops_depth() > 0) {
     body(int64_t{0}, n);
     return;
   }

@@ -1,5 +1,6 @@
 #include "nn/modules/batch_norm.h"
 
+#include "autodiff/ops.h"
 #include "autodiff/tape.h"
 #include "nn/functional/normalization.h"
 #include "nn/init.h"
@@ -39,6 +40,14 @@ Tensor BatchNormNd::forward_activated(const Tensor& x, NormActivation act) {
   const bool rank_ok = dims_ == 1 ? (x.dim() == 2 || x.dim() == 3) : x.dim() == dims_ + 2;
   SL_CHECK(rank_ok && x.size(1) == features_, type_name(), "(", features_, "): expected input [N, ", features_,
            dims_ == 1 ? "] or [N, C, L]" : (dims_ == 2 ? ", H, W]" : ", D, H, W]"), ", got ", x.describe());
+  if (folded_) {
+    SL_CHECK(!is_training(), type_name(), "(", features_, ") is folded into its conv (inference only): training mode is refused");
+    switch (act.kind) {
+      case NormActivation::Kind::ReLU: return relu(x);
+      case NormActivation::Kind::LeakyReLU: return leaky_relu(x, act.slope);
+      case NormActivation::Kind::None: return x;
+    }
+  }
   const Tensor w = affine_ ? parameter("weight") : Tensor();
   const Tensor b = affine_ ? parameter("bias") : Tensor();
   if (!track_) return batch_norm(x, Tensor(), Tensor(), w, b, true, momentum_, eps_, act);

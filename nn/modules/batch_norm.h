@@ -23,6 +23,14 @@ class BatchNormNd : public Module {
   // act(forward(x)) as one op (nn/functional/normalization.h).
   Tensor forward_activated(const Tensor& x, NormActivation act);
   Tensor forward_absorbing(const Tensor& x, const Module& next) override;
+  int64_t features() const { return features_; }
+  double eps() const { return eps_; }
+  bool affine() const { return affine_; }
+  bool tracks_running_stats() const { return track_; }
+  // Folded into the conv before it (nn/modules/batch_norm_folding.h): forward is then the
+  // identity (with its fused activation, if any), and training mode throws.
+  bool folded() const { return folded_; }
+  void set_folded() { folded_ = true; }
 
  protected:
   BatchNormNd(const char* type_name, int spatial_dims, int64_t features, double eps, double momentum, bool affine,
@@ -34,6 +42,7 @@ class BatchNormNd : public Module {
   int64_t features_;
   double eps_, momentum_;
   bool affine_, track_;
+  bool folded_ = false;
 };
 
 class BatchNorm1d : public BatchNormNd {

@@ -1,6 +1,7 @@
 #include "nn/modules/conv.h"
 
 #include "nn/functional/conv.h"
+#include "autodiff/tape.h"
 #include "nn/init.h"
 
 namespace sl::nn {
@@ -33,6 +34,28 @@ Tensor ConvNd::forward(const Tensor& x) {
   const int64_t s = opt_.stride, p = opt_.padding, d = opt_.dilation;
   if (dims_ == 2) return conv2d(x, w, b, {s, s}, {p, p}, {d, d});
   return conv3d(x, w, b, {s, s, s}, {p, p, p}, {d, d, d});
+}
+
+void ConvNd::scale_outputs(const std::vector<double>& scale, const std::vector<double>& shift) {
+  SL_CHECK(static_cast<int64_t>(scale.size()) == out_ && static_cast<int64_t>(shift.size()) == out_, type_name(),
+           "::scale_outputs: expected ", out_, " scales and shifts, got ", scale.size(), " and ", shift.size());
+  const NoGradGuard no_grad;
+  if (!opt_.bias) {
+    register_parameter("bias", Tensor::zeros({out_}, parameter("weight").dtype()))
+        .set_requires_grad(parameter("weight").requires_grad());
+    opt_.bias = true;
+  }
+  // References taken after the registration (it may move the parameter list).
+  Tensor& w = parameter("weight");
+  Tensor& b = parameter("bias");
+  std::vector<double> wv = w.to_vector(), bv = b.to_vector();
+  const int64_t per_out = w.numel() / out_;
+  for (int64_t o = 0; o < out_; ++o) {
+    for (int64_t i = 0; i < per_out; ++i) wv[o * per_out + i] *= scale[o];
+    bv[o] = bv[o] * scale[o] + shift[o];
+  }
+  w.copy_(Tensor::from_vector(wv, w.shape(), w.dtype()));  // in place: the parameter keeps its identity
+  b.copy_(Tensor::from_vector(bv, b.shape(), b.dtype()));
 }
 
 std::shared_ptr<ConvNd> make_conv(int spatial_dims, int64_t in, int64_t out, int64_t kernel, ConvOptions options) {

@@ -10,6 +10,8 @@
 // - Options are designated-initialiser friendly: Conv2d(3, 64, 7, {.stride = 2, .padding = 3,
 //   .bias = false}).
 #pragma once
+#include <vector>
+
 #include "nn/module.h"
 
 namespace sl::nn {
@@ -28,6 +30,11 @@ class ConvNd : public Module {
   int64_t in_channels() const { return in_; }
   int64_t out_channels() const { return out_; }
   const ConvOptions& options() const { return opt_; }
+  // For inference (nn/modules/batch_norm_folding.h): output channel o becomes
+  // scale[o]·conv(x)[o] + shift[o], i.e. weight[o] *= scale[o] and bias[o] = bias[o]·scale[o] +
+  // shift[o] (a zero bias is registered first when there is none), each computed in float64 and
+  // rounded once. Throws for vectors whose length is not the output channel count.
+  void scale_outputs(const std::vector<double>& scale, const std::vector<double>& shift);
 
  protected:
   ConvNd(const char* type_name, int spatial_dims, int64_t in, int64_t out, int64_t kernel, ConvOptions options);

@@ -4,6 +4,7 @@
 #include "nn/functional/pooling.h"
 #include "nn/init.h"
 #include "nn/layers.h"
+#include "nn/modules/batch_norm_folding.h"
 
 namespace sl::nn {
 
@@ -34,6 +35,27 @@ Tensor BasicBlock::forward(const Tensor& x) {
   Tensor y = forward_chain({bn1_, relu_module()}, conv1_->forward(x));  // relu(bn1(·)) as one op
   y = bn2_->forward(conv2_->forward(y));
   return relu(add(y, downsample_ ? downsample_->forward(x) : x));
+}
+
+namespace {
+void fold_pair(const std::shared_ptr<Module>& conv, const std::shared_ptr<Module>& bn) {
+  fold_batch_norm(dynamic_cast<ConvNd&>(*conv), dynamic_cast<BatchNormNd&>(*bn));
+}
+}  // namespace
+
+void BasicBlock::fold_batch_norms() {
+  fold_pair(conv1_, bn1_);
+  fold_pair(conv2_, bn2_);
+  if (downsample_) {
+    const auto& ds = static_cast<Sequential&>(*downsample_);
+    fold_pair(ds[0], ds[1]);
+  }
+}
+
+void ResNet::fold_batch_norms() {
+  fold_pair(stem_conv_, stem_bn_);
+  for (auto& stage : stages_)
+    for (const auto& [name, block] : stage->children()) static_cast<BasicBlock&>(*block).fold_batch_norms();
 }
 
 ResNet::ResNet(ResNetOptions options) : Module("ResNet"), opt_(options) {

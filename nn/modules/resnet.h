@@ -39,6 +39,7 @@ class BasicBlock : public Module {
  public:
   BasicBlock(int64_t in_channels, int64_t out_channels, int64_t stride);
   Tensor forward(const Tensor& x) override;
+  void fold_batch_norms();  // see ResNet::fold_batch_norms
 
  private:
   std::shared_ptr<Module> conv1_, bn1_, conv2_, bn2_, downsample_;
@@ -50,6 +51,10 @@ class ResNet : public Module {
   ResNetOutput forward_features(const Tensor& x);
   Tensor forward(const Tensor& x) override;
   int64_t feature_dim() const { return 8 * opt_.base_width; }
+  // For inference: folds every batch norm into the conv before it (the stem, each block's two
+  // pairs and each downsample; nn/modules/batch_norm_folding.h). The same function up to
+  // rounding; irreversible (training mode then throws; the state dict gains conv biases).
+  void fold_batch_norms();
   const ResNetOptions& options() const { return opt_; }
 
  protected:

@@ -74,6 +74,24 @@ TEST(VsgGrid, LogProjectionIsInvertibleAndMapsTheEdgesToTheGridBounds) {
   EXPECT_GT(far_m, 10.0);
 }
 
+// VoxelMapper (the log projection with its denominators computed once, for loops over many
+// points) is to_voxel bit for bit: inside, outside and on the edges of a grid that is not centred
+// on the origin, for offsets of either sign on every axis.
+TEST(VsgGrid, VoxelMapperIsToVoxelBitForBit) {
+  VsgGrid g;
+  g.center = {3.5, 1.65, -7.25};
+  g.extent_neg = {140.0, 4.0, 120.0};
+  const sl::render::VoxelMapper mapper(g);
+  const std::vector<double> pts = Tensor::uniform({3000}, -200.0, 200.0, 41).to_vector();
+  for (size_t i = 0; i + 2 < pts.size(); i += 3) {
+    const glm::dvec3 p = g.center + glm::dvec3(pts[i], 0.25 * pts[i + 1], pts[i + 2]);
+    const glm::dvec3 a = g.to_voxel(p), b = mapper(p);
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(a[k], b[k]) << "point " << i / 3 << " axis " << k;
+  }
+  for (const glm::dvec3& p : {g.center, g.center - g.extent_neg, g.center + g.extent_pos})
+    EXPECT_EQ(g.to_voxel(p), mapper(p));
+}
+
 TEST(VsgActivate, MapsAnyRawValueToValidParameters) {
   Tensor raw = Tensor::from_vector({-1e4, 0, 1e4, 0, 0, 0, -1e4, 1e4}, {8, 1, 1, 1}, DType::F64).set_requires_grad(true);
   Tensor p = vsg_activate(raw, 0);

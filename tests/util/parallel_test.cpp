@@ -54,5 +54,30 @@ TEST(ParallelFor, FewChunksComeInMultiplesOfFourAndTheBoundariesIgnoreTheThreads
   }
 }
 
+// SerialLoops (train/inference.cpp): while one lives on this thread, a loop is one call of its
+// body on this thread, as inside a parallel region, and the sums are the same bits; after it, the
+// loop is chunked again.
+TEST(ParallelFor, SerialLoopsRunOnTheCallingThreadWithTheSameSums) {
+  const int before = omp_get_max_threads();
+  omp_set_num_threads(2);
+  const auto f = [](int64_t i) { return 1.0 / (1.0 + static_cast<double>(i)); };
+  const double parallel_sum = deterministic_sum(100000, f);
+  {
+    const SerialLoops serial;
+    std::vector<std::pair<int64_t, int64_t>> calls;
+    std::vector<int> threads;
+    parallel_for(1000, 10, [&](int64_t b, int64_t e) {
+      calls.emplace_back(b, e);
+      threads.push_back(omp_get_thread_num());
+    });
+    ASSERT_EQ(calls.size(), 1u);
+    EXPECT_EQ(calls[0], std::make_pair(int64_t{0}, int64_t{1000}));
+    EXPECT_EQ(threads[0], 0);
+    EXPECT_EQ(deterministic_sum(100000, f), parallel_sum);
+  }
+  omp_set_num_threads(before);
+  EXPECT_GT(chunks_of(1000, 10, 2).size(), 1u);
+}
+
 }  // namespace
 }  // namespace sl::test

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The truck inserted into crops of two test-split LDR street panoramas (issue 39: "look at the
+# The truck inserted into crops of four test-split LDR street panoramas (issue 39: "look at the
 # pictures"), once with the released model's own sun and once with the sun of the panorama's
 # label (sun_labels.csv), so that the two shadows can be compared with the photo's real ones.
 # Usage: scripts/ldr_insertion_pictures.sh [--build DIR] [--out DIR] [--checkpoint CKPT]
@@ -31,7 +31,12 @@ mkdir -p "$out"
 
 # name, panorama, view yaw, object X,Z, object yaw, scale. Pitch -15°, camera height 1.7 m, a
 # 90° field of view at 640×360; the placements put the truck on the visible road surface.
+# Four test-split street panoramas with hard shadows: the sun in front of the view (bux01, the
+# people's shadows fall toward the camera), behind it (bux33: the cars' shadows fall away), and
+# behind to one side (all4gis, aisle7).
 views=(
+  "bux01_yaw90 AMIRBEKSHAROPOV__BuxMTI_vr_tour__0-1.jpg 90 1.5,8 60 0.6"
+  "bux33_yaw0 AMIRBEKSHAROPOV__BuxMTI_vr_tour__3-3.jpg 0 0.3,9 30 0.6"
   "all4gis_yaw-78 All4Gis__EquirectangularViewer__1.jpg -78 -0.6,4.0 20 0.6"
   "aisle7_yaw102 kairulin__panolens-360__aisle7.jpg 102 -1.5,11 150 1"
 )
@@ -58,11 +63,13 @@ def d(az, el):
     a, e = math.radians(az), math.radians(el)
     return (math.cos(e) * math.sin(a), math.sin(e), -math.cos(e) * math.cos(a))
 m = json.load(open(sys.argv[2] + "/model/result.json"))["sun"]
-maz, mel, spread = m["azimuth_deg"], m["elevation_deg"], m["flip_spread_deg"]
+maz, mel = m["azimuth_deg"], m["elevation_deg"]
+spread, prob = m.get("flip_spread_deg"), m.get("probability")
+conf = ", ".join(f"{k} {v:.2f}" for k, v in (("flip spread", spread), ("probability", prob)) if v is not None)
 laz, lel = float(sys.argv[3]), float(sys.argv[4])
 cos = sum(p * q for p, q in zip(d(maz, mel), d(laz, lel)))
 angle = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
-print(f"{sys.argv[1]}: model sun azimuth {maz:.1f} elevation {mel:.1f} (flip spread {spread:.1f}); "
+print(f"{sys.argv[1]}: model sun azimuth {maz:.1f} elevation {mel:.1f} ({conf}); "
       f"label azimuth {laz:.1f} elevation {lel:.1f}; angle {angle:.1f} deg")' "$name" "$dir" "$label_az" "$label_el"
 done
 echo "pictures: $out/*/{model,label}/composite.png"

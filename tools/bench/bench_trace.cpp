@@ -23,6 +23,7 @@
 #include "render/gltf_writer.h"
 #include "render/ray_file.h"
 #include "tools/bench/bench.h"
+#include "tools/bench/procedural_mesh.h"
 #include "tools/common/cli.h"
 #include "util/error.h"
 #include "util/math.h"
@@ -267,17 +268,30 @@ Mesh displaced_sphere(int64_t min_triangles) {
 int run_gen_mesh(const std::vector<std::string>& args) {
   if (wants_help(args)) {
     std::printf(
-        "usage: streetlight-bench gen-mesh --triangles N --out FILE.glb\n"
-        "  Writes a procedural displaced sphere (radius about 2 m) with at least N triangles.\n");
+        "usage: streetlight-bench gen-mesh --triangles N --out FILE.glb [--kind KIND] [--seed S]\n"
+        "  Writes a procedural mesh with at least N triangles (a few percent more at most for the\n"
+        "  part-based kinds). Deterministic: the same (kind, N, seed) give the same file. KIND:\n"
+        "    sphere   (default) displaced UV sphere, radius about 2 m; ignores --seed\n"
+        "    machine  CAD-like: hundreds of small disjoint boxes, cylinders, tubes, bolt rings\n"
+        "    facade   street blocks of buildings: thin walls, windows, frames, balconies, ground\n"
+        "    blob     organic, scan-like: noise-displaced cube sphere, near-uniform triangles\n"
+        "    foliage  thin randomly oriented overlapping slivers in tree crowns, ground plane\n"
+        "    terrain  fractal heightfield, 1 km square\n"
+        "  --seed S: 0..2^63-1, default 1.\n");
     return 0;
   }
   const char* cmd = "gen-mesh";
-  const Options o(cmd, args, {"--triangles", "--out"}, {});
+  const Options o(cmd, args, {"--triangles", "--out", "--kind", "--seed"}, {});
   const int64_t n = o.integer(cmd, "--triangles", 1, 100'000'000);
   const std::string out = o.get(cmd, "--out");
-  const Mesh m = displaced_sphere(n);
+  const std::string kind = o.has("--kind") ? o.get(cmd, "--kind") : "sphere";
+  const uint64_t seed = o.has("--seed") ? static_cast<uint64_t>(o.integer(cmd, "--seed", 0, INT64_MAX)) : 1;
+  const auto& kinds = procedural_mesh_kinds();
+  SL_CHECK(kind == "sphere" || std::find(kinds.begin(), kinds.end(), kind) != kinds.end(), cmd,
+           ": --kind must be sphere, machine, facade, blob, foliage or terrain, got '", kind, "'");
+  const Mesh m = kind == "sphere" ? displaced_sphere(n) : procedural_mesh(kind, n, seed);
   write_glb(m, out);
-  std::fprintf(stderr, "gen-mesh: wrote %zu triangles to %s\n", m.triangle_count(), out.c_str());
+  std::fprintf(stderr, "gen-mesh: wrote %zu triangles (%s) to %s\n", m.triangle_count(), kind.c_str(), out.c_str());
   return 0;
 }
 

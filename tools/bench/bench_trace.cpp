@@ -95,18 +95,31 @@ int run_trace(const std::vector<std::string>& args) {
   if (wants_help(args)) {
     std::printf(
         "usage: streetlight-bench trace --mesh FILE.glb --rays RAYS.bin [--hits-out HITS.bin] [--json]\n"
+        "                               [--split-budget B]\n"
         "  Builds the BVH of the mesh, then traces every ray closest-hit and any-hit (t in [0, inf)),\n"
         "  best of 5 passes each, on OMP_NUM_THREADS threads. RAYS.bin: float32 ox oy oz dx dy dz per\n"
-        "  ray, world frame. HITS.bin: float32 closest hit distance per ray, +inf on a miss.\n");
+        "  ray, world frame. HITS.bin: float32 closest hit distance per ray, +inf on a miss.\n"
+        "  --split-budget B: BVH pre-split references as a share of the triangles (default: the\n"
+        "  library's, render/bvh.h BvhBuildOptions; 0 turns pre-splits off).\n");
     return 0;
   }
-  const Options o("trace", args, {"--mesh", "--rays", "--hits-out"}, {"--json"});
+  const Options o("trace", args, {"--mesh", "--rays", "--hits-out", "--split-budget"}, {"--json"});
+  sl::render::BvhBuildOptions build_options = Bvh::default_options();
+  if (o.has("--split-budget"))
+  {
+    const std::string v = o.get("trace", "--split-budget");
+    char* end = nullptr;
+    const double b = std::strtod(v.c_str(), &end);
+    SL_CHECK(!v.empty() && end == v.c_str() + v.size() && b >= 0.0 && b <= 16.0,
+             "trace: --split-budget must be a number in [0, 16], got '", v, "'");
+    build_options.split_budget = static_cast<float>(b);
+  }
   const std::string mesh_path = o.get("trace", "--mesh"), rays_path = o.get("trace", "--rays");
   const Mesh mesh = load_mesh("trace", mesh_path);
   const std::vector<Ray> rays = read_ray_file(rays_path, "trace: --rays");
 
   const double t0 = now_ms();
-  const Bvh bvh(mesh);
+  const Bvh bvh(mesh, build_options);
   const double build_ms = now_ms() - t0;
 
   std::vector<Hit> hits(rays.size());
@@ -136,6 +149,7 @@ int run_trace(const std::vector<std::string>& args) {
                         {"rays_file", rays_path},      {"triangles", mesh.triangle_count()},
                         {"rays", rays.size()},         {"threads", omp_get_max_threads()},
                         {"bvh_nodes", bvh.node_count()}, {"bvh_depth", bvh.depth()},
+                        {"bvh_references", bvh.reference_count()}, {"split_budget", build_options.split_budget},
                         {"build_ms", build_ms},        {"closest_mrays_per_s", closest_mrays},
                         {"any_mrays_per_s", any_mrays}, {"hits", hit_count},
                         {"occluded", occluded_count}};

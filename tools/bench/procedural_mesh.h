@@ -2,8 +2,9 @@
 //
 // Every mesh is a pure function of (kind, triangles, seed): the same arguments give the same
 // vertices, bit for bit, on any machine and thread count. `triangles` is a target: the result
-// has at least that many triangles and at most a few percent more (whole parts are added until
-// the count is reached). Units are metres, +Y up.
+// has at least that many triangles; machine and facade add whole parts until it is reached, so
+// they overshoot by at most one part (a few hundred triangles; for facade one building, up to
+// about 40k). Units are metres, +Y up.
 //   machine: CAD-like: hundreds to thousands of small disjoint parts (boxes, cylinders, bolt
 //            rings, tubes) of log-uniformly varied scale on a jittered grid, on a base plate.
 //   facade:  architecture: rows of buildings along streets, walls with window openings (reveals,

@@ -11,6 +11,12 @@
 // triangles, stored as vertex copies in blocks of kBlockWidth (structure-of-arrays), so a leaf
 // is one contiguous read and its triangles are tested together; a node's small leaves share
 // blocks (a leaf starts at any lane), so the lanes hold triangles rather than padding.
+// Pre-splits (BvhBuildOptions::split_budget; Karras & Aila 2013, Embree's presplits): before the
+// SAH build, triangles whose boxes are large for their area (long, thin, diagonal slivers, large
+// walls) get several references, each bounding the part of the triangle inside one cell of a
+// power-of-two grid over the mesh's box. A leaf tests whole triangles, so a reference's box only
+// has to contain its part of the triangle; boxes are rounded outwards, so every hit point lies
+// in some reference's box. A triangle may then appear in several leaves (never twice in one).
 // Intersection (bvh.cpp): watertight ray-triangle test (Woop, Benthin & Wald, JCGT 2013): a ray
 // through an edge or vertex shared by two triangles hits at least one of them, never slips
 // between. Every lane of the vector test performs the same IEEE operations, in the same order,
@@ -94,12 +100,20 @@ struct BvhAllocator {
   bool operator==(const BvhAllocator<U>&) const { return true; }
 };
 
+struct BvhBuildOptions {
+  // Extra references from pre-splits, as a share of the triangles (0: none). Each triangle gets
+  // 1 + floor(budget · n · p / Σp) references (at most kMaxSplitRefs), p being the fourth root of
+  // its box's half area less its own area, so only triangles well above the mean are split.
+  float split_budget = 0.0f;
+};
+
 class Bvh {
  public:
   static constexpr int kBins = 32;
   static constexpr int kBlockWidth = 8;   // triangles tested together
   static constexpr int kMaxLeafSize = 16; // at most 16 (leaf refs keep the count in 4 bits)
   static constexpr int kMaxDepth = 128;   // levels; the build falls back to median splits long before
+  static constexpr int kMaxSplitRefs = 16;  // references per triangle from pre-splits
 
   // kBlockWidth triangles as structure-of-arrays: v[vertex][axis][lane]. Unused lanes are NaN.
   // id: each lane's mesh triangle (Hit::kNone when unused). Kept in the block, so the hit's id is
@@ -111,8 +125,11 @@ class Bvh {
   };
 
   Bvh() = default;  // empty: every ray misses
-  explicit Bvh(const Mesh& mesh) : Bvh(mesh.positions, mesh.triangles) {}
-  Bvh(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>& triangles);
+  explicit Bvh(const Mesh& mesh, const BvhBuildOptions& options = default_options())
+      : Bvh(mesh.positions, mesh.triangles, options) {}
+  Bvh(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>& triangles,
+      const BvhBuildOptions& options = default_options());
+  static BvhBuildOptions default_options() { return {}; }
 
   Hit intersect(const Ray& ray) const;
   bool occluded(const Ray& ray) const;  // any hit in (tmin, tmax)
@@ -134,6 +151,7 @@ class Bvh {
   bool empty() const { return nodes_.empty(); }
   size_t node_count() const { return nodes_.size(); }
   size_t triangle_count() const { return triangle_count_; }  // triangles kept (non-degenerate)
+  size_t reference_count() const { return reference_count_; }  // leaf slots: triangles + pre-split copies
   Bounds3 bounds() const { return bounds_; }
   // Node 0 is the root; a non-empty BVH always has one, even over a single triangle.
   const std::vector<BvhNode, BvhAllocator<BvhNode>>& nodes() const { return nodes_; }
@@ -150,6 +168,7 @@ class Bvh {
   std::vector<BvhNode, BvhAllocator<BvhNode>> nodes_;
   std::vector<TriangleBlock, BvhAllocator<TriangleBlock>> blocks_;  // leaf order
   size_t triangle_count_ = 0;
+  size_t reference_count_ = 0;
   Bounds3 bounds_;
   int depth_ = 0;
   bool portable_kernels_ = false;

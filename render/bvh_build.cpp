@@ -377,6 +377,147 @@ struct Builder {
   }
 };
 
+// ---------------------------------------------------------------- pre-splits (bvh.h)
+
+// A convex polygon: a triangle clipped by at most log2(kMaxSplitRefs) planes has at most 7 vertices.
+struct Polygon {
+  glm::vec3 v[16];
+  int n = 0;
+};
+
+// Splits p by the plane x[axis] = pos into the parts below and above it.
+void clip(const Polygon& p, int axis, float pos, Polygon& below, Polygon& above) {
+  below.n = above.n = 0;
+  for (int i = 0; i < p.n; ++i) {
+    const glm::vec3 a = p.v[i], b = p.v[(i + 1) % p.n];
+    const float da = a[axis] - pos, db = b[axis] - pos;
+    if (da <= 0.0f) below.v[below.n++] = a;
+    if (da >= 0.0f) above.v[above.n++] = a;
+    if ((da < 0.0f && db > 0.0f) || (da > 0.0f && db < 0.0f)) {
+      glm::vec3 q = a + (da / (da - db)) * (b - a);
+      q[axis] = pos;
+      below.v[below.n++] = q, above.v[above.n++] = q;
+    }
+  }
+}
+
+// The coarsest line of the power-of-two grid over [slo, slo + ext] strictly inside (lo, hi).
+bool grid_plane(float lo, float hi, float slo, float ext, float& pos) {
+  if (!(ext > 0.0f) || !(hi > lo)) return false;
+  for (int level = 1; level <= 24; ++level) {
+    const float cell = std::ldexp(ext, -level);
+    const float m = std::floor((hi - slo) / cell);
+    for (float k : {m, m - 1.0f}) {
+      pos = slo + k * cell;
+      if (pos > lo && pos < hi) return true;
+    }
+  }
+  return false;
+}
+
+struct PreSplitter {
+  Box4 scene;
+  glm::vec3 tri_lo, tri_hi;  // the triangle's box: no reference box exceeds it
+  float widen;               // outward rounding margin of clipped boxes
+  uint32_t id;
+  PrimRef* out;
+  uint32_t count = 0;
+
+  void emit(const Polygon& p) {
+    glm::vec3 lo(kInf), hi(-kInf);
+    for (int i = 0; i < p.n; ++i) lo = glm::min(lo, p.v[i]), hi = glm::max(hi, p.v[i]);
+    // Clipped vertices carry a few roundings: widen, then clamp to the triangle's exact box.
+    lo = glm::max(lo - widen, tri_lo), hi = glm::min(hi + widen, tri_hi);
+    out[count++] = {{lo.x, lo.y, lo.z}, id, {hi.x, hi.y, hi.z}, 0.0f};
+  }
+  static glm::vec3 box_lo(const Polygon& p) {
+    glm::vec3 lo(kInf);
+    for (int i = 0; i < p.n; ++i) lo = glm::min(lo, p.v[i]);
+    return lo;
+  }
+  static glm::vec3 box_hi(const Polygon& p) {
+    glm::vec3 hi(-kInf);
+    for (int i = 0; i < p.n; ++i) hi = glm::max(hi, p.v[i]);
+    return hi;
+  }
+  static float area(glm::vec3 e) { return e.x * e.y + e.y * e.z + e.z * e.x; }
+
+  // Splits p into `k` references (fewer when no grid line crosses a part's box).
+  void split(const Polygon& p, uint32_t k) {
+    if (k <= 1 || p.n < 3) return emit(p);
+    const glm::vec3 lo = box_lo(p), hi = box_hi(p), e = hi - lo;
+    const int axis = e.x >= e.y ? (e.x >= e.z ? 0 : 2) : (e.y >= e.z ? 1 : 2);
+    float pos;
+    if (!grid_plane(lo[axis], hi[axis], lane(scene.lo, axis), lane(scene.hi, axis) - lane(scene.lo, axis), pos))
+      return emit(p);
+    Polygon below, above;
+    clip(p, axis, pos, below, above);
+    if (below.n < 3 || above.n < 3) return emit(p);
+    const float al = area(box_hi(below) - box_lo(below)), ar = area(box_hi(above) - box_lo(above));
+    const float share = al + ar > 0.0f ? al / (al + ar) : 0.5f;
+    const uint32_t kl = std::min(k - 1, std::max<uint32_t>(1, static_cast<uint32_t>(std::lround(share * static_cast<float>(k)))));
+    split(below, kl);
+    split(above, k - kl);
+  }
+};
+
+// Replaces refs[0, n) by the pre-split references (bvh.h); returns their count.
+uint32_t presplit(std::unique_ptr<PrimRef[]>& refs, uint32_t n, const std::vector<glm::vec3>& positions,
+                  const std::vector<glm::uvec3>& triangles, const Box4& scene, float budget, bool parallel) {
+  std::vector<float> priority(n);
+  double total = 0.0;
+#pragma omp parallel for schedule(static) if (parallel)
+  for (int64_t i = 0; i < static_cast<int64_t>(n); ++i) {
+    const PrimRef& r = refs[static_cast<size_t>(i)];
+    const glm::uvec3 t = triangles[r.id];
+    const glm::vec3 p0 = positions[t.x], p1 = positions[t.y], p2 = positions[t.z];
+    const float tri_area = 0.5f * glm::length(glm::cross(p1 - p0, p2 - p0));
+    const glm::vec3 e(r.hi[0] - r.lo[0], r.hi[1] - r.lo[1], r.hi[2] - r.lo[2]);
+    const float box_area = e.x * e.y + e.y * e.z + e.z * e.x;
+    priority[static_cast<size_t>(i)] = std::sqrt(std::sqrt(std::max(box_area - tri_area, 0.0f)));
+  }
+  for (uint32_t i = 0; i < n; ++i) total += priority[i];  // in order: the same sum on any thread count
+  if (!(total > 0.0)) return n;
+  const double scale = static_cast<double>(budget) * n / total;
+  std::vector<uint64_t> offset(static_cast<size_t>(n) + 1, 0);
+  for (uint32_t i = 0; i < n; ++i) {
+    const double k = std::floor(1.0 + priority[i] * scale);
+    offset[i + 1] = offset[i] + static_cast<uint64_t>(std::min<double>(k, Bvh::kMaxSplitRefs));
+  }
+  if (offset[n] == n) return n;
+  SL_CHECK(offset[n] < (uint64_t{1} << 31), "Bvh: ", offset[n], " references exceed 2^31");
+  std::unique_ptr<PrimRef[]> out(new PrimRef[offset[n]]);
+  std::vector<uint32_t> made(n);
+#pragma omp parallel for schedule(dynamic, 1024) if (parallel)
+  for (int64_t i = 0; i < static_cast<int64_t>(n); ++i) {
+    const size_t j = static_cast<size_t>(i);
+    const PrimRef& r = refs[j];
+    const uint32_t k = static_cast<uint32_t>(offset[j + 1] - offset[j]);
+    if (k == 1) {
+      out[offset[j]] = r, made[j] = 1;
+      continue;
+    }
+    const glm::uvec3 t = triangles[r.id];
+    Polygon p;
+    p.n = 3, p.v[0] = positions[t.x], p.v[1] = positions[t.y], p.v[2] = positions[t.z];
+    PreSplitter s;
+    s.scene = scene, s.tri_lo = glm::vec3(r.lo[0], r.lo[1], r.lo[2]), s.tri_hi = glm::vec3(r.hi[0], r.hi[1], r.hi[2]);
+    const glm::vec3 mag = glm::max(glm::abs(s.tri_lo), glm::abs(s.tri_hi));
+    s.widen = 4e-6f * std::max({mag.x, mag.y, mag.z, 1e-30f});
+    s.id = r.id, s.out = &out[offset[j]];
+    s.split(p, k);
+    made[j] = s.count;
+  }
+  // Compact in order: the references (and so the tree) do not depend on the thread count.
+  uint32_t m = 0;
+  for (uint32_t i = 0; i < n; ++i) {
+    if (m != offset[i]) std::memmove(&out[m], &out[offset[i]], made[i] * sizeof(PrimRef));
+    m += made[i];
+  }
+  refs = std::move(out);
+  return m;
+}
+
 // Lays out build node `b` and its subtree depth-first; returns its index in nodes_.
 struct BvhLayout {
   const Builder& builder;
@@ -385,6 +526,7 @@ struct BvhLayout {
   std::vector<BvhNode, BvhAllocator<BvhNode>>& nodes;
   std::vector<Bvh::TriangleBlock, BvhAllocator<Bvh::TriangleBlock>>& blocks;
   int depth = 0;
+  size_t slots = 0;  // leaf slots written
 
   // Lanes used in the last block; kBlockWidth when there is no block with free lanes.
   uint32_t last_used = Bvh::kBlockWidth;
@@ -394,6 +536,15 @@ struct BvhLayout {
   // triangles). Random rays miss in cache on most leaves they test: with each leaf in blocks of
   // its own, the 200k-triangle test mesh filled 67% of its lanes.
   uint32_t leaf(uint32_t first, uint32_t count) {
+    // Pre-split references of one triangle that meet in a leaf take one slot.
+    uint32_t ids[Bvh::kMaxLeafSize];
+    uint32_t unique = 0;
+    for (uint32_t i = 0; i < count; ++i) {
+      const uint32_t id = builder.refs[first + i].id;
+      if (std::find(ids, ids + unique, id) == ids + unique) ids[unique++] = id;
+    }
+    count = unique;
+    slots += count;
     const bool share = count <= Bvh::kBlockWidth - last_used;
     const uint32_t block = static_cast<uint32_t>(blocks.size()) - (share ? 1 : 0), lane = share ? last_used : 0;
     SL_CHECK(block < (1u << 24), "Bvh: more than 2^24 triangle blocks");
@@ -406,7 +557,7 @@ struct BvhLayout {
         std::fill(tb.id, tb.id + Bvh::kBlockWidth, Hit::kNone);
         blocks.push_back(tb);
       }
-      const uint32_t id = builder.refs[first + i].id;
+      const uint32_t id = ids[i];
       blocks[b].id[l] = id;
       for (int v = 0; v < 3; ++v) {
         const glm::vec3 p = positions[triangles[id][v]];
@@ -445,7 +596,8 @@ struct BvhLayout {
 
 }  // namespace
 
-Bvh::Bvh(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>& triangles) {
+Bvh::Bvh(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>& triangles,
+         const BvhBuildOptions& options) {
   const size_t count = triangles.size();
   SL_CHECK(count < (size_t{1} << 31), "Bvh: ", count, " triangles exceed 2^31");
   std::unique_ptr<PrimRef[]> refs(new PrimRef[count]);
@@ -495,9 +647,17 @@ Bvh::Bvh(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>&
     kept[static_cast<size_t>(c) + 1] += kept[static_cast<size_t>(c)];
     root.box.extend(root_box[static_cast<size_t>(c)]), root.centroids.extend(root_centroids[static_cast<size_t>(c)]);
   }
-  const uint32_t n = static_cast<uint32_t>(kept[static_cast<size_t>(chunks)]);
+  uint32_t n = static_cast<uint32_t>(kept[static_cast<size_t>(chunks)]);
   triangle_count_ = n;
   if (n == 0) return;
+  if (options.split_budget > 0.0f && n > 1) {
+    n = presplit(refs, n, positions, triangles, root.box, options.split_budget, parallel);
+    root.box = Box4(), root.centroids = Box4();
+    for (uint32_t i = 0; i < n; ++i) {
+      const Box4 b = box_of(refs[i]);
+      root.box.extend(b), root.centroids.extend(centroid2(b));
+    }
+  }
   root.begin = 0, root.end = n;
   for (int a = 0; a < 3; ++a) bounds_.lo[a] = lane(root.box.lo, a), bounds_.hi[a] = lane(root.box.hi, a);
 
@@ -518,6 +678,7 @@ Bvh::Bvh(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>&
   blocks_.reserve(block_count);
   BvhLayout layout{builder, positions, triangles, nodes_, blocks_};
   layout.node(0, 0);
+  reference_count_ = layout.slots;
   depth_ = layout.depth + 1;  // the leaf level
   prefetch_ = nodes_.size() * sizeof(BvhNode) + blocks_.size() * sizeof(TriangleBlock) > l2_cache_bytes();
   SL_CHECK(depth_ <= kMaxDepth, "Bvh: tree depth ", depth_, " exceeds ", kMaxDepth);

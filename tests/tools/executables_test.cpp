@@ -2,12 +2,15 @@
 // exit 2 (docs/DESIGN.md, "Executables").
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -102,6 +105,43 @@ TEST(Executables, BenchCountsThatAreNotIntegersAreOneLineErrors) {
     EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << args << "\n" << r.out;
     EXPECT_NE(r.out.find("must be an integer in ["), std::string::npos) << args << "\n" << r.out;
   }
+}
+
+// gen-mesh --kind: the benchmark set's procedural meshes (tools/bench/procedural_mesh.h) are a
+// pure function of (kind, triangles, seed), reach the triangle target and overshoot it by at most
+// one part, and an unknown kind is a one-line error.
+TEST(Executables, GenMeshKindsAreDeterministicFromTheSeed) {
+  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
+  if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("sl_gen_mesh_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  auto slurp = [](const std::filesystem::path& f) {
+    std::ifstream in(f, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  for (const std::string kind : {"machine", "facade", "blob", "foliage", "terrain"}) {
+    std::string files[3];
+    for (int i = 0; i < 3; ++i) {
+      const std::filesystem::path out = dir / (kind + std::to_string(i) + ".glb");
+      const ProcessResult r = run(bench + " gen-mesh --kind " + kind + " --triangles 3000 --seed " +
+                                  (i == 2 ? "2" : "1") + " --out " + out.string());
+      ASSERT_EQ(r.code, 0) << kind << "\n" << r.out;
+      const size_t at = r.out.find("wrote ");
+      ASSERT_NE(at, std::string::npos) << r.out;
+      const long triangles = std::stol(r.out.substr(at + 6));
+      EXPECT_GE(triangles, 3000) << kind;
+      EXPECT_LE(triangles, kind == "facade" ? 3000 + 40000 : 3600) << kind;  // whole parts; a building is large
+      files[i] = slurp(out);
+    }
+    EXPECT_FALSE(files[0].empty()) << kind;
+    EXPECT_EQ(files[0], files[1]) << kind << ": the same seed must give the same file";
+    EXPECT_NE(files[0], files[2]) << kind << ": another seed must give another mesh";
+  }
+  const ProcessResult bad = run(bench + " gen-mesh --kind nope --triangles 10 --out " + (dir / "x.glb").string());
+  EXPECT_EQ(bad.code, 2) << bad.out;
+  EXPECT_EQ(bad.out.rfind("error: ", 0), 0u) << bad.out;
+  EXPECT_EQ(std::count(bad.out.begin(), bad.out.end(), '\n'), 1) << bad.out;
+  std::filesystem::remove_all(dir);
 }
 
 TEST(CliParseInteger, TakesTheWholeValueInRangeOrNamesIt) {

@@ -23,6 +23,7 @@
 #include "render/gltf_writer.h"
 #include "render/ray_file.h"
 #include "tools/bench/bench.h"
+#include "tools/bench/procedural_mesh.h"
 #include "tools/common/cli.h"
 #include "util/error.h"
 #include "util/math.h"
@@ -94,18 +95,31 @@ int run_trace(const std::vector<std::string>& args) {
   if (wants_help(args)) {
     std::printf(
         "usage: streetlight-bench trace --mesh FILE.glb --rays RAYS.bin [--hits-out HITS.bin] [--json]\n"
+        "                               [--split-budget B]\n"
         "  Builds the BVH of the mesh, then traces every ray closest-hit and any-hit (t in [0, inf)),\n"
         "  best of 5 passes each, on OMP_NUM_THREADS threads. RAYS.bin: float32 ox oy oz dx dy dz per\n"
-        "  ray, world frame. HITS.bin: float32 closest hit distance per ray, +inf on a miss.\n");
+        "  ray, world frame. HITS.bin: float32 closest hit distance per ray, +inf on a miss.\n"
+        "  --split-budget B: BVH pre-split references as a share of the triangles (default: the\n"
+        "  library's, render/bvh.h BvhBuildOptions; 0 turns pre-splits off).\n");
     return 0;
   }
-  const Options o("trace", args, {"--mesh", "--rays", "--hits-out"}, {"--json"});
+  const Options o("trace", args, {"--mesh", "--rays", "--hits-out", "--split-budget"}, {"--json"});
+  sl::render::BvhBuildOptions build_options = Bvh::default_options();
+  if (o.has("--split-budget"))
+  {
+    const std::string v = o.get("trace", "--split-budget");
+    char* end = nullptr;
+    const double b = std::strtod(v.c_str(), &end);
+    SL_CHECK(!v.empty() && end == v.c_str() + v.size() && b >= 0.0 && b <= 16.0,
+             "trace: --split-budget must be a number in [0, 16], got '", v, "'");
+    build_options.split_budget = static_cast<float>(b);
+  }
   const std::string mesh_path = o.get("trace", "--mesh"), rays_path = o.get("trace", "--rays");
   const Mesh mesh = load_mesh("trace", mesh_path);
   const std::vector<Ray> rays = read_ray_file(rays_path, "trace: --rays");
 
   const double t0 = now_ms();
-  const Bvh bvh(mesh);
+  const Bvh bvh(mesh, build_options);
   const double build_ms = now_ms() - t0;
 
   std::vector<Hit> hits(rays.size());
@@ -135,6 +149,7 @@ int run_trace(const std::vector<std::string>& args) {
                         {"rays_file", rays_path},      {"triangles", mesh.triangle_count()},
                         {"rays", rays.size()},         {"threads", omp_get_max_threads()},
                         {"bvh_nodes", bvh.node_count()}, {"bvh_depth", bvh.depth()},
+                        {"bvh_references", bvh.reference_count()}, {"split_budget", build_options.split_budget},
                         {"build_ms", build_ms},        {"closest_mrays_per_s", closest_mrays},
                         {"any_mrays_per_s", any_mrays}, {"hits", hit_count},
                         {"occluded", occluded_count}};
@@ -267,17 +282,30 @@ Mesh displaced_sphere(int64_t min_triangles) {
 int run_gen_mesh(const std::vector<std::string>& args) {
   if (wants_help(args)) {
     std::printf(
-        "usage: streetlight-bench gen-mesh --triangles N --out FILE.glb\n"
-        "  Writes a procedural displaced sphere (radius about 2 m) with at least N triangles.\n");
+        "usage: streetlight-bench gen-mesh --triangles N --out FILE.glb [--kind KIND] [--seed S]\n"
+        "  Writes a procedural mesh with at least N triangles (a few percent more at most for the\n"
+        "  part-based kinds). Deterministic: the same (kind, N, seed) give the same file. KIND:\n"
+        "    sphere   (default) displaced UV sphere, radius about 2 m; ignores --seed\n"
+        "    machine  CAD-like: hundreds of small disjoint boxes, cylinders, tubes, bolt rings\n"
+        "    facade   street blocks of buildings: thin walls, windows, frames, balconies, ground\n"
+        "    blob     organic, scan-like: noise-displaced cube sphere, near-uniform triangles\n"
+        "    foliage  thin randomly oriented overlapping slivers in tree crowns, ground plane\n"
+        "    terrain  fractal heightfield, 1 km square\n"
+        "  --seed S: 0..2^63-1, default 1.\n");
     return 0;
   }
   const char* cmd = "gen-mesh";
-  const Options o(cmd, args, {"--triangles", "--out"}, {});
+  const Options o(cmd, args, {"--triangles", "--out", "--kind", "--seed"}, {});
   const int64_t n = o.integer(cmd, "--triangles", 1, 100'000'000);
   const std::string out = o.get(cmd, "--out");
-  const Mesh m = displaced_sphere(n);
+  const std::string kind = o.has("--kind") ? o.get(cmd, "--kind") : "sphere";
+  const uint64_t seed = o.has("--seed") ? static_cast<uint64_t>(o.integer(cmd, "--seed", 0, INT64_MAX)) : 1;
+  const auto& kinds = procedural_mesh_kinds();
+  SL_CHECK(kind == "sphere" || std::find(kinds.begin(), kinds.end(), kind) != kinds.end(), cmd,
+           ": --kind must be sphere, machine, facade, blob, foliage or terrain, got '", kind, "'");
+  const Mesh m = kind == "sphere" ? displaced_sphere(n) : procedural_mesh(kind, n, seed);
   write_glb(m, out);
-  std::fprintf(stderr, "gen-mesh: wrote %zu triangles to %s\n", m.triangle_count(), out.c_str());
+  std::fprintf(stderr, "gen-mesh: wrote %zu triangles (%s) to %s\n", m.triangle_count(), kind.c_str(), out.c_str());
   return 0;
 }
 

@@ -35,8 +35,8 @@ mkdir -p "$out"
 # people's shadows fall toward the camera), behind it (bux33: the cars' shadows fall away), and
 # behind to one side (all4gis, aisle7).
 views=(
-  "bux01_yaw90 AMIRBEKSHAROPOV__BuxMTI_vr_tour__0-1.jpg 90 1.5,8 60 0.6"
-  "bux33_yaw0 AMIRBEKSHAROPOV__BuxMTI_vr_tour__3-3.jpg 0 0.3,9 30 0.6"
+  "bux01_yaw90 AMIRBEKSHAROPOV__BuxMTI_vr_tour__0-1.jpg 90 0.6,5 60 0.8"
+  "bux33_yaw0 AMIRBEKSHAROPOV__BuxMTI_vr_tour__3-3.jpg 0 0.3,6 30 0.8"
   "all4gis_yaw-78 All4Gis__EquirectangularViewer__1.jpg -78 -0.6,4.0 20 0.6"
   "aisle7_yaw102 kairulin__panolens-360__aisle7.jpg 102 -1.5,11 150 1"
 )

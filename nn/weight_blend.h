@@ -1,7 +1,7 @@
 // Weight-space interpolation of two trained models (Wortsman et al., "Robust fine-tuning of
 // zero-shot models", CVPR 2022, "WiSE-FT"): θ(t) = (1 − t)·θa + t·θb, tensor by tensor. Between two
 // fine-tunings of one parent the straight line often keeps most of what each learned; between
-// unrelated runs it does not, so the caller measures the blend (docs/RESULTS.md, session 24).
+// unrelated runs it does not, so the caller measures the blend (docs/RESULTS.md, 2026-11-27).
 //
 // Contract:
 // - `a` and `b` hold the same names, shapes and dtypes (nn::compare_state); otherwise throws ONE

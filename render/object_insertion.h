@@ -154,10 +154,10 @@ struct InsertionOptions {
   // variate (see "Control variate" above): E on a grid of cv_normals_height × 2·height normals,
   // integrated over square texels half the env's rows high, refined cv_quadrature_supersample× per axis.
   bool diffuse_control_variate = false;
-  // 128 rows since session 24: under a strong sun near the zenith, a vertical face sits at the
-  // terminator of E, whose kink bilinear reads smooth out (KITTI 000008 with session 24's release,
+  // 128 rows since 2026-11-27: under a strong sun near the zenith, a vertical face sits at the
+  // terminator of E, whose kink bilinear reads smooth out (KITTI 000008 with release 0.6.0,
   // streetlight-bench insert rows cv_normals*: 64 rows 2.10%, 96 1.61%, 128 1.50%, 256 1.43%; the
-  // weak sun of session 17's release 0.93% at every height; +18 ms).
+  // weak sun of an earlier release (2026-11-26) 0.93% at every height; +18 ms).
   int cv_normals_height = 128, cv_quadrature_supersample = 1;
   // Inference, with the radiance cache: adaptive light samples (see "Adaptive sampling" above).
   // On average adaptive_light_samples more per visible primary sample, at most

@@ -111,7 +111,7 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
       // The row's direction sits at its solid-angle centroid in elevation, not its middle: the
       // quadrature is then exact for radiance linear in elevation across the row (the bilinear
       // sky between its rows), where the middle errs by the cos(θ) weight's tilt, most near the
-      // zenith. KITTI 000008 under session 24's release (a sun 6° from the zenith), the object's
+      // zenith. KITTI 000008 under release 0.6.0 (a sun 6° from the zenith), the object's
       // bias 0.83% → 0.55% (streetlight-bench insert --bias-runs 16, row bias_no_filters).
       const int row = int(q / wq);
       const double t0 = (0.5 - double(row) / hq) * kPi, t1 = (0.5 - double(row + 1) / hq) * kPi;

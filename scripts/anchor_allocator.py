@@ -2,7 +2,7 @@
 
 Why: PyTorch allocates a fresh output for every op. glibc returns blocks above 32 MiB to the OS
 and maps them again on the next op, so every op of a large tensor pays a page fault per 4 KiB.
-On some VMs a fault costs 10-20 us: on the AMD EPYC of session 26, `x * 2` of 16M floats took
+On some VMs a fault costs 10-20 us: on an AMD EPYC of family 26 (2026-11-27), `x * 2` of 16M floats took
 140 ms with a fresh output and 2.6 ms into a kept one, and the elementwise chain 680-1690 ms
 against 44 ms. That measures the VM, not PyTorch, so the anchor runs with jemalloc told never to
 give memory back (PyTorch's CPU performance guide recommends jemalloc or tcmalloc).
@@ -10,7 +10,7 @@ give memory back (PyTorch's CPU performance guide recommends jemalloc or tcmallo
 `--allocator jemalloc` (the default when Debian's libjemalloc2 is installed: `scripts/install_deps.sh
 --anchors`) re-executes the script with LD_PRELOAD and MALLOC_CONF set; `streetlight-bench`, a
 child process, inherits both, so the two sides share one allocator. `--allocator system` keeps
-glibc's (the figures of sessions before 26).
+glibc's (the figures before 2026-11-27).
 """
 import os
 import sys

@@ -67,7 +67,7 @@ def main():
                 found = True
                 report(f"{ds.get('data', '?')} / {r.get('name', r.get('checkpoint', '?'))}", r["sun_per_image"])
     if not found:
-        print(f"error: {path}: no \"sun_per_image\" (made by streetlight-eval before session 15?)", file=sys.stderr)
+        print(f"error: {path}: no \"sun_per_image\" (made by a streetlight-eval older than 2026-11-26?)", file=sys.stderr)
         sys.exit(2)
 
 

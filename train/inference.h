@@ -154,9 +154,9 @@ class LightingEstimator {
   // left-right, and its sun direction and log intensity are averaged with the mirror image of the
   // mirrored view's ((x, y, z) → (−x, y, z) in the canonical frame, exact for a level camera).
   // The latent stays the unflipped view's. One more backbone pass per view. On by default: with
-  // the release of session 13 it lowered the median sun error on the validation streets
+  // release 0.2.0 (2026-11-25) it lowered the median sun error on the validation streets
   // (stage 2 19.2 -> 18.7 deg, stage 3 20.0 -> 19.7) and on the 320 held-out ones (19.7 -> 18.2,
-  // 19.2 -> 18.3). The release of session 16, trained on mirrored streets, gains only in the mean
+  // 19.2 -> 18.3). Release 0.3.0, trained on mirrored streets, gains only in the mean
   // (stage 2: median 16.3 -> 16.5, mean 22.6 -> 21.8; stage 3: 16.6 -> 15.5; docs/RESULTS.md).
   void set_flip_average(bool on) { flip_average_ = on; }
   bool flip_average() const { return flip_average_; }
@@ -168,7 +168,7 @@ class LightingEstimator {
   // without. Off (empty) by default: with the released model, {0.55, 0.7, 0.85} (chosen on the
   // validation splits) lowered the median sun error on validation (HDR 64.2° → 59.6°, LDR 58.5° →
   // 49.3°, 128 crops each) but raised it on the test splits (HDR 39.1° → 40.7°, LDR 43.7° → 46.0°;
-  // docs/RESULTS.md, session 27), so it is measured, not a default. Its crop spread
+  // docs/RESULTS.md, 2026-11-27), so it is measured, not a default. Its crop spread
   // (EstimatedLighting::sun_crop_spread_deg) is a third confidence. Throws sl::Error for a scale
   // outside (0, 1).
   void set_crop_scales(std::vector<double> scales);

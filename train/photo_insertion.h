@@ -36,7 +36,7 @@ struct PhotoInsertionOptions {
   // Eq. 2's N: 16 light samples per primary sample (64 per fully covered pixel), then on average
   // 2 more where the neighbours were noisy, and the residual filter (radius 2); see the end.
   // Eq. 4: 256 shadow rays per shadow-map texel. (N = 6 and 128 shadow rays until 2026-11-27:
-  // see exact_light_rays below; N = 8 until session 25: see stratify_per_pixel.)
+  // see exact_light_rays below; N = 8 until 2026-11-27: see stratify_per_pixel.)
   int aa_samples = 4, light_samples = 16;
   int shadow_width = 160, shadow_height = 90, shadow_rays = 256;
   double ambient = 0.1;
@@ -50,9 +50,9 @@ struct PhotoInsertionOptions {
   // doubled it). KITTI 000008 under the released model's lighting, against a 4096-spp
   // exact-query reference (streetlight-bench insert --size kitti --lighting released, rows
   // production, no_control_variate, cv_normals16/32, cache_4x3x4_1m, shadow128_grid*; 2026-11-23):
-  // 0.91% (object 0.79%), was 2.02% (object 1.85%) at session 8's defaults. Those figures are
-  // session 15's release's lighting; with session 17's release the same row is 1.65% (object
-  // 1.24%, shadow 1.05%; README, Intel Xeon rows of session 20). Probes 0.5 m apart
+  // 0.91% (object 0.79%), was 2.02% (object 1.85%) at the defaults of 2026-11-23. Those figures are
+  // the lighting of a release of 2026-11-26; with a later one of that day the same row is 1.65% (object
+  // 1.24%, shadow 1.05%; README, Intel Xeon rows of 2026-11-26). Probes 0.5 m apart
   // (up to 4×6×4) gave 0.94% in ~90 ms more; an 8×2×8 shadow grid lowers the shadow term
   // (nuScenes size 0.44% → 0.17%) for 130-160 ms more on KITTI.
   // The shadow rays' grid: up to 8×2×8 probes with 12×24 directions each (the same number of
@@ -71,7 +71,7 @@ struct PhotoInsertionOptions {
   double adaptive_light_samples = 2;
   int denoise_radius = 2;
   // One stratified set per primary sample, not one per pixel interleaved over its primary
-  // samples (session 25): both are unbiased, but under session 24's release (a strong sun near
+  // samples (2026-11-27): both are unbiased, but under release 0.6.0 (a strong sun near
   // the zenith) the per-pixel sets left twice the variance. KITTI 000008, 16384-spp reference,
   // Intel Xeon (streetlight-bench insert --size kitti --lighting released --bias-runs 8): object
   // noise 0.91% → 0.54% at N = 8 (0.42% at N = 16); total 1.32% → 1.02% (N = 16: 0.92%, +7%

@@ -127,7 +127,7 @@ TEST(RadianceCache, IrradianceMatchesABruteForceIntegralOfItsRadiance) {
   }
 }
 
-// A broad sun next to the zenith (rows 0-1 of the sky, as session 24's release estimates for KITTI
+// A broad sun next to the zenith (rows 0-1 of the sky, as release 0.6.0 estimates for KITTI
 // 000008) puts the radiance's steepest change inside the quadrature's polar rows, where the cos(θ)
 // weight tilts within a row. Read at each row's solid-angle centroid, the roof's E (n = +y) is
 // within 0.1% of the brute-force integral (measured 0.01%; at the rows' middles it was 0.87%,

@@ -3,7 +3,7 @@
 // takes. It builds the stage exactly as the trainer does (train/trainer.h make_stage), runs its
 // initialise() and `--warmup` steps, then reports the mean of `--steps` steps with the 95%
 // interval of that mean and the fastest and slowest step. Steps differ: a lighting batch may or
-// may not hold real crops, so 5 steps could mislead by 10-20% (session 17: width 48 read 503 ms
+// may not hold real crops, so 5 steps could mislead by 10-20% (2026-11-26: width 48 read 503 ms
 // over 5 steps and 584 ms over 30, against 587 ms per step in the real run); the default is 20.
 // "data" is the time a step WAITS for its batch: the lighting stages build the next batch in the
 // background.

@@ -86,7 +86,7 @@ std::vector<InsertRow> insert_rows(const train::PhotoInsertionOptions& productio
     InsertionOptions texel_env = train::insertion_options(production);
     texel_env.bilinear_env_sampling = false;
     rows.push_back({"texel_env_sampling", texel_env});
-    InsertionOptions per_pixel = train::insertion_options(production);  // the default until session 25
+    InsertionOptions per_pixel = train::insertion_options(production);  // the default until 2026-11-27
     per_pixel.stratify_per_pixel = true;
     rows.push_back({"strata_per_pixel", per_pixel});
     for (int n : {8, 16, 32}) {

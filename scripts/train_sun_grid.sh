@@ -7,13 +7,15 @@
 # LDR panoramas (configs/pano_ldr_split.json). Steps, each resumable:
 #   1. the streets, rendered by two processes (--skip-existing);
 #   2. the previous release's weights, from git;
-#   3. the stage (best.safetensors follows the validation sun error);
+#   3. the stage, part 1 (configs/release_sun_grid.json) and part 2 (configs/release_sun_grid_more.json,
+#      3000 more steps from part 1's last checkpoint); the release is part 2's best.safetensors,
+#      which follows the validation sun error (and beat part 1's best there);
 #   4. evaluation of the previous release and the new model on the real test splits (8 crops per
 #      panorama) and on the held-out streets when DIR/test_street exists (configs/release_datagen_test.json);
 #   5. the release: best.safetensors exported (F16) to models/streetlight.safetensors.
 # Usage: scripts/train_sun_grid.sh [--runs DIR] [--build-dir DIR] [--no-publish] [--stop-after STEP]
 #   --runs DIR   run folder (default ../streetlight-runs/sun_grid, outside the repository)
-#   --stop-after STEP  datagen, previous, train or eval
+#   --stop-after STEP  datagen, previous, train, more or eval
 set -euo pipefail
 cd "$(dirname "$0")/.."
 runs=../streetlight-runs/sun_grid; build_dir=build; publish=1; stop_after=
@@ -23,10 +25,10 @@ while [ $# -gt 0 ]; do
     --build-dir) build_dir="$2"; shift ;;
     --no-publish) publish=0 ;;
     --stop-after) stop_after="$2"; shift
-      case "$stop_after" in datagen|previous|train|eval) ;;
-        *) echo "error: --stop-after '$stop_after': expected datagen, previous, train or eval" >&2; exit 2 ;;
+      case "$stop_after" in datagen|previous|train|more|eval) ;;
+        *) echo "error: --stop-after '$stop_after': expected datagen, previous, train, more or eval" >&2; exit 2 ;;
       esac ;;
-    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
     *) echo "error: unknown option '$1' (try --help)" >&2; exit 2 ;;
   esac
   shift
@@ -63,21 +65,30 @@ train() {
     --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" --set "init.checkpoint=$runs/previous.safetensors" \
     "${resume[@]}" --out "$runs/sun_grid" --json > "$runs/sun_grid.json" 2> >(tee -a "$runs/sun_grid.log" >&2)
 }
+more() {
+  local resume=()
+  [ -f "$runs/more/last.safetensors" ] && resume=(--resume "$runs/more/last.safetensors")
+  "$bin/streetlight-train" --config configs/release_sun_grid_more.json --set "data.dataset=$runs/street" \
+    --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" --set "init.checkpoint=$runs/sun_grid/last.safetensors" \
+    "${resume[@]}" --out "$runs/more" --json > "$runs/more.json" 2> >(tee -a "$runs/more.log" >&2)
+}
 evaluate() {
   local streets=()
   [ -f "$runs/test_street/index.json" ] && streets=(--data "$runs/test_street" --baseline-data "$runs/street")
   "$bin/streetlight-eval" --data "$hdri" --hdri-split configs/hdri_split.json --split test --crops 8 \
     --data "$ldr" --ldr-split configs/pano_ldr_split.json "${streets[@]}" --no-budgets --out "$runs/eval" \
     --checkpoint "$runs/previous.safetensors" --name "0.6.0 (2026-11-27)" \
-    --checkpoint "$runs/sun_grid/best.safetensors" --name "0.7.0 sun head" > /dev/null
+    --checkpoint "$runs/sun_grid/best.safetensors" --name "0.7.0 part 1" \
+    --checkpoint "$runs/more/best.safetensors" --name "0.7.0" > /dev/null
 }
 say "1/5 streets"; timed datagen datagen
 say "2/5 the previous release"; timed previous previous
-say "3/5 the sun head (configs/release_sun_grid.json)"; timed train train
+say "3/5 the sun head (configs/release_sun_grid.json, then configs/release_sun_grid_more.json)"; timed train train
+timed more more
 say "4/5 evaluation on the test splits"; timed eval evaluate
 if [ "$publish" = 1 ]; then
   commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
-  "$bin/streetlight-export" --checkpoint "$runs/sun_grid/best.safetensors" --out models/streetlight.safetensors \
+  "$bin/streetlight-export" --checkpoint "$runs/more/best.safetensors" --out models/streetlight.safetensors \
     --meta "commit=$commit" --meta "script=scripts/train_sun_grid.sh" --meta "version=0.7.0" --meta "license=see models/README.md"
   say "5/5 published models/streetlight.safetensors (write its card in models/README.md from $runs/eval/results.md)"
 fi

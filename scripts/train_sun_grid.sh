@@ -28,7 +28,7 @@ while [ $# -gt 0 ]; do
       case "$stop_after" in datagen|previous|train|more|eval) ;;
         *) echo "error: --stop-after '$stop_after': expected datagen, previous, train, more or eval" >&2; exit 2 ;;
       esac ;;
-    -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
     *) echo "error: unknown option '$1' (try --help)" >&2; exit 2 ;;
   esac
   shift

@@ -58,19 +58,12 @@ datagen() {
   for p in "${pids[@]}"; do wait "$p" || { echo "error: streetlight-datagen failed, see $runs/street_datagen_*.log" >&2; exit 1; }; done
 }
 previous() { git show 42f2b6d:models/streetlight.safetensors > "$runs/previous.safetensors.tmp" && mv "$runs/previous.safetensors.tmp" "$runs/previous.safetensors"; }
-train() {
-  local resume=()
-  [ -f "$runs/sun_grid/last.safetensors" ] && resume=(--resume "$runs/sun_grid/last.safetensors")
-  "$bin/streetlight-train" --config configs/release_sun_grid.json --set "data.dataset=$runs/street" \
-    --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" --set "init.checkpoint=$runs/previous.safetensors" \
-    "${resume[@]}" --out "$runs/sun_grid" --json > "$runs/sun_grid.json" 2> >(tee -a "$runs/sun_grid.log" >&2)
-}
-more() {
-  local resume=()
-  [ -f "$runs/more/last.safetensors" ] && resume=(--resume "$runs/more/last.safetensors")
-  "$bin/streetlight-train" --config configs/release_sun_grid_more.json --set "data.dataset=$runs/street" \
-    --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" --set "init.checkpoint=$runs/sun_grid/last.safetensors" \
-    "${resume[@]}" --out "$runs/more" --json > "$runs/more.json" 2> >(tee -a "$runs/more.log" >&2)
+train_part() {  # train_part NAME CONFIG INIT: one stage into $runs/NAME, resumed from its last checkpoint
+  local name=$1 config=$2 init=$3 resume=()
+  [ -f "$runs/$name/last.safetensors" ] && resume=(--resume "$runs/$name/last.safetensors")
+  "$bin/streetlight-train" --config "$config" --set "data.dataset=$runs/street" \
+    --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" --set "init.checkpoint=$init" \
+    "${resume[@]}" --out "$runs/$name" --json > "$runs/$name.json" 2> >(tee -a "$runs/$name.log" >&2)
 }
 evaluate() {
   local streets=()
@@ -83,8 +76,8 @@ evaluate() {
 }
 say "1/5 streets"; timed datagen datagen
 say "2/5 the previous release"; timed previous previous
-say "3/5 the sun head (configs/release_sun_grid.json, then configs/release_sun_grid_more.json)"; timed train train
-timed more more
+say "3/5 the sun head (configs/release_sun_grid.json, then configs/release_sun_grid_more.json)"; timed train train_part sun_grid configs/release_sun_grid.json "$runs/previous.safetensors"
+timed more train_part more configs/release_sun_grid_more.json "$runs/sun_grid/last.safetensors"
 say "4/5 evaluation on the test splits"; timed eval evaluate
 if [ "$publish" = 1 ]; then
   commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)

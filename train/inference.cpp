@@ -156,6 +156,16 @@ RadianceQueryOptions LightingEstimator::volume_query() const { return volume_que
 
 namespace {
 // The angle between two nonzero directions in degrees (atan2 form: exact near 0° and 180°).
+// The centred crop of crop averaging: `scale` of the image's height and width, with margins equal
+// on both sides (the crop's size keeps the image's parity), so the crop of the mirror image is the
+// mirror image of the crop and flip averaging stays exact.
+Tensor centred_crop(const Tensor& ldr, double scale) {
+  const int64_t H = ldr.size(1), W = ldr.size(2);
+  const int64_t y0 = std::min<int64_t>((H - 1) / 2, std::lround(H * (1.0 - scale) / 2.0)),
+                x0 = std::min<int64_t>((W - 1) / 2, std::lround(W * (1.0 - scale) / 2.0));
+  return slice(slice(ldr, 1, y0, H - y0), 2, x0, W - x0).contiguous();
+}
+
 double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
   return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) * 180.0 / kPi;
 }
@@ -226,15 +236,8 @@ void LightingEstimator::average_sun(const InferenceView& v, Single& s, const Sky
     const glm::dvec3 photo = glm::length(dir) > 1e-12 ? glm::normalize(dir) : glm::dvec3(0.0, 1.0, 0.0);
     glm::dvec3 sum = photo;
     s.crop_spread_deg = 0.0;
-    const int64_t H = v.ldr.size(1), W = v.ldr.size(2);
     for (const double scale : crop_scales_) {
-      // Margins equal on both sides (the crop's size keeps the image's parity), so the crop of the
-      // mirror image is the mirror image of the crop and flip averaging stays exact.
-      const int64_t y0 = std::min<int64_t>((H - 1) / 2, std::lround(H * (1.0 - scale) / 2.0)),
-                    x0 = std::min<int64_t>((W - 1) / 2, std::lround(W * (1.0 - scale) / 2.0));
-      const int64_t h = H - 2 * y0, w = W - 2 * x0;
-      const Tensor crop = slice(slice(v.ldr, 1, y0, y0 + h), 2, x0, x0 + w).contiguous();
-      const Tensor input = network_input(crop);
+      const Tensor input = network_input(centred_crop(v.ldr, scale));
       const SkyCode own = predictor_->predict_sky_code(input);
       const SkyCode m = flip_average_ ? mirror_sky(input).code : SkyCode{};
       glm::dvec3 c = sun_of(own, &m, nullptr, nullptr);
@@ -293,12 +296,8 @@ void LightingEstimator::sun_from_distribution(const InferenceView& v, Single& s,
   if (!crop_scales_.empty()) {
     const glm::dvec3 photo = read_sun_distribution(grid, p).direction;
     s.crop_spread_deg = 0.0;
-    const int64_t H = v.ldr.size(1), W = v.ldr.size(2);
     for (const double scale : crop_scales_) {
-      const int64_t y0 = std::min<int64_t>((H - 1) / 2, std::lround(H * (1.0 - scale) / 2.0)),
-                    x0 = std::min<int64_t>((W - 1) / 2, std::lround(W * (1.0 - scale) / 2.0));
-      const Tensor crop = slice(slice(v.ldr, 1, y0, H - y0), 2, x0, W - x0).contiguous();
-      const std::vector<double> q = add_input(network_input(crop), nullptr, false);
+      const std::vector<double> q = add_input(network_input(centred_crop(v.ldr, scale)), nullptr, false);
       s.crop_spread_deg = std::max(s.crop_spread_deg, angle_deg(photo, read_sun_distribution(grid, q).direction));
     }
   }

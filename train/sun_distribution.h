@@ -22,10 +22,14 @@
 //   logsumexp(logits) − Σ_k t_k logits_k (stable for any finite logits; differentiable in
 //   logits).
 // - mirror_cells(grid, p) → p of the mirrored image: azimuth φ → −φ maps sector j to A − 1 − j.
-// - read_sun_distribution(grid, p, radius_deg) → the mode cell, refined locally to the
-//   probability-weighted mean direction of the cells within radius_deg of the mode cell's
-//   centre, and its confidence: the probability inside that radius (in [0, 1]; 1 = certain).
-//   With two separated peaks it answers at the larger one, never between them.
+// - read_sun_distribution(grid, p, radius_deg) → a direction whose AZIMUTH is the mode cell's,
+//   refined locally to the probability-weighted mean direction of the cells within radius_deg of
+//   the mode cell's centre, and whose ELEVATION is the median, in degrees, of the elevation
+//   distribution of the sectors within radius_deg of that azimuth (linear within a ring): the
+//   densest cell reads too high when the elevation is uncertain, because the equal-area rings span
+//   more degrees the higher they lie. Its confidence: the probability within radius_deg of the
+//   mode cell's centre (in [0, 1]; 1 = certain). With two peaks at separated azimuths it answers
+//   at the larger one, never between them.
 //   Throws for a p that is not K finite non-negative values with a positive sum.
 #pragma once
 #include <cstdint>

@@ -96,6 +96,25 @@ TEST(SunDistribution, TwoSeparatedPeaksReadOutAtTheLargerOne) {
   EXPECT_LT(train::read_sun_distribution(kGrid, uniform).confidence, 0.1);
 }
 
+// An uncertain elevation reads at its median in degrees, not where the cells are densest. At
+// one azimuth, the mass is spread evenly per degree over elevations 10°-50°: the median is 30°.
+// The equal-area rings are taller the higher they lie, so the densest cell is the ring over
+// 38.7°-48.6° (at 43.6°), where the mode alone would read; the old readout answered there.
+TEST(SunDistribution, AnUncertainElevationReadsAtItsMedianNotTheDensestCell) {
+  std::vector<double> p(static_cast<size_t>(kGrid.cells()), 0.0);
+  const int64_t sector = 19;  // azimuth centre −180° + 19.5 · 11.25° = 39.375°
+  for (int64_t r = 0; r < kGrid.elevation_bins; ++r) {
+    const double lo = std::asin(r / 8.0) * 180.0 / M_PI, hi = std::asin(std::min(1.0, (r + 1) / 8.0)) * 180.0 / M_PI;
+    p[static_cast<size_t>(r * kGrid.azimuth_bins + sector)] = std::max(0.0, std::min(hi, 50.0) - std::max(lo, 10.0));
+  }
+  const train::SunReadout r = train::read_sun_distribution(kGrid, p);
+  const double elevation = std::asin(r.direction.y) * 180.0 / M_PI;
+  EXPECT_NEAR(elevation, 30.0, 0.5);
+  EXPECT_NEAR(std::atan2(r.direction.x, -r.direction.z) * 180.0 / M_PI, 39.375, 1e-6);
+  EXPECT_NEAR(glm::length(r.direction), 1.0, 1e-12);
+  EXPECT_EQ(r.mode_cell, 5 * kGrid.azimuth_bins + sector);
+}
+
 TEST(SunDistribution, TheMirrorImageMirrorsTheReadout) {
   const glm::dvec3 s = sun(37, 25);
   const std::vector<double> m = train::mirror_cells(kGrid, train::soft_target(kGrid, s, 8.0));

@@ -21,7 +21,7 @@ void check_image(const Tensor& t, const char* fn) {
 }  // namespace
 
 RandomCrop random_perspective_crop(const Tensor& pano, uint64_t seed, uint64_t stream, const CropRanges& r,
-                                   const glm::dvec3& position) {
+                                   const glm::dvec3& position, const glm::dvec3* sun) {
   SL_CHECK(r.fov_min_deg > 0.0 && r.fov_min_deg <= r.fov_max_deg && r.fov_max_deg < 179.0,
            "random_perspective_crop: need 0 < fov_min_deg <= fov_max_deg < 179, got [", r.fov_min_deg, ", ",
            r.fov_max_deg, "]");
@@ -34,6 +34,28 @@ RandomCrop random_perspective_crop(const Tensor& pano, uint64_t seed, uint64_t s
   out.yaw_deg = rng.uniform(-180.0, 180.0);
   out.pitch_deg = rng.uniform(-r.pitch_range_deg, r.pitch_range_deg);
   out.roll_deg = rng.uniform(-r.roll_range_deg, r.roll_range_deg);
+  SL_CHECK(r.sun_aim_share >= 0.0 && r.sun_aim_share <= 1.0 && r.sun_aim_max_pitch_deg >= 0.0 &&
+               r.sun_aim_max_pitch_deg <= 89.0,
+           "random_perspective_crop: sun_aim_share must be in [0, 1] and sun_aim_max_pitch_deg in [0, 89], got ",
+           r.sun_aim_share, " and ", r.sun_aim_max_pitch_deg);
+  // Drawn always, after the others (see augment.h).
+  const double aim = rng.uniform(0.0, 1.0), side = rng.uniform(0.0, 1.0);
+  const double du = rng.uniform(-0.7, 0.7), dv = rng.uniform(-0.7, 0.7);
+  const double len = sun ? glm::length(*sun) : 0.0;
+  if (sun && aim < r.sun_aim_share && std::isfinite(len) && len > 0.0) {
+    const glm::dvec3 s = *sun / len;
+    const double elevation = std::asin(std::clamp(s.y, -1.0, 1.0)) / kDegToRad;
+    const double azimuth = std::atan2(s.x, -s.z) / kDegToRad;
+    const double half_h = 0.5 * out.fov_deg;
+    const double half_v = std::atan(std::tan(half_h * kDegToRad) * r.height / r.width) / kDegToRad;
+    const double pitch = std::clamp(elevation - dv * half_v, -r.sun_aim_max_pitch_deg, r.sun_aim_max_pitch_deg);
+    if (std::abs(elevation - pitch) <= 0.7 * half_v) {  // the sun can be brought into view
+      const double yaw = azimuth - du * half_h + (side < 0.5 ? 0.0 : 180.0);
+      out.yaw_deg = std::remainder(yaw, 360.0);
+      if (side < 0.5) out.pitch_deg = pitch;
+      out.aimed = side < 0.5 ? 1 : -1;
+    }
+  }
   out.crop = crop_perspective(pano, crop_params(out, r.width, r.height));
   out.crop.camera = Camera(out.crop.camera.intrinsics(), out.crop.camera.rotation(), position);
   return out;

@@ -73,14 +73,15 @@ StreetSample ldr_panorama_street_sample(const LdrPanorama& pano, const std::stri
   };
   const Tensor full = turn(linear);
   const glm::dvec3 centre(0.0, o.camera_height_m, 0.0);
-  const RandomCrop rc = random_perspective_crop(full, seed, draw.crop_stream, o.crop, centre);
+  const glm::dvec3 turned_sun = rotate_direction_azimuth(pano.sun_direction, delta);
+  const glm::dvec3 sun = draw.flip ? flip_panorama_direction(turned_sun) : turned_sun;
+  const RandomCrop rc = random_perspective_crop(full, seed, draw.crop_stream, o.crop, centre, pano.sun_known ? &sun : nullptr);
 
   StreetSample s;
   s.id = id;
   s.exposure = 1.0;
   s.pano_position = centre;
-  const glm::dvec3 sun = rotate_direction_azimuth(pano.sun_direction, delta);
-  s.sun_direction = draw.flip ? flip_panorama_direction(sun) : sun;
+  s.sun_direction = sun;
   s.sun_known = pano.sun_known;
   s.sun_weight = pano.sun_weight;
   s.input_tone_gamma = draw.tone_gamma;

@@ -116,7 +116,7 @@ StreetSample panorama_street_sample(const Tensor& pano_in, const std::string& id
   const Tensor mask_full = estimate_sky_mask(pano);
 
   const glm::dvec3 centre(0.0, o.camera_height_m, 0.0);
-  const RandomCrop crop = random_perspective_crop(pano, seed, crop_stream, o.crop, centre);
+  const RandomCrop crop = random_perspective_crop(pano, seed, crop_stream, o.crop, centre, sun.hard ? &sun.sun.direction : nullptr);
   const Tensor view_mask =
       binarize_mask(crop_perspective(mask_full, crop_params(crop, o.crop.width, o.crop.height)).image.contiguous());
 

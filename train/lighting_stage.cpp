@@ -543,6 +543,7 @@ PanoramaSampleOptions real_sample_options(const nlohmann::json& config) {
   o.exposure_stops = d.at("real_exposure_stops").get<double>();
   o.low_label_weight = d.value("ldr_low_label_weight", 1.0);
   o.tone_stops = d.value("real_tone_stops", 0.0);
+  o.crop.sun_aim_share = d.value("sun_aim_share", 0.0);
   return o;
 }
 
@@ -579,6 +580,7 @@ std::unique_ptr<Stage> make_lighting_stage(const nlohmann::json& config) {
   vo.white_balance_stops = 0.0;
   vo.exposure_stops = 0.0;
   vo.tone_stops = 0.0;
+  vo.crop.sun_aim_share = 0.0;  // validation crops are the benchmark's
   vo.low_label_weight = 1.0;
   const auto hdr_crops = static_cast<size_t>(d.at("real_val_crops").get<int64_t>());
   if (hdr_crops > 0 && (real > 0 || !d.at("hdri_split").get<std::string>().empty())) {

@@ -45,6 +45,7 @@ json default_train_config() {
         {"ldr_val_crops", 4},
         {"ldr_low_label_weight", 1.0},
         {"real_tone_stops", 0.0},
+        {"sun_aim_share", 0.0},
         {"ldr_working_width", 1024},
         {"exposure_stops", 1.0},
         {"ldr_key", 0.25},
@@ -207,6 +208,8 @@ void check_train_config(const json& c) {
            "data.ldr_working_width must be even and in [64, 8192], got ", ldr_width);
   const double tone = c.at("data").at("real_tone_stops").get<double>();
   SL_CHECK(std::isfinite(tone) && tone >= 0 && tone <= 2, "data.real_tone_stops must lie in [0, 2], got ", tone);
+  const double aim = c.at("data").at("sun_aim_share").get<double>();
+  SL_CHECK(std::isfinite(aim) && aim >= 0 && aim <= 1, "data.sun_aim_share must lie in [0, 1], got ", aim);
   const double low = c.at("data").at("ldr_low_label_weight").get<double>();
   SL_CHECK(std::isfinite(low) && low >= 0 && low <= 1, "data.ldr_low_label_weight must lie in [0, 1], got ", low);
   const double width = c.at("loss").at("sun_distribution_width_deg").get<double>();

@@ -6,6 +6,7 @@
 #include "data/panorama_dataset.h"
 #include "render/equirect.h"
 #include "support/test_files.h"
+#include "util/error.h"
 #include "util/math.h"
 
 using sl::data::CropRanges;
@@ -122,6 +123,76 @@ TEST(Augment, RandomCropIsSeededAndReturnsItsCamera) {
   EXPECT_NEAR(uv.u - 180.0, a.yaw_deg, 1e-6);
   EXPECT_NEAR(90.0 - uv.v, a.pitch_deg, 1e-6);
   EXPECT_NEAR(a.crop.camera.intrinsics().horizontal_fov_rad() * 180 / kPi, a.fov_deg, 1e-6);
+}
+
+glm::dvec3 direction(double azimuth_deg, double elevation_deg) {
+  const double a = azimuth_deg * kPi / 180.0, e = elevation_deg * kPi / 180.0;
+  return {std::cos(e) * std::sin(a), std::sin(e), -std::cos(e) * std::cos(a)};
+}
+
+// Sun-aimed crops (data/augment.h): half look toward the sun, which then lies in the view, half
+// away from it; a sun too high for the pitch limit, and every crop not drawn for aiming, keeps
+// the plain draw.
+TEST(Augment, SunAimedCropsShowTheSunOrTurnAwayFromItInEqualShares) {
+  Tensor pano = Tensor::zeros({3, 32, 64});
+  CropRanges plain;
+  plain.width = 64;
+  plain.height = 32;
+  CropRanges aimed = plain;
+  aimed.sun_aim_share = 1.0;
+  const glm::dvec3 position(0.0, 1.6, 0.0);
+  const glm::dvec3 sun = direction(-120.0, 32.0);  // above a plain crop's view at pitch ≤ 10°
+  int toward = 0, away = 0, plain_in_view = 0;
+  for (uint64_t stream = 0; stream < 400; ++stream) {
+    const RandomCrop p = random_perspective_crop(pano, 7, stream, plain, position, &sun);
+    const RandomCrop a = random_perspective_crop(pano, 7, stream, aimed, position, &sun);
+    EXPECT_EQ(p.aimed, 0);
+    EXPECT_EQ(a.fov_deg, p.fov_deg);  // only yaw and pitch change
+    EXPECT_EQ(a.roll_deg, p.roll_deg);
+    const auto shows = [&](const RandomCrop& c) {
+      return c.crop.camera.project(c.crop.camera.position() + 1e4 * sun).in_image;
+    };
+    plain_in_view += shows(p);
+    ASSERT_NE(a.aimed, 0) << "a 32° sun can be brought into a view pitched at most 25°";
+    if (a.aimed > 0) {
+      ++toward;
+      EXPECT_TRUE(shows(a)) << "stream " << stream;
+      EXPECT_LE(std::abs(a.pitch_deg), 25.0);
+    } else {
+      ++away;
+      EXPECT_FALSE(shows(a));
+      EXPECT_EQ(a.pitch_deg, p.pitch_deg);
+      // The view's axis points away from the sun's azimuth: more than 90° off.
+      EXPECT_GT(std::abs(std::remainder(a.yaw_deg - (-120.0), 360.0)), 90.0);
+    }
+  }
+  EXPECT_EQ(plain_in_view, 0);
+  EXPECT_NEAR(toward, 200, 40);
+  EXPECT_EQ(toward + away, 400);
+  // A sun at 75° cannot be brought into view below 25° of pitch: no crop is aimed, none changes.
+  const glm::dvec3 high = direction(30.0, 75.0);
+  for (uint64_t stream = 0; stream < 50; ++stream) {
+    const RandomCrop p = random_perspective_crop(pano, 7, stream, plain), a = random_perspective_crop(pano, 7, stream, aimed, position, &high);
+    EXPECT_EQ(a.aimed, 0);
+    EXPECT_EQ(a.yaw_deg, p.yaw_deg);
+    EXPECT_EQ(a.pitch_deg, p.pitch_deg);
+  }
+  // A share of 0.3: about that many aimed; the others are the plain draw exactly.
+  aimed.sun_aim_share = 0.3;
+  int n_aimed = 0;
+  for (uint64_t stream = 0; stream < 400; ++stream) {
+    const RandomCrop p = random_perspective_crop(pano, 7, stream, plain), a = random_perspective_crop(pano, 7, stream, aimed, position, &sun);
+    if (a.aimed != 0) {
+      ++n_aimed;
+      continue;
+    }
+    EXPECT_EQ(a.yaw_deg, p.yaw_deg);
+    EXPECT_EQ(a.pitch_deg, p.pitch_deg);
+  }
+  EXPECT_NEAR(n_aimed, 120, 35);
+  CropRanges bad = plain;
+  bad.sun_aim_share = 1.5;
+  EXPECT_THROW(random_perspective_crop(pano, 7, 0, bad, position, &sun), Error);
 }
 
 TEST(Augment, ExposureJitterScalesHdrAndLdrConsistently) {

@@ -117,6 +117,40 @@ TEST(LdrPanoramaSample, ACropThatHoldsTheSunShowsItAtTheLabelsPixel) {
   EXPECT_GE(seen, 5);
 }
 
+// Aimed crops (data/augment.h, data.sun_aim_share) aim at the label as the sample turns it: a
+// 37° sun, which no plain crop shows (pitch ≤ 10°, at most 23° above the axis), is in half of the
+// views, and its disk is where the label projects; the other half look away from it.
+TEST(LdrPanoramaSample, SunAimedCropsShowTheLabelledSunInHalfTheViews) {
+  const glm::dvec3 sun = glm::normalize(glm::dvec3(0.5, 0.6, 0.7));  // 37° high, behind the panorama's centre
+  const data::LdrPanorama pano = disk_panorama(sun, 512, 2.0);
+  data::PanoramaSampleOptions o = small_options();
+  o.crop.sun_aim_share = 1.0;
+  o.crop.sun_aim_max_pitch_deg = 35.0;
+  int shown = 0, disk_there = 0;
+  const int n = 60;
+  for (uint64_t stream = 0; stream < n; ++stream) {
+    const data::StreetSample s = data::ldr_panorama_street_sample(pano, "p", 9, stream, o);
+    const render::Camera& cam = s.views[0].camera;
+    const render::Projection pr = cam.project(cam.position() + 1e4 * s.sun_direction);
+    if (!pr.in_image) continue;
+    ++shown;
+    const Tensor v = s.views[0].ldr.contiguous();
+    const int64_t h = v.size(1), w = v.size(2), plane = h * w;
+    const float* p = v.data<float>();
+    const int64_t x = std::clamp<int64_t>(static_cast<int64_t>(pr.pixel.x), 0, w - 1);
+    const int64_t y = std::clamp<int64_t>(static_cast<int64_t>(pr.pixel.y), 0, h - 1);
+    disk_there += p[y * w + x] + p[plane + y * w + x] + p[2 * plane + y * w + x] > 2.9f;
+  }
+  EXPECT_NEAR(shown, n / 2, 12);
+  EXPECT_GE(disk_there, shown - 1);
+  o.crop.sun_aim_share = 0.0;
+  for (uint64_t stream = 0; stream < n; ++stream) {
+    const data::StreetSample s = data::ldr_panorama_street_sample(pano, "p", 9, stream, o);
+    const render::Camera& cam = s.views[0].camera;
+    EXPECT_FALSE(cam.project(cam.position() + 1e4 * s.sun_direction).in_image);
+  }
+}
+
 TEST(LdrPanoramaSample, ClippedTexelsStayClippedAndTheRestScaleLinearly) {
   data::LdrPanorama pano;
   const int w = 128, h = 64;

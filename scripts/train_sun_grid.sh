@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Trains the sun head of the 0.7.0 release (issue 53) and publishes it as models/streetlight.safetensors.
+# Trains the sun head of releases 0.7.0 and 0.7.1 (issue 53) and publishes the latter as
+# models/streetlight.safetensors.
 # It continues the previous release (0.6.0, 2026-11-27: scripts/train_release.sh, taken from git at
 # commit 42f2b6d) with a new sun head (model.sun_grid, train/sun_distribution.h) and the enlarged
 # real data: configs/release_sun_grid.json, on 480 generated streets (configs/release_datagen.json,
@@ -7,15 +8,17 @@
 # LDR panoramas (configs/pano_ldr_split.json). Steps, each resumable:
 #   1. the streets, rendered by two processes (--skip-existing);
 #   2. the previous release's weights, from git;
-#   3. the stage, part 1 (configs/release_sun_grid.json) and part 2 (configs/release_sun_grid_more.json,
-#      3000 more steps from part 1's last checkpoint); the release is part 2's best.safetensors,
-#      which follows the validation sun error (and beat part 1's best there);
-#   4. evaluation of the previous release and the new model on the real test splits (8 crops per
+#   3. the stage, part 1 (configs/release_sun_grid.json), part 2 (configs/release_sun_grid_more.json,
+#      3000 more steps from part 1's last checkpoint; its best.safetensors is release 0.7.0) and
+#      part 3 (configs/release_sun_grid_head.json, 3000 more steps from part 2's last with the sun
+#      head's loss weighed 4 and the sky vector's direction 0.25); release 0.7.1 is part 3's
+#      best.safetensors, which follows the validation sun error (and beat part 2's best there);
+#   4. evaluation of the previous releases and the new model on the real test splits (8 crops per
 #      panorama) and on the held-out streets when DIR/test_street exists (configs/release_datagen_test.json);
 #   5. the release: best.safetensors exported (F16) to models/streetlight.safetensors.
 # Usage: scripts/train_sun_grid.sh [--runs DIR] [--build-dir DIR] [--no-publish] [--stop-after STEP]
 #   --runs DIR   run folder (default ../streetlight-runs/sun_grid, outside the repository)
-#   --stop-after STEP  datagen, previous, train, more or eval
+#   --stop-after STEP  datagen, previous, train, more, head or eval
 set -euo pipefail
 cd "$(dirname "$0")/.."
 runs=../streetlight-runs/sun_grid; build_dir=build; publish=1; stop_after=
@@ -25,10 +28,10 @@ while [ $# -gt 0 ]; do
     --build-dir) build_dir="$2"; shift ;;
     --no-publish) publish=0 ;;
     --stop-after) stop_after="$2"; shift
-      case "$stop_after" in datagen|previous|train|more|eval) ;;
-        *) echo "error: --stop-after '$stop_after': expected datagen, previous, train, more or eval" >&2; exit 2 ;;
+      case "$stop_after" in datagen|previous|train|more|head|eval) ;;
+        *) echo "error: --stop-after '$stop_after': expected datagen, previous, train, more, head or eval" >&2; exit 2 ;;
       esac ;;
-    -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d'; exit 0 ;;
     *) echo "error: unknown option '$1' (try --help)" >&2; exit 2 ;;
   esac
   shift
@@ -72,17 +75,19 @@ evaluate() {
     --data "$ldr" --ldr-split configs/pano_ldr_split.json "${streets[@]}" --no-budgets --out "$runs/eval" \
     --checkpoint "$runs/previous.safetensors" --name "0.6.0 (2026-11-27)" \
     --checkpoint "$runs/sun_grid/best.safetensors" --name "0.7.0 part 1" \
-    --checkpoint "$runs/more/best.safetensors" --name "0.7.0" > /dev/null
+    --checkpoint "$runs/more/best.safetensors" --name "0.7.0" \
+    --checkpoint "$runs/head/best.safetensors" --name "0.7.1" > /dev/null
 }
 say "1/5 streets"; timed datagen datagen
 say "2/5 the previous release"; timed previous previous
-say "3/5 the sun head (configs/release_sun_grid.json, then configs/release_sun_grid_more.json)"; timed train train_part sun_grid configs/release_sun_grid.json "$runs/previous.safetensors"
+say "3/5 the sun head (configs/release_sun_grid.json, configs/release_sun_grid_more.json, configs/release_sun_grid_head.json)"; timed train train_part sun_grid configs/release_sun_grid.json "$runs/previous.safetensors"
 timed more train_part more configs/release_sun_grid_more.json "$runs/sun_grid/last.safetensors"
+timed head train_part head configs/release_sun_grid_head.json "$runs/more/last.safetensors"
 say "4/5 evaluation on the test splits"; timed eval evaluate
 if [ "$publish" = 1 ]; then
   commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
-  "$bin/streetlight-export" --checkpoint "$runs/more/best.safetensors" --out models/streetlight.safetensors \
-    --meta "commit=$commit" --meta "script=scripts/train_sun_grid.sh" --meta "version=0.7.0" --meta "license=see models/README.md"
+  "$bin/streetlight-export" --checkpoint "$runs/head/best.safetensors" --out models/streetlight.safetensors \
+    --meta "commit=$commit" --meta "script=scripts/train_sun_grid.sh" --meta "version=0.7.1" --meta "license=see models/README.md"
   say "5/5 published models/streetlight.safetensors (write its card in models/README.md from $runs/eval/results.md)"
 fi
 say "done in $(( $(date +%s) - start )) s (this invocation); per-step wall times in $runs/*.done"

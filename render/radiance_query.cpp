@@ -64,22 +64,32 @@ struct LogProjection {
     const size_t K = t.size();
     v.resize(3 * K);
     if constexpr (std::is_same_v<T, float>) {
-      thread_local std::vector<float> arg;
-      thread_local std::vector<unsigned char> positive;
-      arg.resize(3 * K);
-      positive.resize(3 * K);
-      for (size_t k = 0; k < K; ++k)
-        for (int a = 0; a < 3; ++a) {
-          const int w = world_axis[a];
-          const float d = float(o[w] + t[k] * l[w]) - centre[a];
+      // The scratch's pointers in locals: read through thread_local vectors, they were reloaded
+      // on every store (a sixth of RayMarcher's time under perf, KITTI insertion bench).
+      thread_local std::vector<float> arg_buffer;
+      thread_local std::vector<unsigned char> positive_buffer;
+      arg_buffer.resize(3 * K);
+      positive_buffer.resize(3 * K);
+      float* const arg = arg_buffer.data();
+      unsigned char* const positive = positive_buffer.data();
+      float* const out = v.data();
+      const double* const tk = t.data();
+      for (int a = 0; a < 3; ++a) {
+        const int w = world_axis[a];
+        const double ow = o[w], lw = l[w];
+        const float ca = centre[a];
+        for (size_t k = 0; k < K; ++k) {
+          const float d = float(ow + tk[k] * lw) - ca;
           positive[3 * k + a] = d >= 0;
           arg[3 * k + a] = 1.0f + std::abs(d) * inv_r0;
         }
-      vm::log(arg.data(), v.data(), int64_t(3 * K));
-      for (size_t i = 0; i < 3 * K; ++i) {
-        const int a = int(i % 3);
-        v[i] = positive[i] ? half_dims[a] + k_pos[a] * v[i] : half_dims[a] - k_neg[a] * v[i];
       }
+      vm::log(arg, out, int64_t(3 * K));
+      for (size_t k = 0; k < K; ++k)
+        for (int a = 0; a < 3; ++a) {
+          const size_t i = 3 * k + size_t(a);
+          out[i] = positive[i] ? half_dims[a] + k_pos[a] * out[i] : half_dims[a] - k_neg[a] * out[i];
+        }
     } else {
       for (size_t k = 0; k < K; ++k) {
         const T pw[3] = {T(o[0] + t[k] * l[0]), T(o[1] + t[k] * l[1]), T(o[2] + t[k] * l[2])};
@@ -107,6 +117,8 @@ struct RayMarch {
   std::vector<Tap<T>> taps;             // taps_per_sample per sample
   std::vector<double> tk, cumulative;   // sample distances and their arc-length table (scratch)
   std::vector<T> voxel;                 // the samples' voxel coordinates, 3 each (scratch)
+  std::vector<int64_t> nearest;         // nearest lookup: each sample's voxel (scratch)
+  std::vector<T> nearest_alpha;         // and its α (scratch)
   int taps_per_sample = 1;
   int64_t considered = 0;               // samples inside the grid before pruning
   size_t count() const { return alpha.size(); }
@@ -122,6 +134,33 @@ sg::Lobe<T> lobe_at(const T* vsg, int64_t vox, int64_t v) {
   L.sharpness = vsg[6 * vox + v];
   return L;
 }
+
+// The volume as march() reads it. The op's tensors are channel planes [8][X·Y·Z]: one sample
+// touches 8 cache lines of a 2 MB volume (64×64×16).
+template <class T>
+struct PlanarVolume {
+  const T* vsg;
+  int64_t vox;
+  T alpha(int64_t v) const { return vsg[7 * vox + v]; }
+  T colour(int64_t v, int c) const { return vsg[c * vox + v]; }
+  sg::Lobe<T> lobe(int64_t v) const { return lobe_at(vsg, vox, v); }
+  T exponent(int64_t v, const T dir[3]) const { return sg::exponent(lobe_at(vsg, vox, v), dir); }
+};
+
+// RayMarcher's copy: one 32-byte record per voxel (half a cache line) with the lobe's axis
+// already normalised (sg::unit_axis), so a sample reads one line and skips a square root and
+// three divisions. The values and the operations are PlanarVolume's: the same bits.
+struct VoxelRecord {
+  float c[3], muhat[3], sharpness, alpha;
+};
+struct InterleavedVolume {
+  const VoxelRecord* voxel;
+  float alpha(int64_t v) const { return voxel[v].alpha; }
+  float colour(int64_t v, int c) const { return voxel[v].c[c]; }
+  float exponent(int64_t v, const float dir[3]) const {
+    return sg::unit_axis_exponent(voxel[v].muhat, voxel[v].sharpness, dir);
+  }
+};
 
 // The K sample distances along a ray clipped to [t0, t1] (see the header's "Samples").
 template <class T>
@@ -159,9 +198,9 @@ void sample_distances(const LogProjection<T>& proj, const RadianceQueryOptions& 
   }
 }
 
-template <class T>
+template <class T, class Volume>
 void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& proj, const RadianceQueryOptions& opt,
-           const T* vsg, const T* env, const T* o, const T* l, RayMarch<T>& m) {
+           const Volume& vol, const T* env, const T* o, const T* l, RayMarch<T>& m) {
   constexpr bool kBatchedLobes = std::is_same_v<T, float>;
   m.alpha.clear();
   m.t.clear();
@@ -188,26 +227,59 @@ void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& pro
   const T v[3] = {-m.dir[0], -m.dir[1], -m.dir[2]};  // lobes are seen from x: G(−l)
   const int64_t dims[3] = {geo.X, geo.Y, geo.Z};
   const T stop = T(opt.min_transmittance) / std::max(T(1), env_max);
+  const T empty_alpha = T(opt.empty_alpha);
+  const bool prune = opt.prune;
   T tau = 1;
-  Tap<T> taps[8];
   const bool grid_spacing = opt.spacing == SampleSpacing::kGrid;
   int64_t last_voxel = -1;
   sample_distances(proj, opt, origin, dir, t0, t1, m.tk, m.cumulative);
   proj.to_voxel_all(o, m.dir, m.tk, m.voxel);
-  for (int k = 0; k < opt.samples; ++k) {
-    const double tk = m.tk[k];
-    const T* p = &m.voxel[size_t(3 * k)];
-    ++m.considered;
-    int n_taps;
-    if (!opt.trilinear) {
+  // The kept samples are written in place (at most K), then the vectors are cut to their count:
+  // per-sample push_backs reloaded the vectors' ends on every store, and copying a tap built on
+  // the stack stalled on store forwarding (perf, KITTI insertion bench).
+  const int K = opt.samples, nt = m.taps_per_sample;
+  m.alpha.resize(size_t(K));
+  m.t.resize(size_t(K));
+  m.g.resize(size_t(3 * K));
+  m.taps.resize(size_t(K) * size_t(nt));
+  T* const keep_alpha = m.alpha.data();
+  T* const keep_t = m.t.data();
+  T* const keep_g = m.g.data();
+  Tap<T>* const keep_taps = m.taps.data();
+  const T* const voxel = m.voxel.data();
+  const double* const tks = m.tk.data();
+  // Nearest lookup: every sample's voxel and α first, in loops without a branch on α, so the
+  // volume's cache misses overlap instead of each stalling the sequential loop below (a quarter
+  // of RayMarcher's time sat on that load under perf, KITTI insertion bench).
+  if (!opt.trilinear) {
+    m.nearest.resize(size_t(K));
+    m.nearest_alpha.resize(size_t(K));
+    int64_t* const nearest = m.nearest.data();
+    T* const nearest_alpha = m.nearest_alpha.data();
+    for (int k = 0; k < K; ++k) {
+      const T* p = &voxel[size_t(3 * k)];
       int64_t idx[3];
-      for (int a = 0; a < 3; ++a) idx[a] = std::clamp<int64_t>(int64_t(std::floor(p[a])), 0, dims[a] - 1);  // nearest voxel
-      taps[0] = {(idx[0] * geo.Y + idx[1]) * geo.Z + idx[2], T(1)};
-      n_taps = 1;
+      for (int a = 0; a < 3; ++a) idx[a] = std::clamp<int64_t>(int64_t(std::floor(p[a])), 0, dims[a] - 1);
+      nearest[k] = (idx[0] * geo.Y + idx[1]) * geo.Z + idx[2];
+    }
+    for (int k = 0; k < K; ++k) nearest_alpha[k] = vol.alpha(nearest[k]);
+  }
+  int kept = 0;
+  for (int k = 0; k < K; ++k) {
+    const double tk = tks[k];
+    const T* p = &voxel[size_t(3 * k)];
+    ++m.considered;
+    Tap<T>* const taps = keep_taps + size_t(kept) * size_t(nt);  // overwritten if not kept
+    T alpha = 0;
+    if (!opt.trilinear) {
+      const int64_t nearest = m.nearest[size_t(k)];
       // Grid spacing composites a voxel once per crossing: a second sample in the voxel the
       // previous one read would apply its α twice.
-      if (grid_spacing && taps[0].voxel == last_voxel) continue;
-      last_voxel = taps[0].voxel;
+      if (grid_spacing && nearest == last_voxel) continue;
+      last_voxel = nearest;
+      taps[0].voxel = nearest;
+      taps[0].w = T(1);
+      alpha += T(1) * m.nearest_alpha[size_t(k)];
     } else {
       int64_t i0[3], i1[3];
       T fr[3];
@@ -220,44 +292,47 @@ void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& pro
       for (int c = 0; c < 8; ++c) {
         const int64_t x = (c & 1) ? i1[0] : i0[0], y = (c & 2) ? i1[1] : i0[1], z = (c & 4) ? i1[2] : i0[2];
         const T w = ((c & 1) ? fr[0] : 1 - fr[0]) * ((c & 2) ? fr[1] : 1 - fr[1]) * ((c & 4) ? fr[2] : 1 - fr[2]);
-        taps[c] = {(x * geo.Y + y) * geo.Z + z, w};
+        taps[c].voxel = (x * geo.Y + y) * geo.Z + z;
+        taps[c].w = w;
       }
-      n_taps = 8;
+      for (int j = 0; j < 8; ++j) alpha += taps[j].w * vol.alpha(taps[j].voxel);
     }
-    T alpha = 0;
-    for (int j = 0; j < n_taps; ++j) alpha += taps[j].w * vsg[7 * geo.vox + taps[j].voxel];
-    if (opt.prune && alpha < T(opt.empty_alpha)) continue;
+    if (prune && alpha < empty_alpha) continue;
     T g[3] = {0, 0, 0};
     if constexpr (!kBatchedLobes) {
-      for (int j = 0; j < n_taps; ++j) {
-        const auto e = sg::eval(lobe_at(vsg, geo.vox, taps[j].voxel), v);
+      for (int j = 0; j < nt; ++j) {
+        const auto e = sg::eval(vol.lobe(taps[j].voxel), v);
         for (int c = 0; c < 3; ++c) g[c] += taps[j].w * e.value[c];
       }
     }
-    m.alpha.push_back(alpha);
-    m.t.push_back(T(tk));
-    for (int c = 0; c < 3; ++c) m.g.push_back(g[c]);
-    for (int j = 0; j < n_taps; ++j) m.taps.push_back(taps[j]);
+    keep_alpha[kept] = alpha;
+    keep_t[kept] = T(tk);
+    for (int c = 0; c < 3; ++c) keep_g[3 * kept + c] = g[c];
+    ++kept;
     tau *= (1 - alpha);
-    if (opt.prune && tau < stop) {
+    if (prune && tau < stop) {
       m.terminated = true;
       break;
     }
   }
+  m.alpha.resize(size_t(kept));
+  m.t.resize(size_t(kept));
+  m.g.resize(size_t(3 * kept));
+  m.taps.resize(size_t(kept) * size_t(nt));
   if constexpr (kBatchedLobes) {
     // The kept samples' lobes: which samples are kept and where the march stops depend on α
     // alone, so the exponentials of all their taps go through one vm::exp call (≤ 1 ulp from
     // std::exp, the same on every SIMD level; the backward's sg::eval differs from it by that).
-    thread_local std::vector<float> arg;
+    thread_local std::vector<float> arg_buffer;
     const size_t n = m.taps.size();
-    arg.resize(n);
-    for (size_t i = 0; i < n; ++i) arg[i] = sg::exponent(lobe_at(vsg, geo.vox, m.taps[i].voxel), v);
-    vm::exp(arg.data(), arg.data(), int64_t(n));
-    const size_t per = size_t(m.taps_per_sample);
+    arg_buffer.resize(n);
+    float* const arg = arg_buffer.data();
+    for (size_t i = 0; i < n; ++i) arg[i] = vol.exponent(keep_taps[i].voxel, v);
+    vm::exp(arg, arg, int64_t(n));
+    const size_t per = size_t(nt);
     for (size_t i = 0; i < n; ++i) {
-      const Tap<T>& tap = m.taps[i];
-      const T* c = vsg + tap.voxel;
-      for (int ch = 0; ch < 3; ++ch) m.g[3 * (i / per) + size_t(ch)] += tap.w * (c[ch * geo.vox] * arg[i]);
+      const Tap<T>& tap = keep_taps[i];
+      for (int ch = 0; ch < 3; ++ch) keep_g[3 * (i / per) + size_t(ch)] += tap.w * (vol.colour(tap.voxel, ch) * arg[i]);
     }
   }
 }
@@ -270,14 +345,31 @@ void composite(const RayMarch<T>& m, T out[3], T& tr, T& d) {
   tr = 1;
   d = 0;
   if (!m.valid) return;
-  for (size_t k = 0; k < m.count(); ++k) {
-    const T w = tr * m.alpha[k];
-    for (int c = 0; c < 3; ++c) out[c] += w * m.g[3 * k + c];
-    d += w * m.t[k];
-    tr *= 1 - m.alpha[k];
+  // In locals: stores through `out` may alias the samples, and reloading them per sample cost
+  // more than the sums.
+  T r0 = 0, r1 = 0, r2 = 0, tau = 1, depth = 0;
+  const T* alpha = m.alpha.data();
+  const T* t = m.t.data();
+  const T* g = m.g.data();
+  const size_t K = m.count();
+  for (size_t k = 0; k < K; ++k) {
+    const T w = tau * alpha[k];
+    r0 += w * g[3 * k];
+    r1 += w * g[3 * k + 1];
+    r2 += w * g[3 * k + 2];
+    depth += w * t[k];
+    tau *= 1 - alpha[k];
   }
-  if (!m.terminated)
-    for (int c = 0; c < 3; ++c) out[c] += tr * m.env[c];
+  if (!m.terminated) {
+    r0 += tau * m.env[0];
+    r1 += tau * m.env[1];
+    r2 += tau * m.env[2];
+  }
+  out[0] = r0;
+  out[1] = r1;
+  out[2] = r2;
+  tr = tau;
+  d = depth;
 }
 
 class RadianceQueryOp : public Function {
@@ -306,7 +398,8 @@ class RadianceQueryOp : public Function {
         int64_t n_total = 0, n_eval = 0, n_term = 0;
         for (int64_t r = b; r < e; ++r) {
           const int64_t n = r / geo_.R;
-          march(geo_, grid_, proj, opt_, vsg_.data<T>() + n * 8 * geo_.vox, env_.data<T>() + n * 3 * geo_.H * geo_.W,
+          march(geo_, grid_, proj, opt_, PlanarVolume<T>{vsg_.data<T>() + n * 8 * geo_.vox, geo_.vox},
+                env_.data<T>() + n * 3 * geo_.H * geo_.W,
                 origins_.data<T>() + 3 * r, dirs_.data<T>() + 3 * r, m);
           T out[3], tr, d;
           composite(m, out, tr, d);
@@ -375,7 +468,8 @@ class RadianceQueryOp : public Function {
     const int64_t n = r / geo_.R;
     const T* vsg = vsg_.data<T>() + n * 8 * geo_.vox;
     const LogProjection<T> proj(grid_);
-    march(geo_, grid_, proj, opt_, vsg, env_.data<T>() + n * 3 * geo_.H * geo_.W, origins_.data<T>() + 3 * r,
+    march(geo_, grid_, proj, opt_, PlanarVolume<T>{vsg, geo_.vox}, env_.data<T>() + n * 3 * geo_.H * geo_.W,
+          origins_.data<T>() + 3 * r,
           dirs_.data<T>() + 3 * r, m);
     if (!m.valid) return;
     const T* gr = gR.data<T>() + 3 * r;
@@ -440,24 +534,47 @@ struct RayMarcher::Projection : LogProjection<float> {
   using LogProjection<float>::LogProjection;
 };
 
+struct RayMarcher::Voxels {
+  std::vector<VoxelRecord> record;  // [X·Y·Z], the planar volume's voxel order
+  int64_t X = 0, Y = 0, Z = 0;
+};
+
 RayMarcher::RayMarcher(const Tensor& vsg, const Tensor& env, const VsgGrid& grid, const RadianceQueryOptions& options)
-    : vsg_(vsg.detach().to(DType::F32).contiguous()), env_(env.detach().to(DType::F32).contiguous()), grid_(grid),
-      opt_(options) {
+    : env_(env.detach().to(DType::F32).contiguous()), grid_(grid), opt_(options) {
   grid.validate();
   proj_ = std::make_shared<const Projection>(grid);
   SL_CHECK(options.samples >= 1, "RayMarcher: samples = ", options.samples, " must be >= 1");
-  SL_CHECK(vsg_.dim() == 4 && vsg_.size(0) == 8 && vsg_.size(1) == grid.dims[0] && vsg_.size(2) == grid.dims[1] &&
-               vsg_.size(3) == grid.dims[2],
+  SL_CHECK(vsg.dim() == 4 && vsg.size(0) == 8 && vsg.size(1) == grid.dims[0] && vsg.size(2) == grid.dims[1] &&
+               vsg.size(3) == grid.dims[2],
            "RayMarcher: vsg must be [8, ", grid.dims[0], ", ", grid.dims[1], ", ", grid.dims[2], "], got ",
            vsg.describe());
   SL_CHECK(env_.dim() == 3 && env_.size(0) == 3, "RayMarcher: env must be [3, H, W], got ", env.describe());
+  const Tensor planes = vsg.detach().to(DType::F32).contiguous();
+  auto voxels = std::make_shared<Voxels>();
+  voxels->X = planes.size(1);
+  voxels->Y = planes.size(2);
+  voxels->Z = planes.size(3);
+  const int64_t vox = voxels->X * voxels->Y * voxels->Z;
+  voxels->record.resize(size_t(vox));
+  const float* p = planes.data<float>();
+  parallel_for(vox, 4096, [&](int64_t b, int64_t e) {
+    for (int64_t v = b; v < e; ++v) {
+      const sg::Lobe<float> lobe = lobe_at(p, vox, v);
+      VoxelRecord& r = voxels->record[size_t(v)];
+      for (int c = 0; c < 3; ++c) r.c[c] = lobe.c[c];
+      sg::unit_axis(lobe.mu, r.muhat);
+      r.sharpness = lobe.sharpness;
+      r.alpha = p[7 * vox + v];
+    }
+  });
+  voxels_ = std::move(voxels);
 }
 
 RayMarcher::Result RayMarcher::operator()(const float origin[3], const float dir[3]) const {
-  const Geometry geo{1, 1, vsg_.size(1), vsg_.size(2), vsg_.size(3), vsg_.size(1) * vsg_.size(2) * vsg_.size(3),
-                     env_.size(1), env_.size(2)};
+  const Voxels& vx = *voxels_;
+  const Geometry geo{1, 1, vx.X, vx.Y, vx.Z, vx.X * vx.Y * vx.Z, env_.size(1), env_.size(2)};
   thread_local RayMarch<float> m;  // scratch: no allocation per ray after the first
-  march(geo, grid_, *proj_, opt_, vsg_.data<float>(), env_.data<float>(), origin, dir, m);
+  march(geo, grid_, *proj_, opt_, InterleavedVolume{vx.record.data()}, env_.data<float>(), origin, dir, m);
   float out[3], tr, d;
   composite(m, out, tr, d);
   return {glm::vec3(out[0], out[1], out[2]), tr};

@@ -64,12 +64,15 @@ struct LogProjection {
     const size_t K = t.size();
     v.resize(3 * K);
     if constexpr (std::is_same_v<T, float>) {
-      // The scratch's pointers in locals: read through thread_local vectors, they were reloaded
-      // on every store (a sixth of RayMarcher's time under perf, KITTI insertion bench).
+      // Planar scratch [axis][sample], its pointers in locals: read through thread_local vectors
+      // they were reloaded on every store, and the interleaved layout kept the loops scalar (a
+      // sixth of RayMarcher's time under perf, KITTI insertion bench).
       thread_local std::vector<float> arg_buffer;
       thread_local std::vector<unsigned char> positive_buffer;
-      arg_buffer.resize(3 * K);
-      positive_buffer.resize(3 * K);
+      if (arg_buffer.size() < 3 * K) {
+        arg_buffer.resize(3 * K);
+        positive_buffer.resize(3 * K);
+      }
       float* const arg = arg_buffer.data();
       unsigned char* const positive = positive_buffer.data();
       float* const out = v.data();
@@ -78,18 +81,24 @@ struct LogProjection {
         const int w = world_axis[a];
         const double ow = o[w], lw = l[w];
         const float ca = centre[a];
+        float* const arg_a = arg + a * K;
+        unsigned char* const positive_a = positive + a * K;
         for (size_t k = 0; k < K; ++k) {
           const float d = float(ow + tk[k] * lw) - ca;
-          positive[3 * k + a] = d >= 0;
-          arg[3 * k + a] = 1.0f + std::abs(d) * inv_r0;
+          positive_a[k] = d >= 0;
+          arg_a[k] = 1.0f + std::abs(d) * inv_r0;
         }
       }
-      vm::log(arg, out, int64_t(3 * K));
-      for (size_t k = 0; k < K; ++k)
-        for (int a = 0; a < 3; ++a) {
-          const size_t i = 3 * k + size_t(a);
-          out[i] = positive[i] ? half_dims[a] + k_pos[a] * out[i] : half_dims[a] - k_neg[a] * out[i];
+      vm::log(arg, arg, int64_t(3 * K));
+      for (int a = 0; a < 3; ++a) {
+        const float h = half_dims[a], kp = k_pos[a], kn = k_neg[a];
+        const float* const log_a = arg + a * K;
+        const unsigned char* const positive_a = positive + a * K;
+        for (size_t k = 0; k < K; ++k) {
+          const float up = h + kp * log_a[k], down = h - kn * log_a[k];
+          out[3 * k + size_t(a)] = positive_a[k] ? up : down;
         }
+      }
     } else {
       for (size_t k = 0; k < K; ++k) {
         const T pw[3] = {T(o[0] + t[k] * l[0]), T(o[1] + t[k] * l[1]), T(o[2] + t[k] * l[2])};
@@ -121,7 +130,8 @@ struct RayMarch {
   std::vector<T> nearest_alpha;         // and its α (scratch)
   int taps_per_sample = 1;
   int64_t considered = 0;               // samples inside the grid before pruning
-  size_t count() const { return alpha.size(); }
+  size_t kept = 0;                      // samples kept: the first `kept` of alpha, t, g (3 each), taps
+  size_t count() const { return kept; }
 };
 
 template <class T>
@@ -202,10 +212,7 @@ template <class T, class Volume>
 void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& proj, const RadianceQueryOptions& opt,
            const Volume& vol, const T* env, const T* o, const T* l, RayMarch<T>& m) {
   constexpr bool kBatchedLobes = std::is_same_v<T, float>;
-  m.alpha.clear();
-  m.t.clear();
-  m.g.clear();
-  m.taps.clear();
+  m.kept = 0;
   m.terminated = false;
   m.considered = 0;
   m.taps_per_sample = opt.trilinear ? 8 : 1;
@@ -234,14 +241,16 @@ void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& pro
   int64_t last_voxel = -1;
   sample_distances(proj, opt, origin, dir, t0, t1, m.tk, m.cumulative);
   proj.to_voxel_all(o, m.dir, m.tk, m.voxel);
-  // The kept samples are written in place (at most K), then the vectors are cut to their count:
+  // The kept samples are written in place into scratch of K (grown, never shrunk) and counted:
   // per-sample push_backs reloaded the vectors' ends on every store, and copying a tap built on
   // the stack stalled on store forwarding (perf, KITTI insertion bench).
   const int K = opt.samples, nt = m.taps_per_sample;
-  m.alpha.resize(size_t(K));
-  m.t.resize(size_t(K));
-  m.g.resize(size_t(3 * K));
-  m.taps.resize(size_t(K) * size_t(nt));
+  if (m.alpha.size() < size_t(K)) {
+    m.alpha.resize(size_t(K));
+    m.t.resize(size_t(K));
+    m.g.resize(size_t(3 * K));
+  }
+  if (m.taps.size() < size_t(K) * size_t(nt)) m.taps.resize(size_t(K) * size_t(nt));
   T* const keep_alpha = m.alpha.data();
   T* const keep_t = m.t.data();
   T* const keep_g = m.g.data();
@@ -252,8 +261,10 @@ void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& pro
   // volume's cache misses overlap instead of each stalling the sequential loop below (a quarter
   // of RayMarcher's time sat on that load under perf, KITTI insertion bench).
   if (!opt.trilinear) {
-    m.nearest.resize(size_t(K));
-    m.nearest_alpha.resize(size_t(K));
+    if (m.nearest.size() < size_t(K)) {
+      m.nearest.resize(size_t(K));
+      m.nearest_alpha.resize(size_t(K));
+    }
     int64_t* const nearest = m.nearest.data();
     T* const nearest_alpha = m.nearest_alpha.data();
     for (int k = 0; k < K; ++k) {
@@ -315,24 +326,24 @@ void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& pro
       break;
     }
   }
-  m.alpha.resize(size_t(kept));
-  m.t.resize(size_t(kept));
-  m.g.resize(size_t(3 * kept));
-  m.taps.resize(size_t(kept) * size_t(nt));
+  m.kept = size_t(kept);
   if constexpr (kBatchedLobes) {
     // The kept samples' lobes: which samples are kept and where the march stops depend on α
     // alone, so the exponentials of all their taps go through one vm::exp call (≤ 1 ulp from
     // std::exp, the same on every SIMD level; the backward's sg::eval differs from it by that).
     thread_local std::vector<float> arg_buffer;
-    const size_t n = m.taps.size();
-    arg_buffer.resize(n);
+    const size_t n = size_t(kept) * size_t(nt);
+    if (arg_buffer.size() < n) arg_buffer.resize(n);
     float* const arg = arg_buffer.data();
     for (size_t i = 0; i < n; ++i) arg[i] = vol.exponent(keep_taps[i].voxel, v);
     vm::exp(arg, arg, int64_t(n));
-    const size_t per = size_t(nt);
+    // Tap i belongs to sample i / nt, nt = 1 or 8: a shift (a 64-bit division per tap showed
+    // under perf).
+    const int shift = nt == 8 ? 3 : 0;
     for (size_t i = 0; i < n; ++i) {
       const Tap<T>& tap = keep_taps[i];
-      for (int ch = 0; ch < 3; ++ch) keep_g[3 * (i / per) + size_t(ch)] += tap.w * (vol.colour(tap.voxel, ch) * arg[i]);
+      T* const g = keep_g + 3 * (i >> shift);
+      for (int ch = 0; ch < 3; ++ch) g[ch] += tap.w * (vol.colour(tap.voxel, ch) * arg[i]);
     }
   }
 }

@@ -3,9 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "autodiff/matmul.h"
-#include "autodiff/ops.h"
 #include "render/disney_brdf.h"
 #include "render/equirect.h"
 #include "render/radiance_query.h"
@@ -49,32 +49,27 @@ RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& 
   }
   const int64_t D = int64_t(H_) * W_, P = int64_t(dense_of_.size());
   if (P == 0) return;
-  std::vector<float> o(size_t(3 * P * D)), d(size_t(3 * P * D));
-  std::vector<glm::vec3> dirs(static_cast<size_t>(D));
+  std::vector<glm::vec3> dirs(static_cast<size_t>(D)), sky(static_cast<size_t>(D));
   for (int64_t t = 0; t < D; ++t) {
     const equirect::Dir e = equirect::uv_to_direction(double(t % W_) + 0.5, double(t / W_) + 0.5, W_, H_);
     dirs[size_t(t)] = glm::vec3(float(e.x), float(e.y), float(e.z));
+    sky[size_t(t)] = env_map_.lookup(dirs[size_t(t)]);
   }
-  for (int64_t p = 0; p < P; ++p)
-    for (int64_t t = 0; t < D; ++t)
-      for (int c = 0; c < 3; ++c) {
-        o[size_t(3 * (p * D + t) + c)] = probe(dense_of_[size_t(p)])[c];
-        d[size_t(3 * (p * D + t) + c)] = dirs[size_t(t)][c];
-      }
-  Tensor ot = Tensor::empty({P * D, 3}, DType::F32), dt = Tensor::empty({P * D, 3}, DType::F32);
-  std::copy(o.begin(), o.end(), ot.data<float>());
-  std::copy(d.begin(), d.end(), dt.data<float>());
-  const RadianceQueryResult q = radiance_query(in.vsg.detach().to(DType::F32).contiguous(),
-                                               in.env.detach().to(DType::F32).contiguous(), ot, dt, in.grid, opt.query);
-  const Tensor rad = q.radiance.contiguous(), tau = q.transmittance.contiguous();
-  const float* rp = rad.data<float>();
-  const float* tp = tau.data<float>();
+  // Every probe × direction marched by RayMarcher: radiance_query's forward bit for bit
+  // (RayMarcher.EqualsTheQueryBitForBit), without the op's tensors and its planar volume reads.
+  std::optional<RayMarcher> own;
+  if (!marcher_) own.emplace(in.vsg, in.env, in.grid, opt.query);
+  const RayMarcher& marcher = marcher_ ? *marcher_ : *own;
   cache_.resize(size_t(4 * P * D));
-  for (int64_t i = 0; i < P * D; ++i) {
-    const glm::vec3 sky = env_map_.lookup(dirs[size_t(i % D)]);
-    for (int c = 0; c < 3; ++c) cache_[size_t(4 * i + c)] = rp[3 * i + c] - tp[i] * sky[c];
-    cache_[size_t(4 * i + 3)] = tp[i];
-  }
+  parallel_for(P * D, 64, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) {
+      const glm::vec3 x = probe(dense_of_[size_t(i / D)]), l = dirs[size_t(i % D)];
+      const RayMarcher::Result r = marcher(&x[0], &l[0]);
+      const glm::vec3& L_env = sky[size_t(i % D)];
+      for (int c = 0; c < 3; ++c) cache_[size_t(4 * i + c)] = r.radiance[c] - r.transmittance * L_env[c];
+      cache_[size_t(4 * i + 3)] = r.transmittance;
+    }
+  });
 }
 
 // E(probe, normal) = Σ_q max(0, n·d_q) ΔΩ_q L_probe(d_q), L_env bilinear as every ray reads it

@@ -250,15 +250,50 @@ glm::vec3 RadianceCache::radiance_unit(const float* origin, const equirect::UV& 
 
 glm::vec3 RadianceCache::radiance_unit(const Corners& at, const equirect::UV& unit) const {
   if (cache_.empty()) return glm::vec3(0.0f);
-  const int64_t* probe = at.probe;
-  const float* wp = at.weight;
   const glm::vec3 sky = env_map_.lookup_unit(unit);
-  if (marcher_ && std::max({sky.x, sky.y, sky.z}) > exact_sky_) {
+  if (exact_direction(sky)) {
     const equirect::Dir d = equirect::uv_to_direction(unit.u, unit.v, 1, 1);
     const float dir[3] = {float(d.x), float(d.y), float(d.z)};
     exact_rays_.fetch_add(1, std::memory_order_relaxed);
     return (*marcher_)(&at.origin[0], dir).radiance;
   }
+  return cached(at, unit, sky);
+}
+
+void RadianceCache::radiance_units(const Corners& at, const equirect::UV* units, int n, glm::vec3* out) const {
+  if (cache_.empty()) {
+    std::fill(out, out + n, glm::vec3(0.0f));
+    return;
+  }
+  thread_local std::vector<int> exact;
+  thread_local std::vector<float> origins, dirs;
+  thread_local std::vector<RayMarcher::Result> marched;
+  exact.clear();
+  dirs.clear();
+  for (int i = 0; i < n; ++i) {
+    const glm::vec3 sky = env_map_.lookup_unit(units[i]);
+    if (!exact_direction(sky)) {
+      out[i] = cached(at, units[i], sky);
+      continue;
+    }
+    const equirect::Dir d = equirect::uv_to_direction(units[i].u, units[i].v, 1, 1);
+    exact.push_back(i);
+    dirs.insert(dirs.end(), {float(d.x), float(d.y), float(d.z)});
+  }
+  const int m = int(exact.size());
+  if (m == 0) return;
+  origins.resize(size_t(3 * m));
+  for (int j = 0; j < m; ++j)
+    for (int c = 0; c < 3; ++c) origins[size_t(3 * j + c)] = at.origin[c];
+  marched.resize(size_t(m));
+  (*marcher_)(m, origins.data(), dirs.data(), marched.data());
+  for (int j = 0; j < m; ++j) out[exact[size_t(j)]] = marched[size_t(j)].radiance;
+  exact_rays_.fetch_add(m, std::memory_order_relaxed);
+}
+
+glm::vec3 RadianceCache::cached(const Corners& at, const equirect::UV& unit, const glm::vec3& sky) const {
+  const int64_t* probe = at.probe;
+  const float* wp = at.weight;
   const EnvTaps taps = env_bilinear_taps_unit(unit, W_, H_);
   const int64_t D = int64_t(H_) * W_;
   glm::vec4 acc(0.0f);

@@ -3,7 +3,12 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstddef>
 #include <type_traits>
+
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
 
 #include "autodiff/ops.h"
 #include "autodiff/vector_math.h"
@@ -208,17 +213,20 @@ void sample_distances(const LogProjection<T>& proj, const RadianceQueryOptions& 
   }
 }
 
-template <class T, class Volume>
-void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& proj, const RadianceQueryOptions& opt,
-           const Volume& vol, const T* env, const T* o, const T* l, RayMarch<T>& m) {
-  constexpr bool kBatchedLobes = std::is_same_v<T, float>;
+// The part of march() before any sample is read: the ray's validity, L_env(l) and the
+// transmittance `stop` that ends the march, the clip to the grid, the K sample distances and
+// voxel coordinates, and with nearest lookup each sample's voxel (m.nearest). Returns false when
+// the march has no samples (m.valid says whether the ray was valid at all).
+template <class T>
+bool march_prefix(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& proj,
+                  const RadianceQueryOptions& opt, const T* env, const T* o, const T* l, RayMarch<T>& m, T& stop) {
   m.kept = 0;
   m.terminated = false;
   m.considered = 0;
   m.taps_per_sample = opt.trilinear ? 8 : 1;
   const T len = std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
   m.valid = std::isfinite(len) && len > 0 && std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]);
-  if (!m.valid) return;
+  if (!m.valid) return false;
   for (int i = 0; i < 3; ++i) m.dir[i] = l[i] / len;
   m.env_taps = env_bilinear_taps(m.dir[0], m.dir[1], m.dir[2], int(geo.W), int(geo.H));
   T env_max = 0;
@@ -230,17 +238,41 @@ void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& pro
   }
   const glm::dvec3 origin(o[0], o[1], o[2]), dir(m.dir[0], m.dir[1], m.dir[2]);
   double t0, t1;
-  if (!grid.clip_ray(origin, dir, t0, t1)) return;
-  const T v[3] = {-m.dir[0], -m.dir[1], -m.dir[2]};  // lobes are seen from x: G(−l)
+  if (!grid.clip_ray(origin, dir, t0, t1)) return false;
   const int64_t dims[3] = {geo.X, geo.Y, geo.Z};
-  const T stop = T(opt.min_transmittance) / std::max(T(1), env_max);
+  stop = T(opt.min_transmittance) / std::max(T(1), env_max);
+  sample_distances(proj, opt, origin, dir, t0, t1, m.tk, m.cumulative);
+  proj.to_voxel_all(o, m.dir, m.tk, m.voxel);
+  const int K = opt.samples;
+  if (!opt.trilinear) {
+    if (m.nearest.size() < size_t(K)) {
+      m.nearest.resize(size_t(K));
+      m.nearest_alpha.resize(size_t(K));
+    }
+    int64_t* const nearest = m.nearest.data();
+    const T* const voxel = m.voxel.data();
+    for (int k = 0; k < K; ++k) {
+      const T* p = &voxel[size_t(3 * k)];
+      int64_t idx[3];
+      for (int a = 0; a < 3; ++a) idx[a] = std::clamp<int64_t>(int64_t(std::floor(p[a])), 0, dims[a] - 1);
+      nearest[k] = (idx[0] * geo.Y + idx[1]) * geo.Z + idx[2];
+    }
+  }
+  return true;
+}
+
+template <class T, class Volume>
+void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& proj, const RadianceQueryOptions& opt,
+           const Volume& vol, const T* env, const T* o, const T* l, RayMarch<T>& m) {
+  constexpr bool kBatchedLobes = std::is_same_v<T, float>;
+  T stop;
+  if (!march_prefix(geo, grid, proj, opt, env, o, l, m, stop)) return;
+  const T v[3] = {-m.dir[0], -m.dir[1], -m.dir[2]};  // lobes are seen from x: G(−l)
   const T empty_alpha = T(opt.empty_alpha);
   const bool prune = opt.prune;
   T tau = 1;
   const bool grid_spacing = opt.spacing == SampleSpacing::kGrid;
   int64_t last_voxel = -1;
-  sample_distances(proj, opt, origin, dir, t0, t1, m.tk, m.cumulative);
-  proj.to_voxel_all(o, m.dir, m.tk, m.voxel);
   // The kept samples are written in place into scratch of K (grown, never shrunk) and counted:
   // per-sample push_backs reloaded the vectors' ends on every store, and copying a tap built on
   // the stack stalled on store forwarding (perf, KITTI insertion bench).
@@ -257,22 +289,13 @@ void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& pro
   Tap<T>* const keep_taps = m.taps.data();
   const T* const voxel = m.voxel.data();
   const double* const tks = m.tk.data();
-  // Nearest lookup: every sample's voxel and α first, in loops without a branch on α, so the
-  // volume's cache misses overlap instead of each stalling the sequential loop below (a quarter
-  // of RayMarcher's time sat on that load under perf, KITTI insertion bench).
+  const int64_t dims[3] = {geo.X, geo.Y, geo.Z};
+  // Nearest lookup: every sample's α first (march_prefix found the voxels), in a loop without a
+  // branch on α, so the volume's cache misses overlap instead of each stalling the sequential
+  // loop below (a quarter of RayMarcher's time sat on that load under perf, KITTI insertion bench).
   if (!opt.trilinear) {
-    if (m.nearest.size() < size_t(K)) {
-      m.nearest.resize(size_t(K));
-      m.nearest_alpha.resize(size_t(K));
-    }
-    int64_t* const nearest = m.nearest.data();
+    const int64_t* const nearest = m.nearest.data();
     T* const nearest_alpha = m.nearest_alpha.data();
-    for (int k = 0; k < K; ++k) {
-      const T* p = &voxel[size_t(3 * k)];
-      int64_t idx[3];
-      for (int a = 0; a < 3; ++a) idx[a] = std::clamp<int64_t>(int64_t(std::floor(p[a])), 0, dims[a] - 1);
-      nearest[k] = (idx[0] * geo.Y + idx[1]) * geo.Z + idx[2];
-    }
     for (int k = 0; k < K; ++k) nearest_alpha[k] = vol.alpha(nearest[k]);
   }
   int kept = 0;
@@ -590,6 +613,128 @@ RayMarcher::Result RayMarcher::operator()(const float origin[3], const float dir
   composite(m, out, tr, d);
   return {glm::vec3(out[0], out[1], out[2]), tr};
 }
+
+void RayMarcher::operator()(int64_t n, const float* origins, const float* dirs, Result* out) const {
+  const Voxels& vx = *voxels_;
+  const int64_t vox = vx.X * vx.Y * vx.Z;
+#if defined(__AVX512F__)
+  // Byte offsets of the records must fit 32-bit gathers.
+  if (!opt_.trilinear && vox < (int64_t{1} << 25) && n > 1) {
+    march_lanes(n, origins, dirs, out);
+    return;
+  }
+#endif
+  for (int64_t i = 0; i < n; ++i) out[i] = (*this)(origins + 3 * i, dirs + 3 * i);
+}
+
+#if defined(__AVX512F__)
+// 16 rays in the lanes of AVX-512 registers. Each ray's prefix (validity, L_env, clip, sample
+// voxels) is march_prefix(), as in march(); then per sample k, all lanes at once: α from the
+// sample's voxel, the lobe's exponent, e = vm::exp of all of them, and the sums of composite()
+// with march()'s pruning and stop as lane masks. Every lane performs march()'s and composite()'s
+// operations on its ray in their order (the same FMAs), so the bits are RayMarcher's
+// (RayMarcher.BatchEqualsOneRayAtATime).
+void RayMarcher::march_lanes(int64_t n, const float* origins, const float* dirs, Result* out) const {
+  constexpr int kLanes = 16;
+  const Voxels& vx = *voxels_;
+  const Geometry geo{1, 1, vx.X, vx.Y, vx.Z, vx.X * vx.Y * vx.Z, env_.size(1), env_.size(2)};
+  const float* env = env_.data<float>();
+  const int K = opt_.samples;
+  const bool grid_spacing = opt_.spacing == SampleSpacing::kGrid, prune = opt_.prune;
+  thread_local RayMarch<float> m;
+  thread_local std::vector<int32_t> offset_buffer;  // [k][lane] byte offset of the sample's voxel record
+  thread_local std::vector<float> exp_buffer;       // [k][lane] the lobe's exponent, then its exponential
+  if (offset_buffer.size() < size_t(K) * kLanes) {
+    offset_buffer.resize(size_t(K) * kLanes);
+    exp_buffer.resize(size_t(K) * kLanes);
+  }
+  int32_t* const offset = offset_buffer.data();
+  float* const ex = exp_buffer.data();
+  const char* const base = reinterpret_cast<const char*>(vx.record.data());
+  constexpr int kC = offsetof(VoxelRecord, c), kMu = offsetof(VoxelRecord, muhat);
+  constexpr int kSharp = offsetof(VoxelRecord, sharpness), kAlpha = offsetof(VoxelRecord, alpha);
+  const __m512 zero = _mm512_setzero_ps(), one = _mm512_set1_ps(1.0f), half = _mm512_set1_ps(0.5f);
+  const __m512 empty = _mm512_set1_ps(float(opt_.empty_alpha));
+  const __m512i sign = _mm512_set1_epi32(int32_t(0x80000000u));  // −λ flips λ's sign bit, as −x does
+  for (int64_t g0 = 0; g0 < n; g0 += kLanes) {
+    const int lanes = int(std::min<int64_t>(kLanes, n - g0));
+    alignas(64) float v[3][kLanes] = {}, sky[3][kLanes] = {}, stop[kLanes] = {};
+    __mmask16 live = 0;
+    for (int j = 0; j < kLanes; ++j) {
+      const int64_t i = g0 + j;
+      float s = 0;
+      if (j < lanes && march_prefix(geo, grid_, *proj_, opt_, env, origins + 3 * i, dirs + 3 * i, m, s)) {
+        live = __mmask16(live | (1u << j));
+        for (int c = 0; c < 3; ++c) {
+          v[c][j] = -m.dir[c];
+          sky[c][j] = m.env[c];
+        }
+        stop[j] = s;
+        for (int k = 0; k < K; ++k) offset[k * kLanes + j] = int32_t(m.nearest[size_t(k)] * int64_t(sizeof(VoxelRecord)));
+        continue;
+      }
+      if (j < lanes) {  // no samples: composite() of the empty march
+        float r[3], tr, d;
+        composite(m, r, tr, d);
+        out[i] = {glm::vec3(r[0], r[1], r[2]), tr};
+      }
+      for (int k = 0; k < K; ++k) offset[k * kLanes + j] = 0;
+    }
+    if (!live) continue;
+    const __m512 v0 = _mm512_load_ps(v[0]), v1 = _mm512_load_ps(v[1]), v2 = _mm512_load_ps(v[2]);
+    // sg::unit_axis_exponent: −λ·|v − μ̂|²/2 with |v − μ̂|² summed by FMAs in axis order.
+    for (int k = 0; k < K; ++k) {
+      const __m512i idx = _mm512_loadu_si512(offset + k * kLanes);
+      const __m512 d0 = _mm512_sub_ps(v0, _mm512_i32gather_ps(idx, base + kMu, 1));
+      const __m512 d1 = _mm512_sub_ps(v1, _mm512_i32gather_ps(idx, base + kMu + 4, 1));
+      const __m512 d2 = _mm512_sub_ps(v2, _mm512_i32gather_ps(idx, base + kMu + 8, 1));
+      const __m512 dist2 = _mm512_fmadd_ps(d2, d2, _mm512_fmadd_ps(d1, d1, _mm512_mul_ps(d0, d0)));
+      const __m512 sharp = _mm512_i32gather_ps(idx, base + kSharp, 1);
+      _mm512_storeu_ps(ex + k * kLanes, _mm512_mul_ps(_mm512_mul_ps(_mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(sharp), sign)), dist2), half));
+    }
+    vm::exp(ex, ex, int64_t(K) * kLanes);
+    __m512 r0 = zero, r1 = zero, r2 = zero, tau = one;
+    const __m512 stop_v = _mm512_load_ps(stop);
+    __mmask16 active = live, terminated = 0;
+    __m512i previous = _mm512_set1_epi32(-1);
+    for (int k = 0; k < K && active; ++k) {
+      const __m512i idx = _mm512_loadu_si512(offset + k * kLanes);
+      __mmask16 keep = active;
+      if (grid_spacing) keep = _mm512_mask_cmpneq_epi32_mask(keep, idx, previous);  // a voxel once per crossing
+      previous = idx;
+      const __m512 alpha = _mm512_add_ps(zero, _mm512_i32gather_ps(idx, base + kAlpha, 1));  // 0 + 1·α
+      if (prune) keep = _mm512_mask_cmp_ps_mask(keep, alpha, empty, _CMP_NLT_UQ);
+      if (!keep) continue;
+      const __m512 e = _mm512_loadu_ps(ex + k * kLanes);
+      // g = 0 + 1·(c·e), as march() sums one tap.
+      const __m512 g0 = _mm512_add_ps(_mm512_mul_ps(_mm512_i32gather_ps(idx, base + kC, 1), e), zero);
+      const __m512 g1 = _mm512_add_ps(_mm512_mul_ps(_mm512_i32gather_ps(idx, base + kC + 4, 1), e), zero);
+      const __m512 g2 = _mm512_add_ps(_mm512_mul_ps(_mm512_i32gather_ps(idx, base + kC + 8, 1), e), zero);
+      const __m512 w = _mm512_mul_ps(tau, alpha);
+      r0 = _mm512_mask3_fmadd_ps(w, g0, r0, keep);
+      r1 = _mm512_mask3_fmadd_ps(w, g1, r1, keep);
+      r2 = _mm512_mask3_fmadd_ps(w, g2, r2, keep);
+      tau = _mm512_mask_mul_ps(tau, keep, tau, _mm512_sub_ps(one, alpha));
+      if (prune) {
+        const __mmask16 ended = _mm512_mask_cmp_ps_mask(keep, tau, stop_v, _CMP_LT_OQ);
+        terminated = __mmask16(terminated | ended);
+        active = __mmask16(active & ~ended);
+      }
+    }
+    const __mmask16 open = __mmask16(live & ~terminated);  // the sky term where the march did not stop
+    r0 = _mm512_mask3_fmadd_ps(tau, _mm512_load_ps(sky[0]), r0, open);
+    r1 = _mm512_mask3_fmadd_ps(tau, _mm512_load_ps(sky[1]), r1, open);
+    r2 = _mm512_mask3_fmadd_ps(tau, _mm512_load_ps(sky[2]), r2, open);
+    alignas(64) float o0[kLanes], o1[kLanes], o2[kLanes], ot[kLanes];
+    _mm512_store_ps(o0, r0);
+    _mm512_store_ps(o1, r1);
+    _mm512_store_ps(o2, r2);
+    _mm512_store_ps(ot, tau);
+    for (int j = 0; j < lanes; ++j)
+      if (live & (1u << j)) out[g0 + j] = {glm::vec3(o0[j], o1[j], o2[j]), ot[j]};
+  }
+}
+#endif
 
 SampleSpacing parse_sample_spacing(const std::string& name) {
   if (name == "metric") return SampleSpacing::kMetric;

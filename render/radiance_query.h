@@ -88,8 +88,13 @@ class RayMarcher {
     float transmittance = 1.0f;  // τ_K
   };
   Result operator()(const float origin[3], const float dir[3]) const;
+  // n rays at once: out[i] = (*this)(origins + 3·i, dirs + 3·i), the same bits. With nearest
+  // lookup on AVX-512, 16 rays at a time share vector lanes from their samples' α on (the
+  // sequential sums of Eq. 1 run side by side); otherwise one ray after the other.
+  void operator()(int64_t n, const float* origins, const float* dirs, Result* out) const;
 
  private:
+  void march_lanes(int64_t n, const float* origins, const float* dirs, Result* out) const;  // AVX-512
   struct Projection;  // the grid's log projection, precomputed once
   struct Voxels;      // the volume, one record per voxel (radiance_query.cpp: InterleavedVolume)
   Tensor env_;

@@ -62,9 +62,18 @@ RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& 
   const RayMarcher& marcher = marcher_ ? *marcher_ : *own;
   cache_.resize(size_t(4 * P * D));
   parallel_for(P * D, 64, [&](int64_t b, int64_t e) {
+    std::vector<float> xs(size_t(3 * (e - b))), ls(size_t(3 * (e - b)));
+    std::vector<RayMarcher::Result> marched(static_cast<size_t>(e - b));
     for (int64_t i = b; i < e; ++i) {
       const glm::vec3 x = probe(dense_of_[size_t(i / D)]), l = dirs[size_t(i % D)];
-      const RayMarcher::Result r = marcher(&x[0], &l[0]);
+      for (int c = 0; c < 3; ++c) {
+        xs[size_t(3 * (i - b) + c)] = x[c];
+        ls[size_t(3 * (i - b) + c)] = l[c];
+      }
+    }
+    marcher(e - b, xs.data(), ls.data(), marched.data());  // in lanes: the same bits
+    for (int64_t i = b; i < e; ++i) {
+      const RayMarcher::Result& r = marched[size_t(i - b)];
       const glm::vec3& L_env = sky[size_t(i % D)];
       for (int c = 0; c < 3; ++c) cache_[size_t(4 * i + c)] = r.radiance[c] - r.transmittance * L_env[c];
       cache_[size_t(4 * i + 3)] = r.transmittance;

@@ -311,6 +311,34 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
   const int M = exact ? std::min({opt.cache_exact_light_rays, N, kMaxCorrections}) : 0;
   static thread_local std::vector<glm::vec3> lc;  // a sample's cached radiance per ray (corrections)
   static thread_local std::vector<float> score;
+  // The corrections' rays of a run of samples, marched together (RayMarcher's batch, the same
+  // bits) and then summed per sample in pick order, as if each had been marched when picked.
+  struct PendingCorrection {
+    glm::vec3* target;  // the sample's correction
+    float weight;       // the pick's 1/(M·p)
+    glm::vec3 w, cached;
+  };
+  static thread_local std::vector<PendingCorrection> pending;
+  static thread_local std::vector<float> pending_origins, pending_dirs;
+  static thread_local std::vector<RayMarcher::Result> pending_radiance;
+  auto flush_corrections = [&] {
+    const int64_t n = int64_t(pending.size());
+    pending_radiance.resize(size_t(n));
+    if (n > 0) (*exact)(n, pending_origins.data(), pending_dirs.data(), pending_radiance.data());
+    for (int64_t a = 0; a < n;) {
+      glm::vec3 c(0.0f);
+      int64_t b = a;
+      for (; b < n && pending[size_t(b)].target == pending[size_t(a)].target; ++b) {
+        const PendingCorrection& p = pending[size_t(b)];
+        c += p.weight * p.w * (pending_radiance[size_t(b)].radiance - p.cached);
+      }
+      *pending[size_t(a)].target = all_finite(c) ? c : glm::vec3(0.0f);
+      a = b;
+    }
+    pending.clear();
+    pending_origins.clear();
+    pending_dirs.clear();
+  };
   const uint64_t exact_seed = hash_counter(sample_seed(opt, kTagLight), kTagExact);
   std::atomic<int64_t> exact_rays{0};
   auto trace = [&](const LightSampling& sampling, const GSample& g, const disney::DiffuseControl* cv,
@@ -346,19 +374,19 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
       // M of the n rays, drawn in proportion to their cached contribution (render/exact_correction.h).
       CorrectionPick picks[kMaxCorrections];
       const int m = pick_corrections(score.data(), n, M, uniform01f(exact_seed, g.stream, 0), picks);
-      glm::vec3 c(0.0f);
       int marched = 0;
       for (int j = 0; j < m; ++j) {
         const int k = picks[j].index;
         const glm::vec3 w = (*full)[size_t(k)];
         if (w == glm::vec3(0.0f)) continue;
         const glm::vec3 l = ls[size_t(k)];
-        const RayMarcher::Result r = (*exact)(&at.origin[0], &l[0]);
+        pending.push_back({correct, picks[j].weight, w, lc[size_t(k)]});
+        pending_origins.insert(pending_origins.end(), {at.origin.x, at.origin.y, at.origin.z});
+        pending_dirs.insert(pending_dirs.end(), {l.x, l.y, l.z});
         ++marched;
-        c += picks[j].weight * w * (r.radiance - lc[size_t(k)]);
       }
       exact_rays.fetch_add(marched, std::memory_order_relaxed);
-      *correct = all_finite(c) ? c : glm::vec3(0.0f);
+      *correct = glm::vec3(0.0f);  // until flush_corrections() sums its picks
     }
     if (sq) *sq = acc2;
     return acc;
@@ -381,7 +409,9 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
         const RadianceCache::Irradiance e = cache.irradiance(at, g.n);
         control[size_t(i)] = cv.c * (e.cosine + cv.kappa * e.grazing) / float(opt.aa_samples);
       }
+      if (pending.size() >= 64) flush_corrections();
     }
+    flush_corrections();
   });
   auto samples_of = [&](size_t p) { return std::pair<int64_t, int64_t>{fg.offsets[p] / N, fg.offsets[p + 1] / N}; };
   const PixelWindow window(fg.pixels, fg.width);

@@ -168,6 +168,12 @@ int64_t shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const Environ
   const int M = exact ? std::min({opt.cache_shadow_exact_rays, N, kMaxCorrections}) : 0;
   static thread_local std::vector<glm::vec3> lc;  // a texel's cached radiance per ray (corrections)
   static thread_local std::vector<float> score, vis_of;
+  static thread_local std::vector<ShadowSampler::Ray> drawn;  // a texel's rays
+  static thread_local std::vector<double> visibility;         // and their V' of Eq. 4
+  static thread_local std::vector<equirect::UV> units;        // of those with weight, their directions
+  static thread_local std::vector<glm::vec3> radiance;        // and the cache's radiance
+  static thread_local std::vector<float> exact_origins, exact_dirs;  // the corrections' rays
+  static thread_local std::vector<RayMarcher::Result> exact_radiance;
   const uint64_t exact_seed = hash_counter(sample_seed(opt, kTagShadow), kTagExact);
   const int64_t count = int64_t(sh.texels.size());
   ratio.assign(size_t(3 * count), 1.0f);
@@ -186,15 +192,31 @@ int64_t shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const Environ
       const RadianceCache::Corners at = cache.corners(&o[0]);
       int64_t here = 0;
       if (M > 0 && int(lc.size()) < N) lc.resize(size_t(N)), score.resize(size_t(N)), vis_of.resize(size_t(N));
+      if (int(drawn.size()) < N) drawn.resize(size_t(N)), visibility.resize(size_t(N)), units.resize(size_t(N)), radiance.resize(size_t(N));
+      // The rays and their occlusion first, then the cache's reads in ray order: each read is a
+      // chain of 32 dependent FMAs, and with nothing else between them consecutive reads overlap
+      // (interleaved with the sampling and the BVH they did not: perf, KITTI insertion bench).
       for (int k = 0; k < N; ++k) {
         const ShadowSampler::Ray s = sampler.cached(t, k);
-        if (M > 0) score[size_t(k)] = 0.0f;
-        if (!(s.w > 0)) continue;  // weight 0: adds nothing to either sum
+        drawn[size_t(k)] = s;
+        if (!(s.w > 0)) continue;
         Ray r;
         r.origin = o;
         r.direction = s.d;
-        const double vis = bvh.occluded(r) ? opt.ambient : 1.0;
-        const glm::vec3 L = cache.radiance_unit(at, s.unit);
+        visibility[size_t(k)] = bvh.occluded(r) ? opt.ambient : 1.0;
+      }
+      // The cache reads of the rays with weight, its exact directions (the sun) marched together.
+      int n_read = 0;
+      for (int k = 0; k < N; ++k)
+        if (drawn[size_t(k)].w > 0) units[size_t(n_read++)] = drawn[size_t(k)].unit;
+      cache.radiance_units(at, units.data(), n_read, radiance.data());
+      int read = 0;
+      for (int k = 0; k < N; ++k) {
+        const ShadowSampler::Ray& s = drawn[size_t(k)];
+        if (M > 0) score[size_t(k)] = 0.0f;
+        if (!(s.w > 0)) continue;  // weight 0: adds nothing to either sum
+        const double vis = visibility[size_t(k)];
+        const glm::vec3 L = radiance[size_t(read++)];
         for (int c = 0; c < 3; ++c) {
           num[c] += vis * s.w * L[c];
           den[c] += s.w * L[c];
@@ -210,12 +232,25 @@ int64_t shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const Environ
         // to their cached light (render/exact_correction.h), for both sums.
         CorrectionPick picks[kMaxCorrections];
         const int m = pick_corrections(score.data(), N, M, uniform01f(exact_seed, uint64_t(t), 0), picks);
+        // The picked rays with weight, marched together (RayMarcher's batch: the same bits).
+        exact_origins.clear();
+        exact_dirs.clear();
+        for (int j = 0; j < m; ++j) {
+          const ShadowSampler::Ray& s = drawn[size_t(picks[j].index)];
+          if (!(s.w > 0)) continue;
+          exact_origins.insert(exact_origins.end(), {o.x, o.y, o.z});
+          exact_dirs.insert(exact_dirs.end(), {s.d.x, s.d.y, s.d.z});
+        }
+        const int64_t n_exact = int64_t(exact_dirs.size() / 3);
+        exact_radiance.resize(size_t(n_exact));
+        (*exact)(n_exact, exact_origins.data(), exact_dirs.data(), exact_radiance.data());
+        int marched_j = 0;
         for (int j = 0; j < m; ++j) {
           const int k = picks[j].index;
-          const ShadowSampler::Ray s = sampler.cached(t, k);
+          const ShadowSampler::Ray& s = drawn[size_t(k)];
           if (!(s.w > 0)) continue;
           ++here;
-          const glm::vec3 d = (*exact)(&o[0], &s.d[0]).radiance - lc[size_t(k)];
+          const glm::vec3 d = exact_radiance[size_t(marched_j++)].radiance - lc[size_t(k)];
           if (all_finite(d))
             for (int c = 0; c < 3; ++c) {
               cnum[c] += picks[j].weight * vis_of[size_t(k)] * s.w * d[c];

@@ -3,9 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "autodiff/matmul.h"
-#include "autodiff/ops.h"
 #include "render/disney_brdf.h"
 #include "render/equirect.h"
 #include "render/radiance_query.h"
@@ -49,32 +49,36 @@ RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& 
   }
   const int64_t D = int64_t(H_) * W_, P = int64_t(dense_of_.size());
   if (P == 0) return;
-  std::vector<float> o(size_t(3 * P * D)), d(size_t(3 * P * D));
-  std::vector<glm::vec3> dirs(static_cast<size_t>(D));
+  std::vector<glm::vec3> dirs(static_cast<size_t>(D)), sky(static_cast<size_t>(D));
   for (int64_t t = 0; t < D; ++t) {
     const equirect::Dir e = equirect::uv_to_direction(double(t % W_) + 0.5, double(t / W_) + 0.5, W_, H_);
     dirs[size_t(t)] = glm::vec3(float(e.x), float(e.y), float(e.z));
+    sky[size_t(t)] = env_map_.lookup(dirs[size_t(t)]);
   }
-  for (int64_t p = 0; p < P; ++p)
-    for (int64_t t = 0; t < D; ++t)
-      for (int c = 0; c < 3; ++c) {
-        o[size_t(3 * (p * D + t) + c)] = probe(dense_of_[size_t(p)])[c];
-        d[size_t(3 * (p * D + t) + c)] = dirs[size_t(t)][c];
-      }
-  Tensor ot = Tensor::empty({P * D, 3}, DType::F32), dt = Tensor::empty({P * D, 3}, DType::F32);
-  std::copy(o.begin(), o.end(), ot.data<float>());
-  std::copy(d.begin(), d.end(), dt.data<float>());
-  const RadianceQueryResult q = radiance_query(in.vsg.detach().to(DType::F32).contiguous(),
-                                               in.env.detach().to(DType::F32).contiguous(), ot, dt, in.grid, opt.query);
-  const Tensor rad = q.radiance.contiguous(), tau = q.transmittance.contiguous();
-  const float* rp = rad.data<float>();
-  const float* tp = tau.data<float>();
+  // Every probe × direction marched by RayMarcher: radiance_query's forward bit for bit
+  // (RayMarcher.EqualsTheQueryBitForBit), without the op's tensors and its planar volume reads.
+  std::optional<RayMarcher> own;
+  if (!marcher_) own.emplace(in.vsg, in.env, in.grid, opt.query);
+  const RayMarcher& marcher = marcher_ ? *marcher_ : *own;
   cache_.resize(size_t(4 * P * D));
-  for (int64_t i = 0; i < P * D; ++i) {
-    const glm::vec3 sky = env_map_.lookup(dirs[size_t(i % D)]);
-    for (int c = 0; c < 3; ++c) cache_[size_t(4 * i + c)] = rp[3 * i + c] - tp[i] * sky[c];
-    cache_[size_t(4 * i + 3)] = tp[i];
-  }
+  parallel_for(P * D, 64, [&](int64_t b, int64_t e) {
+    std::vector<float> xs(size_t(3 * (e - b))), ls(size_t(3 * (e - b)));
+    std::vector<RayMarcher::Result> marched(static_cast<size_t>(e - b));
+    for (int64_t i = b; i < e; ++i) {
+      const glm::vec3 x = probe(dense_of_[size_t(i / D)]), l = dirs[size_t(i % D)];
+      for (int c = 0; c < 3; ++c) {
+        xs[size_t(3 * (i - b) + c)] = x[c];
+        ls[size_t(3 * (i - b) + c)] = l[c];
+      }
+    }
+    marcher(e - b, xs.data(), ls.data(), marched.data());  // in lanes: the same bits
+    for (int64_t i = b; i < e; ++i) {
+      const RayMarcher::Result& r = marched[size_t(i - b)];
+      const glm::vec3& L_env = sky[size_t(i % D)];
+      for (int c = 0; c < 3; ++c) cache_[size_t(4 * i + c)] = r.radiance[c] - r.transmittance * L_env[c];
+      cache_[size_t(4 * i + 3)] = r.transmittance;
+    }
+  });
 }
 
 // E(probe, normal) = Σ_q max(0, n·d_q) ΔΩ_q L_probe(d_q), L_env bilinear as every ray reads it
@@ -96,12 +100,20 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
     const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
     for (int k = 0; k < 4; ++k) node_row_[size_t(taps.index[k])] = 0;
   }
+  // Rows in tiles of the normal grid (kTile × kTile nodes, tile by tile): a block of kBlock rows
+  // then holds normals of a narrow cone, and the quadrature directions below every one of their
+  // hemispheres drop out of its GEMM (see below). A row's E does not depend on its block.
+  constexpr int kTile = 8;
   std::vector<int64_t> nodes;
-  for (size_t j = 0; j < node_row_.size(); ++j)
-    if (node_row_[j] == 0) {
-      node_row_[j] = int64_t(nodes.size());
-      nodes.push_back(int64_t(j));
-    }
+  for (int ty = 0; ty < hn_; ty += kTile)
+    for (int tx = 0; tx < wn_; tx += kTile)
+      for (int y = ty; y < std::min(hn_, ty + kTile); ++y)
+        for (int x = tx; x < std::min(wn_, tx + kTile); ++x) {
+          const size_t j = size_t(y) * size_t(wn_) + size_t(x);
+          if (node_row_[j] != 0) continue;
+          node_row_[j] = int64_t(nodes.size());
+          nodes.push_back(int64_t(j));
+        }
   const int64_t Nn = int64_t(nodes.size());
   if (Nn == 0) return;
   std::vector<glm::vec3> qdir(static_cast<size_t>(Q));
@@ -138,30 +150,61 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
   // Blocks of 128 normals, one per thread at a time: rows [kernel][normal of the block][q] =
   // max(0, n·d_q), then max(0, n·d_q)·(1 − max(0, n·d_q))^5, and one GEMM for both kernels (the
   // kernel matrix of all touched normals at once was 125 MB of fresh pages on KITTI 000008).
+  // Only the columns q that some normal of the block faces enter the GEMM: each element of C is
+  // one FMA sequence over q in order (autodiff/gemm_kernel.h), and a column of zeros adds
+  // fma(0, b, acc) = acc to it, so dropping those columns keeps every bit as long as lq is
+  // finite (checked: otherwise every column stays). KITTI 000008: 5369 normals, 50 probes,
+  // 8192 directions; the GEMM was 8% of the insertion's CPU time (perf, 1 thread).
   constexpr int64_t kBlock = 128;
   touched_ = Nn;
   irradiance_.assign(size_t(2 * Nn * 3 * P), 0.0f);
   const int64_t blocks = (Nn + kBlock - 1) / kBlock;
+  const bool finite = std::all_of(lq.begin(), lq.end(), [](float v) { return std::isfinite(v); });
   parallel_for(blocks, 1, [&](int64_t bb, int64_t be) {
-    std::vector<float> a(size_t(2 * kBlock * Q));
+    std::vector<float> cosines(size_t(kBlock * Q)), a, b;
+    std::vector<uint8_t> faced(static_cast<size_t>(Q));
+    std::vector<int64_t> cols;
     for (int64_t blk = bb; blk < be; ++blk) {
       const int64_t b0 = blk * kBlock, nb = std::min(kBlock, Nn - b0);
+      std::fill(faced.begin(), faced.end(), uint8_t(0));
       for (int64_t i = 0; i < nb; ++i) {
         const int64_t j = nodes[size_t(b0 + i)];
         const equirect::Dir d = equirect::uv_to_direction(double(j % wn_) + 0.5, double(j / wn_) + 0.5, wn_, hn_);
         const glm::vec3 n(float(d.x), float(d.y), float(d.z));
-        float* a1 = &a[size_t(i * Q)];
-        float* a5 = &a[size_t((nb + i) * Q)];
+        float* a1 = &cosines[size_t(i * Q)];
         for (int64_t q = 0; q < Q; ++q) {
-          const float c = std::max(0.0f, glm::dot(n, qdir[size_t(q)]));
-          a1[q] = c;
-          a5[q] = c * disney::schlick_weight(c);
+          a1[q] = std::max(0.0f, glm::dot(n, qdir[size_t(q)]));
+          faced[size_t(q)] |= uint8_t(a1[q] > 0.0f);
         }
       }
+      cols.clear();
+      for (int64_t q = 0; q < Q; ++q)
+        if (faced[size_t(q)] || !finite) cols.push_back(q);
+      // The packed kernel serves both calls (matmul.cpp, use_packed) unless K is tiny; there
+      // every column stays, so the call is the one it always was.
+      if (int64_t(cols.size()) < 16 || 2 * nb * 3 * P * int64_t(cols.size()) < (int64_t{1} << 18)) {
+        cols.resize(size_t(Q));
+        for (int64_t q = 0; q < Q; ++q) cols[size_t(q)] = q;
+      }
+      const int64_t Kq = int64_t(cols.size());
+      a.resize(size_t(2 * nb * Kq));
+      b.resize(size_t(Kq * 3 * P));
+      for (int64_t i = 0; i < nb; ++i) {
+        const float* a1 = &cosines[size_t(i * Q)];
+        float* r1 = &a[size_t(i * Kq)];
+        float* r5 = &a[size_t((nb + i) * Kq)];
+        for (int64_t k = 0; k < Kq; ++k) {
+          const float c = a1[cols[size_t(k)]];
+          r1[k] = c;
+          r5[k] = c * disney::schlick_weight(c);
+        }
+      }
+      for (int64_t k = 0; k < Kq; ++k)
+        std::copy_n(&lq[size_t(cols[size_t(k)] * 3 * P)], 3 * P, &b[size_t(k * 3 * P)]);
       // One block, both kernels: rows [0, nb) and [nb, 2·nb) of `a` (the GEMM runs on this thread:
       // nested in the loop over blocks).
       std::vector<float> e(size_t(2 * nb * 3 * P));
-      detail::gemm<float>(false, false, 2 * nb, 3 * P, Q, 1.0f, a.data(), Q, lq.data(), 3 * P, 0.0f, e.data(), 3 * P);
+      detail::gemm<float>(false, false, 2 * nb, 3 * P, Kq, 1.0f, a.data(), Kq, b.data(), 3 * P, 0.0f, e.data(), 3 * P);
       std::copy(e.begin(), e.begin() + nb * 3 * P, irradiance_.begin() + b0 * 3 * P);
       std::copy(e.begin() + nb * 3 * P, e.end(), irradiance_.begin() + (Nn + b0) * 3 * P);
     }
@@ -216,15 +259,50 @@ glm::vec3 RadianceCache::radiance_unit(const float* origin, const equirect::UV& 
 
 glm::vec3 RadianceCache::radiance_unit(const Corners& at, const equirect::UV& unit) const {
   if (cache_.empty()) return glm::vec3(0.0f);
-  const int64_t* probe = at.probe;
-  const float* wp = at.weight;
   const glm::vec3 sky = env_map_.lookup_unit(unit);
-  if (marcher_ && std::max({sky.x, sky.y, sky.z}) > exact_sky_) {
+  if (exact_direction(sky)) {
     const equirect::Dir d = equirect::uv_to_direction(unit.u, unit.v, 1, 1);
     const float dir[3] = {float(d.x), float(d.y), float(d.z)};
     exact_rays_.fetch_add(1, std::memory_order_relaxed);
     return (*marcher_)(&at.origin[0], dir).radiance;
   }
+  return cached(at, unit, sky);
+}
+
+void RadianceCache::radiance_units(const Corners& at, const equirect::UV* units, int n, glm::vec3* out) const {
+  if (cache_.empty()) {
+    std::fill(out, out + n, glm::vec3(0.0f));
+    return;
+  }
+  thread_local std::vector<int> exact;
+  thread_local std::vector<float> origins, dirs;
+  thread_local std::vector<RayMarcher::Result> marched;
+  exact.clear();
+  dirs.clear();
+  for (int i = 0; i < n; ++i) {
+    const glm::vec3 sky = env_map_.lookup_unit(units[i]);
+    if (!exact_direction(sky)) {
+      out[i] = cached(at, units[i], sky);
+      continue;
+    }
+    const equirect::Dir d = equirect::uv_to_direction(units[i].u, units[i].v, 1, 1);
+    exact.push_back(i);
+    dirs.insert(dirs.end(), {float(d.x), float(d.y), float(d.z)});
+  }
+  const int m = int(exact.size());
+  if (m == 0) return;
+  origins.resize(size_t(3 * m));
+  for (int j = 0; j < m; ++j)
+    for (int c = 0; c < 3; ++c) origins[size_t(3 * j + c)] = at.origin[c];
+  marched.resize(size_t(m));
+  (*marcher_)(m, origins.data(), dirs.data(), marched.data());
+  for (int j = 0; j < m; ++j) out[exact[size_t(j)]] = marched[size_t(j)].radiance;
+  exact_rays_.fetch_add(m, std::memory_order_relaxed);
+}
+
+glm::vec3 RadianceCache::cached(const Corners& at, const equirect::UV& unit, const glm::vec3& sky) const {
+  const int64_t* probe = at.probe;
+  const float* wp = at.weight;
   const EnvTaps taps = env_bilinear_taps_unit(unit, W_, H_);
   const int64_t D = int64_t(H_) * W_;
   glm::vec4 acc(0.0f);

@@ -29,6 +29,7 @@
 //   for n among those normals.
 // Results do not depend on the thread count.
 #pragma once
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -60,6 +61,9 @@ class RadianceCache {
   };
   Corners corners(const float* origin) const;
   glm::vec3 radiance_unit(const Corners& at, const equirect::UV& unit) const;
+  // radiance_unit(at, units[i]) into out[i] for i < n, the same bits; the exact directions among
+  // them are marched together (RayMarcher's batch).
+  void radiance_units(const Corners& at, const equirect::UV* units, int n, glm::vec3* out) const;
   // ∫ (n·l) L dΩ and ∫ (n·l)(1 − n·l)^5 L dΩ over n·l > 0 (the second is Burley's grazing term).
   struct Irradiance {
     glm::vec3 cosine{0.0f}, grazing{0.0f};
@@ -71,6 +75,8 @@ class RadianceCache {
   int64_t exact_rays() const { return exact_rays_.load(std::memory_order_relaxed); }  // marched so far
 
  private:
+  glm::vec3 cached(const Corners& at, const equirect::UV& unit, const glm::vec3& sky) const;  // the probes' read
+  bool exact_direction(const glm::vec3& sky) const { return marcher_ && std::max({sky.x, sky.y, sky.z}) > exact_sky_; }
   void probe_weights(const float* origin, int64_t probe[8], float w[8]) const;
   void dense_weights(const float* origin, int64_t probe[8], float w[8]) const;
   glm::vec3 probe(int64_t p) const;

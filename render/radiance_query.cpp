@@ -1,284 +1,23 @@
+// radiance_query(): Eq. 1 as one tape op over a batch of rays (see radiance_query.h); the march
+// itself is render/radiance_march.h, shared with RayMarcher (ray_marcher.cpp).
 #include "render/radiance_query.h"
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <type_traits>
 
 #include "autodiff/ops.h"
-#include "autodiff/vector_math.h"
 #include "render/environment_map.h"
+#include "render/radiance_march.h"
 #include "render/spherical_gaussian.h"
 #include "util/parallel.h"
 
 namespace sl::render {
 namespace {
 
+using namespace detail;
+
 constexpr int kGradBuffers = 4;  // fixed, so the summation order never depends on threads
-
-struct Geometry {
-  int64_t N, R, X, Y, Z, vox, H, W;
-};
-
-// The grid's log projection with its per-axis constants precomputed, in the query's precision:
-// voxel = dims/2 ± k± · log1p(|d| / r0) for an offset d from the centre (vsg_volume.h).
-template <class T>
-struct LogProjection {
-  int world_axis[3];
-  T centre[3], inv_r0, r0, half_dims[3], k_pos[3], k_neg[3];
-  explicit LogProjection(const VsgGrid& g) {
-    const int map[3] = {0, 2, 1};  // X <- x, Y <- z, Z <- y
-    inv_r0 = T(1.0 / g.log_scale_m);
-    r0 = T(g.log_scale_m);
-    for (int a = 0; a < 3; ++a) {
-      const int w = map[a];
-      world_axis[a] = w;
-      centre[a] = T(g.center[w]);
-      half_dims[a] = T(0.5 * double(g.dims[a]));
-      k_pos[a] = T(0.5 * double(g.dims[a]) / std::log1p(g.extent_pos[w] / g.log_scale_m));
-      k_neg[a] = T(0.5 * double(g.dims[a]) / std::log1p(g.extent_neg[w] / g.log_scale_m));
-    }
-  }
-  // |dv/dt| along unit direction l at world position p: the voxel-space speed of the ray.
-  T voxel_speed(const T p[3], const T l[3]) const {
-    T s2 = 0;
-    for (int a = 0; a < 3; ++a) {
-      const T d = p[world_axis[a]] - centre[a];
-      const T k = d >= 0 ? k_pos[a] : k_neg[a];
-      const T s = k * l[world_axis[a]] / (r0 + std::abs(d));
-      s2 += s * s;
-    }
-    return std::sqrt(s2);
-  }
-  void to_voxel(const T p[3], T v[3]) const {
-    for (int a = 0; a < 3; ++a) {
-      const T d = p[world_axis[a]] - centre[a];
-      v[a] = d >= 0 ? half_dims[a] + k_pos[a] * std::log1p(d * inv_r0) : half_dims[a] - k_neg[a] * std::log1p(-d * inv_r0);
-    }
-  }
-  // to_voxel() of the K points o + t_k·l at once (v: 3 per point). In float, the logarithms go
-  // through vm::log in one call (log(1 + x) for log1p(x): an absolute error of about 1e-7 voxel,
-  // the same on every SIMD level); the exact volume marches of inference spent 8% of their time
-  // in scalar log1pf. Forward and backward call this alike, so they still see the same samples.
-  void to_voxel_all(const T o[3], const T l[3], const std::vector<double>& t, std::vector<T>& v) const {
-    const size_t K = t.size();
-    v.resize(3 * K);
-    if constexpr (std::is_same_v<T, float>) {
-      thread_local std::vector<float> arg;
-      thread_local std::vector<unsigned char> positive;
-      arg.resize(3 * K);
-      positive.resize(3 * K);
-      for (size_t k = 0; k < K; ++k)
-        for (int a = 0; a < 3; ++a) {
-          const int w = world_axis[a];
-          const float d = float(o[w] + t[k] * l[w]) - centre[a];
-          positive[3 * k + a] = d >= 0;
-          arg[3 * k + a] = 1.0f + std::abs(d) * inv_r0;
-        }
-      vm::log(arg.data(), v.data(), int64_t(3 * K));
-      for (size_t i = 0; i < 3 * K; ++i) {
-        const int a = int(i % 3);
-        v[i] = positive[i] ? half_dims[a] + k_pos[a] * v[i] : half_dims[a] - k_neg[a] * v[i];
-      }
-    } else {
-      for (size_t k = 0; k < K; ++k) {
-        const T pw[3] = {T(o[0] + t[k] * l[0]), T(o[1] + t[k] * l[1]), T(o[2] + t[k] * l[2])};
-        to_voxel(pw, &v[3 * k]);
-      }
-    }
-  }
-};
-
-template <class T>
-struct Tap {
-  int64_t voxel;
-  T w;
-};
-
-// The samples one ray keeps after pruning, recomputed identically in forward and backward.
-template <class T>
-struct RayMarch {
-  bool valid = false;       // finite, non-zero direction
-  bool terminated = false;  // stopped by transmittance: no sky term
-  T dir[3];                 // unit l
-  T env[3];                 // L_env(l)
-  EnvTaps env_taps;
-  std::vector<T> alpha, t, g;           // per sample; g has 3 per sample
-  std::vector<Tap<T>> taps;             // taps_per_sample per sample
-  std::vector<double> tk, cumulative;   // sample distances and their arc-length table (scratch)
-  std::vector<T> voxel;                 // the samples' voxel coordinates, 3 each (scratch)
-  int taps_per_sample = 1;
-  int64_t considered = 0;               // samples inside the grid before pruning
-  size_t count() const { return alpha.size(); }
-};
-
-template <class T>
-sg::Lobe<T> lobe_at(const T* vsg, int64_t vox, int64_t v) {
-  sg::Lobe<T> L;
-  for (int i = 0; i < 3; ++i) {
-    L.c[i] = vsg[i * vox + v];
-    L.mu[i] = vsg[(3 + i) * vox + v];
-  }
-  L.sharpness = vsg[6 * vox + v];
-  return L;
-}
-
-// The K sample distances along a ray clipped to [t0, t1] (see the header's "Samples").
-template <class T>
-void sample_distances(const LogProjection<T>& proj, const RadianceQueryOptions& opt, const glm::dvec3& origin,
-                      const glm::dvec3& dir, double t0, double t1, std::vector<double>& tk,
-                      std::vector<double>& cumulative) {
-  const int K = opt.samples;
-  tk.resize(K);
-  for (int k = 0; k < K; ++k) tk[k] = t0 + (k + 0.5) * (t1 - t0) / K;
-  if (opt.spacing != SampleSpacing::kGrid || !(t1 > t0)) return;
-  const int M = 4 * K;
-  const double h = (t1 - t0) / M;
-  const T l[3] = {T(dir.x), T(dir.y), T(dir.z)};
-  auto speed = [&](double t) {
-    const T p[3] = {T(origin.x + t * dir.x), T(origin.y + t * dir.y), T(origin.z + t * dir.z)};
-    return double(proj.voxel_speed(p, l));
-  };
-  cumulative.resize(M + 1);
-  cumulative[0] = 0.0;
-  double prev = speed(t0);
-  for (int j = 1; j <= M; ++j) {
-    const double cur = speed(t0 + j * h);
-    cumulative[j] = cumulative[j - 1] + 0.5 * h * (prev + cur);
-    prev = cur;
-  }
-  const double total = cumulative[M];
-  if (!(total > 0.0) || !std::isfinite(total)) return;  // keep the metric spacing
-  int j = 0;
-  for (int k = 0; k < K; ++k) {
-    const double target = (k + 0.5) / K * total;
-    while (j < M - 1 && cumulative[j + 1] < target) ++j;
-    const double seg = cumulative[j + 1] - cumulative[j];
-    const double f = seg > 0.0 ? std::clamp((target - cumulative[j]) / seg, 0.0, 1.0) : 0.5;
-    tk[k] = t0 + (j + f) * h;
-  }
-}
-
-template <class T>
-void march(const Geometry& geo, const VsgGrid& grid, const LogProjection<T>& proj, const RadianceQueryOptions& opt,
-           const T* vsg, const T* env, const T* o, const T* l, RayMarch<T>& m) {
-  constexpr bool kBatchedLobes = std::is_same_v<T, float>;
-  m.alpha.clear();
-  m.t.clear();
-  m.g.clear();
-  m.taps.clear();
-  m.terminated = false;
-  m.considered = 0;
-  m.taps_per_sample = opt.trilinear ? 8 : 1;
-  const T len = std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
-  m.valid = std::isfinite(len) && len > 0 && std::isfinite(o[0]) && std::isfinite(o[1]) && std::isfinite(o[2]);
-  if (!m.valid) return;
-  for (int i = 0; i < 3; ++i) m.dir[i] = l[i] / len;
-  m.env_taps = env_bilinear_taps(m.dir[0], m.dir[1], m.dir[2], int(geo.W), int(geo.H));
-  T env_max = 0;
-  for (int c = 0; c < 3; ++c) {
-    double v = 0;
-    for (int k = 0; k < 4; ++k) v += m.env_taps.weight[k] * env[c * geo.H * geo.W + m.env_taps.index[k]];
-    m.env[c] = T(v);
-    env_max = std::max(env_max, m.env[c]);
-  }
-  const glm::dvec3 origin(o[0], o[1], o[2]), dir(m.dir[0], m.dir[1], m.dir[2]);
-  double t0, t1;
-  if (!grid.clip_ray(origin, dir, t0, t1)) return;
-  const T v[3] = {-m.dir[0], -m.dir[1], -m.dir[2]};  // lobes are seen from x: G(−l)
-  const int64_t dims[3] = {geo.X, geo.Y, geo.Z};
-  const T stop = T(opt.min_transmittance) / std::max(T(1), env_max);
-  T tau = 1;
-  Tap<T> taps[8];
-  const bool grid_spacing = opt.spacing == SampleSpacing::kGrid;
-  int64_t last_voxel = -1;
-  sample_distances(proj, opt, origin, dir, t0, t1, m.tk, m.cumulative);
-  proj.to_voxel_all(o, m.dir, m.tk, m.voxel);
-  for (int k = 0; k < opt.samples; ++k) {
-    const double tk = m.tk[k];
-    const T* p = &m.voxel[size_t(3 * k)];
-    ++m.considered;
-    int n_taps;
-    if (!opt.trilinear) {
-      int64_t idx[3];
-      for (int a = 0; a < 3; ++a) idx[a] = std::clamp<int64_t>(int64_t(std::floor(p[a])), 0, dims[a] - 1);  // nearest voxel
-      taps[0] = {(idx[0] * geo.Y + idx[1]) * geo.Z + idx[2], T(1)};
-      n_taps = 1;
-      // Grid spacing composites a voxel once per crossing: a second sample in the voxel the
-      // previous one read would apply its α twice.
-      if (grid_spacing && taps[0].voxel == last_voxel) continue;
-      last_voxel = taps[0].voxel;
-    } else {
-      int64_t i0[3], i1[3];
-      T fr[3];
-      for (int a = 0; a < 3; ++a) {
-        const double f = double(p[a]) - 0.5, fl = std::floor(f);
-        fr[a] = T(f - fl);
-        i0[a] = std::clamp<int64_t>(int64_t(fl), 0, dims[a] - 1);
-        i1[a] = std::clamp<int64_t>(int64_t(fl) + 1, 0, dims[a] - 1);
-      }
-      for (int c = 0; c < 8; ++c) {
-        const int64_t x = (c & 1) ? i1[0] : i0[0], y = (c & 2) ? i1[1] : i0[1], z = (c & 4) ? i1[2] : i0[2];
-        const T w = ((c & 1) ? fr[0] : 1 - fr[0]) * ((c & 2) ? fr[1] : 1 - fr[1]) * ((c & 4) ? fr[2] : 1 - fr[2]);
-        taps[c] = {(x * geo.Y + y) * geo.Z + z, w};
-      }
-      n_taps = 8;
-    }
-    T alpha = 0;
-    for (int j = 0; j < n_taps; ++j) alpha += taps[j].w * vsg[7 * geo.vox + taps[j].voxel];
-    if (opt.prune && alpha < T(opt.empty_alpha)) continue;
-    T g[3] = {0, 0, 0};
-    if constexpr (!kBatchedLobes) {
-      for (int j = 0; j < n_taps; ++j) {
-        const auto e = sg::eval(lobe_at(vsg, geo.vox, taps[j].voxel), v);
-        for (int c = 0; c < 3; ++c) g[c] += taps[j].w * e.value[c];
-      }
-    }
-    m.alpha.push_back(alpha);
-    m.t.push_back(T(tk));
-    for (int c = 0; c < 3; ++c) m.g.push_back(g[c]);
-    for (int j = 0; j < n_taps; ++j) m.taps.push_back(taps[j]);
-    tau *= (1 - alpha);
-    if (opt.prune && tau < stop) {
-      m.terminated = true;
-      break;
-    }
-  }
-  if constexpr (kBatchedLobes) {
-    // The kept samples' lobes: which samples are kept and where the march stops depend on α
-    // alone, so the exponentials of all their taps go through one vm::exp call (≤ 1 ulp from
-    // std::exp, the same on every SIMD level; the backward's sg::eval differs from it by that).
-    thread_local std::vector<float> arg;
-    const size_t n = m.taps.size();
-    arg.resize(n);
-    for (size_t i = 0; i < n; ++i) arg[i] = sg::exponent(lobe_at(vsg, geo.vox, m.taps[i].voxel), v);
-    vm::exp(arg.data(), arg.data(), int64_t(n));
-    const size_t per = size_t(m.taps_per_sample);
-    for (size_t i = 0; i < n; ++i) {
-      const Tap<T>& tap = m.taps[i];
-      const T* c = vsg + tap.voxel;
-      for (int ch = 0; ch < 3; ++ch) m.g[3 * (i / per) + size_t(ch)] += tap.w * (c[ch * geo.vox] * arg[i]);
-    }
-  }
-}
-
-// Eq. 1's sums over one marched ray: radiance, τ_K and depth (the forward of the op, and
-// RayMarcher's).
-template <class T>
-void composite(const RayMarch<T>& m, T out[3], T& tr, T& d) {
-  out[0] = out[1] = out[2] = 0;
-  tr = 1;
-  d = 0;
-  if (!m.valid) return;
-  for (size_t k = 0; k < m.count(); ++k) {
-    const T w = tr * m.alpha[k];
-    for (int c = 0; c < 3; ++c) out[c] += w * m.g[3 * k + c];
-    d += w * m.t[k];
-    tr *= 1 - m.alpha[k];
-  }
-  if (!m.terminated)
-    for (int c = 0; c < 3; ++c) out[c] += tr * m.env[c];
-}
 
 class RadianceQueryOp : public Function {
  public:
@@ -306,7 +45,8 @@ class RadianceQueryOp : public Function {
         int64_t n_total = 0, n_eval = 0, n_term = 0;
         for (int64_t r = b; r < e; ++r) {
           const int64_t n = r / geo_.R;
-          march(geo_, grid_, proj, opt_, vsg_.data<T>() + n * 8 * geo_.vox, env_.data<T>() + n * 3 * geo_.H * geo_.W,
+          march(geo_, grid_, proj, opt_, PlanarVolume<T>{vsg_.data<T>() + n * 8 * geo_.vox, geo_.vox},
+                env_.data<T>() + n * 3 * geo_.H * geo_.W,
                 origins_.data<T>() + 3 * r, dirs_.data<T>() + 3 * r, m);
           T out[3], tr, d;
           composite(m, out, tr, d);
@@ -375,7 +115,8 @@ class RadianceQueryOp : public Function {
     const int64_t n = r / geo_.R;
     const T* vsg = vsg_.data<T>() + n * 8 * geo_.vox;
     const LogProjection<T> proj(grid_);
-    march(geo_, grid_, proj, opt_, vsg, env_.data<T>() + n * 3 * geo_.H * geo_.W, origins_.data<T>() + 3 * r,
+    march(geo_, grid_, proj, opt_, PlanarVolume<T>{vsg, geo_.vox}, env_.data<T>() + n * 3 * geo_.H * geo_.W,
+          origins_.data<T>() + 3 * r,
           dirs_.data<T>() + 3 * r, m);
     if (!m.valid) return;
     const T* gr = gR.data<T>() + 3 * r;
@@ -435,33 +176,6 @@ class RadianceQueryOp : public Function {
 };
 
 }  // namespace
-
-struct RayMarcher::Projection : LogProjection<float> {
-  using LogProjection<float>::LogProjection;
-};
-
-RayMarcher::RayMarcher(const Tensor& vsg, const Tensor& env, const VsgGrid& grid, const RadianceQueryOptions& options)
-    : vsg_(vsg.detach().to(DType::F32).contiguous()), env_(env.detach().to(DType::F32).contiguous()), grid_(grid),
-      opt_(options) {
-  grid.validate();
-  proj_ = std::make_shared<const Projection>(grid);
-  SL_CHECK(options.samples >= 1, "RayMarcher: samples = ", options.samples, " must be >= 1");
-  SL_CHECK(vsg_.dim() == 4 && vsg_.size(0) == 8 && vsg_.size(1) == grid.dims[0] && vsg_.size(2) == grid.dims[1] &&
-               vsg_.size(3) == grid.dims[2],
-           "RayMarcher: vsg must be [8, ", grid.dims[0], ", ", grid.dims[1], ", ", grid.dims[2], "], got ",
-           vsg.describe());
-  SL_CHECK(env_.dim() == 3 && env_.size(0) == 3, "RayMarcher: env must be [3, H, W], got ", env.describe());
-}
-
-RayMarcher::Result RayMarcher::operator()(const float origin[3], const float dir[3]) const {
-  const Geometry geo{1, 1, vsg_.size(1), vsg_.size(2), vsg_.size(3), vsg_.size(1) * vsg_.size(2) * vsg_.size(3),
-                     env_.size(1), env_.size(2)};
-  thread_local RayMarch<float> m;  // scratch: no allocation per ray after the first
-  march(geo, grid_, *proj_, opt_, vsg_.data<float>(), env_.data<float>(), origin, dir, m);
-  float out[3], tr, d;
-  composite(m, out, tr, d);
-  return {glm::vec3(out[0], out[1], out[2]), tr};
-}
 
 SampleSpacing parse_sample_spacing(const std::string& name) {
   if (name == "metric") return SampleSpacing::kMetric;

@@ -77,7 +77,8 @@ RadianceQueryResult radiance_query(const Tensor& vsg, const Tensor& env, const T
 // One ray at a time, off the tape: the forward of radiance_query() (float32) for callers that
 // need a few exact rays among many cached ones (render/radiance_cache.h, exact directions). The
 // same march and the same sums, so the same bits as radiance_query() on float32 inputs; no
-// stats. vsg [8, X, Y, Z] matching grid.dims, env [3, H, W]; both are copied to float32 once.
+// stats. vsg [8, X, Y, Z] matching grid.dims, env [3, H, W]; both are copied to float32 once
+// (the volume as one record per voxel, which a march reads as one cache line per sample).
 // Thread-safe (scratch is per thread).
 class RayMarcher {
  public:
@@ -87,13 +88,20 @@ class RayMarcher {
     float transmittance = 1.0f;  // τ_K
   };
   Result operator()(const float origin[3], const float dir[3]) const;
+  // n rays at once: out[i] = (*this)(origins + 3·i, dirs + 3·i), the same bits. With nearest
+  // lookup on AVX-512, 16 rays at a time share vector lanes from their samples' α on (the
+  // sequential sums of Eq. 1 run side by side); otherwise one ray after the other.
+  void operator()(int64_t n, const float* origins, const float* dirs, Result* out) const;
 
  private:
+  void march_lanes(int64_t n, const float* origins, const float* dirs, Result* out) const;  // AVX-512
   struct Projection;  // the grid's log projection, precomputed once
-  Tensor vsg_, env_;
+  struct Voxels;      // the volume, one record per voxel (radiance_query.cpp: InterleavedVolume)
+  Tensor env_;
   VsgGrid grid_;
   RadianceQueryOptions opt_;
   std::shared_ptr<const Projection> proj_;
+  std::shared_ptr<const Voxels> voxels_;
 };
 
 }  // namespace sl::render

@@ -28,17 +28,33 @@ struct LobeEval {
   T mu_len;   // max(|μ|, kAxisEps)
 };
 
+// The lobe's unit axis μ̂ = μ / max(|μ|, kAxisEps); returns the guarded length. A caller that
+// evaluates one lobe in many directions can store μ̂ once: unit_axis_exponent() on it gives
+// exponent()'s bits.
+template <class T>
+inline T unit_axis(const T mu[3], T muhat[3]) {
+  const T len = std::sqrt(mu[0] * mu[0] + mu[1] * mu[1] + mu[2] * mu[2]);
+  const T mu_len = len > T(kAxisEps) ? len : T(kAxisEps);
+  for (int i = 0; i < 3; ++i) muhat[i] = mu[i] / mu_len;
+  return mu_len;
+}
+
+// |v − μ̂|² for a unit axis μ̂.
+template <class T>
+inline T axis_distance2(const T muhat[3], const T v[3]) {
+  T dist2 = 0;
+  for (int i = 0; i < 3; ++i) {
+    const T d = v[i] - muhat[i];
+    dist2 += d * d;
+  }
+  return dist2;
+}
+
 // The lobe's normalised axis and |v − μ̂|² into r (the part of eval() before the exponential).
 template <class T>
 inline void axis_distance(const Lobe<T>& lobe, const T v[3], LobeEval<T>& r) {
-  const T len = std::sqrt(lobe.mu[0] * lobe.mu[0] + lobe.mu[1] * lobe.mu[1] + lobe.mu[2] * lobe.mu[2]);
-  r.mu_len = len > T(kAxisEps) ? len : T(kAxisEps);
-  r.dist2 = 0;
-  for (int i = 0; i < 3; ++i) {
-    r.muhat[i] = lobe.mu[i] / r.mu_len;
-    const T d = v[i] - r.muhat[i];
-    r.dist2 += d * d;
-  }
+  r.mu_len = unit_axis(lobe.mu, r.muhat);
+  r.dist2 = axis_distance2(r.muhat, v);
 }
 
 template <class T>
@@ -50,13 +66,19 @@ inline LobeEval<T> eval(const Lobe<T>& lobe, const T v[3]) {
   return r;
 }
 
+// −λ|v − μ̂|²/2 for a unit axis μ̂ (from unit_axis()).
+template <class T>
+inline T unit_axis_exponent(const T muhat[3], T sharpness, const T v[3]) {
+  return -sharpness * axis_distance2(muhat, v) / 2;
+}
+
 // eval()'s exponent −λ|v − μ̂|²/2 alone, by the same operations (for callers that take the
 // exponentials of many lobes in one vectorised call).
 template <class T>
 inline T exponent(const Lobe<T>& lobe, const T v[3]) {
-  LobeEval<T> r;
-  axis_distance(lobe, v, r);
-  return -lobe.sharpness * r.dist2 / 2;
+  T muhat[3];
+  unit_axis(lobe.mu, muhat);
+  return unit_axis_exponent(muhat, lobe.sharpness, v);
 }
 
 // Accumulates into grads (c[3], mu[3], sharpness) the gradient of Σ_i g[i]·value[i].

@@ -127,6 +127,39 @@ TEST(RadianceCache, IrradianceMatchesABruteForceIntegralOfItsRadiance) {
   }
 }
 
+// build_irradiance() leaves out of each block's GEMM the quadrature directions that none of the
+// block's normals faces (a zero column adds nothing to any FMA sequence): a normal's E is then
+// the same bits among 100 other normals as among 1000 (other blocks, other columns left out).
+TEST(RadianceCache, IrradianceOfANormalDoesNotDependOnTheOtherNormals) {
+  const Scene s = scene();
+  const InsertionOptions opt = cached_options();
+  const EnvironmentMap env_map(s.in.env);
+  const glm::vec3 lo(-1.0f, 0.0f, -7.0f), hi(1.0f, 1.5f, -5.0f);
+  const std::vector<glm::vec3> probe_normals = {glm::vec3(0, 1, 0), glm::normalize(glm::vec3(1, 0.2f, 0)),
+                                                glm::normalize(glm::vec3(-0.6f, 0.3f, 0.74f))};
+  auto with_random = [&](int count, uint64_t seed) {
+    std::vector<glm::vec3> normals = probe_normals;
+    const Tensor r = Tensor::uniform({count, 3}, -1, 1, seed);
+    for (int64_t i = 0; i < count; ++i) {
+      const glm::vec3 n(r.data<float>()[3 * i], r.data<float>()[3 * i + 1], r.data<float>()[3 * i + 2]);
+      if (glm::dot(n, n) > 1e-4f) normals.push_back(glm::normalize(n));
+    }
+    return normals;
+  };
+  insertion::RadianceCache few(s.in, opt, env_map, lo, hi, 3, 3), many(s.in, opt, env_map, lo, hi, 3, 3);
+  few.build_irradiance(64, 1, with_random(100, 7));
+  many.build_irradiance(64, 1, with_random(1000, 8));
+  for (const glm::vec3& n : probe_normals)
+    for (const glm::vec3& o : {lo, hi, 0.5f * (lo + hi)}) {
+      const auto a = few.irradiance(o, n), b = many.irradiance(o, n);
+      for (int ch = 0; ch < 3; ++ch) {
+        EXPECT_GT(a.cosine[ch], 0.0f);
+        EXPECT_EQ(a.cosine[ch], b.cosine[ch]) << "n " << n.x << "," << n.y << "," << n.z;
+        EXPECT_EQ(a.grazing[ch], b.grazing[ch]) << "n " << n.x << "," << n.y << "," << n.z;
+      }
+    }
+}
+
 // A broad sun next to the zenith (rows 0-1 of the sky, as release 0.6.0 estimates for KITTI
 // 000008) puts the radiance's steepest change inside the quadrature's polar rows, where the cos(θ)
 // weight tilts within a row. Read at each row's solid-angle centroid, the roof's E (n = +y) is

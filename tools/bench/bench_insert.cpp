@@ -412,6 +412,11 @@ int run_production(const std::string& size, bool json, const std::string& data, 
       cpu_ms = std::min(cpu_ms, cpu_now_ms() - c0);
     }, 2, 0);
     const RegionError err = region_error(r, reference);
+    // The row's bits (composite and shadow map): a change meant to be exact keeps this line.
+    Fingerprint bits;
+    bits.tensor(r.composite);
+    bits.tensor(r.shadow_map);
+    std::fprintf(stderr, "%s: output fingerprint %s\n", row.name.c_str(), bits.hex().c_str());
     // Noise alone: the same row with independent light and shadow samples; the RMSE between
     // the two, / √2, is one run's standard deviation (the rest of rel_rmse is bias).
     InsertionOptions other = row.opt;

@@ -150,9 +150,9 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
       }
     }
   });
-  // Blocks of 32 normals (the last takes the remainder, up to 63), one per thread at a time:
-  // rows [kernel][normal of the block][q] =
-  // max(0, n·d_q), then max(0, n·d_q)·(1 − max(0, n·d_q))^5, and one GEMM for both kernels (the
+  // Blocks of 32 normals (the last takes the rest, up to 63; 128 without the packed kernel), one
+  // per thread at a time: rows [kernel][normal of the block][q] = max(0, n·d_q), then
+  // max(0, n·d_q)·(1 − max(0, n·d_q))^5, and one GEMM for both kernels (the
   // kernel matrix of all touched normals at once was 125 MB of fresh pages on KITTI 000008).
   // Only the columns q that some normal of the block faces enter the GEMM: each element of C is
   // one FMA sequence over q in order (autodiff/gemm_kernel.h), and a column of zeros adds
@@ -161,10 +161,13 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
   // 8192 directions; the GEMM was 8% of the insertion's CPU time (perf, 1 thread). Blocks of 32
   // rather than 128 normals face fewer directions (64% of them on average -> 56%) and read fewer
   // probes (below); no block is shorter than 32 rows, so every call stays on the packed path.
-  constexpr int64_t kBlock = 32;
+  // Without the packed kernel (a scalar build) the blocks stay those of 128 normals and every
+  // probe stays: Eigen's blocking depends on the product's shape, so this keeps its bits too.
+  const bool packed_kernel = detail::gemm_kernel_available();
+  const int64_t kBlock = packed_kernel ? 32 : 128;
   touched_ = Nn;
   irradiance_.assign(size_t(2 * Nn * 3 * P), 0.0f);
-  const int64_t blocks = std::max<int64_t>(1, Nn / kBlock);
+  const int64_t blocks = packed_kernel ? std::max<int64_t>(1, Nn / kBlock) : (Nn + kBlock - 1) / kBlock;
   const bool finite = std::all_of(lq.begin(), lq.end(), [](float v) { return std::isfinite(v); });
   const std::vector<uint8_t> needed = origins ? needed_pairs(normals, *origins) : std::vector<uint8_t>{};
   parallel_for(blocks, 1, [&](int64_t bb, int64_t be) {
@@ -173,7 +176,7 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
     std::vector<int64_t> cols, used;
     std::vector<std::array<int64_t, 3>> runs;
     for (int64_t blk = bb; blk < be; ++blk) {
-      const int64_t b0 = blk * kBlock, nb = blk + 1 == blocks ? Nn - b0 : kBlock;
+      const int64_t b0 = blk * kBlock, nb = blk + 1 == blocks ? Nn - b0 : kBlock;  // the last: the rest
       // The probes some (origin, normal) pair reads with a normal node of this block.
       used.clear();
       for (int64_t p = 0; p < P; ++p) {
@@ -223,7 +226,7 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
       // with the blocks of 32, the irradiance took 129 ms instead of 195 (1 thread, the GEMM
       // 110 -> 43 ms; streetlight-bench insert --size kitti --rows production).
       auto packed = [&](int64_t n_cols) {
-        return detail::gemm_kernel_available() && 2 * nb >= detail::kBlockRows && Kq >= 16 &&
+        return packed_kernel && 2 * nb >= detail::kBlockRows && Kq >= 16 &&
                2 * nb * n_cols * Kq >= (int64_t{1} << 18);
       };
       if (int64_t(used.size()) < P && !(packed(3 * P) && packed(3 * int64_t(used.size())))) {

@@ -145,7 +145,7 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
         origin_bounds(origins, lo, hi);
         RadianceCache fg_cache(in, opt, env_map, lo, hi, opt.cache_max_xz, opt.cache_max_y, 0.0,
                                opt.cache_sparse ? &origins : nullptr);
-        if (cv) fg_cache.build_irradiance(opt.cv_normals_height, opt.cv_quadrature_supersample, normals);
+        if (cv) fg_cache.build_irradiance(opt.cv_normals_height, opt.cv_quadrature_supersample, normals, &origins);
         shade_foreground(opt, bvh, env_map, gs, fg_cache, cv, fg, shaded,
                          opt.cache_exact_light_rays > 0 ? exact.get() : nullptr);
         out.stats.exact_correction_rays += fg.exact_correction_rays;

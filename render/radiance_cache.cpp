@@ -2,9 +2,11 @@
 #include "render/radiance_cache.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <optional>
 
+#include "autodiff/gemm_kernel.h"
 #include "autodiff/matmul.h"
 #include "render/disney_brdf.h"
 #include "render/equirect.h"
@@ -85,7 +87,8 @@ RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& 
 // and V, τ as radiance() reads them: one [touched normals × q] × [q × 3·probes] GEMM. The
 // quadrature rows are half the env's (a sun over a texel or two is integrated to ~0.3%, where
 // texel centres alone miss it by 5%: tests/render/radiance_cache_test.cpp), its texels square.
-void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<glm::vec3>& normals) {
+void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<glm::vec3>& normals,
+                                     const std::vector<glm::vec3>* origins) {
   if (cache_.empty()) return;
   SL_CHECK(!marcher_, "RadianceCache: build_irradiance() integrates the probes; exact directions would differ");
   hn_ = std::max(2, hn);
@@ -147,25 +150,41 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
       }
     }
   });
-  // Blocks of 128 normals, one per thread at a time: rows [kernel][normal of the block][q] =
-  // max(0, n·d_q), then max(0, n·d_q)·(1 − max(0, n·d_q))^5, and one GEMM for both kernels (the
+  // Blocks of 32 normals (the last takes the rest, up to 63; 128 without the packed kernel), one
+  // per thread at a time: rows [kernel][normal of the block][q] = max(0, n·d_q), then
+  // max(0, n·d_q)·(1 − max(0, n·d_q))^5, and one GEMM for both kernels (the
   // kernel matrix of all touched normals at once was 125 MB of fresh pages on KITTI 000008).
   // Only the columns q that some normal of the block faces enter the GEMM: each element of C is
   // one FMA sequence over q in order (autodiff/gemm_kernel.h), and a column of zeros adds
   // fma(0, b, acc) = acc to it, so dropping those columns keeps every bit as long as lq is
   // finite (checked: otherwise every column stays). KITTI 000008: 5369 normals, 50 probes,
-  // 8192 directions; the GEMM was 8% of the insertion's CPU time (perf, 1 thread).
-  constexpr int64_t kBlock = 128;
+  // 8192 directions; the GEMM was 8% of the insertion's CPU time (perf, 1 thread). Blocks of 32
+  // rather than 128 normals face fewer directions (64% of them on average -> 56%) and read fewer
+  // probes (below); no block is shorter than 32 rows, so every call stays on the packed path.
+  // Without the packed kernel (a scalar build) the blocks stay those of 128 normals and every
+  // probe stays: Eigen's blocking depends on the product's shape, so this keeps its bits too.
+  const bool packed_kernel = detail::gemm_kernel_available();
+  const int64_t kBlock = packed_kernel ? 32 : 128;
   touched_ = Nn;
   irradiance_.assign(size_t(2 * Nn * 3 * P), 0.0f);
-  const int64_t blocks = (Nn + kBlock - 1) / kBlock;
+  const int64_t blocks = packed_kernel ? std::max<int64_t>(1, Nn / kBlock) : (Nn + kBlock - 1) / kBlock;
   const bool finite = std::all_of(lq.begin(), lq.end(), [](float v) { return std::isfinite(v); });
+  const std::vector<uint8_t> needed = origins ? needed_pairs(normals, *origins) : std::vector<uint8_t>{};
   parallel_for(blocks, 1, [&](int64_t bb, int64_t be) {
-    std::vector<float> cosines(size_t(kBlock * Q)), a, b;
+    std::vector<float> cosines(size_t(2 * kBlock * Q)), a, b;
     std::vector<uint8_t> faced(static_cast<size_t>(Q));
-    std::vector<int64_t> cols;
+    std::vector<int64_t> cols, used;
+    std::vector<std::array<int64_t, 3>> runs;
     for (int64_t blk = bb; blk < be; ++blk) {
-      const int64_t b0 = blk * kBlock, nb = std::min(kBlock, Nn - b0);
+      const int64_t b0 = blk * kBlock, nb = blk + 1 == blocks ? Nn - b0 : kBlock;  // the last: the rest
+      // The probes some (origin, normal) pair reads with a normal node of this block.
+      used.clear();
+      for (int64_t p = 0; p < P; ++p) {
+        bool any = needed.empty();
+        for (int64_t i = 0; i < nb && !any; ++i) any = needed[size_t((b0 + i) * P + p)] != 0;
+        if (any) used.push_back(p);
+      }
+      if (used.empty()) continue;  // no read meets the block: its E stays 0, never read
       std::fill(faced.begin(), faced.end(), uint8_t(0));
       for (int64_t i = 0; i < nb; ++i) {
         const int64_t j = nodes[size_t(b0 + i)];
@@ -199,16 +218,67 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
           r5[k] = c * disney::schlick_weight(c);
         }
       }
-      for (int64_t k = 0; k < Kq; ++k)
-        std::copy_n(&lq[size_t(cols[size_t(k)] * 3 * P)], 3 * P, &b[size_t(k * 3 * P)]);
+      // Only the probes of `used` enter the GEMM (B's columns): the packed kernel computes each
+      // element of C alone, whatever the panel (autodiff/gemm_kernel.h), so the E it returns keep
+      // their bits as long as both the whole call and the narrower one take the packed path
+      // (matmul.cpp, use_packed: M >= kBlockRows, K >= 16, M·N·K >= 2^18); otherwise every
+      // probe stays. KITTI 000008: a block of 32 normals reads 20 of the 50 probes on average;
+      // with the blocks of 32, the irradiance took 129 ms instead of 195 (1 thread, the GEMM
+      // 110 -> 43 ms; streetlight-bench insert --size kitti --rows production).
+      auto packed = [&](int64_t n_cols) {
+        return packed_kernel && 2 * nb >= detail::kBlockRows && Kq >= 16 &&
+               2 * nb * n_cols * Kq >= (int64_t{1} << 18);
+      };
+      if (int64_t(used.size()) < P && !(packed(3 * P) && packed(3 * int64_t(used.size())))) {
+        used.resize(size_t(P));
+        for (int64_t p = 0; p < P; ++p) used[size_t(p)] = p;
+      }
+      const int64_t Pu = int64_t(used.size());
+      runs.clear();  // {first probe, count, column in B} of consecutive used probes
+      for (int64_t u = 0; u < Pu; ++u) {
+        if (u > 0 && used[size_t(u)] == used[size_t(u - 1)] + 1) ++runs.back()[1];
+        else runs.push_back({used[size_t(u)], 1, u});
+      }
+      b.resize(size_t(Kq * 3 * Pu));
+      for (int64_t k = 0; k < Kq; ++k) {
+        const float* src = &lq[size_t(cols[size_t(k)] * 3 * P)];
+        float* dst = &b[size_t(k * 3 * Pu)];
+        for (const auto& r : runs) std::copy_n(src + 3 * r[0], 3 * r[1], dst + 3 * r[2]);
+      }
       // One block, both kernels: rows [0, nb) and [nb, 2·nb) of `a` (the GEMM runs on this thread:
       // nested in the loop over blocks).
-      std::vector<float> e(size_t(2 * nb * 3 * P));
-      detail::gemm<float>(false, false, 2 * nb, 3 * P, Kq, 1.0f, a.data(), Kq, b.data(), 3 * P, 0.0f, e.data(), 3 * P);
-      std::copy(e.begin(), e.begin() + nb * 3 * P, irradiance_.begin() + b0 * 3 * P);
-      std::copy(e.begin() + nb * 3 * P, e.end(), irradiance_.begin() + (Nn + b0) * 3 * P);
+      std::vector<float> e(size_t(2 * nb * 3 * Pu));
+      detail::gemm<float>(false, false, 2 * nb, 3 * Pu, Kq, 1.0f, a.data(), Kq, b.data(), 3 * Pu, 0.0f, e.data(), 3 * Pu);
+      for (int64_t r = 0; r < 2 * nb; ++r) {
+        const int64_t row = r < nb ? b0 + r : Nn + b0 + (r - nb);
+        for (int64_t u = 0; u < Pu; ++u)
+          std::copy_n(&e[size_t((r * Pu + u) * 3)], 3, &irradiance_[size_t((row * P + used[size_t(u)]) * 3)]);
+      }
     }
   });
+}
+
+// Per (normal node row, probe): 1 where irradiance(corners(origins[i]), normals[i]) reads it
+// with a non-zero weight, the reads of shade_foreground().
+std::vector<uint8_t> RadianceCache::needed_pairs(const std::vector<glm::vec3>& normals,
+                                                 const std::vector<glm::vec3>& origins) const {
+  SL_CHECK(origins.size() == normals.size(), "RadianceCache: ", origins.size(), " origins for ", normals.size(),
+           " normals");
+  const int64_t P = probes();
+  std::vector<uint8_t> needed(size_t(touched_ * P), 0);
+  for (size_t i = 0; i < normals.size(); ++i) {
+    const glm::vec3& n = normals[i];
+    if (!all_finite(n) || !(glm::dot(n, n) > 0.0f)) continue;
+    const Corners at = corners(&origins[i][0]);
+    const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
+    for (int k = 0; k < 4; ++k) {
+      const int64_t row = node_row_[size_t(taps.index[k])];
+      if (row < 0 || taps.weight[k] == 0.0) continue;
+      for (int c = 0; c < 8; ++c)
+        if (at.weight[c] != 0.0f) needed[size_t(row * P + at.probe[c])] = 1;
+    }
+  }
+  return needed;
 }
 
 // E(x, n) of build_irradiance() (n among the normals it was given): trilinear in the probes,

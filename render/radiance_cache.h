@@ -26,7 +26,9 @@
 //   the texels of a grid with ss·max(2·env rows, cache rows) rows of square texels (at least
 //   ss × the env's and the cache's columns), each read at its column's centre and its row's
 //   solid-angle centroid in elevation (exact for radiance linear in elevation across a row). irradiance(o, n) reads it like radiance(),
-//   for n among those normals.
+//   for n among those normals. With origins (one per normal): only the (probe, node) pairs that
+//   irradiance(origins[i], normals[i]) reads are integrated, the same bits for those reads; any
+//   other read of E is 0.
 // Results do not depend on the thread count.
 #pragma once
 #include <algorithm>
@@ -68,7 +70,10 @@ class RadianceCache {
   struct Irradiance {
     glm::vec3 cosine{0.0f}, grazing{0.0f};
   };
-  void build_irradiance(int hn, int supersample, const std::vector<glm::vec3>& normals);
+  // origins (one per normal), when given: only the probes irradiance(corners(origins[i]),
+  // normals[i]) reads are integrated; E of other (probe, node) pairs is left 0.
+  void build_irradiance(int hn, int supersample, const std::vector<glm::vec3>& normals,
+                        const std::vector<glm::vec3>* origins = nullptr);
   Irradiance irradiance(const glm::vec3& origin, const glm::vec3& n) const;
   Irradiance irradiance(const Corners& at, const glm::vec3& n) const;  // at = corners(origin)
   int64_t probes() const { return cache_.empty() ? 0 : int64_t(dense_of_.size()); }
@@ -78,6 +83,7 @@ class RadianceCache {
   glm::vec3 cached(const Corners& at, const equirect::UV& unit, const glm::vec3& sky) const;  // the probes' read
   bool exact_direction(const glm::vec3& sky) const { return marcher_ && std::max({sky.x, sky.y, sky.z}) > exact_sky_; }
   void probe_weights(const float* origin, int64_t probe[8], float w[8]) const;
+  std::vector<uint8_t> needed_pairs(const std::vector<glm::vec3>& normals, const std::vector<glm::vec3>& origins) const;
   void dense_weights(const float* origin, int64_t probe[8], float w[8]) const;
   glm::vec3 probe(int64_t p) const;
 

@@ -160,6 +160,38 @@ TEST(RadianceCache, IrradianceOfANormalDoesNotDependOnTheOtherNormals) {
     }
 }
 
+// Given the reads' origins, build_irradiance() integrates only the probes each block of normals
+// is read with (narrower GEMMs on the packed path): every (origin, normal) pair it was given
+// reads the same bits as from the irradiance of every probe.
+TEST(RadianceCache, IrradianceForGivenOriginsReadsTheSameBits) {
+  const Scene s = scene();
+  InsertionOptions opt = cached_options();
+  opt.cache_spacing_m = 0.25;  // 6 × 4 × 6 probes: each block of normals reads a part of them
+  const EnvironmentMap env_map(s.in.env);
+  const glm::vec3 lo(-1.0f, 0.0f, -7.0f), hi(1.0f, 1.5f, -5.0f);
+  const Tensor r = Tensor::uniform({1000, 6}, -1, 1, 11);
+  std::vector<glm::vec3> normals, origins;
+  for (int64_t i = 0; i < 1000; ++i) {
+    const float* v = r.data<float>() + 6 * i;
+    const glm::vec3 n(v[0], v[1], v[2]);
+    if (!(glm::dot(n, n) > 1e-4f)) continue;
+    normals.push_back(glm::normalize(n));
+    const glm::vec3 t = 0.5f * (glm::vec3(v[3], v[4], v[5]) + 1.0f);  // in [0, 1]³
+    origins.push_back(lo + t * (hi - lo));
+  }
+  insertion::RadianceCache all(s.in, opt, env_map, lo, hi, 6, 4), read(s.in, opt, env_map, lo, hi, 6, 4);
+  ASSERT_GT(all.probes(), 8);
+  all.build_irradiance(64, 1, normals);
+  read.build_irradiance(64, 1, normals, &origins);
+  for (size_t i = 0; i < normals.size(); ++i) {
+    const auto a = all.irradiance(origins[i], normals[i]), b = read.irradiance(origins[i], normals[i]);
+    for (int ch = 0; ch < 3; ++ch) {
+      ASSERT_EQ(a.cosine[ch], b.cosine[ch]) << "pair " << i;
+      ASSERT_EQ(a.grazing[ch], b.grazing[ch]) << "pair " << i;
+    }
+  }
+}
+
 // A broad sun next to the zenith (rows 0-1 of the sky, as release 0.6.0 estimates for KITTI
 // 000008) puts the radiance's steepest change inside the quadrature's polar rows, where the cos(θ)
 // weight tilts within a row. Read at each row's solid-angle centroid, the roof's E (n = +y) is

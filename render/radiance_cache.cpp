@@ -200,8 +200,9 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
       for (int64_t q = 0; q < Q; ++q)
         if (faced[size_t(q)] || !finite) cols.push_back(q);
       // The packed kernel serves both calls (matmul.cpp, use_packed) unless K is tiny; there
-      // every column stays, so the call is the one it always was.
-      if (int64_t(cols.size()) < 16 || 2 * nb * 3 * P * int64_t(cols.size()) < (int64_t{1} << 18)) {
+      // every column stays, so the call is the one it always was. Without the packed kernel
+      // every column stays too: Eigen's blocking depends on K.
+      if (!packed_kernel || int64_t(cols.size()) < 16 || 2 * nb * 3 * P * int64_t(cols.size()) < (int64_t{1} << 18)) {
         cols.resize(size_t(Q));
         for (int64_t q = 0; q < Q; ++q) cols[size_t(q)] = q;
       }

@@ -316,6 +316,22 @@ TEST(RadianceQuery, ResultsAndGradientsAreIdenticalWithOneAndTwoThreads) {
   for (size_t i = 0; i < one.size(); ++i) ASSERT_EQ(one[i], two[i]) << i;
 }
 
+// Every lookup, spacing and pruning, at 24 samples: the options the RayMarcher tests cover.
+std::vector<RadianceQueryOptions> march_options() {
+  std::vector<RadianceQueryOptions> out;
+  for (bool trilinear : {false, true})
+    for (SampleSpacing spacing : {SampleSpacing::kMetric, SampleSpacing::kGrid})
+      for (bool prune : {true, false}) {
+        RadianceQueryOptions opt;
+        opt.samples = 24;
+        opt.trilinear = trilinear;
+        opt.spacing = spacing;
+        opt.prune = prune;
+        out.push_back(opt);
+      }
+  return out;
+}
+
 // RayMarcher (one ray, off the tape) is the op's forward: the same bits for every lookup,
 // spacing and pruning, a zero direction included.
 TEST(RayMarcher, EqualsTheQueryBitForBit) {
@@ -326,24 +342,17 @@ TEST(RayMarcher, EqualsTheQueryBitForBit) {
   env.data<float>()[5 * 32 + 7] = 1e5f;  // a sun, so some rays stop on transmittance
   Tensor o = Tensor::uniform({500, 3}, -20, 20, 52), d = Tensor::uniform({500, 3}, -1, 1, 53);
   slice(d, 0, 0, 1).fill_(0.0);  // a zero direction
-  for (bool trilinear : {false, true})
-    for (SampleSpacing spacing : {SampleSpacing::kMetric, SampleSpacing::kGrid})
-      for (bool prune : {true, false}) {
-        RadianceQueryOptions opt;
-        opt.samples = 24;
-        opt.trilinear = trilinear;
-        opt.spacing = spacing;
-        opt.prune = prune;
-        const auto q = radiance_query(vsg, env, o, d, g, opt);
-        const sl::render::RayMarcher march(vsg, env, g, opt);
-        const float* po = o.data<float>();
-        const float* pd = d.data<float>();
-        for (int64_t r = 0; r < 500; ++r) {
-          const auto m = march(po + 3 * r, pd + 3 * r);
-          for (int c = 0; c < 3; ++c) ASSERT_EQ(m.radiance[c], q.radiance.data<float>()[3 * r + c]) << r;
-          ASSERT_EQ(m.transmittance, q.transmittance.data<float>()[r]) << r;
-        }
-      }
+  for (const RadianceQueryOptions& opt : march_options()) {
+    const auto q = radiance_query(vsg, env, o, d, g, opt);
+    const sl::render::RayMarcher march(vsg, env, g, opt);
+    const float* po = o.data<float>();
+    const float* pd = d.data<float>();
+    for (int64_t r = 0; r < 500; ++r) {
+      const auto m = march(po + 3 * r, pd + 3 * r);
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(m.radiance[c], q.radiance.data<float>()[3 * r + c]) << r;
+      ASSERT_EQ(m.transmittance, q.transmittance.data<float>()[r]) << r;
+    }
+  }
 }
 
 // RayMarcher's batch (16 rays in vector lanes on AVX-512) is one ray at a time, bit for bit:
@@ -359,23 +368,16 @@ TEST(RayMarcher, BatchEqualsOneRayAtATime) {
   Tensor o = Tensor::uniform({n, 3}, -20, 20, 62), d = Tensor::uniform({n, 3}, -1, 1, 63);
   slice(d, 0, 0, 1).fill_(0.0);
   slice(o, 0, 1, 2).fill_(1e4);  // far outside the grid
-  for (bool trilinear : {false, true})
-    for (SampleSpacing spacing : {SampleSpacing::kMetric, SampleSpacing::kGrid})
-      for (bool prune : {true, false}) {
-        RadianceQueryOptions opt;
-        opt.samples = 24;
-        opt.trilinear = trilinear;
-        opt.spacing = spacing;
-        opt.prune = prune;
-        const sl::render::RayMarcher march(vsg, env, g, opt);
-        std::vector<sl::render::RayMarcher::Result> batch(static_cast<size_t>(n));
-        march(n, o.data<float>(), d.data<float>(), batch.data());
-        for (int64_t r = 0; r < n; ++r) {
-          const auto one = march(o.data<float>() + 3 * r, d.data<float>() + 3 * r);
-          for (int c = 0; c < 3; ++c) ASSERT_EQ(batch[size_t(r)].radiance[c], one.radiance[c]) << r;
-          ASSERT_EQ(batch[size_t(r)].transmittance, one.transmittance) << r;
-        }
-      }
+  for (const RadianceQueryOptions& opt : march_options()) {
+    const sl::render::RayMarcher march(vsg, env, g, opt);
+    std::vector<sl::render::RayMarcher::Result> batch(static_cast<size_t>(n));
+    march(n, o.data<float>(), d.data<float>(), batch.data());
+    for (int64_t r = 0; r < n; ++r) {
+      const auto one = march(o.data<float>() + 3 * r, d.data<float>() + 3 * r);
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(batch[size_t(r)].radiance[c], one.radiance[c]) << r;
+      ASSERT_EQ(batch[size_t(r)].transmittance, one.transmittance) << r;
+    }
+  }
 }
 
 TEST(RadianceQuery, ExtremeLobeSharpnessAndZeroAxesStayFinite) {

@@ -365,7 +365,7 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
       for (size_t k = 0; k < n; ++k) {
         g[k] = predictor_->features(images[k]);
         singles[k].pred.code = predictor_->sky_code(g[k]);
-        singles[k].pred.sun_logits = predictor_->sun_logits(g[k]);
+        singles[k].pred.sun_logits = predictor_->sun_logits(g[k], images[k]);
       }
     });
     if (sky_code_branch && po.volume_branch && !errors[3 * n + 1])

@@ -7,6 +7,7 @@
 #include "nn/modules/mlp.h"
 #include "nn/modules/unet.h"
 #include "render/vsg_volume.h"
+#include "train/image_statistics.h"
 
 using sl::render::vsg_activate;
 
@@ -35,6 +36,7 @@ void validate(const LightingPredictorOptions& o) {
   validate(o.sun_grid);
   SL_CHECK(!o.sun_grid.enabled() || o.sky_branch == "sky_decoder", "model.sun_grid needs the \"sky_decoder\" sky branch, got \"",
            o.sky_branch, "\"");
+  SL_CHECK(!o.sun_image_statistics || o.sun_grid.enabled(), "model.sun_image_statistics needs model.sun_grid (the sun head)");
   SL_CHECK(o.head_grid_channels >= 0, "model.head_grid_channels must be >= 0, got ", o.head_grid_channels);
   if (o.volume_branch) {
     const int64_t f = int64_t{1} << o.unet_depth;
@@ -65,7 +67,8 @@ LightingPredictor::LightingPredictor(const LightingPredictorOptions& options)
     sky_decoder_ = register_module("sky_decoder", std::make_shared<SkyDecoder>(sky));
     if (opt_.sun_grid.enabled())
       sun_head_ = register_module("sun_head", std::make_shared<nn::MLP>(nn::MlpOptions{
-                                                  .widths = {feat, opt_.head_hidden, opt_.sun_grid.cells()}}));
+                                                  .widths = {feat + (opt_.sun_image_statistics ? kImageStatistics : 0),
+                                                             opt_.head_hidden, opt_.sun_grid.cells()}}));
   } else if (opt_.sky_branch == "direct") {
     // Without sky modelling: g → 4×16 feature map → (upsample, conv) per level → log env.
     const int levels = direct_levels(sky.height);
@@ -144,13 +147,19 @@ Tensor LightingPredictor::volume(const Tensor& g, const Tensor& rgba) {
   return vsg_activate(volume_unet_->forward(concat({coarse, rgba_t}, 1)), 1);
 }
 
-Tensor LightingPredictor::sun_logits(const Tensor& g) { return sun_head_ ? sun_head_->forward(g) : Tensor(); }
+Tensor LightingPredictor::sun_logits(const Tensor& g, const Tensor& image) {
+  if (!sun_head_) return Tensor();
+  if (!opt_.sun_image_statistics) return sun_head_->forward(g);
+  SL_CHECK(image.defined() && image.dim() == 4 && image.size(0) == g.size(0), "LightingPredictor::sun_logits: expected the ",
+           g.size(0), " image(s) g came from, got ", image.defined() ? image.describe() : std::string("undefined"));
+  return sun_head_->forward(concat({g, image_statistics(image).to(g.dtype())}, 1));
+}
 
 SkyPrediction LightingPredictor::predict_sky(const Tensor& image) {
   const Tensor g = head_features(image);
   SkyPrediction out;
   out.code = sky_code(g);
-  out.sun_logits = sun_logits(g);
+  out.sun_logits = sun_logits(g, image);
   return out;
 }
 
@@ -161,7 +170,7 @@ LightingPrediction LightingPredictor::predict(const Tensor& image, const Tensor&
   const SkyAutoencoderOptions& sky = opt_.sky;
   if (opt_.sky_branch == "sky_decoder") {
     out.code = sky_code(g);
-    out.sun_logits = sun_logits(g);
+    out.sun_logits = sun_logits(g, image);
     SkyDecoding d = sky_decoder_->decode(out.code);
     out.log_env = d.log_hdr;
   } else if (opt_.sky_branch == "direct") {

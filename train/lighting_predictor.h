@@ -7,7 +7,9 @@
 //     (a) sky head: MLP(g) → raw f̂ → SkyCode → FROZEN sky decoder → HDR sky [N, 3, Hs, Ws]
 //         with sun_grid on, also a sun head: MLP(g) → logits [N, K] of a distribution over sun
 //         directions on the upper hemisphere (train/sun_distribution.h, issue 53); inference
-//         reads the sky vector's direction at its mode (train/inference.h)
+//         reads the sky vector's direction at its mode (train/inference.h). With
+//         sun_image_statistics on, the sun head's input is g concatenated with 102 photometric
+//         statistics of the image (train/image_statistics.h)
 //     (b) volume: MLP(g) → coarse feature volume [N, C, X/s, Y/s, Z/s] → trilinear ×s,
 //         concatenated with the unprojected RGBα volume [N, 4, X, Y, Z] (unprojection.h),
 //         → UNet3D → raw [N, 8, X, Y, Z] → vsg_activate → VSG parameters
@@ -54,6 +56,7 @@ struct LightingPredictorOptions {
   int unet_depth = 3;
   SkyAutoencoderOptions sky;    // dome size and code size (must match the stage-1 model)
   SunGrid sun_grid;             // off (0 × 0): the sky vector's direction alone (releases up to 2026-11-27)
+  bool sun_image_statistics = false;  // the sun head also sees image_statistics(image) (needs sun_grid)
   uint64_t seed = 0;
 };
 
@@ -81,14 +84,15 @@ class LightingPredictor : public nn::Module {
   SkyPrediction predict_sky(const Tensor& image);
   // The parts predict() composes, for inference that needs only some outputs or batches images
   // whose volumes it does not want (train/inference.cpp): predict(image, rgba) computes
-  // g = features(image), code = sky_code(g) (decoded to log_env), sun_logits(g), vsg = volume(g,
+  // g = features(image), code = sky_code(g) (decoded to log_env), sun_logits(g, image), vsg = volume(g,
   // rgba), each the same ops on the same values as here. features: image [N, 3, h, w] -> g [N, feat];
-  // sky_code: g [N, feat] -> SkyCode ("sky_decoder" only; throws otherwise); sun_logits: g -> [N, K]
-  // (undefined without a sun head); volume: g [N, feat] and rgba [N, 4, X, Y, Z] -> activated VSG
+  // sky_code: g [N, feat] -> SkyCode ("sky_decoder" only; throws otherwise); sun_logits: g and the
+  // image g came from -> [N, K] (undefined without a sun head; the image is read only with
+  // sun_image_statistics on); volume: g [N, feat] and rgba [N, 4, X, Y, Z] -> activated VSG
   // [N, 8, X, Y, Z] (volume branch only; throws otherwise). Shapes are checked as predict() checks them.
   Tensor features(const Tensor& image) { return head_features(image); }
   SkyCode sky_code(const Tensor& g);
-  Tensor sun_logits(const Tensor& g);
+  Tensor sun_logits(const Tensor& g, const Tensor& image);
   Tensor volume(const Tensor& g, const Tensor& rgba);
   const LightingPredictorOptions& options() const { return opt_; }
   // The frozen decoder (null unless sky_branch is "sky_decoder").

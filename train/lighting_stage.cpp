@@ -19,6 +19,7 @@
 #include "render/environment_map.h"
 #include "render/radiance_query.h"
 #include "train/adversarial_stage.h"
+#include "train/image_statistics.h"
 #include "train/image_strip.h"
 #include "train/losses.h"
 #include "train/metrics.h"
@@ -138,27 +139,50 @@ void LightingStage::initialise() {
     // An exported model (models/streetlight.safetensors) holds the predictor alone; its teacher
     // then comes from init.sky_checkpoint.
     bool has_teacher = false, has_sun_head = false;
+    int64_t sun_head_inputs = 0;
     for (const auto& [name, t] : nn::read_safetensors(prev).tensors) {
       has_teacher |= name.rfind("teacher.", 0) == 0;
       has_sun_head |= name.rfind("predictor.sun_head.", 0) == 0;
+      if (name == "predictor.sun_head.net.0.weight") sun_head_inputs = t.size(1);
     }
     // A model from before the sun head (model.sun_grid) starts one: everything else is loaded
     // into a predictor without it, then copied over; the new head keeps its initialisation.
+    // A sun head from before model.sun_image_statistics is widened: its first layer keeps its
+    // weights for the backbone's features and gets zeros for the statistics, so the model starts
+    // from exactly the loaded one's answers.
+    const LightingPredictorOptions& mine = predictor_->options();
     std::shared_ptr<LightingPredictor> loaded = predictor_;
-    const bool new_sun_head = predictor_->options().sun_grid.enabled() && !has_sun_head;
-    if (new_sun_head) {
-      LightingPredictorOptions without = predictor_->options();
-      without.sun_grid = SunGrid{};
+    const bool new_sun_head = mine.sun_grid.enabled() && !has_sun_head;
+    const bool widen_sun_head = mine.sun_image_statistics && has_sun_head &&
+                                sun_head_inputs == predictor_->state_dict().at("sun_head.net.0.weight").size(1) - kImageStatistics;
+    if (new_sun_head || widen_sun_head) {
+      LightingPredictorOptions without = mine;
+      if (new_sun_head) without.sun_grid = SunGrid{};
+      without.sun_image_statistics = false;
       loaded = std::make_shared<LightingPredictor>(without);
     }
     LightingModel previous;
     previous.register_module("predictor", loaded);
     if (teacher_ && has_teacher) previous.register_module("teacher", teacher_);
     nn::load_checkpoint(prev, previous, nullptr);
-    if (new_sun_head) {
+    if (loaded != predictor_) {
       nn::StateDict merged = predictor_->state_dict();
       for (auto& [name, t] : merged) t = t.clone();
-      for (const auto& [name, t] : loaded->state_dict()) merged.at(name) = t;
+      for (const auto& [name, t] : loaded->state_dict()) {
+        Tensor& into = merged.at(name);
+        if (into.shape() == t.shape()) {
+          into = t;
+          continue;
+        }
+        // The widened first layer [out, in + statistics]: the loaded columns, then zeros.
+        SL_CHECK(name == "sun_head.net.0.weight" && t.dim() == 2 && into.size(0) == t.size(0), "init.checkpoint '", prev,
+                 "': ", name, " is ", t.describe(), ", the model's is ", into.describe());
+        std::vector<double> w(static_cast<size_t>(into.numel()), 0.0);
+        const std::vector<double> old = t.to_vector();
+        for (int64_t r = 0; r < t.size(0); ++r)
+          std::copy_n(old.begin() + r * t.size(1), t.size(1), w.begin() + r * into.size(1));
+        into = Tensor::from_vector(w, into.shape(), into.dtype());
+      }
       predictor_->load_state_dict(merged);
     }
     if (teacher_ && !has_teacher) {
@@ -330,9 +354,10 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
           targets.insert(targets.end(), t.begin(), t.end());
           weights.push_back(known ? f.samples[i].sun_weight : 0.0);
         }
-        add_term("sun_distribution",
-                 sun_distribution_loss(f.pred.sun_logits, Tensor::from_vector(targets, {n, grid.cells()}),
-                                       Tensor::from_vector(weights, {n})));
+        const Tensor target_b = Tensor::from_vector(targets, {n, grid.cells()}), weight_b = Tensor::from_vector(weights, {n});
+        add_term("sun_distribution", sun_distribution_loss(f.pred.sun_logits, target_b, weight_b));
+        // The same on the two halves, front and back (computed only when weighed).
+        if (w.at("sun_half").get<double>() != 0) add_term("sun_half", sun_half_loss(grid, f.pred.sun_logits, target_b, weight_b));
       }
       add_term("sky_direction",
                suns.empty() ? Tensor::scalar(0.0)

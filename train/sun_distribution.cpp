@@ -100,6 +100,37 @@ Tensor sun_distribution_loss(const Tensor& logits, const Tensor& targets, const 
   return mul_scalar(sum(mul(w, ce)), 1.0 / static_cast<double>(n));
 }
 
+Tensor sun_half_loss(const SunGrid& g, const Tensor& logits, const Tensor& targets, const Tensor& weights) {
+  SL_CHECK(g.enabled() && g.azimuth_bins % 4 == 0, "sun_half_loss: model.sun_grid.azimuth_bins must be a multiple of 4 ",
+           "(no sector on the front/back boundary), got ", g.azimuth_bins);
+  SL_CHECK(logits.dim() == 2 && logits.size(1) == g.cells() && targets.shape() == logits.shape(), "sun_half_loss: logits ",
+           logits.describe(), " and targets ", targets.describe(), " must both be [N, ", g.cells(), "]");
+  SL_CHECK(weights.dim() == 1 && weights.size(0) == logits.size(0), "sun_half_loss: weights ", weights.describe(),
+           " must be [N] for logits ", logits.describe());
+  const int64_t n = logits.size(0), k = g.cells();
+  SL_CHECK(n > 0, "sun_half_loss: an empty batch");
+  // Sector j's centre azimuth is −π + (j + ½)·2π/A: in front (|φ| < π/2) for A/4 ≤ j < 3A/4.
+  // A cell of the other half gets −1e30 added, so logsumexp over a row ignores it.
+  constexpr double kOut = -1e30;
+  std::vector<double> front(static_cast<size_t>(k)), front_bias(static_cast<size_t>(k)), back_bias(static_cast<size_t>(k));
+  for (int64_t c = 0; c < k; ++c) {
+    const int64_t j = c % g.azimuth_bins;
+    const bool in_front = j >= g.azimuth_bins / 4 && j < 3 * g.azimuth_bins / 4;
+    front[static_cast<size_t>(c)] = in_front ? 1.0 : 0.0;
+    front_bias[static_cast<size_t>(c)] = in_front ? 0.0 : kOut;
+    back_bias[static_cast<size_t>(c)] = in_front ? kOut : 0.0;
+  }
+  const DType dt = logits.dtype();
+  const Tensor t = targets.dtype() == dt ? targets : targets.to(dt);
+  const Tensor w = weights.dtype() == dt ? weights : weights.to(dt);
+  const Tensor y = sum(mul(t, Tensor::from_vector(front, {1, k}, dt)), {1});  // [N]: the target's mass in front
+  const Tensor all = logsumexp(logits, 1);
+  const Tensor log_front = sub(logsumexp(add(logits, Tensor::from_vector(front_bias, {1, k}, dt)), 1), all);
+  const Tensor log_back = sub(logsumexp(add(logits, Tensor::from_vector(back_bias, {1, k}, dt)), 1), all);
+  const Tensor ce = neg(add(mul(y, log_front), mul(sub(Tensor::ones({n}, dt), y), log_back)));  // [N]
+  return mul_scalar(sum(mul(w, ce)), 1.0 / static_cast<double>(n));
+}
+
 std::vector<double> mirror_cells(const SunGrid& g, const std::vector<double>& p) {
   SL_CHECK(static_cast<int64_t>(p.size()) == g.cells(), "mirror_cells: ", p.size(), " values for a grid of ",
            g.cells(), " cells");

@@ -21,6 +21,13 @@
 //   Σ_i w_i · CE(t_i, softmax(logits_i)) / N, the cross-entropy −Σ_k t_k log p_k computed as
 //   logsumexp(logits) − Σ_k t_k logits_k (stable for any finite logits; differentiable in
 //   logits).
+// - sun_half_loss(grid, logits [N, K], targets [N, K], weights [N]) → scalar: the same
+//   cross-entropy on the distribution's two halves, in front of the camera (cells whose sector
+//   centre has |azimuth| < 90°) and behind it: Σ_i w_i · CE((y_i, 1 − y_i), (p_i, 1 − p_i)) / N,
+//   y_i = Σ_front t_ik and log p_i = logsumexp over the front cells of the logits − logsumexp
+//   over all. It weighs the coarse front/back decision apart from where within a half the sun
+//   lies (issue 53: front and back were confused). Needs azimuth_bins divisible by 4, so that no
+//   sector straddles the boundary. Finite for any finite logits; differentiable in logits.
 // - mirror_cells(grid, p) → p of the mirrored image: azimuth φ → −φ maps sector j to A − 1 − j.
 // - read_sun_distribution(grid, p, radius_deg) → a direction whose AZIMUTH is the mode cell's,
 //   refined locally to the probability-weighted mean direction of the cells within radius_deg of
@@ -54,6 +61,8 @@ Tensor cell_directions(const SunGrid& grid, DType dtype = DType::F32);
 std::vector<double> soft_target(const SunGrid& grid, const glm::dvec3& sun, double width_deg);
 
 Tensor sun_distribution_loss(const Tensor& logits, const Tensor& targets, const Tensor& weights);
+
+Tensor sun_half_loss(const SunGrid& grid, const Tensor& logits, const Tensor& targets, const Tensor& weights);
 
 std::vector<double> mirror_cells(const SunGrid& grid, const std::vector<double>& p);
 

@@ -65,6 +65,7 @@ json default_train_config() {
         {"head_hidden", 256},
         {"head_grid_channels", 0},
         {"sun_grid", {{"elevation_bins", 0}, {"azimuth_bins", 0}}},
+        {"sun_image_statistics", false},
         {"sky_branch", "sky_decoder"},
         {"volume_branch", true},
         {"volume",
@@ -93,6 +94,7 @@ json default_train_config() {
         {"ldr_sun_energy_range", {1.0, 10.0}},
         {"sun_distribution", 0.0},
         {"sun_distribution_width_deg", 8.0},
+        {"sun_half", 0.0},
         {"sky_ldr", 1.0},
         {"sky_hdr", 1.0},
         {"radiance", 1.0},
@@ -218,6 +220,10 @@ void check_train_config(const json& c) {
   SL_CHECK(c.at("loss").at("sun_distribution").get<double>() == 0 ||
                c.at("model").at("sun_grid").at("elevation_bins").get<int64_t>() > 0,
            "loss.sun_distribution > 0 needs model.sun_grid (elevation_bins and azimuth_bins)");
+  SL_CHECK(c.at("loss").at("sun_half").get<double>() == 0 ||
+               (c.at("model").at("sun_grid").at("azimuth_bins").get<int64_t>() > 0 &&
+                c.at("model").at("sun_grid").at("azimuth_bins").get<int64_t>() % 4 == 0),
+           "loss.sun_half > 0 needs model.sun_grid with azimuth_bins a multiple of 4");
   const json& range = c.at("loss").at("ldr_sun_energy_range");
   SL_CHECK(range.is_array() && range.size() == 2 && range[0].is_number() && range[1].is_number() &&
                range[0].get<double>() >= 0 && range[0].get<double>() <= range[1].get<double>() &&
@@ -255,6 +261,7 @@ LightingPredictorOptions predictor_options(const json& c) {
   const json grid = m.value("sun_grid", json::object());
   o.sun_grid.elevation_bins = grid.value("elevation_bins", int64_t{0});
   o.sun_grid.azimuth_bins = grid.value("azimuth_bins", int64_t{0});
+  o.sun_image_statistics = m.value("sun_image_statistics", false);  // absent before 0.7.2
   o.sky_branch = m.at("sky_branch").get<std::string>();
   o.volume_branch = m.at("volume_branch").get<bool>();
   const auto dims = v.at("dims").get<std::vector<int64_t>>();

@@ -17,6 +17,7 @@
 #include "nn/checkpoint.h"
 #include "render/equirect.h"
 #include "support/tiny_stage.h"
+#include "train/image_statistics.h"
 #include "train/sky_autoencoder.h"
 #include "util/error.h"
 #include "util/math.h"
@@ -142,7 +143,8 @@ TEST(LightingStage, StartsFromAnExportedPredictorWithATeacherThatMatchesItsDecod
 
 // Issue 53: a sun head (model.sun_grid) trained by loss.sun_distribution can start from a model
 // exported before it existed: every other tensor is the file's, the new head keeps its
-// initialisation, and a step trains it (its weights move; the loss term is finite). Validation
+// initialisation, and a step trains it (its weights move; the loss terms, the front/back one
+// with them, are finite). Validation
 // scores the distribution's mode.
 TEST(LightingStage, ASunHeadStartsFromAModelWithoutOne) {
   const std::string dir = temp_dir("lighting_sun_head");
@@ -166,6 +168,7 @@ TEST(LightingStage, ASunHeadStartsFromAModelWithoutOne) {
   g["loss"]["sky_latent"] = 0.0;
   g["loss"]["sun_distribution"] = 1.0;
   g["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
+  g["loss"]["sun_half"] = 0.5;
   LightingStage stage(g, memory_source(2), memory_source(1));
   stage.initialise();
   std::vector<double> head;
@@ -183,6 +186,9 @@ TEST(LightingStage, ASunHeadStartsFromAModelWithoutOne) {
   EXPECT_TRUE(std::isfinite(m.at("sun_distribution")));
   EXPECT_GT(m.at("sun_distribution"), 0.0);
   EXPECT_TRUE(m.count("sun_in_view_share"));
+  ASSERT_TRUE(m.count("sun_half"));  // the front/back term, weighed
+  EXPECT_TRUE(std::isfinite(m.at("sun_half")));
+  EXPECT_GT(m.at("sun_half"), 0.0);
   EXPECT_NE(stage.predictor().child("sun_head")->named_parameters().front().second.to_vector(), head);
   const Metrics v = stage.validate();
   EXPECT_TRUE(std::isfinite(v.at("val_sun_error_median_deg")));
@@ -197,6 +203,84 @@ TEST(LightingStage, ASunHeadStartsFromAModelWithoutOne) {
     ADD_FAILURE() << "accepted loss.sun_distribution without model.sun_grid";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("model.sun_grid"), std::string::npos) << e.what();
+  }
+}
+
+// Issue 53: a sun head from before model.sun_image_statistics is widened when a stage with the
+// statistics starts from it: its first layer keeps the loaded columns and gets zero columns for
+// the 102 statistics, so the sun's logits start where the loaded model's are; a step then trains
+// the new columns.
+TEST(LightingStage, ASunHeadGainsImageStatisticsFromAModelWithout) {
+  const std::string dir = temp_dir("lighting_sun_statistics");
+  nlohmann::json c = tiny_config(kStageLighting);
+  c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  c["loss"]["sun_distribution"] = 1.0;
+  c["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
+  const std::string exported = dir + "/exported.safetensors";
+  nn::StateDict before;
+  const Tensor image = Tensor::uniform({2, 3, c["model"]["image_height"].get<int64_t>(),
+                                        c["model"]["image_width"].get<int64_t>()}, 0.0, 1.0, 7);
+  std::vector<double> logits_before;
+  {
+    LightingStage stage(c, memory_source(2), memory_source(1));
+    stage.initialise();
+    overfit(stage, 2);
+    nn::Module holder("Exported");
+    holder.register_module("predictor", std::shared_ptr<nn::Module>(&stage.predictor(), [](nn::Module*) {}));
+    nn::save_checkpoint(exported, holder, nullptr, nn::CheckpointInfo{.stage = kStageLighting});
+    for (const auto& [name, t] : stage.predictor().state_dict()) before[name] = t.clone();
+    stage.predictor().set_training(false);
+    const NoGradGuard no_grad;
+    logits_before = stage.predictor().predict_sky(image).sun_logits.to_vector();
+  }
+  nlohmann::json g = c;
+  g["init"]["checkpoint"] = exported;
+  g["init"]["sky_checkpoint"] = "";
+  g["loss"]["sky_intensity"] = 0.0;
+  g["loss"]["sky_latent"] = 0.0;
+  g["model"]["sun_image_statistics"] = true;
+  LightingStage stage(g, memory_source(2), memory_source(1));
+  stage.initialise();
+  for (const auto& [name, t] : stage.predictor().state_dict()) {
+    ASSERT_TRUE(before.count(name)) << name;
+    if (name != "sun_head.net.0.weight") {
+      EXPECT_EQ(t.to_vector(), before.at(name).to_vector()) << name;
+      continue;
+    }
+    const Tensor& old = before.at(name);
+    ASSERT_EQ(t.size(0), old.size(0));
+    ASSERT_EQ(t.size(1), old.size(1) + train::kImageStatistics);
+    const std::vector<double> w = t.to_vector(), o = old.to_vector();
+    for (int64_t r = 0; r < t.size(0); ++r)
+      for (int64_t k = 0; k < t.size(1); ++k)
+        ASSERT_EQ(w[r * t.size(1) + k], k < old.size(1) ? o[r * old.size(1) + k] : 0.0) << r << ", " << k;
+  }
+  {
+    stage.predictor().set_training(false);
+    const NoGradGuard no_grad;
+    const std::vector<double> logits = stage.predictor().predict_sky(image).sun_logits.to_vector();
+    ASSERT_EQ(logits.size(), logits_before.size());
+    for (size_t i = 0; i < logits.size(); ++i) EXPECT_NEAR(logits[i], logits_before[i], 1e-5) << i;
+    stage.predictor().set_training(true);
+  }
+  const Metrics m = stage.step(0);
+  EXPECT_TRUE(std::isfinite(m.at("sun_distribution")));
+  const std::vector<double> w = stage.predictor().state_dict().at("sun_head.net.0.weight").to_vector();
+  const int64_t cols = before.at("sun_head.net.0.weight").size(1) + train::kImageStatistics;
+  double moved = 0;
+  for (size_t i = 0; i < w.size(); ++i)
+    if (static_cast<int64_t>(i % cols) >= cols - train::kImageStatistics) moved += std::fabs(w[i]);
+  EXPECT_GT(moved, 0.0) << "the statistics' columns did not train";
+  // The statistics need the sun head, and say so naming the key.
+  nlohmann::json bad = c;
+  bad["model"]["sun_grid"] = {{"elevation_bins", 0}, {"azimuth_bins", 0}};
+  bad["loss"]["sun_distribution"] = 0.0;
+  bad["model"]["sun_image_statistics"] = true;
+  try {
+    LightingStage refused(bad, memory_source(2), memory_source(1));
+    ADD_FAILURE() << "accepted model.sun_image_statistics without model.sun_grid";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("model.sun_image_statistics"), std::string::npos) << e.what();
   }
 }
 

@@ -151,6 +151,59 @@ TEST(SunDistribution, TheCrossEntropyPassesAFloat64Gradcheck) {
   EXPECT_NEAR(loss.item(), expected / n, 1e-12);
 }
 
+// The front/back loss: the two halves' cross-entropy. Its value against a direct computation,
+// a float64 gradcheck, finite for extreme logits, and which cells are "in front": a
+// distribution all behind the camera pays for a sun in front, not for one behind.
+TEST(SunDistribution, TheFrontBackLossWeighsTheTwoHalves) {
+  const int64_t n = 3, k = kGrid.cells();
+  std::vector<double> z(n * k), t;
+  for (int64_t i = 0; i < n * k; ++i) z[i] = std::cos(0.23 * i) * 3.0;
+  for (const glm::dvec3& s : {sun(10, 20), sun(170, 50), sun(89, 5)}) {
+    const auto row = train::soft_target(kGrid, s, 8.0);
+    t.insert(t.end(), row.begin(), row.end());
+  }
+  const Tensor logits = Tensor::from_vector(z, {n, k}, DType::F64);
+  const Tensor targets = Tensor::from_vector(t, {n, k}, DType::F64),
+               weights = Tensor::from_vector({1.0, 0.5, 2.0}, {n}, DType::F64);
+  const GradcheckResult r = gradcheck(
+      [&](const TensorList& in) { return train::sun_half_loss(kGrid, in[0], targets, weights); }, {logits});
+  EXPECT_TRUE(r.ok) << r.message;
+  double expected = 0.0;
+  const double w[3] = {1.0, 0.5, 2.0};
+  for (int64_t i = 0; i < n; ++i) {
+    double pf = 0, pall = 0, y = 0;
+    for (int64_t c = 0; c < k; ++c) {
+      const int64_t j = c % kGrid.azimuth_bins;
+      const double az = -180.0 + (j + 0.5) * 360.0 / kGrid.azimuth_bins;
+      const double e = std::exp(z[i * k + c]);
+      pall += e;
+      if (std::fabs(az) < 90.0) pf += e, y += t[i * k + c];
+    }
+    const double p = pf / pall;
+    expected += w[i] * -(y * std::log(p) + (1 - y) * std::log(1 - p));
+  }
+  EXPECT_NEAR(train::sun_half_loss(kGrid, logits, targets, weights).item(), expected / n, 1e-12);
+
+  // All mass behind (a peak at azimuth 180°): a sun in front costs much, one behind little.
+  std::vector<double> behind(static_cast<size_t>(k));
+  const auto b = train::soft_target(kGrid, sun(180, 30), 8.0);
+  for (int64_t c = 0; c < k; ++c) behind[c] = std::log(b[c] + 1e-12);
+  const Tensor zb = Tensor::from_vector(behind, {1, k}, DType::F64), one = Tensor::from_vector({1.0}, {1}, DType::F64);
+  const auto target = [&](const glm::dvec3& s) { return Tensor::from_vector(train::soft_target(kGrid, s, 8.0), {1, k}, DType::F64); };
+  EXPECT_GT(train::sun_half_loss(kGrid, zb, target(sun(0, 30)), one).item(), 10.0);
+  EXPECT_LT(train::sun_half_loss(kGrid, zb, target(sun(150, 30)), one).item(), 1e-3);
+
+  std::vector<double> extreme(static_cast<size_t>(k), -1e4);
+  extreme[3] = 1e4;
+  Tensor ze = Tensor::from_vector(extreme, {1, k}).to(DType::F32);
+  ze.set_requires_grad(true);
+  const Tensor loss = train::sun_half_loss(kGrid, ze, target(sun(0, 30)).to(DType::F32), Tensor::from_vector({1.0}, {1}));
+  EXPECT_TRUE(std::isfinite(loss.item()));
+  backward(loss);
+  for (const double g : ze.grad().to_vector()) EXPECT_TRUE(std::isfinite(g));
+  EXPECT_THROW(train::sun_half_loss(SunGrid{8, 30}, Tensor::zeros({1, 240}), Tensor::zeros({1, 240}), Tensor::ones({1})), Error);
+}
+
 TEST(SunDistribution, ExtremeLogitsGiveAFiniteLossAndGradient) {
   const int64_t k = kGrid.cells();
   std::vector<double> z(k, -1e4);

@@ -159,6 +159,35 @@ TEST(Bvh, PortableAndVectorKernelsGiveBitIdenticalHits) {
   EXPECT_LT(hit_count, static_cast<int>(rays.size()));
 }
 
+TEST(Bvh, KernelsVisitChildrenAtEqualDistancesInTheSameOrder) {
+  // Copies of one triangle have equal boxes and hit at exactly the same t, so the copy reported
+  // is the first one visited: the vector kernels' ordering of children (a sorting network under
+  // AVX-512) must break ties as the portable insertion sort does, for two children (24 copies: a
+  // root of two leaves) and for more (200), at entry distances 0 (origins inside the boxes) and
+  // negative (the same rays with tmin = −∞).
+  for (const int copies : {24, 200}) {
+    sl::render::Mesh m;
+    m.positions = {{-1.0f, -0.5f, -1.0f}, {1.0f, -0.5f, -1.0f}, {0.0f, 0.5f, 1.0f}};
+    m.triangles.assign(static_cast<size_t>(copies), glm::uvec3(0, 1, 2));
+    const sl::render::Bvh vector_bvh(m);
+    sl::render::Bvh portable_bvh(m);
+    portable_bvh.use_portable_kernels(true);
+    sl::Rng rng(71);
+    std::vector<sl::render::Ray> rays;
+    for (int i = 0; i < 300; ++i) {
+      float u = static_cast<float>(rng.uniform(0.05, 0.95)), v = static_cast<float>(rng.uniform(0.05, 0.95));
+      if (u + v > 1.0f) u = 1.0f - u, v = 1.0f - v;  // inside the triangle
+      const glm::vec3 target = (1.0f - u - v) * m.positions[0] + u * m.positions[1] + v * m.positions[2];
+      sl::render::Ray r;
+      r.origin = target + glm::vec3(rng.uniform(-0.1, 0.1), 0.2f, rng.uniform(-0.1, 0.1));
+      r.direction = target - r.origin;  // the hit at t = 1
+      if (i % 2) r.tmin = -kInf;
+      rays.push_back(r);
+    }
+    EXPECT_EQ(count_identical_hits(vector_bvh, portable_bvh, rays), 300) << copies << " copies";
+  }
+}
+
 TEST(Bvh, PrefetchingDoesNotChangeHits) {
   // The build turns prefetching on only for trees larger than the L2 cache, so the small test
   // meshes would otherwise never run that traversal; both must give the same hits.

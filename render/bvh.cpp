@@ -157,6 +157,45 @@ struct BlockHits {
   alignas(32) float t[kB], e1[kB], e2[kB], inv_det[kB];
 };
 
+struct StackEntry {
+  uint32_t ref;
+  float tnear;  // entry distance of its box
+};
+
+// Pushes the children in `mask` (two or more) so that the nearer pop first, and returns the
+// nearest, which is visited next. On equal entry distances two children visit the lower slot
+// first, three or more the higher (the insertion sort is stable): every kernel keeps this order,
+// since it decides which of two triangles at exactly the same t is reported.
+inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const float* tnear, StackEntry* stack,
+                                      int& sp) {
+  const int first = __builtin_ctz(mask);
+  mask &= mask - 1;
+  const int second = __builtin_ctz(mask);
+  mask &= mask - 1;
+  if (!mask) {
+    const bool swap = tnear[second] < tnear[first];
+    const int near = swap ? second : first, far = swap ? first : second;
+    stack[sp++] = {n.child[far], tnear[far]};
+    return n.child[near];
+  }
+  StackEntry* base = stack + sp;
+  int count = 0;
+  base[count++] = {n.child[first], tnear[first]};
+  base[count++] = {n.child[second], tnear[second]};
+  for (; mask; mask &= mask - 1) {
+    const int i = __builtin_ctz(mask);
+    base[count++] = {n.child[i], tnear[i]};
+  }
+  for (int i = 1; i < count; ++i) {  // insertion sort, farthest at the bottom
+    const StackEntry e = base[i];
+    int j = i;
+    for (; j > 0 && base[j - 1].tnear < e.tnear; --j) base[j] = base[j - 1];
+    base[j] = e;
+  }
+  sp += count - 1;
+  return base[count - 1].ref;
+}
+
 // Two sets of box and triangle tests, each in its namespace with its own SimdRay, so the
 // traversal below picks a set by the SimdRay type it is instantiated with (overloads found
 // through the argument's namespace): AVX2 intrinsics when compiled for AVX2, and portable lane
@@ -262,6 +301,56 @@ inline unsigned hit_block(const Bvh::TriangleBlock& b, const PreparedRay& r, con
   return mask;
 }
 
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+// Three or more children, in the order of defer_all_but_nearest without its branches: 64-bit
+// keys (entry distance as an ordered integer, then 7 − slot) go through an 8-key bitonic network,
+// and the nearest comes from a separate min reduction, so that the next node's load does not wait
+// for the network. A key's slot picks its stack entry with one permute.
+constexpr __mmask8 keeps_larger(int k, int j) {  // network step (k, j), sorting in descending order
+  unsigned m = 0;
+  for (int i = 0; i < 8; ++i) m |= static_cast<unsigned>(((i & k) == 0) != ((i & j) != 0)) << i;
+  return static_cast<__mmask8>(m);
+}
+template <int k, int j>
+SL_ALWAYS_INLINE __m512i sort_step(__m512i v) {
+  __m512i partner;  // lane i ^ j
+  if constexpr (j == 1) partner = _mm512_shuffle_epi32(v, _MM_PERM_BADC);
+  if constexpr (j == 2) partner = _mm512_permutex_epi64(v, _MM_SHUFFLE(1, 0, 3, 2));
+  if constexpr (j == 4) partner = _mm512_shuffle_i64x2(v, v, _MM_SHUFFLE(1, 0, 3, 2));
+  return _mm512_mask_blend_epi64(keeps_larger(k, j), _mm512_min_epi64(v, partner), _mm512_max_epi64(v, partner));
+}
+
+inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const float* tnear, StackEntry* stack, int& sp,
+                                      const SimdRay&) {
+  const unsigned rest = mask & (mask - 1);
+  if (!(rest & (rest - 1))) return render::defer_all_but_nearest(n, mask, tnear, stack, sp);  // two: one compare
+  const __m256 t = _mm256_load_ps(tnear);
+  // +0 for −0, which the float comparisons tie with +0; then negative floats flipped to order as integers.
+  const __m256i bits = _mm256_castps_si256(_mm256_add_ps(t, _mm256_setzero_ps()));
+  const __m256i ordered = _mm256_xor_si256(bits, _mm256_srli_epi32(_mm256_srai_epi32(bits, 31), 1));
+  const __m512i key = _mm512_or_si512(_mm512_slli_epi64(_mm512_cvtepi32_epi64(ordered), 32),
+                                      _mm512_setr_epi64(7, 6, 5, 4, 3, 2, 1, 0));
+  const __mmask8 hit = static_cast<__mmask8>(mask);
+  const uint64_t nearest = static_cast<uint64_t>(_mm512_mask_reduce_min_epi64(hit, key));
+  __m512i v = _mm512_mask_mov_epi64(_mm512_set1_epi64(INT64_MIN), hit, key);  // missed children last
+  v = sort_step<2, 1>(v), v = sort_step<4, 2>(v), v = sort_step<4, 1>(v);
+  v = sort_step<8, 4>(v), v = sort_step<8, 2>(v), v = sort_step<8, 1>(v);
+  // Stack entries {ref, tnear} as 64-bit lanes; permutexvar reads the slot (7 − key's low bits).
+  const __m512i entries =
+      _mm512_or_si512(_mm512_cvtepu32_epi64(_mm256_load_si256(reinterpret_cast<const __m256i*>(n.child))),
+                      _mm512_slli_epi64(_mm512_cvtepu32_epi64(_mm256_castps_si256(t)), 32));
+  static_assert(sizeof(StackEntry) == 8 && offsetof(StackEntry, tnear) == 4);
+  _mm512_storeu_si512(stack + sp, _mm512_permutexvar_epi64(_mm512_xor_si512(v, _mm512_set1_epi64(7)), entries));
+  sp += __builtin_popcount(mask) - 1;  // the farthest first; the nearest, on top, is overwritten later
+  return n.child[7 - (nearest & 7)];
+}
+#else
+inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const float* tnear, StackEntry* stack, int& sp,
+                                      const SimdRay&) {
+  return render::defer_all_but_nearest(n, mask, tnear, stack, sp);
+}
+#endif
+
 }  // namespace avx2
 #endif
 
@@ -328,6 +417,11 @@ inline unsigned hit_block(const Bvh::TriangleBlock& b, const PreparedRay& r, con
   return mask & lanes;
 }
 
+inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const float* tnear, StackEntry* stack, int& sp,
+                                      const SimdRay&) {
+  return render::defer_all_but_nearest(n, mask, tnear, stack, sp);
+}
+
 }  // namespace portable
 
 #if defined(__AVX2__)
@@ -335,43 +429,6 @@ using BestSimdRay = avx2::SimdRay;
 #else
 using BestSimdRay = portable::SimdRay;
 #endif
-
-struct StackEntry {
-  uint32_t ref;
-  float tnear;  // entry distance of its box
-};
-
-// Pushes the children in `mask` (two or more) so that the nearer pop first, and returns the
-// nearest, which is visited next.
-inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const float* tnear, StackEntry* stack,
-                                      int& sp) {
-  const int first = __builtin_ctz(mask);
-  mask &= mask - 1;
-  const int second = __builtin_ctz(mask);
-  mask &= mask - 1;
-  if (!mask) {
-    const bool swap = tnear[second] < tnear[first];
-    const int near = swap ? second : first, far = swap ? first : second;
-    stack[sp++] = {n.child[far], tnear[far]};
-    return n.child[near];
-  }
-  StackEntry* base = stack + sp;
-  int count = 0;
-  base[count++] = {n.child[first], tnear[first]};
-  base[count++] = {n.child[second], tnear[second]};
-  for (; mask; mask &= mask - 1) {
-    const int i = __builtin_ctz(mask);
-    base[count++] = {n.child[i], tnear[i]};
-  }
-  for (int i = 1; i < count; ++i) {  // insertion sort, farthest at the bottom
-    const StackEntry e = base[i];
-    int j = i;
-    for (; j > 0 && base[j - 1].tnear < e.tnear; --j) base[j] = base[j - 1];
-    base[j] = e;
-  }
-  sp += count - 1;
-  return base[count - 1].ref;
-}
 
 // Tests the triangles of leaf `ref`. Closest-hit narrows tmax to each closer hit and records
 // it in `hit` and `slot` (block * kBlockWidth + lane); any-hit returns true at the first hit.
@@ -417,7 +474,8 @@ inline Hit Bvh::traverse(const Ray& ray) const {
   bool sheared = false;
   float tmax = ray.tmax;
   uint32_t slot = Hit::kNone;  // block * kBlockWidth + lane of the closest hit so far
-  StackEntry stack[(kW - 1) * kMaxDepth + 1];  // each level defers at most kWidth − 1 children
+  // Each level defers at most kWidth − 1 children; kWidth more for the vector sort's 8-lane store.
+  StackEntry stack[(kW - 1) * kMaxDepth + kW];
   int sp = 0;
   uint32_t ref = 0;  // the root node
   for (;;) {
@@ -449,7 +507,7 @@ inline Hit Bvh::traverse(const Ray& ray) const {
           ref = n.child[__builtin_ctz(mask)];
           for (unsigned m = mask & (mask - 1); m; m &= m - 1) stack[sp++] = {n.child[__builtin_ctz(m)], 0.0f};
         } else {
-          ref = defer_all_but_nearest(n, mask, tnear, stack, sp);
+          ref = defer_all_but_nearest(n, mask, tnear, stack, sp, s);
         }
         continue;
       }

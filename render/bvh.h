@@ -23,7 +23,10 @@
 // as the scalar test of intersect_brute_force. Child boxes are tested with a precomputed inverse
 // direction and far distances widened by 1 + 2γ₄ (pbrt §6.8.2), so a triangle hit is never
 // culled by box rounding. Closest-hit visits children nearest first and skips deferred subtrees
-// that start beyond the nearest hit so far; occlusion stops at the first hit it finds.
+// that start beyond the nearest hit so far; occlusion stops at the first hit it finds. Children at
+// equal entry distances go in a fixed order (two: the lower slot first; more: the higher), which
+// decides which of two triangles at exactly the same t is reported; under AVX-512 three or more
+// children are sorted by a branch-free network on (distance, slot) keys in that same order.
 // Guarantees:
 //   - a hit has tmin < t < tmax; the hit point is (1-u-v)·p0 + u·p1 + v·p2 of the mesh triangle
 //     `triangle` (its index in Mesh::triangles);
@@ -34,8 +37,8 @@
 //   - an empty mesh gives an empty BVH in which every ray misses;
 //   - results do not depend on the thread count (queries are independent per ray, and the
 //     tree does not depend on how the build was scheduled);
-//   - the 8-wide AVX2 tests (when compiled for AVX2) and the portable lane loops, forced with
-//     use_portable_kernels(true), give bit-identical hits.
+//   - the 8-wide AVX2 tests and AVX-512 child ordering (when compiled for them) and the portable
+//     lane loops, forced with use_portable_kernels(true), give bit-identical hits, ties included.
 // Throws: sl::Error when a triangle's vertex index is out of range.
 #pragma once
 #include <cstddef>

@@ -9,6 +9,7 @@
 
 #include "render/bvh.h"
 #include "render/gltf_loader.h"
+#include "support/bvh_fixtures.h"
 #include "util/math.h"
 #include "util/random.h"
 
@@ -17,85 +18,6 @@ using sl::render::Bvh;
 namespace sl::test {
 
 namespace {
-
-constexpr float kInf = std::numeric_limits<float>::infinity();
-
-glm::vec3 random_unit(sl::Rng& rng) {
-  const float z = static_cast<float>(rng.uniform(-1.0, 1.0));
-  const float phi = static_cast<float>(rng.uniform(0.0, sl::kTwoPi));
-  const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
-  return {r * std::cos(phi), r * std::sin(phi), z};
-}
-
-// Random triangle soup: many small triangles, some large, some degenerate.
-sl::render::Mesh random_soup(int count, uint64_t seed) {
-  sl::Rng rng(seed);
-  sl::render::Mesh m;
-  for (int i = 0; i < count; ++i) {
-    const glm::vec3 c(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
-    const float size = i % 50 == 0 ? 0.8f : 0.08f;
-    const uint32_t b = static_cast<uint32_t>(m.positions.size());
-    for (int k = 0; k < 3; ++k)
-      m.positions.push_back(c + size * glm::vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)));
-    if (i % 97 == 0) m.positions.back() = m.positions[b];  // degenerate
-    m.triangles.push_back({b, b + 1, b + 2});
-  }
-  return m;
-}
-
-void expect_matches_brute_force(const sl::render::Mesh& m, const sl::render::Bvh& bvh,
-                                const std::vector<sl::render::Ray>& rays) {
-  std::vector<sl::render::Hit> hits(rays.size());
-  std::vector<uint8_t> occ(rays.size());
-  bvh.intersect(rays.data(), hits.data(), rays.size());
-  bvh.occluded(rays.data(), occ.data(), rays.size());
-  int hit_count = 0;
-  for (size_t i = 0; i < rays.size(); ++i) {
-    const sl::render::Hit ref = sl::render::intersect_brute_force(m.positions, m.triangles, rays[i]);
-    ASSERT_EQ(hits[i].hit(), ref.hit()) << "ray " << i;
-    ASSERT_EQ(occ[i] != 0, ref.hit()) << "ray " << i;
-    if (ref.hit()) {
-      ++hit_count;
-      ASSERT_NEAR(hits[i].t, ref.t, 1e-5f * ref.t) << "ray " << i;
-    }
-  }
-  EXPECT_GT(hit_count, 0);
-  EXPECT_LT(hit_count, static_cast<int>(rays.size()));
-}
-
-std::vector<sl::render::Ray> random_rays(const sl::render::Bounds3& b, int count, uint64_t seed) {
-  sl::Rng rng(seed);
-  std::vector<sl::render::Ray> rays(count);
-  const glm::vec3 c = b.centre(), e = 0.75f * b.extent();
-  for (auto& r : rays) {
-    r.origin = c + e * glm::vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
-    r.direction = random_unit(rng);
-  }
-  return rays;
-}
-
-// Traces `rays` with both BVHs (closest and any hit) and checks that every hit is bit-identical;
-// returns how many rays hit, or -1 after the first ray that differs.
-int count_identical_hits(const sl::render::Bvh& x, const sl::render::Bvh& y, const std::vector<sl::render::Ray>& rays) {
-  std::vector<sl::render::Hit> a(rays.size()), b(rays.size());
-  std::vector<uint8_t> occ_a(rays.size()), occ_b(rays.size());
-  x.intersect(rays.data(), a.data(), rays.size());
-  y.intersect(rays.data(), b.data(), rays.size());
-  x.occluded(rays.data(), occ_a.data(), rays.size());
-  y.occluded(rays.data(), occ_b.data(), rays.size());
-  int hit_count = 0;
-  for (size_t i = 0; i < rays.size(); ++i) {
-    if (a[i].triangle != b[i].triangle || a[i].t != b[i].t || a[i].u != b[i].u || a[i].v != b[i].v ||
-        occ_a[i] != occ_b[i]) {
-      ADD_FAILURE() << "ray " << i << ": triangle " << a[i].triangle << " / " << b[i].triangle << ", t " << a[i].t
-                    << " / " << b[i].t << ", u " << a[i].u << " / " << b[i].u << ", v " << a[i].v << " / " << b[i].v
-                    << ", occluded " << int(occ_a[i]) << " / " << int(occ_b[i]);
-      return -1;
-    }
-    hit_count += a[i].hit();
-  }
-  return hit_count;
-}
 
 TEST(Bvh, ClosestHitMatchesBruteForceOnRandomSoup) {
   const sl::render::Mesh m = random_soup(3000, 7);
@@ -157,6 +79,35 @@ TEST(Bvh, PortableAndVectorKernelsGiveBitIdenticalHits) {
   const int hit_count = count_identical_hits(vector_bvh, portable_bvh, rays);
   EXPECT_GT(hit_count, 300);
   EXPECT_LT(hit_count, static_cast<int>(rays.size()));
+}
+
+TEST(Bvh, KernelsVisitChildrenAtEqualDistancesInTheSameOrder) {
+  // Copies of one triangle have equal boxes and hit at exactly the same t, so the copy reported
+  // is the first one visited: the vector kernels' ordering of children (a sorting network under
+  // AVX-512) must break ties as the portable insertion sort does, for two children (24 copies: a
+  // root of two leaves) and for more (200), at entry distances 0 (origins inside the boxes) and
+  // negative (the same rays with tmin = −∞).
+  for (const int copies : {24, 200}) {
+    sl::render::Mesh m;
+    m.positions = {{-1.0f, -0.5f, -1.0f}, {1.0f, -0.5f, -1.0f}, {0.0f, 0.5f, 1.0f}};
+    m.triangles.assign(static_cast<size_t>(copies), glm::uvec3(0, 1, 2));
+    const sl::render::Bvh vector_bvh(m);
+    sl::render::Bvh portable_bvh(m);
+    portable_bvh.use_portable_kernels(true);
+    sl::Rng rng(71);
+    std::vector<sl::render::Ray> rays;
+    for (int i = 0; i < 300; ++i) {
+      float u = static_cast<float>(rng.uniform(0.05, 0.95)), v = static_cast<float>(rng.uniform(0.05, 0.95));
+      if (u + v > 1.0f) u = 1.0f - u, v = 1.0f - v;  // inside the triangle
+      const glm::vec3 target = (1.0f - u - v) * m.positions[0] + u * m.positions[1] + v * m.positions[2];
+      sl::render::Ray r;
+      r.origin = target + glm::vec3(rng.uniform(-0.1, 0.1), 0.2f, rng.uniform(-0.1, 0.1));
+      r.direction = target - r.origin;  // the hit at t = 1
+      if (i % 2) r.tmin = -kInf;
+      rays.push_back(r);
+    }
+    EXPECT_EQ(count_identical_hits(vector_bvh, portable_bvh, rays), 300) << copies << " copies";
+  }
 }
 
 TEST(Bvh, PrefetchingDoesNotChangeHits) {
@@ -456,113 +407,6 @@ TEST(Bvh, TreeDoesNotDependOnThreadCount) {
       for (int a = 0; a < 6; ++a) EXPECT_EQ(one.nodes()[i].bounds[a][c], two.nodes()[i].bounds[a][c]);
     }
   }
-}
-
-// Thin slivers in random orientations, overlapping, plus a few large triangles: the triangles
-// pre-splits are for (their boxes are far larger than their areas).
-sl::render::Mesh slivers(int count, uint64_t seed) {
-  sl::Rng rng(seed);
-  sl::render::Mesh m;
-  for (int i = 0; i < count; ++i) {
-    const glm::vec3 p(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
-    const float len = i % 100 == 0 ? 1.5f : static_cast<float>(rng.uniform(0.05, 0.4));
-    const glm::vec3 d = random_unit(rng), w = 0.01f * len * glm::normalize(glm::cross(d, random_unit(rng)));
-    const uint32_t b = static_cast<uint32_t>(m.positions.size());
-    m.positions.insert(m.positions.end(), {p, p + len * d + w, p + len * d - w});
-    m.triangles.push_back({b, b + 1, b + 2});
-  }
-  return m;
-}
-
-sl::render::BvhBuildOptions split_budget(float budget) {
-  sl::render::BvhBuildOptions o;
-  o.split_budget = budget;
-  return o;
-}
-
-// Pre-splits (bvh.h) give some triangles several leaf slots; queries must not change: the same
-// hits as brute force, and bit-identical hits to the tree built without them.
-TEST(Bvh, PreSplitsMatchBruteForceAndTheUnsplitTree) {
-  const sl::render::Mesh m = slivers(8000, 71);
-  const sl::render::Bvh plain(m, split_budget(0.0f));
-  EXPECT_EQ(plain.reference_count(), plain.triangle_count());
-  for (const float budget : {1.0f, 4.0f}) {
-    SCOPED_TRACE(budget);
-    sl::render::Bvh split(m, split_budget(budget));
-    EXPECT_EQ(split.triangle_count(), plain.triangle_count());
-    EXPECT_GT(split.reference_count(), plain.reference_count());
-    EXPECT_LE(split.reference_count(), static_cast<size_t>((1.0f + budget) * plain.triangle_count()) + 1);
-    expect_matches_brute_force(m, split, random_rays(m.bounds(), 1500, 73));
-    const std::vector<sl::render::Ray> rays = random_rays(m.bounds(), 4000, 79);
-    for (const bool portable : {false, true}) {
-      split.use_portable_kernels(portable);
-      std::vector<sl::render::Hit> a(rays.size()), b(rays.size());
-      std::vector<uint8_t> occ_a(rays.size()), occ_b(rays.size());
-      split.intersect(rays.data(), a.data(), rays.size());
-      plain.intersect(rays.data(), b.data(), rays.size());
-      split.occluded(rays.data(), occ_a.data(), rays.size());
-      plain.occluded(rays.data(), occ_b.data(), rays.size());
-      for (size_t i = 0; i < rays.size(); ++i) {
-        ASSERT_EQ(a[i].t, b[i].t) << "ray " << i;  // +inf on both for a miss
-        ASSERT_EQ(occ_a[i], occ_b[i]) << "ray " << i;
-      }
-    }
-  }
-}
-
-// A reference's box holds only its part of the triangle, cut at grid planes through the mesh's
-// box; rays that hit a split triangle exactly on or beside such a plane must still find it.
-TEST(Bvh, RaysThroughPreSplitPlanesHitTheSplitTriangle) {
-  sl::render::Mesh m = slivers(3000, 83);
-  // A large tilted quad across the whole box, far from the slivers (y in [3, 4]).
-  const uint32_t b = static_cast<uint32_t>(m.positions.size());
-  m.positions.insert(m.positions.end(), {{-1.1f, 3.0f, -1.1f}, {1.1f, 3.5f, -1.1f}, {1.1f, 4.0f, 1.1f}, {-1.1f, 3.5f, 1.1f}});
-  m.triangles.push_back({b, b + 1, b + 2});
-  m.triangles.push_back({b, b + 2, b + 3});
-  const sl::render::Bvh bvh(m, split_budget(2.0f));
-  ASSERT_GT(bvh.reference_count(), bvh.triangle_count());
-  const sl::render::Bounds3 box = bvh.bounds();
-  std::vector<sl::render::Ray> rays;
-  for (int level = 1; level <= 4; ++level)
-    for (int k = 1; k < (1 << level); ++k)
-      for (int axis : {0, 2}) {
-        // The grid plane x (or z) = lo + k·extent/2^level, and its float neighbours.
-        const float plane = box.lo[axis] + std::ldexp(box.hi[axis] - box.lo[axis], -level) * static_cast<float>(k);
-        if (!(std::abs(plane) < 1.09f)) continue;  // outside the quad
-        for (const float c : {std::nextafter(plane, -kInf), plane, std::nextafter(plane, kInf)})
-          for (int j = 0; j < 9; ++j) {
-            sl::render::Ray r;
-            const float other = -1.05f + 2.1f * static_cast<float>(j) / 8.0f;
-            r.origin = axis == 0 ? glm::vec3(c, 10.0f, other) : glm::vec3(other, 10.0f, c);
-            r.direction = glm::vec3(0.0f, -1.0f, 0.0f);
-            rays.push_back(r);
-          }
-      }
-  for (size_t i = 0; i < rays.size(); ++i) {
-    const sl::render::Hit ref = sl::render::intersect_brute_force(m.positions, m.triangles, rays[i]);
-    ASSERT_TRUE(ref.hit()) << "ray " << i;
-    const sl::render::Hit hit = bvh.intersect(rays[i]);
-    ASSERT_TRUE(hit.hit()) << "ray " << i;
-    EXPECT_EQ(hit.t, ref.t) << "ray " << i;
-    EXPECT_TRUE(bvh.occluded(rays[i])) << "ray " << i;
-  }
-}
-
-TEST(Bvh, PreSplitTreeDoesNotDependOnThreadCount) {
-  const sl::render::Mesh m = slivers(40000, 89);  // above the parallel build threshold
-  const int threads = omp_get_max_threads();
-  omp_set_num_threads(1);
-  const sl::render::Bvh one(m, split_budget(1.0f));
-  omp_set_num_threads(2);
-  const sl::render::Bvh two(m, split_budget(1.0f));
-  omp_set_num_threads(threads);
-  ASSERT_EQ(one.reference_count(), two.reference_count());
-  ASSERT_EQ(one.node_count(), two.node_count());
-  for (size_t i = 0; i < one.node_count(); ++i)
-    for (int c = 0; c < sl::render::BvhNode::kWidth; ++c) {
-      ASSERT_EQ(one.nodes()[i].child[c], two.nodes()[i].child[c]);
-      for (int a = 0; a < 6; ++a) ASSERT_EQ(one.nodes()[i].bounds[a][c], two.nodes()[i].bounds[a][c]);
-    }
 }
 
 TEST(Bvh, RealModelsMatchBruteForce) {

@@ -76,7 +76,9 @@ inline PreparedRay prepare_boxes(const Ray& ray) {
     r.near_off[k] = std::signbit(r.inv[k]) ? hi : lo;
     r.far_off[k] = std::signbit(r.inv[k]) ? lo : hi;
   }
-  r.tmin = ray.tmin;
+  // The segment starts at the origin at the earliest (Embree's rule too): a box exit behind the
+  // origin would be narrowed, not widened, by kFarScale, so t < 0 is never searched.
+  r.tmin = ray.tmin > 0.0f ? ray.tmin : 0.0f;
   return r;
 }
 

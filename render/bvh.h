@@ -33,6 +33,7 @@
 //   - zero-area triangles, and triangles with non-finite vertices, are left out and never hit;
 //   - a ray lying in a triangle's plane misses it (its determinant is zero);
 //   - a ray starting on a surface with tmin = ε > 0 does not hit that surface at t ≈ 0;
+//   - a tmin below 0 is read as 0: nothing behind the origin is hit (intersect_brute_force alike);
 //   - a ray with a zero or non-finite direction, or a NaN origin, misses;
 //   - an empty mesh gives an empty BVH in which every ray misses;
 //   - results do not depend on the thread count (queries are independent per ray, and the

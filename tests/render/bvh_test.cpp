@@ -169,6 +169,39 @@ TEST(Bvh, ClosestHitRespectsTminAndTmax) {
   expect_matches_brute_force(m, bvh, rays);
 }
 
+// A tmin below 0 is read as 0 (render/bvh.h): a flat (zero-thickness box) triangle and a tilted
+// one behind the origin are never hit, with or without the vector kernels, and one in front is.
+TEST(Bvh, NegativeTminSearchesFromTheOrigin) {
+  sl::render::Mesh m;
+  m.positions = {{-1, -1, -2}, {1, -1, -2}, {0, 1, -2},            // flat, behind (z = -2)
+                 {-1, -1, -3}, {1, -1, -3.5f}, {0, 1, -3.2f},      // tilted, behind
+                 {-1, -1, 4}, {1, -1, 4}, {0, 1, 4}};              // flat, in front (z = 4)
+  m.triangles = {{0, 1, 2}, {3, 4, 5}, {6, 7, 8}};
+  for (const bool portable : {false, true}) {
+    sl::render::Bvh bvh(m);
+    bvh.use_portable_kernels(portable);
+    sl::render::Ray r;
+    r.origin = {0.1f, 0.0f, 0.0f};
+    r.direction = {0.0f, 0.0f, 1.0f};
+    r.tmin = -10.0f;
+    const sl::render::Hit h = bvh.intersect(r);
+    ASSERT_TRUE(h.hit());
+    EXPECT_EQ(h.triangle, 2u);
+    EXPECT_FLOAT_EQ(h.t, 4.0f);
+    EXPECT_EQ(sl::render::intersect_brute_force(m.positions, m.triangles, r).triangle, 2u);
+    r.origin = {0.1f, 0.0f, 5.0f};  // everything it could hit lies at t < 0
+    r.tmin = -100.0f;
+    EXPECT_FALSE(bvh.intersect(r).hit()) << "portable " << portable;
+    EXPECT_FALSE(bvh.occluded(r));
+    EXPECT_FALSE(sl::render::intersect_brute_force(m.positions, m.triangles, r).hit());
+    r.origin = {0.1f, 0.0f, 0.0f};
+    r.tmax = 3.0f;
+    EXPECT_FALSE(bvh.occluded(r));  // the only hit ahead is at t = 4
+    r.tmax = 5.0f;
+    EXPECT_TRUE(bvh.occluded(r));
+  }
+}
+
 TEST(Bvh, SharedEdgeIsWatertight) {
   // Two triangles sharing the diagonal of the unit square; rays aimed exactly at the diagonal.
   sl::render::Mesh m;

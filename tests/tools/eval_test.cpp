@@ -392,6 +392,9 @@ TEST(EvalTool, LdrPanoramasAreReportedApartBySceneBesideTheirBaselineAndListWhat
       for (const char* part : {"all", "sun_in_crop", "sun_outside_crop"})
         EXPECT_TRUE((*row)["sun_by_scene"][k].contains(part)) << k << "." << part;
   }
+  // The sun head's confidence halves per scene (null here: the tiny model has no sun head).
+  ASSERT_TRUE(res.contains("sun_confidence_probability_by_scene")) << res.dump();
+  EXPECT_TRUE(res["sun_confidence_probability_by_scene"]["street"].is_null());
   // Per crop: the label's class, confidence and scene, and the true sun of the library's crops.
   const sl::data::SunLabels labels = sl::data::read_sun_labels(folder + "/sun_labels.csv");
   const auto crops = sl::train::ldr_panorama_crops({folder + "/a.jpg", folder + "/b.jpg"}, labels, 3, 0x7265616c736b79ULL);

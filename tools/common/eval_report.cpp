@@ -151,30 +151,38 @@ std::string sun_parts_markdown(const std::vector<json>& rows) {
 
 std::string confidence_markdown(const std::vector<json>& results) {
   std::string md;
+  const auto line = [&](const json& r, const json& c, const std::string& what) {
+    if (c.is_null()) return;
+    char b[512];
+    std::snprintf(b, sizeof b,
+                  "- %s, by %s: sun error median %.1f°%s on the most confident half (%zu images, ≤ %.2f) against "
+                  "%.1f°%s on the rest (%zu, ≥ %.2f)\n",
+                  r.at("name").get<std::string>().c_str(), what.c_str(),
+                  c["confident_half"]["sun_error_median_deg"].get<double>(),
+                  ci_text(c["confident_half"]["ci95"]).c_str(), c["confident_half"]["count"].get<size_t>(),
+                  c["confident_half"]["measure_max"].get<double>(),
+                  c["uncertain_half"]["sun_error_median_deg"].get<double>(), ci_text(c["uncertain_half"]["ci95"]).c_str(),
+                  c["uncertain_half"]["count"].get<size_t>(), c["uncertain_half"]["measure_min"].get<double>());
+    md += b;
+  };
   for (const auto& [key, what] : std::vector<std::pair<std::string, std::string>>{
            {"sun_confidence", "flip spread (°)"},
            {"sun_confidence_hedge", "sun height (hedge)"},
-           {"sun_confidence_crop", "crop spread (°)"}})
-    for (const auto& r : results) {
-      if (!r.contains(key) || r.at(key).is_null()) continue;
-      const json& c = r.at(key);
-      char b[512];
-      std::snprintf(b, sizeof b,
-                    "- %s, by %s: sun error median %.1f°%s on the most confident half (%zu images, ≤ %.2f) against "
-                    "%.1f°%s on the rest (%zu, ≥ %.2f)\n",
-                    r.at("name").get<std::string>().c_str(), what.c_str(),
-                    c["confident_half"]["sun_error_median_deg"].get<double>(),
-                    ci_text(c["confident_half"]["ci95"]).c_str(), c["confident_half"]["count"].get<size_t>(),
-                    c["confident_half"]["measure_max"].get<double>(),
-                    c["uncertain_half"]["sun_error_median_deg"].get<double>(), ci_text(c["uncertain_half"]["ci95"]).c_str(),
-                    c["uncertain_half"]["count"].get<size_t>(), c["uncertain_half"]["measure_min"].get<double>());
-      md += b;
-    }
+           {"sun_confidence_crop", "crop spread (°)"},
+           {"sun_confidence_probability", "doubt, 1 − sun probability"}})
+    for (const auto& r : results)
+      if (r.contains(key)) line(r, r.at(key), what);
+  for (const char* scene : {"street", "other"})
+    for (const auto& r : results)
+      if (r.contains("sun_confidence_probability_by_scene"))
+        line(r, r.at("sun_confidence_probability_by_scene").value(scene, json()),
+             std::string(scene) + " scenes by doubt, 1 − sun probability");
   return md.empty() ? md
                     : "\nConfidence (train/inference.h): the angle between the sun of the photo and of its mirror "
                       "image; the sun height sin(elevation) of the network's sun, a hedge toward the zenith when "
-                      "it cannot tell the azimuth; and the largest angle between the photo's sun and a centred "
-                      "crop's (crop averaging) (all 0 when the visible-sun cue set the direction):\n\n" +
+                      "it cannot tell the azimuth; the largest angle between the photo's sun and a centred "
+                      "crop's (crop averaging) (all 0 when the visible-sun cue set the direction); and the sun "
+                      "head's probability near its mode (1 when the cue set the direction):\n\n" +
                           md;
 }
 

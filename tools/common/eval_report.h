@@ -25,8 +25,9 @@ std::string real_sky_markdown(const std::vector<nlohmann::json>& rows, const nlo
 // azimuth error, the median elevation bias with the true and predicted median elevations, and how
 // often the predicted sun is in the other half (front/back) than the true one; "" when no row has it.
 std::string sun_parts_markdown(const std::vector<nlohmann::json>& rows);
-// The confidence lines (flip spread, hedge, crop spread): per row, the median sun error of the
-// most confident half against the rest, from the row's sun_confidence* objects; "" when none.
+// The confidence lines (flip spread, hedge, crop spread, the sun head's probability, and that
+// probability per LDR scene): per row, the median sun error of the most confident half against
+// the rest, from the row's sun_confidence* objects; "" when none.
 std::string confidence_markdown(const std::vector<nlohmann::json>& rows);
 // The sun-in-crop table pooled over the real data sets: pooled holds {name, count,
 // sun_error_median_deg, ci95} per checkpoint; the data sets whose kind is not "street" are named.

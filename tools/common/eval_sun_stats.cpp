@@ -42,8 +42,9 @@ void SunSplit::add(double e, const std::string& group, bool in_crop) {
 
 json SunSplit::to_json() const { return sun_stats_json(all, in, out, true); }
 
-void LdrSunSplits::add(const train::RealSkyCrop& c, double e) {
+void LdrSunSplits::add(const train::RealSkyCrop& c, double e, double doubt) {
   scene[c.scene].add(e, c.panorama, c.sun_in_crop);
+  scene_doubt.try_emplace(c.scene, "sun_doubt").first->second.add(doubt, e, c.panorama);
   if (c.label_confidence == "low") low_confidence.add(e, c.panorama, c.sun_in_crop);
 }
 
@@ -54,6 +55,12 @@ void LdrSunSplits::write(json& j) const {
     s[k] = it == scene.end() ? SunSplit().to_json() : it->second.to_json();
   }
   j["sun_by_scene"] = s;
+  json d = json::object();
+  for (const char* k : {"street", "other"}) {
+    const auto it = scene_doubt.find(k);
+    d[k] = it == scene_doubt.end() ? json() : it->second.to_json();
+  }
+  j["sun_confidence_probability_by_scene"] = d;
   j["sun_low_confidence"] = low_confidence.to_json();
 }
 

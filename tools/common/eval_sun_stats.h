@@ -8,6 +8,7 @@
 // null in sun_parts_json. The key names are those of results.json (tools/common/eval_report.h
 // renders them).
 #pragma once
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -47,15 +48,6 @@ struct SunSplit {
   void add(double e, const std::string& group, bool in_crop);
   nlohmann::json to_json() const;
 };
-// LDR panoramas: by the label's scene (street / other) and the low-confidence labels apart;
-// write() adds "sun_by_scene" and "sun_low_confidence" to j.
-struct LdrSunSplits {
-  std::map<std::string, SunSplit> scene;
-  SunSplit low_confidence;
-  void add(const train::RealSkyCrop& c, double e);
-  void write(nlohmann::json& j) const;
-};
-
 // Does the network know when it is right? One confidence measure (smaller = more confident) over
 // the labelled images of a result row: the median error of the most confident half against the
 // rest's, each with its 95% interval resampling whole groups; null for fewer than 2 images.
@@ -66,6 +58,18 @@ struct Confidence {
   std::vector<std::string> group;
   void add(double v, double e, const std::string& g) { value.push_back(v), error.push_back(e), group.push_back(g); }
   nlohmann::json to_json() const;
+};
+
+// LDR panoramas: by the label's scene (street / other) and the low-confidence labels apart, and
+// the sun head's confidence halves per scene (doubt = 1 − sun probability, NaN when the model has
+// no sun head); write() adds "sun_by_scene", "sun_low_confidence" and
+// "sun_confidence_probability_by_scene" (street / other, each as Confidence::to_json) to j.
+struct LdrSunSplits {
+  std::map<std::string, SunSplit> scene;
+  std::map<std::string, Confidence> scene_doubt;
+  SunSplit low_confidence;
+  void add(const train::RealSkyCrop& c, double e, double doubt = std::numeric_limits<double>::quiet_NaN());
+  void write(nlohmann::json& j) const;
 };
 
 nlohmann::json sun_parts_json(const train::SunErrorParts& p);

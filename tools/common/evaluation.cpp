@@ -316,7 +316,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         cue_all += l.visible_sun_found;
         (c.sun_in_crop ? cue_in : cue_out) += l.visible_sun_found;
         if (real->ldr) {
-          ldr_splits.add(c, e);
+          ldr_splits.add(c, e, 1.0 - l.sun_probability);
           per_image.back()["label"] = c.label_sun;
           per_image.back()["confidence"] = c.label_confidence;
           per_image.back()["scene"] = c.scene;

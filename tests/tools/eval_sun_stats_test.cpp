@@ -48,7 +48,7 @@ TEST(EvalSunStats, LdrConfidenceHalvesPerScene) {
   nlohmann::json row = j;
   row["name"] = "model";
   const std::string md = cli::confidence_markdown({row});
-  EXPECT_NE(md.find("model, by street scenes by doubt, 1 − sun probability: sun error median 6.0°"), std::string::npos)
+  EXPECT_NE(md.find("model, street scenes, by doubt, 1 − sun probability: sun error median 6.0°"), std::string::npos)
       << md;
   EXPECT_NE(md.find("other scenes"), std::string::npos) << md;
 

@@ -151,13 +151,13 @@ std::string sun_parts_markdown(const std::vector<json>& rows) {
 
 std::string confidence_markdown(const std::vector<json>& results) {
   std::string md;
-  const auto line = [&](const json& r, const json& c, const std::string& what) {
+  const auto line = [&](const json& r, const json& c, const std::string& what, const std::string& subset = "") {
     if (c.is_null()) return;
     char b[512];
     std::snprintf(b, sizeof b,
                   "- %s, by %s: sun error median %.1f°%s on the most confident half (%zu images, ≤ %.2f) against "
                   "%.1f°%s on the rest (%zu, ≥ %.2f)\n",
-                  r.at("name").get<std::string>().c_str(), what.c_str(),
+                  (r.at("name").get<std::string>() + subset).c_str(), what.c_str(),
                   c["confident_half"]["sun_error_median_deg"].get<double>(),
                   ci_text(c["confident_half"]["ci95"]).c_str(), c["confident_half"]["count"].get<size_t>(),
                   c["confident_half"]["measure_max"].get<double>(),
@@ -176,7 +176,7 @@ std::string confidence_markdown(const std::vector<json>& results) {
     for (const auto& r : results)
       if (r.contains("sun_confidence_probability_by_scene"))
         line(r, r.at("sun_confidence_probability_by_scene").value(scene, json()),
-             std::string(scene) + " scenes by doubt, 1 − sun probability");
+             "doubt, 1 − sun probability", std::string(", ") + scene + " scenes");
   return md.empty() ? md
                     : "\nConfidence (train/inference.h): the angle between the sun of the photo and of its mirror "
                       "image; the sun height sin(elevation) of the network's sun, a hedge toward the zenith when "

@@ -20,7 +20,8 @@
 //     "sun_confidence_crop" by the crop spread, "sun_confidence_probability" by the sun head's
 //     probability near its mode, per image "sun_probability" and its complement "sun_doubt") the median sun error of the most confident half of the
 //     images against the rest's, each with its 95% interval (train/sun_confidence.h: does a small
-//     measure mean a small error?). The per-image "predicted_sun_share" is the predicted sky's
+//     measure mean a small error?); on LDR panoramas also per scene by the doubt
+//     ("sun_confidence_probability_by_scene": street / other). The per-image "predicted_sun_share" is the predicted sky's
 //     share of its light near its sun.
 //   the sun error in parts ("sun_parts", train/sun_error_parts.h): the median azimuth error, the
 //     median elevation bias (predicted − true) and how often the predicted sun is in the other

@@ -185,6 +185,26 @@ void LightingStage::initialise() {
       }
       predictor_->load_state_dict(merged);
     }
+    // init.reinitialise: parts that start afresh (the predictor's own initialisation for this
+    // config's seed) while the rest comes from the checkpoint, e.g. a backbone trained from
+    // scratch under the loaded frozen sky decoder.
+    const auto& again = init.at("reinitialise");
+    SL_CHECK(again.is_array(), "init.reinitialise must be a list of the predictor's parts, got ", again.dump());
+    if (!again.empty()) {
+      const LightingPredictor fresh(predictor_->options());
+      for (const auto& part : again) {
+        const std::string name = part.is_string() ? part.get<std::string>() : part.dump();
+        std::string known;
+        bool found = false;
+        for (const auto& [n, child] : predictor_->children())
+          if (n != "sky_decoder") known += (known.empty() ? "" : ", ") + n, found |= part.is_string() && n == name;
+        SL_CHECK(found, "init.reinitialise: no part '", name, "' to start afresh (the predictor's parts but its frozen ",
+                 "sky_decoder: ", known, ")");
+        nn::StateDict state = fresh.child(name)->state_dict();
+        for (auto& [n, t] : state) t = t.clone();
+        predictor_->child(name)->load_state_dict(state);
+      }
+    }
     if (teacher_ && !has_teacher) {
       // Without pseudo-labels the teacher never runs, and may stay as initialised: a later stage
       // that needs it finds its decoder differs from the predictor's (below) and refuses.

@@ -21,7 +21,7 @@ json default_train_config() {
   return json{
       {"stage", kStageSky},
       {"seed", 0},
-      {"init", {{"sky_checkpoint", ""}, {"checkpoint", ""}}},
+      {"init", {{"sky_checkpoint", ""}, {"checkpoint", ""}, {"reinitialise", json::array()}}},
       {"data",
        {{"dataset", ""},
         {"train_split", "train"},
@@ -220,6 +220,9 @@ void check_train_config(const json& c) {
   SL_CHECK(c.at("loss").at("sun_distribution").get<double>() == 0 ||
                c.at("model").at("sun_grid").at("elevation_bins").get<int64_t>() > 0,
            "loss.sun_distribution > 0 needs model.sun_grid (elevation_bins and azimuth_bins)");
+  SL_CHECK(c.at("init").at("reinitialise").is_array() &&
+               (c.at("init").at("reinitialise").empty() || !c.at("init").at("checkpoint").get<std::string>().empty()),
+           "init.reinitialise names parts of the model in init.checkpoint to start afresh: it needs init.checkpoint");
   SL_CHECK(c.at("loss").at("sun_half").get<double>() == 0 ||
                (c.at("model").at("sun_grid").at("azimuth_bins").get<int64_t>() > 0 &&
                 c.at("model").at("sun_grid").at("azimuth_bins").get<int64_t>() % 4 == 0),

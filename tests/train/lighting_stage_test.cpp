@@ -284,6 +284,69 @@ TEST(LightingStage, ASunHeadGainsImageStatisticsFromAModelWithout) {
   }
 }
 
+// init.reinitialise: the named parts start from the predictor's own initialisation for the
+// config's seed, every other tensor (the frozen sky decoder among them) from the checkpoint; a
+// part that does not exist, or the sky decoder, is refused naming the parts.
+TEST(LightingStage, ReinitialisedPartsStartAfreshAndTheRestFromTheCheckpoint) {
+  const std::string dir = temp_dir("lighting_reinitialise");
+  nlohmann::json c = tiny_config(kStageLighting);
+  c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  const std::string exported = dir + "/exported.safetensors";
+  nn::StateDict trained;
+  {
+    LightingStage stage(c, memory_source(2), memory_source(1));
+    stage.initialise();
+    overfit(stage, 2);
+    nn::Module holder("Exported");
+    holder.register_module("predictor", std::shared_ptr<nn::Module>(&stage.predictor(), [](nn::Module*) {}));
+    nn::save_checkpoint(exported, holder, nullptr, nn::CheckpointInfo{.stage = kStageLighting});
+    for (const auto& [name, t] : stage.predictor().state_dict()) trained[name] = t.clone();
+  }
+  nlohmann::json g = c;
+  g["init"]["checkpoint"] = exported;
+  g["init"]["sky_checkpoint"] = "";
+  g["loss"]["sky_intensity"] = 0.0;
+  g["loss"]["sky_latent"] = 0.0;
+  g["init"]["reinitialise"] = {"backbone", "sky_head"};
+  LightingStage stage(g, memory_source(2), memory_source(1));
+  stage.initialise();
+  const train::LightingPredictor fresh(stage.predictor().options());
+  const nn::StateDict initial = fresh.state_dict();
+  int afresh = 0, loaded = 0;
+  for (const auto& [name, t] : stage.predictor().state_dict()) {
+    const bool again = name.rfind("backbone.", 0) == 0 || name.rfind("sky_head.", 0) == 0;
+    EXPECT_EQ(t.to_vector(), (again ? initial : trained).at(name).to_vector()) << name;
+    (again ? afresh : loaded) += 1;
+    if (again && name.find("weight") != std::string::npos) EXPECT_NE(t.to_vector(), trained.at(name).to_vector()) << name;
+  }
+  EXPECT_GT(afresh, 0);
+  EXPECT_GT(loaded, 0);
+  EXPECT_TRUE(std::isfinite(stage.step(0).at("loss")));
+  for (const char* bad : {"sky_decoder", "backbnoe"}) {
+    nlohmann::json b = g;
+    b["init"]["reinitialise"] = {bad};
+    LightingStage refused(b, memory_source(2), memory_source(1));
+    try {
+      refused.initialise();
+      ADD_FAILURE() << "accepted init.reinitialise " << bad;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("init.reinitialise"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("backbone"), std::string::npos) << e.what();
+    }
+  }
+  nlohmann::json none = train::default_train_config();
+  none["stage"] = kStageLighting;
+  none["data"]["dataset"] = "streets";
+  none["init"]["sky_checkpoint"] = "sky.safetensors";
+  none["init"]["reinitialise"] = {"backbone"};
+  try {
+    train::check_train_config(none);
+    ADD_FAILURE() << "accepted init.reinitialise without init.checkpoint";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("init.checkpoint"), std::string::npos) << e.what();
+  }
+}
+
 // Two labelled LDR panoramas (one sun at a pixel, one "none") written as PNG files with their
 // labels, read by ldr_panorama_source: mixed into training, they give finite steps; in
 // validation, their suns are scored apart as val_ldr_*.

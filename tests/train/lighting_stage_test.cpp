@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -28,6 +29,23 @@ using train::Metrics;
 using train::kStageLighting;
 
 namespace {
+
+// Trains a stage of config c for two steps and exports its predictor alone (as an exported model
+// holds it) to `path`; `before_export` may read the trained stage first. Returns a copy of the
+// predictor's tensors.
+nn::StateDict export_trained_predictor(const nlohmann::json& c, const std::string& path,
+                                       const std::function<void(LightingStage&)>& before_export = {}) {
+  LightingStage stage(c, memory_source(2), memory_source(1));
+  stage.initialise();
+  overfit(stage, 2);
+  if (before_export) before_export(stage);
+  nn::Module holder("Exported");
+  holder.register_module("predictor", std::shared_ptr<nn::Module>(&stage.predictor(), [](nn::Module*) {}));
+  nn::save_checkpoint(path, holder, nullptr, nn::CheckpointInfo{.stage = kStageLighting});
+  nn::StateDict state;
+  for (const auto& [name, t] : stage.predictor().state_dict()) state[name] = t.clone();
+  return state;
+}
 
 TEST(LightingStage, TwentyStepsOverfitATinyBatch) {
   const std::string dir = temp_dir("lighting_overfit");
@@ -151,16 +169,7 @@ TEST(LightingStage, ASunHeadStartsFromAModelWithoutOne) {
   nlohmann::json c = tiny_config(kStageLighting);
   c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
   const std::string exported = dir + "/exported.safetensors";
-  nn::StateDict before;
-  {
-    LightingStage stage(c, memory_source(2), memory_source(1));
-    stage.initialise();
-    overfit(stage, 2);
-    nn::Module holder("Exported");
-    holder.register_module("predictor", std::shared_ptr<nn::Module>(&stage.predictor(), [](nn::Module*) {}));
-    nn::save_checkpoint(exported, holder, nullptr, nn::CheckpointInfo{.stage = kStageLighting});
-    for (const auto& [name, t] : stage.predictor().state_dict()) before[name] = t.clone();
-  }
+  const nn::StateDict before = export_trained_predictor(c, exported);
   nlohmann::json g = c;
   g["init"]["checkpoint"] = exported;
   g["init"]["sky_checkpoint"] = "";
@@ -217,22 +226,14 @@ TEST(LightingStage, ASunHeadGainsImageStatisticsFromAModelWithout) {
   c["loss"]["sun_distribution"] = 1.0;
   c["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
   const std::string exported = dir + "/exported.safetensors";
-  nn::StateDict before;
   const Tensor image = Tensor::uniform({2, 3, c["model"]["image_height"].get<int64_t>(),
                                         c["model"]["image_width"].get<int64_t>()}, 0.0, 1.0, 7);
   std::vector<double> logits_before;
-  {
-    LightingStage stage(c, memory_source(2), memory_source(1));
-    stage.initialise();
-    overfit(stage, 2);
-    nn::Module holder("Exported");
-    holder.register_module("predictor", std::shared_ptr<nn::Module>(&stage.predictor(), [](nn::Module*) {}));
-    nn::save_checkpoint(exported, holder, nullptr, nn::CheckpointInfo{.stage = kStageLighting});
-    for (const auto& [name, t] : stage.predictor().state_dict()) before[name] = t.clone();
+  const nn::StateDict before = export_trained_predictor(c, exported, [&](LightingStage& stage) {
     stage.predictor().set_training(false);
     const NoGradGuard no_grad;
     logits_before = stage.predictor().predict_sky(image).sun_logits.to_vector();
-  }
+  });
   nlohmann::json g = c;
   g["init"]["checkpoint"] = exported;
   g["init"]["sky_checkpoint"] = "";
@@ -292,16 +293,7 @@ TEST(LightingStage, ReinitialisedPartsStartAfreshAndTheRestFromTheCheckpoint) {
   nlohmann::json c = tiny_config(kStageLighting);
   c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
   const std::string exported = dir + "/exported.safetensors";
-  nn::StateDict trained;
-  {
-    LightingStage stage(c, memory_source(2), memory_source(1));
-    stage.initialise();
-    overfit(stage, 2);
-    nn::Module holder("Exported");
-    holder.register_module("predictor", std::shared_ptr<nn::Module>(&stage.predictor(), [](nn::Module*) {}));
-    nn::save_checkpoint(exported, holder, nullptr, nn::CheckpointInfo{.stage = kStageLighting});
-    for (const auto& [name, t] : stage.predictor().state_dict()) trained[name] = t.clone();
-  }
+  const nn::StateDict trained = export_trained_predictor(c, exported);
   nlohmann::json g = c;
   g["init"]["checkpoint"] = exported;
   g["init"]["sky_checkpoint"] = "";

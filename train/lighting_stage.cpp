@@ -365,6 +365,7 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
       if (f.pred.sun_logits.defined()) {
         const SunGrid& grid = predictor_->options().sun_grid;
         const double width = w.value("sun_distribution_width_deg", 8.0);
+        const double low_sun = w.value("low_sun_weight", 0.0), low_below = w.value("low_sun_below_deg", 30.0);
         std::vector<double> targets, weights;
         for (size_t i = 0; i < f.items.size(); ++i) {
           const bool known = f.samples[i].sun_known;
@@ -372,7 +373,10 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
               known ? soft_target(grid, f.items[i].sun_direction, width)
                     : std::vector<double>(static_cast<size_t>(grid.cells()), 1.0 / static_cast<double>(grid.cells()));
           targets.insert(targets.end(), t.begin(), t.end());
-          weights.push_back(known ? f.samples[i].sun_weight : 0.0);
+          // Low suns weighed up (loss.low_sun_weight, 0 = off): the training labels sit higher
+          // than the skies the model meets.
+          weights.push_back(known ? f.samples[i].sun_weight * low_sun_weight(f.items[i].sun_direction, low_sun, low_below)
+                                  : 0.0);
         }
         const Tensor target_b = Tensor::from_vector(targets, {n, grid.cells()}), weight_b = Tensor::from_vector(weights, {n});
         add_term("sun_distribution", sun_distribution_loss(f.pred.sun_logits, target_b, weight_b));

@@ -221,4 +221,14 @@ SunReadout read_sun_distribution(const SunGrid& g, const std::vector<double>& p,
   return out;
 }
 
+double low_sun_weight(const glm::dvec3& sun, double boost, double below_deg) {
+  SL_CHECK(std::isfinite(boost) && boost >= 0, "low_sun_weight: boost must be finite and >= 0, got ", boost);
+  SL_CHECK(std::isfinite(below_deg) && below_deg > 0 && below_deg <= 90, "low_sun_weight: below_deg must lie in (0, 90], got ",
+           below_deg);
+  const double len = glm::length(sun);
+  SL_CHECK(std::isfinite(len) && len > 0, "low_sun_weight: the sun direction is zero or not finite");
+  const double elevation = std::max(0.0, std::asin(std::clamp(sun.y / len, -1.0, 1.0)) * 180.0 / kPi);
+  return 1.0 + boost * std::clamp((below_deg - elevation) / below_deg, 0.0, 1.0);
+}
+
 }  // namespace sl::train

@@ -95,6 +95,8 @@ json default_train_config() {
         {"sun_distribution", 0.0},
         {"sun_distribution_width_deg", 8.0},
         {"sun_half", 0.0},
+        {"low_sun_weight", 0.0},
+        {"low_sun_below_deg", 30.0},
         {"sky_ldr", 1.0},
         {"sky_hdr", 1.0},
         {"radiance", 1.0},
@@ -227,6 +229,11 @@ void check_train_config(const json& c) {
                (c.at("model").at("sun_grid").at("azimuth_bins").get<int64_t>() > 0 &&
                 c.at("model").at("sun_grid").at("azimuth_bins").get<int64_t>() % 4 == 0),
            "loss.sun_half > 0 needs model.sun_grid with azimuth_bins a multiple of 4");
+  const double low_sun = c.at("loss").at("low_sun_weight").get<double>();
+  const double low_sun_below = c.at("loss").at("low_sun_below_deg").get<double>();
+  SL_CHECK(std::isfinite(low_sun) && low_sun >= 0, "loss.low_sun_weight must be finite and >= 0, got ", low_sun);
+  SL_CHECK(std::isfinite(low_sun_below) && low_sun_below > 0 && low_sun_below <= 90,
+           "loss.low_sun_below_deg must lie in (0, 90], got ", low_sun_below);
   const json& range = c.at("loss").at("ldr_sun_energy_range");
   SL_CHECK(range.is_array() && range.size() == 2 && range[0].is_number() && range[1].is_number() &&
                range[0].get<double>() >= 0 && range[0].get<double>() <= range[1].get<double>() &&

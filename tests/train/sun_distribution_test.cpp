@@ -224,5 +224,20 @@ TEST(SunDistribution, ExtremeLogitsGiveAFiniteLossAndGradient) {
   EXPECT_THROW(train::validate(SunGrid{8, 31}), Error);
 }
 
+// Low suns weighed up: 1 above the threshold, 1 + boost at (and below) the horizon, linear
+// between, whatever the direction's length; bad arguments are refused.
+TEST(SunDistribution, LowSunsWeighUpLinearlyBelowTheThreshold) {
+  EXPECT_DOUBLE_EQ(train::low_sun_weight(sun(10, 60), 2.0, 30.0), 1.0);
+  EXPECT_DOUBLE_EQ(train::low_sun_weight(sun(10, 30), 2.0, 30.0), 1.0);
+  EXPECT_NEAR(train::low_sun_weight(sun(-120, 15), 2.0, 30.0), 2.0, 1e-12);
+  EXPECT_NEAR(train::low_sun_weight(5.0 * sun(45, 10), 2.0, 30.0), 1.0 + 2.0 * 20.0 / 30.0, 1e-12);
+  EXPECT_NEAR(train::low_sun_weight(sun(0, 0), 2.0, 30.0), 3.0, 1e-12);
+  EXPECT_NEAR(train::low_sun_weight(glm::dvec3(0.0, -1.0, 1.0), 2.0, 30.0), 3.0, 1e-12);  // below: as the horizon
+  EXPECT_DOUBLE_EQ(train::low_sun_weight(sun(0, 5), 0.0, 30.0), 1.0);                     // off
+  EXPECT_THROW(train::low_sun_weight(sun(0, 5), -1.0, 30.0), Error);
+  EXPECT_THROW(train::low_sun_weight(sun(0, 5), 1.0, 0.0), Error);
+  EXPECT_THROW(train::low_sun_weight(glm::dvec3(0.0), 1.0, 30.0), Error);
+}
+
 }  // namespace
 }  // namespace sl::test

@@ -12,7 +12,7 @@
 // bitwise identical for any OMP_NUM_THREADS. Requires gemm_kernel_available().
 //
 // How: the input is zero-padded once into a scratch copy whose spatial axes are stored in an
-// order chosen per shape (see conv_direct.cpp). Output positions are enumerated on the padded
+// order chosen per shape (see conv_padding.h). Output positions are enumerated on the padded
 // row pitch, so that each kernel tap of 48 consecutive positions is one contiguous window of
 // the copy and the micro-kernel of conv_gemm.h streams it directly: no column matrix.
 //
@@ -48,7 +48,7 @@ bool direct_input_grad_supported(const ConvGeometry& g);
 void direct_forward(const ConvGeometry& g, const float* x, const float* packed_w, const float* b, float* y,
                     KeptInput* keep = nullptr, ForwardPanels how = ForwardPanels::kChoose);
 // Winograd F(2, 3) along the innermost storage axis (stride 1, 3 undilated taps on that axis;
-// conv_implicit_gemm.cpp, "Winograd"): the same contract as direct_forward, from unpacked weights
+// conv_padding.h, "Winograd"): the same contract as direct_forward, from unpacked weights
 // w [O, C·taps], with 2/3 of its multiply-adds and slightly different rounding. The fused and
 // input-gradient backward calls below use it by themselves where it applies.
 bool direct_winograd_supported(const ConvGeometry& g);
@@ -63,7 +63,7 @@ bool direct_backward_fused(const ConvGeometry& g, const float* x, const float* w
 
 // Strided 2-D convolutions (in[0] = k[0] = 1, the same stride s >= 2 on both image axes, dilation 1,
 // a kernel at least s wide): the forward and the weight gradient on the same window kernels, from a
-// copy of x split into its s × s phases (conv_implicit_gemm.cpp, "Strided"). The forward gives the
+// copy of x split into its s × s phases (conv_padding.h, "Strided"). The forward gives the
 // bits of the im2col panel path (the same FMA sequence per output); the weight gradient is summed in
 // fixed chunks of the phase pitch.
 bool direct_strided_supported(const ConvGeometry& g);

@@ -11,7 +11,7 @@
 // Rounding differs from the direct sum: a tap's error scales with its row's Σ|g| rather than its
 // own |g| (tests/nn/conv_test.cpp bounds both against float64).
 //
-// Two users: the implicit GEMM transforms a whole padded copy (conv_implicit_gemm.cpp), and
+// Two users: the implicit GEMM transforms a whole padded copy (conv_padding.cpp), and
 // winograd_rows_forward below gathers the pairs of 2-D convolutions with few positions into
 // dense panels.
 #pragma once

@@ -68,9 +68,9 @@ RayMarcher::Result RayMarcher::operator()(const float origin[3], const float dir
 }
 
 void RayMarcher::operator()(int64_t n, const float* origins, const float* dirs, Result* out) const {
+#if defined(__AVX512F__)
   const Voxels& vx = *voxels_;
   const int64_t vox = vx.X * vx.Y * vx.Z;
-#if defined(__AVX512F__)
   // Byte offsets of the records must fit 32-bit gathers.
   if (!opt_.trilinear && vox < (int64_t{1} << 25) && n > 1) {
     march_lanes(n, origins, dirs, out);

@@ -219,6 +219,74 @@ TEST(LightingStage, ASunHeadStartsFromAModelWithoutOne) {
 // statistics starts from it: its first layer keeps the loaded columns and gets zero columns for
 // the 102 statistics, so the sun's logits start where the loaded model's are; a step then trains
 // the new columns.
+// A model without the heads' grid (model.head_grid_channels) gains one: every head that reads
+// the features keeps its weights for the pooled vector and gets zero columns for the grid, so the
+// model starts from the loaded one's answers, and the grid then trains.
+TEST(LightingStage, HeadsGainTheFeatureGridFromAModelWithout) {
+  const std::string dir = temp_dir("lighting_head_grid");
+  nlohmann::json c = tiny_config(kStageLighting);
+  c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  c["loss"]["sun_distribution"] = 1.0;
+  c["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
+  const std::string exported = dir + "/exported.safetensors";
+  const Tensor image = Tensor::uniform({2, 3, c["model"]["image_height"].get<int64_t>(),
+                                        c["model"]["image_width"].get<int64_t>()}, 0.0, 1.0, 7);
+  std::vector<double> logits_before, code_before;
+  const nn::StateDict before = export_trained_predictor(c, exported, [&](LightingStage& stage) {
+    stage.predictor().set_training(false);
+    const NoGradGuard no_grad;
+    const train::SkyPrediction p = stage.predictor().predict_sky(image);
+    logits_before = p.sun_logits.to_vector();
+    code_before = p.code.latent.to_vector();
+  });
+  nlohmann::json g = c;
+  g["init"]["checkpoint"] = exported;
+  g["init"]["sky_checkpoint"] = "";
+  g["loss"]["sky_intensity"] = 0.0;
+  g["loss"]["sky_latent"] = 0.0;
+  g["model"]["head_grid_channels"] = 2;
+  LightingStage stage(g, memory_source(2), memory_source(1));
+  stage.initialise();
+  int widened = 0;
+  for (const auto& [name, t] : stage.predictor().state_dict()) {
+    if (name.rfind("head_grid.", 0) == 0) continue;  // new: its own initialisation
+    ASSERT_TRUE(before.count(name)) << name;
+    const Tensor& old = before.at(name);
+    if (t.shape() == old.shape()) {
+      EXPECT_EQ(t.to_vector(), old.to_vector()) << name;
+      continue;
+    }
+    ++widened;
+    ASSERT_EQ(t.dim(), 2) << name;
+    ASSERT_EQ(t.size(0), old.size(0)) << name;
+    ASSERT_GT(t.size(1), old.size(1)) << name;
+    const std::vector<double> w = t.to_vector(), o = old.to_vector();
+    for (int64_t r = 0; r < t.size(0); ++r)
+      for (int64_t k = 0; k < t.size(1); ++k)
+        ASSERT_EQ(w[r * t.size(1) + k], k < old.size(1) ? o[r * old.size(1) + k] : 0.0) << name << " " << r << ", " << k;
+  }
+  EXPECT_EQ(widened, 3);  // the sky head, the sun head and the volume MLP
+  {
+    stage.predictor().set_training(false);
+    const NoGradGuard no_grad;
+    const train::SkyPrediction p = stage.predictor().predict_sky(image);
+    const std::vector<double> logits = p.sun_logits.to_vector(), code = p.code.latent.to_vector();
+    ASSERT_EQ(logits.size(), logits_before.size());
+    for (size_t i = 0; i < logits.size(); ++i) EXPECT_NEAR(logits[i], logits_before[i], 1e-5) << i;
+    ASSERT_EQ(code.size(), code_before.size());
+    for (size_t i = 0; i < code.size(); ++i) EXPECT_NEAR(code[i], code_before[i], 1e-5) << i;
+    stage.predictor().set_training(true);
+  }
+  EXPECT_TRUE(std::isfinite(stage.step(0).at("loss")));
+  const Tensor w = stage.predictor().state_dict().at("sun_head.net.0.weight");
+  const int64_t old_cols = before.at("sun_head.net.0.weight").size(1);
+  const std::vector<double> v = w.to_vector();
+  double moved = 0;
+  for (size_t i = 0; i < v.size(); ++i)
+    if (static_cast<int64_t>(i) % w.size(1) >= old_cols) moved += std::fabs(v[i]);
+  EXPECT_GT(moved, 0.0) << "the grid's columns did not train";
+}
+
 TEST(LightingStage, ASunHeadGainsImageStatisticsFromAModelWithout) {
   const std::string dir = temp_dir("lighting_sun_statistics");
   nlohmann::json c = tiny_config(kStageLighting);

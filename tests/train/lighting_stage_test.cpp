@@ -47,6 +47,28 @@ nn::StateDict export_trained_predictor(const nlohmann::json& c, const std::strin
   return state;
 }
 
+// Config c started from the exported model at `exported`, which holds no teacher: no stage-1
+// checkpoint, and so none of the teacher's pseudo-labels.
+nlohmann::json from_exported(const nlohmann::json& c, const std::string& exported) {
+  nlohmann::json g = c;
+  g["init"]["checkpoint"] = exported;
+  g["init"]["sky_checkpoint"] = "";
+  g["loss"]["sky_intensity"] = 0.0;
+  g["loss"]["sky_latent"] = 0.0;
+  return g;
+}
+
+// A first layer widened from `old`: its columns, then zeros for the new inputs.
+void expect_widened(const std::string& name, const Tensor& t, const Tensor& old) {
+  ASSERT_EQ(t.dim(), 2) << name;
+  ASSERT_EQ(t.size(0), old.size(0)) << name;
+  ASSERT_GT(t.size(1), old.size(1)) << name;
+  const std::vector<double> w = t.to_vector(), o = old.to_vector();
+  for (int64_t r = 0; r < t.size(0); ++r)
+    for (int64_t k = 0; k < t.size(1); ++k)
+      ASSERT_EQ(w[r * t.size(1) + k], k < old.size(1) ? o[r * old.size(1) + k] : 0.0) << name << " " << r << ", " << k;
+}
+
 TEST(LightingStage, TwentyStepsOverfitATinyBatch) {
   const std::string dir = temp_dir("lighting_overfit");
   nlohmann::json c = tiny_config(kStageLighting);
@@ -170,11 +192,7 @@ TEST(LightingStage, ASunHeadStartsFromAModelWithoutOne) {
   c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
   const std::string exported = dir + "/exported.safetensors";
   const nn::StateDict before = export_trained_predictor(c, exported);
-  nlohmann::json g = c;
-  g["init"]["checkpoint"] = exported;
-  g["init"]["sky_checkpoint"] = "";
-  g["loss"]["sky_intensity"] = 0.0;
-  g["loss"]["sky_latent"] = 0.0;
+  nlohmann::json g = from_exported(c, exported);
   g["loss"]["sun_distribution"] = 1.0;
   g["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
   g["loss"]["sun_half"] = 0.5;
@@ -239,11 +257,7 @@ TEST(LightingStage, HeadsGainTheFeatureGridFromAModelWithout) {
     logits_before = p.sun_logits.to_vector();
     code_before = p.code.latent.to_vector();
   });
-  nlohmann::json g = c;
-  g["init"]["checkpoint"] = exported;
-  g["init"]["sky_checkpoint"] = "";
-  g["loss"]["sky_intensity"] = 0.0;
-  g["loss"]["sky_latent"] = 0.0;
+  nlohmann::json g = from_exported(c, exported);
   g["model"]["head_grid_channels"] = 2;
   LightingStage stage(g, memory_source(2), memory_source(1));
   stage.initialise();
@@ -257,13 +271,7 @@ TEST(LightingStage, HeadsGainTheFeatureGridFromAModelWithout) {
       continue;
     }
     ++widened;
-    ASSERT_EQ(t.dim(), 2) << name;
-    ASSERT_EQ(t.size(0), old.size(0)) << name;
-    ASSERT_GT(t.size(1), old.size(1)) << name;
-    const std::vector<double> w = t.to_vector(), o = old.to_vector();
-    for (int64_t r = 0; r < t.size(0); ++r)
-      for (int64_t k = 0; k < t.size(1); ++k)
-        ASSERT_EQ(w[r * t.size(1) + k], k < old.size(1) ? o[r * old.size(1) + k] : 0.0) << name << " " << r << ", " << k;
+    expect_widened(name, t, old);
   }
   EXPECT_EQ(widened, 3);  // the sky head, the sun head and the volume MLP
   {
@@ -302,11 +310,7 @@ TEST(LightingStage, ASunHeadGainsImageStatisticsFromAModelWithout) {
     const NoGradGuard no_grad;
     logits_before = stage.predictor().predict_sky(image).sun_logits.to_vector();
   });
-  nlohmann::json g = c;
-  g["init"]["checkpoint"] = exported;
-  g["init"]["sky_checkpoint"] = "";
-  g["loss"]["sky_intensity"] = 0.0;
-  g["loss"]["sky_latent"] = 0.0;
+  nlohmann::json g = from_exported(c, exported);
   g["model"]["sun_image_statistics"] = true;
   LightingStage stage(g, memory_source(2), memory_source(1));
   stage.initialise();
@@ -317,12 +321,8 @@ TEST(LightingStage, ASunHeadGainsImageStatisticsFromAModelWithout) {
       continue;
     }
     const Tensor& old = before.at(name);
-    ASSERT_EQ(t.size(0), old.size(0));
     ASSERT_EQ(t.size(1), old.size(1) + train::kImageStatistics);
-    const std::vector<double> w = t.to_vector(), o = old.to_vector();
-    for (int64_t r = 0; r < t.size(0); ++r)
-      for (int64_t k = 0; k < t.size(1); ++k)
-        ASSERT_EQ(w[r * t.size(1) + k], k < old.size(1) ? o[r * old.size(1) + k] : 0.0) << r << ", " << k;
+    expect_widened(name, t, old);
   }
   {
     stage.predictor().set_training(false);
@@ -362,11 +362,7 @@ TEST(LightingStage, ReinitialisedPartsStartAfreshAndTheRestFromTheCheckpoint) {
   c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
   const std::string exported = dir + "/exported.safetensors";
   const nn::StateDict trained = export_trained_predictor(c, exported);
-  nlohmann::json g = c;
-  g["init"]["checkpoint"] = exported;
-  g["init"]["sky_checkpoint"] = "";
-  g["loss"]["sky_intensity"] = 0.0;
-  g["loss"]["sky_latent"] = 0.0;
+  nlohmann::json g = from_exported(c, exported);
   g["init"]["reinitialise"] = {"backbone", "sky_head"};
   LightingStage stage(g, memory_source(2), memory_source(1));
   stage.initialise();

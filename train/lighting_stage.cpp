@@ -15,7 +15,6 @@
 #include "data/panorama.h"
 #include "data/sun_extraction.h"
 #include "nn/checkpoint.h"
-#include "nn/safetensors.h"
 #include "render/environment_map.h"
 #include "render/radiance_query.h"
 #include "train/adversarial_stage.h"
@@ -24,6 +23,7 @@
 #include "train/losses.h"
 #include "train/metrics.h"
 #include "train/phase_clock.h"
+#include "train/predictor_warm_start.h"
 #include "train/sun_distribution.h"
 #include "train/sun_error_parts.h"
 #include "train/train_config.h"
@@ -138,64 +138,7 @@ void LightingStage::initialise() {
     // Start from a stage-2 checkpoint: predictor and teacher (no discriminator, no optimiser).
     // An exported model (models/streetlight.safetensors) holds the predictor alone; its teacher
     // then comes from init.sky_checkpoint.
-    bool has_teacher = false, has_sun_head = false, has_head_grid = false;
-    int64_t sun_head_inputs = 0;
-    for (const auto& [name, t] : nn::read_safetensors(prev).tensors) {
-      has_teacher |= name.rfind("teacher.", 0) == 0;
-      has_sun_head |= name.rfind("predictor.sun_head.", 0) == 0;
-      has_head_grid |= name.rfind("predictor.head_grid.", 0) == 0;
-      if (name == "predictor.sun_head.net.0.weight") sun_head_inputs = t.size(1);
-    }
-    // A model from before the sun head (model.sun_grid) starts one: everything else is loaded
-    // into a predictor without it, then copied over; the new head keeps its initialisation.
-    // A sun head from before model.sun_image_statistics is widened: its first layer keeps its
-    // weights for the backbone's features and gets zeros for the statistics, so the model starts
-    // from exactly the loaded one's answers. A model from before model.head_grid_channels gets the
-    // grid the same way: every head that reads the features (sky, sun, volume MLP) keeps its
-    // weights for the pooled vector and gets zeros for the grid, which follows it, and the grid's
-    // 1×1 convolution keeps its initialisation.
-    const LightingPredictorOptions& mine = predictor_->options();
-    std::shared_ptr<LightingPredictor> loaded = predictor_;
-    // The checkpoint's own architecture: this model's, less what the checkpoint does not have.
-    LightingPredictorOptions without = mine;
-    if (!has_sun_head) without.sun_grid = SunGrid{}, without.sun_image_statistics = false;
-    if (!has_head_grid) without.head_grid_channels = 0;
-    if (has_sun_head && without.sun_image_statistics) {
-      LightingPredictorOptions plain = without;
-      plain.sun_image_statistics = false;
-      without.sun_image_statistics = LightingPredictor(plain).state_dict().at("sun_head.net.0.weight").size(1) != sun_head_inputs;
-    }
-    SL_CHECK(has_head_grid || mine.head_grid_channels == 0 || !without.sun_image_statistics, "init.checkpoint '", prev,
-             "': its sun head reads image statistics, and a new model.head_grid_channels would go between its columns; ",
-             "start the grid from a model without model.sun_image_statistics");
-    if (without.sun_grid.enabled() != mine.sun_grid.enabled() || without.head_grid_channels != mine.head_grid_channels ||
-        without.sun_image_statistics != mine.sun_image_statistics)
-      loaded = std::make_shared<LightingPredictor>(without);
-    LightingModel previous;
-    previous.register_module("predictor", loaded);
-    if (teacher_ && has_teacher) previous.register_module("teacher", teacher_);
-    nn::load_checkpoint(prev, previous, nullptr);
-    if (loaded != predictor_) {
-      nn::StateDict merged = predictor_->state_dict();
-      for (auto& [name, t] : merged) t = t.clone();
-      for (const auto& [name, t] : loaded->state_dict()) {
-        Tensor& into = merged.at(name);
-        if (into.shape() == t.shape()) {
-          into = t;
-          continue;
-        }
-        // A widened first layer [out, in + new inputs]: the loaded columns, then zeros.
-        SL_CHECK(name.ends_with(".net.0.weight") && t.dim() == 2 &&
-                     into.dim() == 2 && into.size(0) == t.size(0) && into.size(1) > t.size(1),
-                 "init.checkpoint '", prev, "': ", name, " is ", t.describe(), ", the model's is ", into.describe());
-        std::vector<double> w(static_cast<size_t>(into.numel()), 0.0);
-        const std::vector<double> old = t.to_vector();
-        for (int64_t r = 0; r < t.size(0); ++r)
-          std::copy_n(old.begin() + r * t.size(1), t.size(1), w.begin() + r * into.size(1));
-        into = Tensor::from_vector(w, into.shape(), into.dtype());
-      }
-      predictor_->load_state_dict(merged);
-    }
+    const bool has_teacher = warm_start_predictor(prev, predictor_, teacher_);
     // init.reinitialise: parts that start afresh (the predictor's own initialisation for this
     // config's seed) while the rest comes from the checkpoint, e.g. a backbone trained from
     // scratch under the loaded frozen sky decoder.

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -293,6 +294,63 @@ TEST(LightingStage, HeadsGainTheFeatureGridFromAModelWithout) {
   for (size_t i = 0; i < v.size(); ++i)
     if (static_cast<int64_t>(i) % w.size(1) >= old_cols) moved += std::fabs(v[i]);
   EXPECT_GT(moved, 0.0) << "the grid's columns did not train";
+}
+
+TEST(LightingStage, AResNet18BackboneDeepensToAResNet34WithTheSameAnswers) {
+  const std::string dir = temp_dir("lighting_deepen");
+  nlohmann::json c = tiny_config(kStageLighting);
+  c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  c["loss"]["sun_distribution"] = 1.0;
+  c["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
+  ASSERT_EQ(c["model"]["backbone_depth"].get<int>(), 18);
+  const std::string exported = dir + "/exported.safetensors";
+  const Tensor image = Tensor::uniform({2, 3, c["model"]["image_height"].get<int64_t>(),
+                                        c["model"]["image_width"].get<int64_t>()}, 0.0, 1.0, 7);
+  std::vector<double> logits_before, code_before;
+  const nn::StateDict before = export_trained_predictor(c, exported, [&](LightingStage& stage) {
+    stage.predictor().set_training(false);
+    const NoGradGuard no_grad;
+    const train::SkyPrediction p = stage.predictor().predict_sky(image);
+    logits_before = p.sun_logits.to_vector();
+    code_before = p.code.latent.to_vector();
+  });
+  nlohmann::json g = from_exported(c, exported);
+  g["model"]["backbone_depth"] = 34;
+  LightingStage stage(g, memory_source(2), memory_source(1));
+  stage.initialise();
+  std::set<std::string> added;  // the new blocks, "backbone.layerK.J"
+  for (const auto& [name, t] : stage.predictor().state_dict()) {
+    if (before.count(name)) {
+      EXPECT_EQ(t.to_vector(), before.at(name).to_vector()) << name;
+      continue;
+    }
+    // Only ResNet-34's extra blocks are new; each ends in a batch norm that starts at zero.
+    ASSERT_EQ(name.rfind("backbone.layer", 0), 0u) << name;
+    added.insert(name.substr(0, name.find('.', name.find('.', std::string("backbone.").size()) + 1)));
+    if (name.ends_with(".bn2.weight") || name.ends_with(".bn2.bias")) {
+      for (double v : t.to_vector()) ASSERT_EQ(v, 0.0) << name;
+    }
+  }
+  // ResNet-34 has [3, 4, 6, 3] blocks where ResNet-18 has [2, 2, 2, 2].
+  EXPECT_EQ(added, (std::set<std::string>{"backbone.layer1.2", "backbone.layer2.2", "backbone.layer2.3",
+                                          "backbone.layer3.2", "backbone.layer3.3", "backbone.layer3.4",
+                                          "backbone.layer3.5", "backbone.layer4.2"}));
+  {
+    stage.predictor().set_training(false);
+    const NoGradGuard no_grad;
+    const train::SkyPrediction p = stage.predictor().predict_sky(image);
+    const std::vector<double> logits = p.sun_logits.to_vector(), code = p.code.latent.to_vector();
+    ASSERT_EQ(logits.size(), logits_before.size());
+    for (size_t i = 0; i < logits.size(); ++i) EXPECT_NEAR(logits[i], logits_before[i], 1e-5) << i;
+    ASSERT_EQ(code.size(), code_before.size());
+    for (size_t i = 0; i < code.size(); ++i) EXPECT_NEAR(code[i], code_before[i], 1e-5) << i;
+    stage.predictor().set_training(true);
+  }
+  EXPECT_TRUE(std::isfinite(stage.step(0).at("loss")));
+  // The zero scales take gradients: the new blocks train.
+  double moved = 0;
+  for (double v : stage.predictor().state_dict().at("backbone.layer3.5.bn2.weight").to_vector()) moved += std::fabs(v);
+  EXPECT_GT(moved, 0.0) << "the new blocks did not train";
 }
 
 TEST(LightingStage, ASunHeadGainsImageStatisticsFromAModelWithout) {

@@ -17,18 +17,60 @@ class Holder : public nn::Module {
   Holder() : nn::Module("LightingModel") {}
 };
 
+// The batch norms whose channels are added to the residual stream: the stem's, each block's last
+// and each shortcut's.
+bool feeds_the_stream(const std::string& name) {
+  return name.rfind("backbone.bn1.", 0) == 0 || name.find(".bn2.") != std::string::npos ||
+         name.find(".downsample.1.") != std::string::npos;
+}
+
+// The new stream channels' constant value: positive, so the ReLUs after the sums pass gradients.
+constexpr double kNewStreamValue = 1e-2;
+
+// A backbone tensor of a narrower ResNet inside the wider one's: the loaded values in the leading
+// corner (the old channels keep their indices), the rest from `fresh`, the wider model's own
+// initialisation, except where the new channels could change the old answers or could not train:
+// - no new input reaches an old output: every conv's weights from new input channels into old
+//   output channels are 0;
+// - a stream batch norm's new channels have scale 0 and shift kNewStreamValue, so the new stream
+//   channels are a small positive constant (at exactly 0 the ReLU after each sum would pass no
+//   gradient, and they would never train).
+Tensor widen_backbone_tensor(const std::string& name, const Tensor& old, const Tensor& fresh) {
+  const int64_t rank = old.dim();
+  std::vector<double> w = fresh.to_vector();
+  const std::vector<double> o = old.to_vector();
+  const bool stream_scale = rank == 1 && feeds_the_stream(name) && name.ends_with(".weight");
+  const bool stream_shift = rank == 1 && feeds_the_stream(name) && name.ends_with(".bias");
+  const int64_t inner = rank == 4 ? fresh.size(2) * fresh.size(3) : 1;  // a conv's kernel taps
+  for (int64_t r = 0; r < fresh.size(0); ++r) {
+    if (rank == 1) {
+      if (r < old.size(0)) w[r] = o[r];
+      else if (stream_scale) w[r] = 0.0;
+      else if (stream_shift) w[r] = kNewStreamValue;
+      continue;
+    }
+    for (int64_t c = 0; c < fresh.size(1); ++c) {
+      double* dst = w.data() + (r * fresh.size(1) + c) * inner;
+      if (r < old.size(0) && c < old.size(1)) std::copy_n(o.data() + (r * old.size(1) + c) * inner, inner, dst);
+      else if (r < old.size(0)) std::fill_n(dst, inner, 0.0);
+    }
+  }
+  return Tensor::from_vector(w, fresh.shape(), fresh.dtype());
+}
+
 }  // namespace
 
 bool warm_start_predictor(const std::string& path, const std::shared_ptr<LightingPredictor>& predictor,
                           const std::shared_ptr<SkyAutoencoder>& teacher) {
   bool has_teacher = false, has_sun_head = false, has_head_grid = false, has_third_block = false;
-  int64_t sun_head_inputs = 0;
+  int64_t sun_head_inputs = 0, stem_width = 0;
   for (const auto& [name, t] : nn::read_safetensors(path).tensors) {
     has_teacher |= name.rfind("teacher.", 0) == 0;
     has_sun_head |= name.rfind("predictor.sun_head.", 0) == 0;
     has_head_grid |= name.rfind("predictor.head_grid.", 0) == 0;
     has_third_block |= name.rfind("predictor.backbone.layer1.2.", 0) == 0;  // ResNet-34's, not -18's
     if (name == "predictor.sun_head.net.0.weight") sun_head_inputs = t.size(1);
+    if (name == "predictor.backbone.conv1.weight") stem_width = t.size(0);
   }
   // A model from before the sun head (model.sun_grid) starts one: everything else is loaded
   // into a predictor without it, then copied over; the new head keeps its initialisation.
@@ -41,6 +83,8 @@ bool warm_start_predictor(const std::string& path, const std::shared_ptr<Lightin
   // same way: its blocks keep their places (layerK.0, layerK.1), and each new block starts with
   // its last batch norm's scale and shift at zero, so it adds nothing to its shortcut and, the
   // input being a ReLU's output, passes it on unchanged (the "zero-γ" residual initialisation).
+  // A narrower backbone (model.backbone_width) widens: see widen_backbone_tensor; the heads get
+  // zero columns for the new features.
   const LightingPredictorOptions& mine = predictor->options();
   std::shared_ptr<LightingPredictor> loaded = predictor;
   // The checkpoint's own architecture: this model's, less what the checkpoint does not have.
@@ -48,6 +92,12 @@ bool warm_start_predictor(const std::string& path, const std::shared_ptr<Lightin
   if (!has_sun_head) without.sun_grid = SunGrid{}, without.sun_image_statistics = false;
   if (!has_head_grid) without.head_grid_channels = 0;
   if (!has_third_block && mine.backbone_depth == 34) without.backbone_depth = 18;
+  if (stem_width > 0 && stem_width < mine.backbone_width) {
+    SL_CHECK(mine.head_grid_channels == 0 && !mine.sun_image_statistics, "init.checkpoint '", path,
+             "': a wider model.backbone_width would put new features between the heads' columns for ",
+             "model.head_grid_channels or model.sun_image_statistics; widen a model without them");
+    without.backbone_width = stem_width;
+  }
   if (has_sun_head && without.sun_image_statistics) {
     LightingPredictorOptions plain = without;
     plain.sun_image_statistics = false;
@@ -57,7 +107,8 @@ bool warm_start_predictor(const std::string& path, const std::shared_ptr<Lightin
            "': its sun head reads image statistics, and a new model.head_grid_channels would go between its columns; ",
            "start the grid from a model without model.sun_image_statistics");
   if (without.sun_grid.enabled() != mine.sun_grid.enabled() || without.head_grid_channels != mine.head_grid_channels ||
-      without.sun_image_statistics != mine.sun_image_statistics || without.backbone_depth != mine.backbone_depth)
+      without.sun_image_statistics != mine.sun_image_statistics || without.backbone_depth != mine.backbone_depth ||
+      without.backbone_width != mine.backbone_width)
     loaded = std::make_shared<LightingPredictor>(without);
   Holder previous;
   previous.register_module("predictor", loaded);
@@ -77,6 +128,10 @@ bool warm_start_predictor(const std::string& path, const std::shared_ptr<Lightin
       Tensor& into = merged.at(name);
       if (into.shape() == t.shape()) {
         into = t;
+        continue;
+      }
+      if (name.rfind("backbone.", 0) == 0 && without.backbone_width != mine.backbone_width && into.dim() == t.dim()) {
+        into = widen_backbone_tensor(name, t, into);
         continue;
       }
       // A widened first layer [out, in + new inputs]: the loaded columns, then zeros.

@@ -10,7 +10,10 @@
 //   - the sun head's image statistics (model.sun_image_statistics) and the heads' feature grid
 //     (model.head_grid_channels): the heads' first layers gain zero columns;
 //   - a ResNet-34 backbone from a ResNet-18 (model.backbone_depth): the extra blocks end in a batch
-//     norm at zero, so each passes its input on unchanged.
+//     norm at zero, so each passes its input on unchanged;
+//   - a wider backbone (model.backbone_width): the old channels keep their indices and values, no
+//     new channel reaches an old one, and the heads get zero columns for the new features (not
+//     with model.head_grid_channels or model.sun_image_statistics: refused).
 // - Throws sl::Error naming the file and tensor for any other mismatch of names or shapes.
 #pragma once
 #include <memory>

@@ -353,6 +353,79 @@ TEST(LightingStage, AResNet18BackboneDeepensToAResNet34WithTheSameAnswers) {
   EXPECT_GT(moved, 0.0) << "the new blocks did not train";
 }
 
+TEST(LightingStage, ANarrowBackboneWidensAndDeepensWithTheSameAnswers) {
+  const std::string dir = temp_dir("lighting_widen");
+  nlohmann::json c = tiny_config(kStageLighting);
+  c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  c["loss"]["sun_distribution"] = 1.0;
+  c["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
+  const int64_t width = c["model"]["backbone_width"].get<int64_t>();
+  const std::string exported = dir + "/exported.safetensors";
+  const Tensor image = Tensor::uniform({2, 3, c["model"]["image_height"].get<int64_t>(),
+                                        c["model"]["image_width"].get<int64_t>()}, 0.0, 1.0, 7);
+  std::vector<double> logits_before, code_before;
+  const nn::StateDict before = export_trained_predictor(c, exported, [&](LightingStage& stage) {
+    stage.predictor().set_training(false);
+    const NoGradGuard no_grad;
+    const train::SkyPrediction p = stage.predictor().predict_sky(image);
+    logits_before = p.sun_logits.to_vector();
+    code_before = p.code.latent.to_vector();
+  });
+  nlohmann::json g = from_exported(c, exported);
+  g["model"]["backbone_width"] = 2 * width;
+  g["model"]["backbone_depth"] = 34;
+  LightingStage stage(g, memory_source(2), memory_source(1));
+  stage.initialise();
+  int widened = 0;
+  for (const auto& [name, t] : stage.predictor().state_dict()) {
+    if (!before.count(name)) continue;  // ResNet-34's extra blocks (the test above)
+    const Tensor& old = before.at(name);
+    if (t.shape() == old.shape()) {
+      EXPECT_EQ(t.to_vector(), old.to_vector()) << name;
+      continue;
+    }
+    // The old tensor sits in the leading corner: its channels keep their indices.
+    ++widened;
+    ASSERT_EQ(t.dim(), old.dim()) << name;
+    const int64_t inner = t.numel() / (t.size(0) * (t.dim() > 1 ? t.size(1) : 1));
+    const std::vector<double> w = t.to_vector(), o = old.to_vector();
+    const int64_t cols = t.dim() > 1 ? t.size(1) : 1, old_cols = old.dim() > 1 ? old.size(1) : 1;
+    for (int64_t r = 0; r < old.size(0); ++r)
+      for (int64_t k = 0; k < old_cols; ++k)
+        for (int64_t i = 0; i < inner; ++i)
+          ASSERT_EQ(w[(r * cols + k) * inner + i], o[(r * old_cols + k) * inner + i]) << name << " " << r << ", " << k;
+  }
+  EXPECT_GT(widened, 50);  // the backbone's convs and batch norms, and the heads' first layers
+  {
+    stage.predictor().set_training(false);
+    const NoGradGuard no_grad;
+    const train::SkyPrediction p = stage.predictor().predict_sky(image);
+    const std::vector<double> logits = p.sun_logits.to_vector(), code = p.code.latent.to_vector();
+    ASSERT_EQ(logits.size(), logits_before.size());
+    for (size_t i = 0; i < logits.size(); ++i) EXPECT_NEAR(logits[i], logits_before[i], 1e-5) << i;
+    ASSERT_EQ(code.size(), code_before.size());
+    for (size_t i = 0; i < code.size(); ++i) EXPECT_NEAR(code[i], code_before[i], 1e-5) << i;
+    stage.predictor().set_training(true);
+  }
+  // The new stream channels start at zero scale and train: the weights from them into the old
+  // channels move in the first step, and with them the scales in the second.
+  for (int64_t step = 0; step < 3; ++step) EXPECT_TRUE(std::isfinite(stage.step(step).at("loss")));
+  const std::vector<double> gamma = stage.predictor().state_dict().at("backbone.layer2.1.bn2.weight").to_vector();
+  double moved = 0;
+  for (size_t i = 2 * width; i < gamma.size(); ++i) moved += std::fabs(gamma[i]);
+  EXPECT_GT(moved, 0.0) << "the new channels did not train";
+  // A wider backbone cannot go between the columns of the heads' later inputs.
+  nlohmann::json bad = g;
+  bad["model"]["head_grid_channels"] = 2;
+  LightingStage refused(bad, memory_source(2), memory_source(1));
+  try {
+    refused.initialise();
+    FAIL() << "a wider backbone with a new head grid was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("model.backbone_width"), std::string::npos) << e.what();
+  }
+}
+
 TEST(LightingStage, ASunHeadGainsImageStatisticsFromAModelWithout) {
   const std::string dir = temp_dir("lighting_sun_statistics");
   nlohmann::json c = tiny_config(kStageLighting);

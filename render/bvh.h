@@ -26,7 +26,9 @@
 // that start beyond the nearest hit so far; occlusion stops at the first hit it finds. Children at
 // equal entry distances go in a fixed order (two: the lower slot first; more: the higher), which
 // decides which of two triangles at exactly the same t is reported; under AVX-512 three or more
-// children are sorted by a branch-free network on (distance, slot) keys in that same order.
+// children are sorted by a branch-free network on (distance, slot) keys in that same order. Under
+// AVX-512 the prefetching traversal (trees larger than the L2 cache) tests a leaf of 9-16
+// triangles, which spans two blocks, in one 16-wide pass with the same operations per lane.
 // Guarantees:
 //   - a hit has tmin < t < tmax; the hit point is (1-u-v)·p0 + u·p1 + v·p2 of the mesh triangle
 //     `triangle` (its index in Mesh::triangles);
@@ -38,8 +40,9 @@
 //   - an empty mesh gives an empty BVH in which every ray misses;
 //   - results do not depend on the thread count (queries are independent per ray, and the
 //     tree does not depend on how the build was scheduled);
-//   - the 8-wide AVX2 tests and AVX-512 child ordering (when compiled for them) and the portable
-//     lane loops, forced with use_portable_kernels(true), give bit-identical hits, ties included.
+//   - the 8-wide AVX2 tests, AVX-512 child ordering and AVX-512's 16-wide test of a leaf over two
+//     blocks (when compiled for them) and the portable lane loops, forced with
+//     use_portable_kernels(true), give bit-identical hits, ties included.
 // Throws: sl::Error when a triangle's vertex index is out of range.
 #pragma once
 #include <cstddef>

@@ -79,6 +79,11 @@ TEST(Bvh, PortableAndVectorKernelsGiveBitIdenticalHits) {
   const int hit_count = count_identical_hits(vector_bvh, portable_bvh, rays);
   EXPECT_GT(hit_count, 300);
   EXPECT_LT(hit_count, static_cast<int>(rays.size()));
+  // With prefetching (trees larger than the L2 cache), AVX-512 tests a leaf over two blocks in one
+  // 16-wide pass.
+  sl::render::Bvh prefetching_bvh(m);
+  prefetching_bvh.use_prefetch(true);
+  EXPECT_EQ(count_identical_hits(prefetching_bvh, portable_bvh, rays), hit_count);
 }
 
 TEST(Bvh, KernelsVisitChildrenAtEqualDistancesInTheSameOrder) {
@@ -107,6 +112,11 @@ TEST(Bvh, KernelsVisitChildrenAtEqualDistancesInTheSameOrder) {
       rays.push_back(r);
     }
     EXPECT_EQ(count_identical_hits(vector_bvh, portable_bvh, rays), 300) << copies << " copies";
+    // Leaves of more than 8 copies span two blocks: with prefetching (the traversal of trees larger
+    // than the L2 cache) AVX-512 tests both at once, and must still report the first copy.
+    sl::render::Bvh prefetching_bvh(m);
+    prefetching_bvh.use_prefetch(true);
+    EXPECT_EQ(count_identical_hits(prefetching_bvh, portable_bvh, rays), 300) << copies << " copies, prefetching";
   }
 }
 

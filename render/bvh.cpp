@@ -382,8 +382,8 @@ inline unsigned hit_block_pair(const Bvh::TriangleBlock* b, const PreparedRay& r
 
 // Three or more children, in the order of defer_all_but_nearest without its branches: 64-bit
 // keys (entry distance as an ordered integer, then 7 − slot) go through an 8-key bitonic network,
-// and the nearest comes from a separate min reduction, so that the next node's load does not wait
-// for the network. A key's slot picks its stack entry with one permute.
+// and the nearest comes from a separate float min over the entry distances, so that the next
+// node's load does not wait for the network. A key's slot picks its stack entry with one permute.
 constexpr __mmask8 keeps_larger(int k, int j) {  // network step (k, j), sorting in descending order
   unsigned m = 0;
   for (int i = 0; i < 8; ++i) m |= static_cast<unsigned>(((i & k) == 0) != ((i & j) != 0)) << i;
@@ -409,7 +409,15 @@ inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const flo
   const __m512i key = _mm512_or_si512(_mm512_slli_epi64(_mm512_cvtepi32_epi64(ordered), 32),
                                       _mm512_setr_epi64(7, 6, 5, 4, 3, 2, 1, 0));
   const __mmask8 hit = static_cast<__mmask8>(mask);
-  const uint64_t nearest = static_cast<uint64_t>(_mm512_mask_reduce_min_epi64(hit, key));
+  // The nearest: the least entry distance of the entered children, the highest slot among equal
+  // ones (−0 and +0 compare equal), which is the least key; three min steps on floats are fewer
+  // than the 64-bit reduction's before the next node's load can start.
+  __m256 m = _mm256_mask_blend_ps(hit, _mm256_set1_ps(kInf), t);
+  m = _mm256_min_ps(m, _mm256_permute_ps(m, _MM_SHUFFLE(2, 3, 0, 1)));
+  m = _mm256_min_ps(m, _mm256_permute_ps(m, _MM_SHUFFLE(1, 0, 3, 2)));
+  m = _mm256_min_ps(m, _mm256_permute2f128_ps(m, m, 1));
+  const unsigned ties = _mm256_mask_cmp_ps_mask(hit, t, m, _CMP_EQ_OQ);
+  const int nearest_slot = 31 - __builtin_clz(ties);
   __m512i v = _mm512_mask_mov_epi64(_mm512_set1_epi64(INT64_MIN), hit, key);  // missed children last
   v = sort_step<2, 1>(v), v = sort_step<4, 2>(v), v = sort_step<4, 1>(v);
   v = sort_step<8, 4>(v), v = sort_step<8, 2>(v), v = sort_step<8, 1>(v);
@@ -420,7 +428,7 @@ inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const flo
   static_assert(sizeof(StackEntry) == 8 && offsetof(StackEntry, tnear) == 4);
   _mm512_storeu_si512(stack + sp, _mm512_permutexvar_epi64(_mm512_xor_si512(v, _mm512_set1_epi64(7)), entries));
   sp += __builtin_popcount(mask) - 1;  // the farthest first; the nearest, on top, is overwritten later
-  return n.child[7 - (nearest & 7)];
+  return n.child[nearest_slot];
 }
 #else
 inline uint32_t defer_all_but_nearest(const BvhNode& n, unsigned mask, const float* tnear, StackEntry* stack, int& sp,

@@ -606,9 +606,18 @@ inline Hit Bvh::traverse(const Ray& ray) const {
         // Start loading every child the ray enters, so their cache misses overlap.
         for (unsigned m = mask; m; m &= m - 1) {
           const uint32_t c = n.child[__builtin_ctz(m)];
-          const bool leaf = BvhNode::is_leaf(c);
-          const char* p = leaf ? reinterpret_cast<const char*>(&blocks_[BvhNode::leaf_block(c)])
-                               : reinterpret_cast<const char*>(&nodes_[c]);
+          // Leaf or node, both addresses computed and one selected (a conditional move): children of
+          // both kinds mix unpredictably, and a branch on the kind mispredicts.
+          // (GCC 12 compiles a plain ?: here to a branch.)
+          uintptr_t p_addr = reinterpret_cast<uintptr_t>(nodes_.data()) + uintptr_t{c} * sizeof(BvhNode);
+          const uintptr_t to_leaf = reinterpret_cast<uintptr_t>(blocks_.data()) +
+                                    uintptr_t{BvhNode::leaf_block(c)} * sizeof(TriangleBlock);
+#if defined(__x86_64__) && defined(__GNUC__)
+          asm("test %[c], %[c]\n\tcmovs %[leaf], %[p]" : [p] "+r"(p_addr) : [c] "r"(c), [leaf] "r"(to_leaf) : "cc");
+#else
+          p_addr = BvhNode::is_leaf(c) ? to_leaf : p_addr;
+#endif
+          const char* p = reinterpret_cast<const char*>(p_addr);
           // Five lines cover a block or a node (4, then the next node's first): a fixed
           // count, as a loop over the size would mispredict its exit (prefetches never fault).
           static_assert(sizeof(TriangleBlock) <= 5 * 64 && sizeof(BvhNode) <= 5 * 64);

@@ -8,9 +8,14 @@ namespace sl::nn {
 
 namespace {
 
+// The first few items, then how many more: a model of another architecture can mismatch in a
+// hundred tensors, and the one-line error must stay readable.
+constexpr size_t kListedItems = 5;
+
 std::string join_list(const std::vector<std::string>& items) {
   std::string s;
-  for (size_t i = 0; i < items.size(); ++i) s += (i ? ", " : "") + items[i];
+  for (size_t i = 0; i < items.size() && i < kListedItems; ++i) s += (i ? ", " : "") + items[i];
+  if (items.size() > kListedItems) s += cat(", ... and ", items.size() - kListedItems, " more");
   return s;
 }
 

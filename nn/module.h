@@ -44,7 +44,7 @@ struct StateMismatch {
   std::vector<std::string> unexpected;  // given, not expected
   std::vector<std::string> mismatched;  // "name: expected f32[3, 4], got f64[3]"
   bool empty() const { return missing.empty() && unexpected.empty() && mismatched.empty(); }
-  std::string message() const;  // one paragraph listing all three groups
+  std::string message() const;  // one line: each group's count and its first 5 entries
 };
 
 // Compares names, shapes and dtypes (values are not looked at).

@@ -144,6 +144,19 @@ TEST(Module, LoadStateDictListsMissingUnexpectedAndMismatchedInOneMessage) {
   EXPECT_EQ(a.parameter("scale").to_vector(), before);  // nothing was copied
 }
 
+TEST(Module, AMismatchOfManyTensorsNamesTheFirstFiveAndCountsTheRest) {
+  nn::StateMismatch m;
+  for (int i = 0; i < 12; ++i) m.mismatched.push_back(cat("layer", i, ".weight: expected f32[4], got f32[2]"));
+  m.missing = {"a", "b"};
+  const std::string msg = m.message();
+  EXPECT_NE(msg.find("12 mismatched: layer0.weight"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("layer4.weight: expected f32[4], got f32[2], ... and 7 more"), std::string::npos) << msg;
+  EXPECT_EQ(msg.find("layer5.weight"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("2 missing: a, b"), std::string::npos) << msg;
+  EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+  EXPECT_EQ(m.mismatched.size(), 12u);  // the lists themselves stay whole
+}
+
 TEST(Module, FrozenModuleGetsNoGradientYetPassesGradientToItsInput) {
   // y = frozen(trainable(x)): the paper's frozen sky decoder sits after trainable layers.
   auto trainable = std::make_shared<Linear>(3, 4);

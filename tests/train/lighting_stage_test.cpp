@@ -59,6 +59,27 @@ nlohmann::json from_exported(const nlohmann::json& c, const std::string& exporte
   return g;
 }
 
+// The sun head's logits and the sky latent for `image`, in eval mode (the stage is left training).
+struct SkyAnswers {
+  std::vector<double> logits, code;
+};
+SkyAnswers sky_answers(LightingStage& stage, const Tensor& image) {
+  stage.predictor().set_training(false);
+  const NoGradGuard no_grad;
+  const train::SkyPrediction p = stage.predictor().predict_sky(image);
+  SkyAnswers a{p.sun_logits.to_vector(), p.code.latent.to_vector()};
+  stage.predictor().set_training(true);
+  return a;
+}
+
+// A model grown from another starts from the same answers.
+void expect_same_answers(const SkyAnswers& a, const SkyAnswers& before) {
+  ASSERT_EQ(a.logits.size(), before.logits.size());
+  for (size_t i = 0; i < a.logits.size(); ++i) EXPECT_NEAR(a.logits[i], before.logits[i], 1e-5) << i;
+  ASSERT_EQ(a.code.size(), before.code.size());
+  for (size_t i = 0; i < a.code.size(); ++i) EXPECT_NEAR(a.code[i], before.code[i], 1e-5) << i;
+}
+
 // A first layer widened from `old`: its columns, then zeros for the new inputs.
 void expect_widened(const std::string& name, const Tensor& t, const Tensor& old) {
   ASSERT_EQ(t.dim(), 2) << name;
@@ -250,14 +271,9 @@ TEST(LightingStage, HeadsGainTheFeatureGridFromAModelWithout) {
   const std::string exported = dir + "/exported.safetensors";
   const Tensor image = Tensor::uniform({2, 3, c["model"]["image_height"].get<int64_t>(),
                                         c["model"]["image_width"].get<int64_t>()}, 0.0, 1.0, 7);
-  std::vector<double> logits_before, code_before;
-  const nn::StateDict before = export_trained_predictor(c, exported, [&](LightingStage& stage) {
-    stage.predictor().set_training(false);
-    const NoGradGuard no_grad;
-    const train::SkyPrediction p = stage.predictor().predict_sky(image);
-    logits_before = p.sun_logits.to_vector();
-    code_before = p.code.latent.to_vector();
-  });
+  SkyAnswers answers_before;
+  const nn::StateDict before = export_trained_predictor(
+      c, exported, [&](LightingStage& stage) { answers_before = sky_answers(stage, image); });
   nlohmann::json g = from_exported(c, exported);
   g["model"]["head_grid_channels"] = 2;
   LightingStage stage(g, memory_source(2), memory_source(1));
@@ -275,17 +291,7 @@ TEST(LightingStage, HeadsGainTheFeatureGridFromAModelWithout) {
     expect_widened(name, t, old);
   }
   EXPECT_EQ(widened, 3);  // the sky head, the sun head and the volume MLP
-  {
-    stage.predictor().set_training(false);
-    const NoGradGuard no_grad;
-    const train::SkyPrediction p = stage.predictor().predict_sky(image);
-    const std::vector<double> logits = p.sun_logits.to_vector(), code = p.code.latent.to_vector();
-    ASSERT_EQ(logits.size(), logits_before.size());
-    for (size_t i = 0; i < logits.size(); ++i) EXPECT_NEAR(logits[i], logits_before[i], 1e-5) << i;
-    ASSERT_EQ(code.size(), code_before.size());
-    for (size_t i = 0; i < code.size(); ++i) EXPECT_NEAR(code[i], code_before[i], 1e-5) << i;
-    stage.predictor().set_training(true);
-  }
+  expect_same_answers(sky_answers(stage, image), answers_before);
   EXPECT_TRUE(std::isfinite(stage.step(0).at("loss")));
   const Tensor w = stage.predictor().state_dict().at("sun_head.net.0.weight");
   const int64_t old_cols = before.at("sun_head.net.0.weight").size(1);
@@ -306,14 +312,9 @@ TEST(LightingStage, AResNet18BackboneDeepensToAResNet34WithTheSameAnswers) {
   const std::string exported = dir + "/exported.safetensors";
   const Tensor image = Tensor::uniform({2, 3, c["model"]["image_height"].get<int64_t>(),
                                         c["model"]["image_width"].get<int64_t>()}, 0.0, 1.0, 7);
-  std::vector<double> logits_before, code_before;
-  const nn::StateDict before = export_trained_predictor(c, exported, [&](LightingStage& stage) {
-    stage.predictor().set_training(false);
-    const NoGradGuard no_grad;
-    const train::SkyPrediction p = stage.predictor().predict_sky(image);
-    logits_before = p.sun_logits.to_vector();
-    code_before = p.code.latent.to_vector();
-  });
+  SkyAnswers answers_before;
+  const nn::StateDict before = export_trained_predictor(
+      c, exported, [&](LightingStage& stage) { answers_before = sky_answers(stage, image); });
   nlohmann::json g = from_exported(c, exported);
   g["model"]["backbone_depth"] = 34;
   LightingStage stage(g, memory_source(2), memory_source(1));
@@ -335,17 +336,7 @@ TEST(LightingStage, AResNet18BackboneDeepensToAResNet34WithTheSameAnswers) {
   EXPECT_EQ(added, (std::set<std::string>{"backbone.layer1.2", "backbone.layer2.2", "backbone.layer2.3",
                                           "backbone.layer3.2", "backbone.layer3.3", "backbone.layer3.4",
                                           "backbone.layer3.5", "backbone.layer4.2"}));
-  {
-    stage.predictor().set_training(false);
-    const NoGradGuard no_grad;
-    const train::SkyPrediction p = stage.predictor().predict_sky(image);
-    const std::vector<double> logits = p.sun_logits.to_vector(), code = p.code.latent.to_vector();
-    ASSERT_EQ(logits.size(), logits_before.size());
-    for (size_t i = 0; i < logits.size(); ++i) EXPECT_NEAR(logits[i], logits_before[i], 1e-5) << i;
-    ASSERT_EQ(code.size(), code_before.size());
-    for (size_t i = 0; i < code.size(); ++i) EXPECT_NEAR(code[i], code_before[i], 1e-5) << i;
-    stage.predictor().set_training(true);
-  }
+  expect_same_answers(sky_answers(stage, image), answers_before);
   EXPECT_TRUE(std::isfinite(stage.step(0).at("loss")));
   // The zero scales take gradients: the new blocks train.
   double moved = 0;
@@ -363,14 +354,9 @@ TEST(LightingStage, ANarrowBackboneWidensAndDeepensWithTheSameAnswers) {
   const std::string exported = dir + "/exported.safetensors";
   const Tensor image = Tensor::uniform({2, 3, c["model"]["image_height"].get<int64_t>(),
                                         c["model"]["image_width"].get<int64_t>()}, 0.0, 1.0, 7);
-  std::vector<double> logits_before, code_before;
-  const nn::StateDict before = export_trained_predictor(c, exported, [&](LightingStage& stage) {
-    stage.predictor().set_training(false);
-    const NoGradGuard no_grad;
-    const train::SkyPrediction p = stage.predictor().predict_sky(image);
-    logits_before = p.sun_logits.to_vector();
-    code_before = p.code.latent.to_vector();
-  });
+  SkyAnswers answers_before;
+  const nn::StateDict before = export_trained_predictor(
+      c, exported, [&](LightingStage& stage) { answers_before = sky_answers(stage, image); });
   nlohmann::json g = from_exported(c, exported);
   g["model"]["backbone_width"] = 2 * width;
   g["model"]["backbone_depth"] = 34;
@@ -396,17 +382,7 @@ TEST(LightingStage, ANarrowBackboneWidensAndDeepensWithTheSameAnswers) {
           ASSERT_EQ(w[(r * cols + k) * inner + i], o[(r * old_cols + k) * inner + i]) << name << " " << r << ", " << k;
   }
   EXPECT_GT(widened, 50);  // the backbone's convs and batch norms, and the heads' first layers
-  {
-    stage.predictor().set_training(false);
-    const NoGradGuard no_grad;
-    const train::SkyPrediction p = stage.predictor().predict_sky(image);
-    const std::vector<double> logits = p.sun_logits.to_vector(), code = p.code.latent.to_vector();
-    ASSERT_EQ(logits.size(), logits_before.size());
-    for (size_t i = 0; i < logits.size(); ++i) EXPECT_NEAR(logits[i], logits_before[i], 1e-5) << i;
-    ASSERT_EQ(code.size(), code_before.size());
-    for (size_t i = 0; i < code.size(); ++i) EXPECT_NEAR(code[i], code_before[i], 1e-5) << i;
-    stage.predictor().set_training(true);
-  }
+  expect_same_answers(sky_answers(stage, image), answers_before);
   // The new stream channels start at zero scale and train: the weights from them into the old
   // channels move in the first step, and with them the scales in the second.
   for (int64_t step = 0; step < 3; ++step) EXPECT_TRUE(std::isfinite(stage.step(step).at("loss")));

@@ -517,6 +517,23 @@ using BestSimdRay = avx2::SimdRay;
 using BestSimdRay = portable::SimdRay;
 #endif
 
+// Records the hit of a block test's lane mask (never 0): any-hit its first lane; closest-hit the
+// closest lane, on equal t the first, as a one-by-one test would keep it. `base` is the first
+// lane's slot (block * kBlockWidth). Hits: BlockHits or avx2::PairHits.
+template <bool kAnyHit, class Hits>
+SL_ALWAYS_INLINE void take_hit(unsigned mask, const Hits& h, uint32_t base, float& tmax, Hit& hit, uint32_t& slot) {
+  int lane = __builtin_ctz(mask);
+  if constexpr (!kAnyHit) {
+    for (mask &= mask - 1; mask; mask &= mask - 1) {
+      const int l = __builtin_ctz(mask);
+      if (h.t[l] < h.t[lane]) lane = l;
+    }
+  }
+  tmax = h.t[lane];
+  hit.t = tmax, hit.u = h.e1[lane] * h.inv_det[lane], hit.v = h.e2[lane] * h.inv_det[lane];
+  slot = base + lane;
+}
+
 // Tests the triangles of leaf `ref` (kPairs: a leaf over two blocks with hit_block_pair, when
 // compiled for AVX-512). Closest-hit narrows tmax to each closer hit and records it in `hit` and
 // `slot` (block * kBlockWidth + lane); any-hit returns true at the first hit.
@@ -541,16 +558,7 @@ SL_ALWAYS_INLINE bool hit_leaf(const Bvh::TriangleBlock* blocks, uint32_t ref, c
       avx2::PairHits h;
       unsigned mask = avx2::hit_block_pair(blocks + b, r, tmax, lanes, h);
       if (mask) {
-        int lane = __builtin_ctz(mask);
-        if constexpr (!kAnyHit) {
-          for (mask &= mask - 1; mask; mask &= mask - 1) {
-            const int l = __builtin_ctz(mask);
-            if (h.t[l] < h.t[lane]) lane = l;
-          }
-        }
-        tmax = h.t[lane];
-        hit.t = tmax, hit.u = h.e1[lane] * h.inv_det[lane], hit.v = h.e2[lane] * h.inv_det[lane];
-        slot = b * kB + lane;
+        take_hit<kAnyHit>(mask, h, b * kB, tmax, hit, slot);
         found = true;
         if constexpr (kAnyHit) return true;
       }
@@ -564,17 +572,7 @@ SL_ALWAYS_INLINE bool hit_leaf(const Bvh::TriangleBlock* blocks, uint32_t ref, c
     BlockHits h;
     unsigned mask = hit_block(blocks[b], r, s, tmax, lanes, h);
     if (!mask) continue;
-    int lane = __builtin_ctz(mask);
-    if constexpr (!kAnyHit) {
-      // The closest lane; on equal t the first, as a one-by-one test would keep it.
-      for (mask &= mask - 1; mask; mask &= mask - 1) {
-        const int l = __builtin_ctz(mask);
-        if (h.t[l] < h.t[lane]) lane = l;
-      }
-    }
-    tmax = h.t[lane];
-    hit.t = tmax, hit.u = h.e1[lane] * h.inv_det[lane], hit.v = h.e2[lane] * h.inv_det[lane];
-    slot = b * kB + lane;
+    take_hit<kAnyHit>(mask, h, b * kB, tmax, hit, slot);
     found = true;
     if constexpr (kAnyHit) break;
   }

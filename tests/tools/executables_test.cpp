@@ -185,4 +185,22 @@ TEST(CliProgress, RateCountsFromTheFirstUpdateNotFromZero) {
   EXPECT_GT(a, 0.0);
   EXPECT_LE(a, 3.0 / 0.05) << "the rate counted the checkpoint's items";
 }
+
+// The last line of a run names what this process did: a run stopped by a signal at step 236 of
+// 20000, resumed from 200, says so; a finished one says done with the items it counted.
+TEST(CliProgress, FinishSaysWhereAStoppedRunStoppedAndCountsOnlyThisProcesssItems) {
+  cli::Progress stopped("train lighting", 20000, 1e9);
+  cli::Progress finished("eval", 8, 1e9);
+  ::testing::internal::CaptureStderr();
+  stopped.update(201);
+  stopped.update(236);
+  stopped.finish();
+  finished.update(1);
+  finished.update(8);
+  finished.finish();
+  const std::string text = ::testing::internal::GetCapturedStderr();
+  EXPECT_NE(text.find("train lighting stopped at 236/20000: 36 in "), std::string::npos) << text;
+  EXPECT_EQ(text.find("train lighting done"), std::string::npos) << text;
+  EXPECT_NE(text.find("eval done: 8 in "), std::string::npos) << text;
+}
 }  // namespace sl::test

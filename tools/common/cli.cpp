@@ -199,8 +199,13 @@ void Progress::update(int64_t done, const std::string& extra) {
 void Progress::finish(const std::string& extra) {
   const double elapsed = std::chrono::duration<double>(clock::now() - start_).count();
   if (tty_) std::fputs("\n", stderr);
-  const int64_t counted = total_ - std::max<int64_t>(0, base_);
-  std::fprintf(stderr, "%s done: %lld in %.1fs %s\n", label_.c_str(), (long long)counted, elapsed, extra.c_str());
+  // A run stopped early (a signal, an error the caller survived) says where it stopped: "done:
+  // 20000" after 236 steps would be a lie.
+  if (done_ < total_)
+    std::fprintf(stderr, "%s stopped at %lld/%lld: %lld in %.1fs %s\n", label_.c_str(), (long long)done_,
+                 (long long)total_, (long long)counted(), elapsed, extra.c_str());
+  else
+    std::fprintf(stderr, "%s done: %lld in %.1fs %s\n", label_.c_str(), (long long)counted(), elapsed, extra.c_str());
 }
 
 std::string released_model_path() {

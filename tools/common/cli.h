@@ -67,6 +67,8 @@ class Progress {
  public:
   Progress(std::string label, int64_t total, double plain_interval_s = 10.0);
   void update(int64_t done, const std::string& extra = "");
+  // One line: "LABEL done: N in Ts" when the last update reached the total, else "LABEL stopped
+  // at DONE/TOTAL: N in Ts"; N = counted().
   void finish(const std::string& extra = "");
   // The items this process counted: the last update's `done` minus the first's `done` − 1 (0
   // before any update), and them per second since construction.

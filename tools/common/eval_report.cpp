@@ -203,4 +203,28 @@ std::string pooled_markdown(const json& pooled, const json& datasets) {
   return md + "\n";
 }
 
+std::string ldr_markdown(const std::vector<json>& results, const json& baseline, const train::RealSkyFolder& r) {
+  std::string md = "\nSun direction on real LDR panoramas (hand-labelled suns, all scenes):\n\n" +
+                   real_sky_markdown(results, baseline, "labelled crops");
+  auto subset = [&](const std::string& title, auto pick) {
+    std::vector<json> rows;
+    for (const auto& res : results)
+      if (res.contains("sun_by_scene")) rows.push_back({{"name", res.at("name")}, {"sun", pick(res)}});
+    json b;
+    if (!baseline.is_null()) b = {{"name", baseline.at("name")}, {"sun", pick(baseline)}};
+    md += "\n" + title + ":\n\n" + real_sky_markdown(rows, b, "labelled crops");
+  };
+  subset("Street scenes", [](const json& j) { return j.at("sun_by_scene").at("street"); });
+  subset("Other scenes", [](const json& j) { return j.at("sun_by_scene").at("other"); });
+  subset("Low-confidence labels (also counted above)", [](const json& j) { return j.at("sun_low_confidence"); });
+  md += "\nScored panoramas: " + std::to_string(r.scored.size()) + "; not scored (no sun position): " +
+        std::to_string(r.not_scored.size());
+  std::string sep = " — ";
+  for (const auto& n : r.not_scored) {
+    md += sep + n.file + " (" + data::to_string(n.sun) + ")";
+    sep = ", ";
+  }
+  return md + "\n";
+}
+
 }  // namespace sl::cli

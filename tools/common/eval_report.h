@@ -12,6 +12,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "train/real_sky_benchmark.h"
+
 namespace sl::cli {
 
 // The main table of one data set. baseline: the constant-baseline row, or null for none.
@@ -32,5 +34,9 @@ std::string confidence_markdown(const std::vector<nlohmann::json>& rows);
 // The sun-in-crop table pooled over the real data sets: pooled holds {name, count,
 // sun_error_median_deg, ci95} per checkpoint; the data sets whose kind is not "street" are named.
 std::string pooled_markdown(const nlohmann::json& pooled, const nlohmann::json& datasets);
+// The LDR panoramas' sun tables: all labelled crops, then street and other scenes and the
+// low-confidence labels, each with the baseline row; then the panoramas that were not scored.
+std::string ldr_markdown(const std::vector<nlohmann::json>& rows, const nlohmann::json& baseline,
+                         const train::RealSkyFolder& folder);
 
 }  // namespace sl::cli

@@ -88,4 +88,34 @@ json sun_parts_json(const train::SunErrorParts& p) {
           {"truth_back_predicted_front", p.truth_back_predicted_front}};
 }
 
+nlohmann::json pooled_sun_in_crop(const nlohmann::json& datasets, const std::vector<std::string>& names) {
+  size_t real_sets = 0;
+  for (const auto& d : datasets) real_sets += d["kind"] != "street";
+  if (real_sets < 2) return json::array();
+  json rows = json::array();
+  for (const std::string& name : names) {
+    std::vector<double> e;
+    std::vector<std::string> g;
+    bool scored = false;
+    for (const auto& d : datasets) {
+      if (d["kind"] == "street") continue;
+      for (const auto& r : d["results"]) {
+        if (r.value("name", std::string()) != name || !r.contains("sun_per_image")) continue;
+        scored = true;
+        for (const auto& im : r["sun_per_image"])
+          if (im.value("sun_in_crop", false)) {
+            const std::string id = im["id"].get<std::string>();
+            e.push_back(im["sun_error_deg"].get<double>());
+            g.push_back(d["data"].get<std::string>() + "/" + id.substr(0, id.find('#')));
+          }
+      }
+    }
+    if (!scored) continue;
+    const sl::train::GroupedMedian m = sl::train::pooled_median(e, g);
+    rows.push_back({{"name", name}, {"count", m.count}, {"sun_error_median_deg", e.empty() ? json() : json(m.median)},
+                    {"ci95", interval_json(m.ci)}});
+  }
+  return rows;
+}
+
 }  // namespace sl::cli

@@ -74,4 +74,10 @@ struct LdrSunSplits {
 
 nlohmann::json sun_parts_json(const train::SunErrorParts& p);
 
+// "Sun in crop" pooled over every real data set of a run (results.json's "datasets": HDR and LDR
+// panorama folders): per checkpoint name, the median error of the crops whose sun is inside the
+// crop, with its interval resampling whole panoramas. Empty when fewer than two real data sets
+// were scored.
+nlohmann::json pooled_sun_in_crop(const nlohmann::json& datasets, const std::vector<std::string>& names);
+
 }  // namespace sl::cli

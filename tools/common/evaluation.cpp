@@ -443,66 +443,6 @@ json eval_sky(const std::string& ckpt, const std::string& data, const std::strin
           {"sun_error_mean_deg", mean_of(sun_err)}, {"inference_ms", mean_of(ms)}};
 }
 
-// The LDR panoramas' sun tables: all labelled crops, then street and other scenes and the
-// low-confidence labels, each with the baseline row; then the panoramas that were not scored.
-std::string ldr_markdown(const std::vector<json>& results, const json& baseline, const RealSkyData& r) {
-  std::string md = "\nSun direction on real LDR panoramas (hand-labelled suns, all scenes):\n\n" +
-                   cli::real_sky_markdown(results, baseline, "labelled crops");
-  auto subset = [&](const std::string& title, auto pick) {
-    std::vector<json> rows;
-    for (const auto& res : results)
-      if (res.contains("sun_by_scene")) rows.push_back({{"name", res.at("name")}, {"sun", pick(res)}});
-    json b;
-    if (!baseline.is_null()) b = {{"name", baseline.at("name")}, {"sun", pick(baseline)}};
-    md += "\n" + title + ":\n\n" + cli::real_sky_markdown(rows, b, "labelled crops");
-  };
-  subset("Street scenes", [](const json& j) { return j.at("sun_by_scene").at("street"); });
-  subset("Other scenes", [](const json& j) { return j.at("sun_by_scene").at("other"); });
-  subset("Low-confidence labels (also counted above)", [](const json& j) { return j.at("sun_low_confidence"); });
-  md += "\nScored panoramas: " + std::to_string(r.scored.size()) + "; not scored (no sun position): " +
-        std::to_string(r.not_scored.size());
-  std::string sep = " — ";
-  for (const auto& n : r.not_scored) {
-    md += sep + n.file + " (" + data::to_string(n.sun) + ")";
-    sep = ", ";
-  }
-  return md + "\n";
-}
-
-// "Sun in crop" pooled over every real data set of the run (HDR and LDR panorama folders): per
-// checkpoint row, the median error of the crops whose sun is inside the crop, with its interval
-// resampling whole panoramas. Empty when fewer than two real data sets were scored.
-json pooled_sun_in_crop(const json& datasets, const std::vector<std::string>& names) {
-  size_t real_sets = 0;
-  for (const auto& d : datasets) real_sets += d["kind"] != "street";
-  if (real_sets < 2) return json::array();
-  json rows = json::array();
-  for (const std::string& name : names) {
-    std::vector<double> e;
-    std::vector<std::string> g;
-    bool scored = false;
-    for (const auto& d : datasets) {
-      if (d["kind"] == "street") continue;
-      for (const auto& r : d["results"]) {
-        if (r.value("name", std::string()) != name || !r.contains("sun_per_image")) continue;
-        scored = true;
-        for (const auto& im : r["sun_per_image"])
-          if (im.value("sun_in_crop", false)) {
-            const std::string id = im["id"].get<std::string>();
-            e.push_back(im["sun_error_deg"].get<double>());
-            g.push_back(d["data"].get<std::string>() + "/" + id.substr(0, id.find('#')));
-          }
-      }
-    }
-    if (!scored) continue;
-    const sl::train::GroupedMedian m = sl::train::pooled_median(e, g);
-    rows.push_back({{"name", name}, {"count", m.count}, {"sun_error_median_deg", e.empty() ? json() : json(m.median)},
-                    {"ci95", interval_json(m.ci)}});
-  }
-  return rows;
-}
-
-
 }  // namespace
 
 namespace sl::cli {
@@ -609,7 +549,7 @@ EvalReport evaluate(const EvalOptions& o) {
     md += cli::eval_markdown(results, names, street ? baseline : json());
     if (street && baseline.is_null()) md += "\n(no baseline row: the data has no train split; give --baseline-data)\n";
     if (ldr) {
-      md += ldr_markdown(results, baseline, *real);
+      md += cli::ldr_markdown(results, baseline, *real);
       if (baseline.is_null()) md += "\n(no baseline row: give --ldr-split with a \"train\" list)\n";
     } else if (real) {
       md += "\nSun direction on real skies (crops whose sun is hard):\n\n" + cli::real_sky_markdown(results, baseline);
@@ -622,7 +562,7 @@ EvalReport evaluate(const EvalOptions& o) {
   }
   // The first data set's fields stay at the top level for single-data callers.
   json all = {{"data", datas[0]}, {"split", split}, {"results", datasets[0]["results"]}, {"datasets", datasets}};
-  const json pooled = pooled_sun_in_crop(datasets, names);
+  const json pooled = cli::pooled_sun_in_crop(datasets, names);
   if (!pooled.empty()) {
     all["sun_in_crop_pooled"] = pooled;
     md += cli::pooled_markdown(pooled, datasets);

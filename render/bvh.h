@@ -17,9 +17,9 @@
 // power-of-two grid over the mesh's box. A leaf tests whole triangles, so a reference's box only
 // has to contain its part of the triangle; boxes are rounded outwards, so every hit point lies
 // in some reference's box. A triangle may then appear in several leaves (never twice in one).
-// Intersection (bvh.cpp, its ray tests in bvh_ray_tests.inc): watertight ray-triangle test (Woop, Benthin & Wald, JCGT 2013): a ray
-// through an edge or vertex shared by two triangles hits at least one of them, never slips
-// between. Every lane of the vector test performs the same IEEE operations, in the same order,
+// Intersection (bvh.cpp; its ray tests in bvh_ray_tests.inc): watertight ray-triangle test
+// (Woop, Benthin & Wald, JCGT 2013): a ray through an edge or vertex shared by two triangles
+// hits at least one of them, never slips between. Every lane of the vector test performs the same IEEE operations, in the same order,
 // as the scalar test of intersect_brute_force. Child boxes are tested with a precomputed inverse
 // direction and far distances widened by 1 + 2γ₄ (pbrt §6.8.2), so a triangle hit is never
 // culled by box rounding. Closest-hit visits children nearest first and skips deferred subtrees

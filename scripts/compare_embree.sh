@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Side-by-side ray throughput on the BVH benchmark set: render/bvh (streetlight-bench trace) vs
 # Embree 3 rtcIntersect1 / rtcOccluded1.
-# Usage: scripts/compare_embree.sh [BUILD_DIR] [RAYS] [ROUNDS] [MESH...]
-#   defaults: build, 1000000, 3, every mesh of the set. MESH: a name from the set below.
+# Usage: [SETTLE_S=S] scripts/compare_embree.sh [BUILD_DIR] [RAYS] [ROUNDS] [MESH...]
+#   defaults: build, 1000000, 3, every mesh of the set. MESH: a name from the set below. SETTLE_S:
+#   seconds to wait after writing the meshes and rays, before the first measurement (default 30).
 # Each mesh x {primary, random} rays runs both sides ROUNDS times, alternating, and prints the
 # medians of the throughputs, the median of the per-round ratios ours/Embree and their range
 # (min-max over the rounds), for closest hit and any hit: on a loaded machine one round's ratio
@@ -51,29 +52,46 @@ for name in "${selected[@]}"; do
   [[ " ${all[*]} " == *" $name "* ]] || { echo "error: unknown mesh '$name' (one of: ${all[*]})" >&2; exit 2; }
 done
 
-work="$(mktemp -d)"
+# In memory (/dev/shm) when there is one: no file of the run is written back to disk.
+work="$(mktemp -d -p /dev/shm 2>/dev/null || mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 rows="$work/rows.txt"
 : > "$rows"
 field() { /usr/bin/python3 -c "import json,sys; print(json.loads(sys.stdin.read())['$1'])"; }
+mesh_of() { [[ "$1" == truck ]] && echo "$truck" || echo "$work/$1.glb"; }
+# Every mesh and ray file is written before the first measurement, then flushed, and the runs wait
+# SETTLE_S seconds (default 30): on this project's 2-vCPU VMs, for a minute or so after the guest
+# writes or deletes a few hundred MB, our traversal loses up to half its throughput and Embree a
+# fifth (docs/benchmarks.md, "the slow state"), so files written between measurements biased the
+# first ray kind measured after each mesh.
 for name in "${selected[@]}"; do
-  if [[ "$name" == truck ]]; then
-    mesh="$truck"
-  else
-    mesh="$work/$name.glb"
-    # shellcheck disable=SC2086
-    "$bench" gen-mesh ${gen[$name]} --out "$mesh" 2>/dev/null
-  fi
+  [[ "$name" == truck ]] || "$bench" gen-mesh ${gen[$name]} --out "$(mesh_of "$name")" 2>/dev/null
+  for kind in primary random; do
+    "$bench" gen-rays --mesh "$(mesh_of "$name")" --kind "$kind" --count "$count" --seed 1 \
+      --out "$work/$name.$kind.rays" 2>/dev/null
+  done
+done
+sync
+sleep "${SETTLE_S:-30}"
+for name in "${selected[@]}"; do
+  mesh="$(mesh_of "$name")"
   group=tuning
   [[ " ${held_out[*]} " == *" $name "* ]] && group=held-out
   for kind in primary random; do
     rays="$work/$name.$kind.rays"
-    "$bench" gen-rays --mesh "$mesh" --kind "$kind" --count "$count" --seed 1 --out "$rays" 2>/dev/null
     results=()
     tris=0
     for ((round = 0; round < rounds; ++round)); do
-      ours="$("$bench" trace --mesh "$mesh" --rays "$rays" --hits-out "$work/ours.hits" --json 2> >(grep -v " ran on: " >&2))"
-      theirs="$("$embree" --mesh "$mesh" --rays "$rays" --hits-out "$work/embree.hits" --json)"
+      # The side that runs first alternates from round to round; the last round writes the hits.
+      ours_out=() theirs_out=()
+      (( round == rounds - 1 )) && ours_out=(--hits-out "$work/ours.hits") theirs_out=(--hits-out "$work/embree.hits")
+      if (( round % 2 == 0 )); then
+        ours="$("$bench" trace --mesh "$mesh" --rays "$rays" "${ours_out[@]}" --json 2> >(grep -v " ran on: " >&2))"
+        theirs="$("$embree" --mesh "$mesh" --rays "$rays" "${theirs_out[@]}" --json)"
+      else
+        theirs="$("$embree" --mesh "$mesh" --rays "$rays" "${theirs_out[@]}" --json)"
+        ours="$("$bench" trace --mesh "$mesh" --rays "$rays" "${ours_out[@]}" --json 2> >(grep -v " ran on: " >&2))"
+      fi
       tris="$(field triangles <<<"$ours")"
       for key in closest_mrays_per_s any_mrays_per_s build_ms; do
         results+=("$(field $key <<<"$ours")" "$(field $key <<<"$theirs")")

@@ -51,18 +51,15 @@
 #include "util/math.h"
 
 using sl::data::ImageWriteOptions;
-using sl::data::make_procedural_car;
 using sl::data::PreethamSky;
 using sl::data::read_image;
 using sl::data::SkyParams;
 using sl::data::StreetGeneratorConfig;
-using sl::data::to_object_frame;
 using sl::data::write_image;
 using sl::render::Camera;
 using sl::render::CameraRay;
 using sl::render::EnvironmentMap;
 using sl::render::insert_objects;
-using sl::render::InsertionInputs;
 using sl::render::InsertionOptions;
 using sl::render::InsertionResult;
 using sl::render::Intrinsics;
@@ -76,7 +73,6 @@ using sl::render::PathTracer;
 using sl::render::PathTracerOptions;
 using sl::render::place_object;
 using sl::render::PlacedObject;
-using sl::render::Placement;
 using sl::render::resize_panorama;
 using sl::render::rotation_from_yaw_pitch_roll;
 using sl::render::vsg_activate;

@@ -85,13 +85,9 @@ for name in "${selected[@]}"; do
       # The side that runs first alternates from round to round; the last round writes the hits.
       ours_out=() theirs_out=()
       (( round == rounds - 1 )) && ours_out=(--hits-out "$work/ours.hits") theirs_out=(--hits-out "$work/embree.hits")
-      if (( round % 2 == 0 )); then
-        ours="$("$bench" trace --mesh "$mesh" --rays "$rays" "${ours_out[@]}" --json 2> >(grep -v " ran on: " >&2))"
-        theirs="$("$embree" --mesh "$mesh" --rays "$rays" "${theirs_out[@]}" --json)"
-      else
-        theirs="$("$embree" --mesh "$mesh" --rays "$rays" "${theirs_out[@]}" --json)"
-        ours="$("$bench" trace --mesh "$mesh" --rays "$rays" "${ours_out[@]}" --json 2> >(grep -v " ran on: " >&2))"
-      fi
+      run_ours() { ours="$("$bench" trace --mesh "$mesh" --rays "$rays" "${ours_out[@]}" --json 2> >(grep -v " ran on: " >&2))"; }
+      run_theirs() { theirs="$("$embree" --mesh "$mesh" --rays "$rays" "${theirs_out[@]}" --json)"; }
+      if (( round % 2 == 0 )); then run_ours; run_theirs; else run_theirs; run_ours; fi
       tris="$(field triangles <<<"$ours")"
       for key in closest_mrays_per_s any_mrays_per_s build_ms; do
         results+=("$(field $key <<<"$ours")" "$(field $key <<<"$theirs")")

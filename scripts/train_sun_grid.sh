@@ -89,7 +89,7 @@ say "3/5 the sun head (configs/release_sun_grid.json, configs/release_sun_grid_m
 timed more train_part more configs/release_sun_grid_more.json "$runs/sun_grid/last.safetensors"
 timed head train_part head configs/release_sun_grid_head.json "$runs/more/last.safetensors"
 say "3/5 part 4: the width-64 backbone, 20000 steps (configs/release_sun_grid_wide_long.json)"
-OMP_NUM_THREADS=${OMP_NUM_THREADS:-2} timed wide train_part wide_long configs/release_sun_grid_wide_long.json "$runs/head/last.safetensors"
+timed wide train_part wide_long configs/release_sun_grid_wide_long.json "$runs/head/last.safetensors"
 say "4/5 evaluation on the test splits"; timed eval evaluate
 if [ "$publish" = 1 ]; then
   commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)

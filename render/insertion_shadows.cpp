@@ -183,7 +183,8 @@ int64_t shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const Environ
   if (M > 0) base.assign(size_t(count), glm::dvec3(1.0)), fix_num.assign(size_t(count), glm::dvec3(0.0)),
              fix_den.assign(size_t(count), glm::dvec3(0.0));
   std::atomic<int64_t> marched{0};
-  parallel_for(count, 4, [&](int64_t b, int64_t e) {
+  // Dynamic: texels near the object and in the sun cost more (occlusion, exact marches).
+  parallel_for_dynamic(count, 4, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) {
       const int64_t t = sh.texels[size_t(i)];
       const glm::vec3 o = origins[size_t(t)];

@@ -396,7 +396,7 @@ void shade_foreground(const InsertionOptions& opt, const Bvh& bvh, const Environ
   std::vector<glm::vec3> correction(M > 0 ? gs.size() : 0, glm::vec3(0.0f));
   // Dynamic: a sample's cost depends on where it sees the sun and the object, so the two halves
   // of a static split differ; on KITTI 000008 one thread slept 40 ms at this loop's end (perf).
-  parallel_for_dynamic(int64_t(gs.size()), 16, [&](int64_t b, int64_t e) {
+  parallel_for_dynamic(int64_t(gs.size()), 128, [&](int64_t b, int64_t e) {
     std::vector<glm::vec3> ls, ws, full;
     std::vector<equirect::UV> units;
     for (int64_t i = b; i < e; ++i) {

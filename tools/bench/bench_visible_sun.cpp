@@ -23,19 +23,14 @@
 #include "data/visible_sun.h"
 #include "tools/bench/bench.h"
 #include "tools/common/cli.h"
-#include "util/error.h"
+#include "train/metrics.h"
 #include "train/real_sky_benchmark.h"
+#include "util/error.h"
 #include "util/math.h"
 #include "util/random.h"
 
 namespace sl::bench {
 namespace {
-
-double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
-  const double la = glm::length(a), lb = glm::length(b);
-  if (!(la > 0) || !(lb > 0)) return 180.0;
-  return degrees(std::acos(std::clamp(glm::dot(a, b) / (la * lb), -1.0, 1.0)));
-}
 
 // The tests a candidate fails, as a short list ("area", "compact", ...); "" when it passes.
 std::string failed_tests(const data::VisibleSun& s, const data::VisibleSunParams& p, int64_t pixels) {
@@ -179,14 +174,12 @@ int run_visible_sun(const std::vector<std::string>& args) {
     }
   }
   int in_crop = 0, hit = 0, wrong_hit = 0, outside = 0, false_fire = 0;
-  std::vector<double> hit_errors;
   for (const Item& c : items) {
     const data::VisibleSun s = data::find_visible_sun(c.ldr, c.camera, p);
-    const double err = s.found ? angle_deg(s.direction, c.sun) : 180.0;
+    const double err = s.found ? train::angular_error_deg(s.direction, c.sun) : 180.0;
     if (c.in_crop) {
       ++in_crop;
       if (s.found) {
-        hit_errors.push_back(err);
         hit += err <= 5.0;
         wrong_hit += err > 5.0;
       }
@@ -208,9 +201,10 @@ int run_visible_sun(const std::vector<std::string>& args) {
                     c.label.c_str());
     }
   }
-  std::printf("%s split %s, %d crops/panorama: sun in crop %d, fired %d (%d within 5 deg, %d farther); sun outside %d, "
-              "fired %d\n",
-              data_dir.c_str(), split.c_str(), int(crops), in_crop, hit + wrong_hit, hit, wrong_hit, outside, false_fire);
+  std::printf("%s split %s, %d %s crops/panorama: sun in crop %d, fired %d (%d within 5 deg, %d farther); sun outside "
+              "%d, fired %d\n",
+              data_dir.c_str(), split.c_str(), int(aimed > 0 ? aimed : crops), aimed > 0 ? "aimed" : "benchmark", in_crop,
+              hit + wrong_hit, hit, wrong_hit, outside, false_fire);
   return 0;
 }
 

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <mutex>
 #include <vector>
 
 #include "data/exr_header.h"
@@ -83,36 +84,64 @@ OpenedInput open_input(const std::string& path, const char* op) {
 // prints "libpng error: ..." straight to stderr, and OpenImageIO prints any error still
 // pending when a reader is destroyed; a damaged file must give the caller ONE line, so the
 // reader's output is collected and handed back (put into the error, or passed on when the
-// read succeeds). The descriptor is process-wide: output of other threads during the read is
-// collected too, and passed on.
+// read succeeds). The descriptor is process-wide, so the capture is too: reads that overlap in
+// time (threads of a loader) share one redirection, made by the first and undone by the last,
+// which alone hands back what was collected. Each redirecting and restoring on its own would
+// leave descriptor 2 pointing at a deleted temporary file once two reads overlap.
 class StderrCapture {
  public:
   StderrCapture() {
-    std::fflush(stderr);
-    file_ = std::tmpfile();
-    saved_ = file_ ? ::dup(STDERR_FILENO) : -1;
-    if (saved_ >= 0) ::dup2(::fileno(file_), STDERR_FILENO);
+    std::lock_guard<std::mutex> lock(mutex());
+    State& s = state();
+    if (s.users++ == 0) {
+      std::fflush(stderr);
+      s.file = std::tmpfile();
+      s.saved = s.file ? ::dup(STDERR_FILENO) : -1;
+      if (s.saved >= 0) ::dup2(::fileno(s.file), STDERR_FILENO);
+    }
+    active_ = true;
   }
   ~StderrCapture() { finish(); }
+  // What was written while this capture and any overlapping ones were alive; "" for every
+  // capture but the last of an overlapping group (its text goes to that last one).
   std::string finish() {
     std::string text;
-    if (saved_ < 0) return text;
-    std::fflush(stderr);
-    ::dup2(saved_, STDERR_FILENO);
-    ::close(saved_);
-    saved_ = -1;
-    std::rewind(file_);
-    char buf[1024];
-    size_t got;
-    while ((got = std::fread(buf, 1, sizeof buf, file_)) > 0) text.append(buf, got);
-    std::fclose(file_);
-    file_ = nullptr;
+    if (!active_) return text;
+    active_ = false;
+    std::lock_guard<std::mutex> lock(mutex());
+    State& s = state();
+    if (--s.users > 0) return text;
+    if (s.saved >= 0) {
+      std::fflush(stderr);
+      ::dup2(s.saved, STDERR_FILENO);
+      ::close(s.saved);
+    }
+    if (s.file) {
+      std::rewind(s.file);
+      char buf[1024];
+      size_t got;
+      while ((got = std::fread(buf, 1, sizeof buf, s.file)) > 0) text.append(buf, got);
+      std::fclose(s.file);
+    }
+    s = State{};
     return text;
   }
 
  private:
-  std::FILE* file_ = nullptr;
-  int saved_ = -1;
+  struct State {
+    std::FILE* file = nullptr;
+    int saved = -1;
+    int users = 0;
+  };
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static State& state() {
+    static State s;
+    return s;
+  }
+  bool active_ = false;
 };
 
 std::string one_line(std::string s) {

@@ -6,6 +6,11 @@
 #include <cmath>
 #include <filesystem>
 #include <string>
+#include <thread>
+#include <vector>
+
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "support/test_files.h"
 #include "util/random.h"
@@ -168,6 +173,25 @@ TEST(ImageIo, DamagedFilesRaiseErrorsNamingTheFile) {
   sl::test::write_bytes(noise, bytes);
   expect_error_naming([&] { sl::data::read_image(noise); }, noise);
   expect_error_naming([&] { sl::data::read_image(scratch("absent.exr")); }, scratch("absent.exr"), "no such file");
+}
+
+// A read collects what the decoder prints on descriptor 2 (data/image_io.cpp). Reads of several
+// threads overlap; afterwards descriptor 2 must be the process's own stderr again, not a
+// temporary file: a loader with two threads once silenced every later log line this way.
+TEST(ImageIo, OverlappingReadsInThreadsGiveStderrBack) {
+  const std::string png = scratch("threads.png");
+  sl::data::write_image(png, random_image(3, 256, 256, 0, 1, 11));
+  struct stat before {}, after {};
+  ASSERT_EQ(::fstat(STDERR_FILENO, &before), 0);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&] {
+      for (int k = 0; k < 25; ++k) (void)sl::data::read_image(png);
+    });
+  for (auto& th : threads) th.join();
+  ASSERT_EQ(::fstat(STDERR_FILENO, &after), 0);
+  EXPECT_EQ(before.st_dev, after.st_dev);
+  EXPECT_EQ(before.st_ino, after.st_ino) << "descriptor 2 was left redirected";
 }
 
 TEST(ImageIo, FailedWritesLeaveNoPartialFile) {

@@ -33,6 +33,9 @@ PyEstimator make_estimator(const std::optional<std::string>& checkpoint, bool fl
     path = checkpoint ? *checkpoint : cli::released_model_path();
     Compute c;
     e.est = std::make_shared<train::LightingEstimator>(path);
+    // The released learned glare detector behind the disk test, as the tools do by default.
+    if (const std::string glare = cli::released_sun_glare_path(); visible_sun && !glare.empty())
+      e.est->set_sun_glare(train::load_sun_glare(glare));
   });
   e.est->set_flip_average(flip_average);
   e.est->set_visible_sun(visible_sun);
@@ -108,6 +111,7 @@ py::dict confidence(const PyLighting& l) {
   d["crop_spread_deg"] = nan_to_none(e.sun_crop_spread_deg);
   d["probability"] = nan_to_none(e.sun_probability);
   d["visible_sun"] = e.visible_sun_found;
+  d["visible_sun_learned"] = e.visible_sun_learned;
   if (e.visible_sun_found) d["visible_sun_pixel"] = py::make_tuple(e.visible_sun_pixel.x, e.visible_sun_pixel.y);
   return d;
 }

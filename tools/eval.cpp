@@ -91,6 +91,9 @@ int run(int argc, char** argv) {
                {"--no-visible-sun", "", "keep the network's sun even where the photo shows the sun disk (by default a visible\n"
                 "                               sun sets the direction, data/visible_sun.h); the sun rows count the images\n"
                 "                               where it fired (\"cue k\" in the table, visible_sun_fired in the JSON)"},
+               {"--sun-glare", "FILE", "the learned sun-glare detector behind the disk test (default: the released one,\n"
+                "                               models/sun_glare.safetensors, when present; train/sun_glare.h)"},
+               {"--no-sun-glare", "", "the disk test alone finds a visible sun"},
                {"--out", "DIR", "write results.json, results.md and error_time.png here"},
                {"--json", "", "print the results as one JSON object on stdout"}});
   if (!a.parse(argc, argv)) return 0;
@@ -111,6 +114,8 @@ int run(int argc, char** argv) {
   o.budgets = a.has("--out") && !a.has("--no-budgets");
   o.flip_average = !a.has("--no-flip-average");
   o.visible_sun = !a.has("--no-visible-sun");
+  if (o.visible_sun && !a.has("--no-sun-glare"))
+    o.sun_glare = a.has("--sun-glare") ? a.get("--sun-glare") : sl::cli::released_sun_glare_path();
   const EvalReport report = evaluate(o);
   if (a.has("--out")) write_eval_report(report, a.get("--out"));
   if (a.has("--json")) std::cout << report.results.dump() << "\n";

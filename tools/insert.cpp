@@ -130,7 +130,8 @@ json hedge_json(const EstimatedLighting& light) {
 json visible_sun_json(const EstimatedLighting& light) {
   if (!light.visible_sun_found) return {{"found", false}};
   return {{"found", true}, {"view", light.visible_sun_view},
-          {"pixel", {light.visible_sun_pixel.x, light.visible_sun_pixel.y}}, {"score", light.visible_sun_score}};
+          {"pixel", {light.visible_sun_pixel.x, light.visible_sun_pixel.y}}, {"score", light.visible_sun_score},
+          {"learned", light.visible_sun_learned}};
 }
 
 // The third confidence, from crop averaging (train/inference.h sun_crop_spread_deg), null when off.
@@ -427,6 +428,9 @@ int run(int argc, char** argv) {
                 "                               sun.crop_spread_deg is the largest angle between the photo's sun and a crop's)"},
                {"--no-visible-sun", "", "keep the network's sun even where the photo shows the sun disk (by default a\n"
                 "                               visible sun sets the direction, data/visible_sun.h; result.json sun.visible_sun)"},
+               {"--sun-glare", "FILE", "the learned sun-glare detector behind the disk test (default: the released one,\n"
+                "                               models/sun_glare.safetensors, when present; train/sun_glare.h)"},
+               {"--no-sun-glare", "", "the disk test alone finds a visible sun"},
                {"--exr", "", "also write the composite as linear EXR"},
                {"--sun-azimuth", "DEG", "edit the sun: world azimuth (Sec 3.2 sky vector)"},
                {"--sun-elevation", "DEG", "edit the sun: elevation above the horizon"},

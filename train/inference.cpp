@@ -38,16 +38,31 @@ std::vector<double> to_doubles(const Tensor& t) {
 }
 
 // The visible sun of the view with the highest score (data/visible_sun.h); direction in world.
+// Without one, the learned glare detector's view of highest probability when it reaches the
+// threshold (train/sun_glare.h).
 struct VisibleSunCue {
-  bool found = false;
+  bool found = false, learned = false;
   int view = -1;
   data::VisibleSun sun;
 };
-VisibleSunCue find_visible_sun_cue(const std::vector<InferenceView>& views, const data::VisibleSunParams& params) {
+VisibleSunCue find_visible_sun_cue(const std::vector<InferenceView>& views, const data::VisibleSunParams& params,
+                                   SunGlareDetector* glare, double threshold) {
   VisibleSunCue cue;
   for (size_t k = 0; k < views.size(); ++k) {
     const data::VisibleSun s = data::find_visible_sun(views[k].ldr, views[k].camera, params);
-    if (s.found && (!cue.found || s.score > cue.sun.score)) cue = {true, static_cast<int>(k), s};
+    if (s.found && (!cue.found || s.score > cue.sun.score)) cue = {true, false, static_cast<int>(k), s};
+  }
+  if (cue.found || !glare) return cue;
+  for (size_t k = 0; k < views.size(); ++k) {
+    const Tensor logits = glare->forward(unsqueeze(glare_input(views[k].ldr), 0));
+    const render::Intrinsics& in = views[k].camera.intrinsics();
+    const GlareReading r = read_glare(select(logits, 0, 0), in.height, in.width);
+    if (r.p_sun < threshold || (cue.found && r.p_sun <= cue.sun.score)) continue;
+    cue = {true, true, static_cast<int>(k), data::VisibleSun{}};
+    cue.sun.found = true;
+    cue.sun.pixel = r.pixel;
+    cue.sun.direction = views[k].camera.ray(r.pixel.x, r.pixel.y).direction;
+    cue.sun.score = r.p_sun;
   }
   return cue;
 }
@@ -170,6 +185,13 @@ double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
   return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)) * 180.0 / kPi;
 }
 }  // namespace
+
+void LightingEstimator::set_sun_glare(std::shared_ptr<SunGlareDetector> detector, double threshold) {
+  SL_CHECK(threshold > 0.0 && threshold <= 1.0, "set_sun_glare: the threshold must be in (0, 1], got ", threshold);
+  if (detector) detector->eval();
+  sun_glare_ = std::move(detector);
+  sun_glare_threshold_ = threshold;
+}
 
 void LightingEstimator::set_crop_scales(std::vector<double> scales) {
   for (const double s : scales)
@@ -379,7 +401,7 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
     // at the end when the cue went first).
     if (want_cue) {
 #pragma omp task shared(cue, views, errors, guarded)
-      guarded(errors[3 * n], [&] { cue = find_visible_sun_cue(views, visible_sun_params_); });
+      guarded(errors[3 * n], [&] { cue = find_visible_sun_cue(views, visible_sun_params_, sun_glare_.get(), sun_glare_threshold_); });
     }
   }
   for (const std::exception_ptr& e : errors)
@@ -428,6 +450,7 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
     if (want_cue) {
       if (cue.found) {
         out.visible_sun_found = true;
+        out.visible_sun_learned = cue.learned;
         out.visible_sun_view = cue.view;
         out.visible_sun_pixel = cue.sun.pixel;
         out.visible_sun_score = cue.sun.score;

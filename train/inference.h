@@ -32,6 +32,12 @@
 //   path: its azimuth and elevation fill the fields the caller's SunEdit leaves unset, so an
 //   explicit edit still wins field by field. Checkpoints without a sky vector ignore the cue.
 //   When nothing is found the estimate is bit-identical to the cue being off.
+// - Learned sun glare (set_sun_glare, off until a detector is given; the tools give the released
+//   models/sun_glare.safetensors): where the disk test finds no sun in any view, the learned
+//   detector (train/sun_glare.h) looks at each view; the view with the highest probability of a
+//   sun in view wins when it reaches the threshold, and the ray through its pixel is the sun as
+//   above (visible_sun_learned, visible_sun_score = that probability). When it does not fire the
+//   estimate is bit-identical to having no detector.
 // - Crop averaging (set_crop_scales, off by default): each view's sun also averaged over centred
 //   crops of it; see set_crop_scales. Off, the estimate is bit-identical to before it existed.
 // - Sun distribution (checkpoints with model.sun_grid, issue 53): the sky vector's direction is
@@ -63,6 +69,7 @@
 #include "render/vsg_volume.h"
 #include "train/lighting_predictor.h"
 #include "train/street_batch.h"
+#include "train/sun_glare.h"
 
 namespace sl::train {
 
@@ -128,7 +135,10 @@ struct EstimatedLighting {
   // in which view, where (continuous pixel coordinates of that view's image, render/camera.h)
   // and its score (data/visible_sun.h). False when the cue is off or the checkpoint has no sky
   // vector.
+  // visible_sun_learned: found by the learned glare detector (train/sun_glare.h), not the disk test;
+  // visible_sun_score is then its probability of a sun in view.
   bool visible_sun_found = false;
+  bool visible_sun_learned = false;
   int visible_sun_view = -1;
   glm::dvec2 visible_sun_pixel{0.0};
   double visible_sun_score = 0.0;
@@ -178,6 +188,10 @@ class LightingEstimator {
   bool visible_sun() const { return visible_sun_; }
   void set_visible_sun_params(const data::VisibleSunParams& p) { visible_sun_params_ = p; }
   const data::VisibleSunParams& visible_sun_params() const { return visible_sun_params_; }
+  // The learned glare detector behind the disk test (null: none) and its probability threshold in
+  // (0, 1] (throws outside).
+  void set_sun_glare(std::shared_ptr<SunGlareDetector> detector, double threshold = kGlareThreshold);
+  const std::shared_ptr<SunGlareDetector>& sun_glare() const { return sun_glare_; }
 
  private:
   struct Single {
@@ -209,6 +223,8 @@ class LightingEstimator {
   std::vector<double> crop_scales_;
   bool visible_sun_ = true;
   data::VisibleSunParams visible_sun_params_;
+  std::shared_ptr<SunGlareDetector> sun_glare_;
+  double sun_glare_threshold_ = kGlareThreshold;
 };
 
 // The sun-strength scale that makes a fully sun-blocked ground point of this lighting as much

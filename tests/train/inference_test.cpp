@@ -380,6 +380,59 @@ TEST(Inference, WithoutAVisibleSunTheCueChangesNothing) {
   }
 }
 
+// A glare detector whose every weight is 0 and whose "no sun" bias is b: every cell has the same
+// probability and p_sun = 512 / (512 + e^b), so for b = −50 it always fires and for b = +50 never.
+std::shared_ptr<SunGlareDetector> constant_glare(double none_bias) {
+  auto net = std::make_shared<SunGlareDetector>(SunGlareOptions{.width = 2, .seed = 1});
+  NoGradGuard ng;
+  for (auto& [name, t] : net->named_parameters()) {
+    float* p = t.data<float>();
+    for (int64_t i = 0; i < t.numel(); ++i) p[i] = name == "none.bias" ? float(none_bias) : 0.0f;
+  }
+  return net;
+}
+
+TEST(Inference, TheLearnedGlareDetectorFillsInWhereTheDiskTestFindsNothing) {
+  const std::string dir = test::tool_dir("inference_sun_glare");
+  LightingEstimator est(test::tiny_lighting_checkpoint(dir));
+  const InferenceView no_disk = view_at(10.0), disk = sunny_view(30.0, true);
+  const EstimatedLighting plain = est.estimate({no_disk}), plain_disk = est.estimate({disk});
+  ASSERT_FALSE(plain.visible_sun_found);
+  ASSERT_TRUE(plain_disk.visible_sun_found);
+  // A detector that never fires changes nothing.
+  est.set_sun_glare(constant_glare(50.0));
+  const EstimatedLighting quiet = est.estimate({no_disk});
+  EXPECT_FALSE(quiet.visible_sun_found);
+  EXPECT_EQ(max(abs(sub(quiet.env, plain.env))).item(), 0.0);
+  EXPECT_EQ(quiet.sun_direction_canonical, plain.sun_direction_canonical);
+  // One that always fires sets the sun to the ray through its pixel, where the disk test found none.
+  est.set_sun_glare(constant_glare(-50.0));
+  const EstimatedLighting fired = est.estimate({no_disk});
+  ASSERT_TRUE(fired.visible_sun_found);
+  EXPECT_TRUE(fired.visible_sun_learned);
+  EXPECT_EQ(fired.visible_sun_view, 0);
+  EXPECT_NEAR(fired.visible_sun_score, 1.0, 1e-12);
+  const render::Intrinsics& in = no_disk.camera.intrinsics();
+  const GlareReading r = read_glare(Tensor::from_vector(std::vector<double>(kGlareOutputs, 0.0), {kGlareOutputs}),
+                                    in.height, in.width);
+  EXPECT_NEAR(fired.visible_sun_pixel.x, r.pixel.x, 1e-9);
+  EXPECT_NEAR(fired.visible_sun_pixel.y, r.pixel.y, 1e-9);
+  const glm::dvec3 ray = no_disk.camera.ray(r.pixel.x, r.pixel.y).direction;
+  EXPECT_LT(glm::length(fired.sun_direction_world() - ray), 1e-9);
+  EXPECT_EQ(fired.sun_flip_spread_deg, 0.0);  // measured in the photo, as for a disk
+  EXPECT_EQ(fired.sun_hedge, 0.0);
+  // The disk test still wins where it finds a disk: the same estimate as without a detector.
+  const EstimatedLighting with_disk = est.estimate({disk});
+  EXPECT_FALSE(with_disk.visible_sun_learned);
+  EXPECT_EQ(with_disk.visible_sun_pixel, plain_disk.visible_sun_pixel);
+  EXPECT_EQ(max(abs(sub(with_disk.env, plain_disk.env))).item(), 0.0);
+  // Off with the cue; thresholds outside (0, 1] are refused.
+  est.set_visible_sun(false);
+  EXPECT_FALSE(est.estimate({no_disk}).visible_sun_found);
+  EXPECT_THROW(est.set_sun_glare(constant_glare(0.0), 0.0), Error);
+  EXPECT_THROW(est.set_sun_glare(constant_glare(0.0), 1.5), Error);
+}
+
 TEST(Inference, AnExplicitSunEditWinsOverTheVisibleSun) {
   const std::string dir = test::tool_dir("inference_visible_sun_edit");
   LightingEstimator est(test::tiny_lighting_checkpoint(dir));

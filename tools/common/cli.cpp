@@ -224,4 +224,15 @@ std::string released_model_path() {
   return {};
 }
 
+std::string released_sun_glare_path() {
+  if (const char* env = std::getenv("STREETLIGHT_SUN_GLARE"); env && *env) {
+    SL_CHECK(std::filesystem::is_regular_file(env), "STREETLIGHT_SUN_GLARE names '", env, "', which is not a file");
+    return env;
+  }
+  for (const std::string& p : {std::string("models/sun_glare.safetensors"),
+                               std::string(STREETLIGHT_SOURCE_DIR) + "/models/sun_glare.safetensors"})
+    if (std::filesystem::is_regular_file(p)) return p;
+  return {};
+}
+
 }  // namespace sl::cli

@@ -29,6 +29,11 @@
 namespace sl::cli {
 
 std::string released_model_path();
+// The released learned sun-glare detector (train/sun_glare.h), which the tools put behind the
+// visible-sun disk test unless --no-sun-glare: $STREETLIGHT_SUN_GLARE if set (it must be a file),
+// else models/sun_glare.safetensors in the working directory, else in the source tree; "" when
+// there is none (the detector is optional).
+std::string released_sun_glare_path();
 
 int64_t parse_integer(const std::string& what, const std::string& value, int64_t lo, int64_t hi);
 

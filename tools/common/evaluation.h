@@ -38,6 +38,7 @@ struct EvalOptions {
   std::string baseline_data;             // street dataset of the constant baseline ("" the data's own)
   bool budgets = false;                  // the error-against-time sweep (the tool: with --out)
   bool flip_average = true;              // average the sun with the mirrored image's
+  std::string sun_glare;                 // the learned sun-glare detector behind it ("" none)
   bool visible_sun = true;               // a visible sun disk sets the direction
   std::vector<double> crop_scales;       // centred crops averaged into the sun (empty: off)
   // Called after each scored image (from the calling thread); may throw to stop the evaluation.

@@ -49,6 +49,10 @@ train::PhotoInsertionOptions insertion_options(const Args& a, const render::Radi
 void configure_estimator(train::LightingEstimator& est, const Args& a) {
   est.set_flip_average(!a.has("--no-flip-average"));
   est.set_visible_sun(!a.has("--no-visible-sun"));
+  if (!a.has("--no-visible-sun") && !a.has("--no-sun-glare")) {
+    const std::string glare = a.has("--sun-glare") ? a.get("--sun-glare") : released_sun_glare_path();
+    if (!glare.empty()) est.set_sun_glare(train::load_sun_glare(glare));
+  }
   est.set_crop_scales(a.numbers("--crop-scales", {}, 0.0, 1.0));
 }
 

@@ -1,0 +1,152 @@
+// The learned sun-glare detector's pieces (train/sun_glare.h): its input, its target, its readout
+// and the shapes and finiteness of its forward pass. Its accuracy is measured by
+// `streetlight-bench sun-glare` on the validation split, not here.
+#include "train/sun_glare.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "autodiff/ops.h"
+#include "nn/checkpoint.h"
+#include "nn/optim.h"
+#include "support/test_files.h"
+#include "train/sun_distribution.h"
+
+namespace sl::test {
+namespace {
+
+using train::kGlareCols;
+using train::kGlareOutputs;
+using train::kGlareRows;
+
+TEST(SunGlare, InputIsTheResampledImageAndItsClippedShare) {
+  // A 128×256 grey image with a clipped 8×8 square at rows 16-23, columns 64-71.
+  Tensor ldr = Tensor::full({3, 128, 256}, 0.25);
+  float* p = ldr.data<float>();
+  for (int ch = 0; ch < 3; ++ch)
+    for (int r = 16; r < 24; ++r)
+      for (int c = 64; c < 72; ++c) p[(ch * 128 + r) * 256 + c] = 1.0f;
+  p[5] = std::numeric_limits<float>::quiet_NaN();  // read as 0
+  const Tensor x = train::glare_input(ldr);
+  ASSERT_EQ(x.shape(), (Shape{4, 64, 128}));
+  const float* q = x.data<float>();
+  auto at = [&](int ch, int r, int c) { return q[(ch * 64 + r) * 128 + c]; };
+  EXPECT_NEAR(at(0, 40, 100), 0.25 - 0.5, 1e-6);
+  EXPECT_NEAR(at(1, 10, 34), 1.0 - 0.5, 1e-6);  // inside the square (rows 8-11, cols 32-35 at half size)
+  EXPECT_NEAR(at(3, 10, 34), 1.0, 1e-6);
+  EXPECT_NEAR(at(3, 40, 100), 0.0, 1e-6);
+  // The NaN pixel is counted as 0: its neighbourhood is darker than the rest, and finite.
+  EXPECT_LT(at(0, 0, 2), 0.25 - 0.5 - 0.01);
+  EXPECT_GT(at(0, 0, 2), -0.5);
+  for (int64_t i = 0; i < x.numel(); ++i) ASSERT_TRUE(std::isfinite(q[i]));
+  EXPECT_THROW(train::glare_input(Tensor::zeros({1, 8, 8})), Error);
+}
+
+TEST(SunGlare, TargetIsNoSunOrAGaussianAroundThePixel) {
+  const Tensor none = train::glare_target(std::nullopt, 128, 256);
+  ASSERT_EQ(none.numel(), kGlareOutputs);
+  EXPECT_EQ(none.data<float>()[0], 1.0f);
+  EXPECT_NEAR(sum(none).item(), 1.0, 1e-6);
+
+  // The sun at the centre of cell (5, 20): pixel (20.5·8, 5.5·8) of a 128×256 image.
+  const Tensor t = train::glare_target(glm::dvec2(20.5 * 8, 5.5 * 8), 128, 256);
+  const float* p = t.data<float>();
+  EXPECT_EQ(p[0], 0.0f);
+  EXPECT_NEAR(sum(t).item(), 1.0, 1e-6);
+  int best = 1;
+  for (int k = 2; k < kGlareOutputs; ++k)
+    if (p[k] > p[best]) best = k;
+  EXPECT_EQ(best, 1 + 5 * kGlareCols + 20);
+  EXPECT_NEAR(p[1 + 5 * kGlareCols + 21], p[1 + 5 * kGlareCols + 19], 1e-7);  // symmetric
+}
+
+TEST(SunGlare, ReadoutIsAtTheLargerPeakAndItsProbability) {
+  // Two separated peaks, the larger at cell (3, 4), the smaller at (12, 28); "no sun" small.
+  std::vector<double> l(kGlareOutputs, -30.0);
+  l[0] = std::log(0.1);
+  l[1 + 3 * kGlareCols + 4] = std::log(0.5);
+  l[1 + 12 * kGlareCols + 28] = std::log(0.4);
+  const train::GlareReading g = train::read_glare(Tensor::from_vector(l, {kGlareOutputs}), 128, 256);
+  EXPECT_NEAR(g.p_sun, 0.9, 1e-8);
+  EXPECT_NEAR(g.pixel.x, 4.5 * 8, 1e-6);
+  EXPECT_NEAR(g.pixel.y, 3.5 * 8, 1e-6);
+
+  // Mass split evenly between two neighbouring cells reads between them.
+  std::vector<double> m(kGlareOutputs, -30.0);
+  m[1 + 7 * kGlareCols + 10] = 0.0;
+  m[1 + 7 * kGlareCols + 11] = 0.0;
+  const train::GlareReading h = train::read_glare(Tensor::from_vector(m, {kGlareOutputs}), 64, 128);
+  EXPECT_NEAR(h.pixel.x, 11.0 * 4, 1e-6);
+  EXPECT_NEAR(h.pixel.y, 7.5 * 4, 1e-6);
+  EXPECT_NEAR(h.p_sun, 1.0, 1e-9);
+
+  // Non-finite logits are ignored; all of them non-finite reads "no sun".
+  m[0] = std::numeric_limits<double>::quiet_NaN();
+  m[5] = std::numeric_limits<double>::infinity();
+  EXPECT_TRUE(std::isfinite(train::read_glare(Tensor::from_vector(m, {kGlareOutputs}), 64, 128).p_sun));
+  const std::vector<double> bad(kGlareOutputs, std::numeric_limits<double>::quiet_NaN());
+  EXPECT_EQ(train::read_glare(Tensor::from_vector(bad, {kGlareOutputs}), 64, 128).p_sun, 0.0);
+  EXPECT_THROW(train::read_glare(Tensor::zeros({7}), 64, 128), Error);
+}
+
+TEST(SunGlare, ForwardGivesFiniteLogitsAndLearnsABlob) {
+  train::SunGlareDetector net({.width = 4, .seed = 3});
+  // Two images: a clipped blob at cell (4, 8), and the same sky without it.
+  auto image = [](bool blob) {
+    Tensor ldr = Tensor::full({3, 128, 256}, 0.4);
+    float* p = ldr.data<float>();
+    if (blob)
+      for (int ch = 0; ch < 3; ++ch)
+        for (int r = 32; r < 40; ++r)
+          for (int c = 64; c < 72; ++c) p[(ch * 128 + r) * 256 + c] = 1.0f;
+    return train::glare_input(ldr);
+  };
+  const Tensor x = stack({image(true), image(false)}, 0);
+  const Tensor t = stack({train::glare_target(glm::dvec2(68.0, 36.0), 128, 256), train::glare_target(std::nullopt, 128, 256)}, 0);
+  const Tensor w = Tensor::from_vector({1.0, 1.0}, {2});
+  nn::Adam opt(net.named_parameters(), {.lr = 3e-3});
+  double first = 0.0, last = 0.0;
+  for (int step = 0; step < 150; ++step) {
+    const Tensor logits = net.forward(x);
+    ASSERT_EQ(logits.shape(), (Shape{2, kGlareOutputs}));
+    const Tensor loss = train::sun_distribution_loss(logits, t, w);
+    ASSERT_TRUE(std::isfinite(loss.item()));
+    (step == 0 ? first : last) = loss.item();
+    opt.zero_grad();
+    backward(loss);
+    opt.step();
+  }
+  EXPECT_LT(last, 0.5 * first);
+  NoGradGuard ng;
+  const Tensor logits = net.forward(x);
+  const train::GlareReading yes = train::read_glare(select(logits, 0, 0), 128, 256);
+  const train::GlareReading no = train::read_glare(select(logits, 0, 1), 128, 256);
+  EXPECT_GT(yes.p_sun, 0.5);
+  EXPECT_LT(no.p_sun, 0.5);
+  EXPECT_NEAR(yes.pixel.x, 68.0, 8.0);
+  EXPECT_NEAR(yes.pixel.y, 36.0, 8.0);
+  EXPECT_THROW(net.forward(Tensor::zeros({1, 3, 64, 128})), Error);
+}
+
+TEST(SunGlare, LoadsWhatTheBenchSavedAndRefusesOtherCheckpoints) {
+  train::SunGlareDetector net({.width = 3, .seed = 9});
+  const std::string good = scratch("glare.safetensors"), other = scratch("not_glare.safetensors");
+  nn::save_checkpoint(good, net, nullptr, {.stage = "sun_glare", .step = 1, .config_json = R"({"width": 3})"});
+  nn::save_checkpoint(other, net, nullptr, {.stage = "lighting", .step = 1, .config_json = R"({"width": 3})"});
+  const auto loaded = train::load_sun_glare(good);
+  const Tensor x = Tensor::uniform({1, 4, 64, 128}, -0.5, 0.5, 4);
+  NoGradGuard ng;
+  EXPECT_EQ(max(abs(sub(loaded->forward(x), net.forward(x)))).item(), 0.0);
+  try {
+    train::load_sun_glare(other);
+    ADD_FAILURE() << "expected sl::Error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(other), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace sl::test

@@ -1,0 +1,145 @@
+// The learned sun-glare detector. See sun_glare.h.
+#include "train/sun_glare.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "autodiff/ops.h"
+#include "data/panorama.h"
+#include "nn/checkpoint.h"
+#include "nn/layers.h"
+#include <nlohmann/json.hpp>
+#include "util/error.h"
+
+namespace sl::train {
+
+namespace {
+constexpr double kClipLevel = 0.98;  // data/visible_sun.h's saturation
+constexpr double kTargetSigmaCells = 0.75;
+}  // namespace
+
+SunGlareDetector::SunGlareDetector(SunGlareOptions options) : nn::Module("SunGlareDetector"), opt_(options) {
+  SL_CHECK(opt_.width >= 1 && opt_.width <= 256, "SunGlareDetector: width must be in [1, 256], got ", opt_.width);
+  const int64_t w = opt_.width, w2 = 2 * opt_.width;
+  auto relu = [] { return std::make_shared<nn::ReLU>(); };
+  // 64×128 → 32×64 → 16×32, then two dilated layers that see about a quarter of the image around
+  // each cell: the glare's surroundings (sky or wall) decide as much as the blob does.
+  features_ = register_module(
+      "features", std::make_shared<nn::Sequential>(std::vector<std::shared_ptr<nn::Module>>{
+                      std::make_shared<nn::Conv2d>(4, w, 3, nn::ConvOptions{.padding = 1}), relu(),
+                      std::make_shared<nn::Conv2d>(w, w2, 3, nn::ConvOptions{.stride = 2, .padding = 1}), relu(),
+                      std::make_shared<nn::Conv2d>(w2, w2, 3, nn::ConvOptions{.padding = 1}), relu(),
+                      std::make_shared<nn::Conv2d>(w2, w2, 3, nn::ConvOptions{.stride = 2, .padding = 1}), relu(),
+                      std::make_shared<nn::Conv2d>(w2, w2, 3, nn::ConvOptions{.padding = 2, .dilation = 2}), relu(),
+                      std::make_shared<nn::Conv2d>(w2, w2, 3, nn::ConvOptions{.padding = 4, .dilation = 4}), relu()}));
+  cells_ = register_module("cells", std::make_shared<nn::Conv2d>(w2, 1, 1));
+  none_ = register_module("none", std::make_shared<nn::Linear>(2 * w2, 1));
+  init_parameters(opt_.seed);
+}
+
+Tensor SunGlareDetector::forward(const Tensor& x) {
+  SL_CHECK(x.defined() && x.dim() == 4 && x.size(1) == 4 && x.size(2) == kGlareInputHeight && x.size(3) == kGlareInputWidth,
+           "SunGlareDetector: expected [N, 4, 64, 128], got ", x.defined() ? x.describe() : std::string("undefined"));
+  const int64_t n = x.size(0);
+  const Tensor f = features_->forward(x);                                   // [N, 2w, 16, 32]
+  const Tensor cells = reshape(cells_->forward(f), {n, kGlareRows * kGlareCols});
+  const Tensor pooled = concat({mean(f, {2, 3}), max(f, {2, 3})}, 1);     // [N, 4w]
+  const Tensor none = none_->forward(pooled);                               // [N, 1]
+  return concat({none, cells}, 1);
+}
+
+Tensor glare_input(const Tensor& ldr) {
+  SL_CHECK(ldr.defined() && ldr.dim() == 3 && ldr.size(0) == 3 && ldr.size(1) > 0 && ldr.size(2) > 0,
+           "glare_input: expected an LDR image [3, H, W], got ", ldr.defined() ? ldr.describe() : std::string("undefined"));
+  const int64_t h = ldr.size(1), w = ldr.size(2), plane = h * w;
+  const Tensor c = ldr.detach().to(DType::F32).contiguous();
+  Tensor four = Tensor::zeros({4, h, w}, DType::F32);
+  const float* p = c.data<float>();
+  float* q = four.data<float>();
+  for (int64_t i = 0; i < plane; ++i) {
+    float lo = 1.0f;
+    for (int ch = 0; ch < 3; ++ch) {
+      const float v = std::isfinite(p[ch * plane + i]) ? std::clamp(p[ch * plane + i], 0.0f, 1.0f) : 0.0f;
+      q[ch * plane + i] = v;
+      lo = std::min(lo, v);
+    }
+    q[3 * plane + i] = lo >= kClipLevel ? 1.0f : 0.0f;
+  }
+  Tensor small = data::resize_area(four, kGlareInputHeight, kGlareInputWidth).contiguous();
+  float* s = small.data<float>();
+  for (int64_t i = 0; i < 3 * int64_t(kGlareInputHeight) * kGlareInputWidth; ++i) s[i] -= 0.5f;
+  return small;
+}
+
+Tensor glare_target(const std::optional<glm::dvec2>& pixel, int height, int width) {
+  SL_CHECK(height > 0 && width > 0, "glare_target: image size must be positive, got ", width, "x", height);
+  Tensor t = Tensor::zeros({kGlareOutputs}, DType::F32);
+  float* p = t.data<float>();
+  if (!pixel) {
+    p[0] = 1.0f;
+    return t;
+  }
+  // The pixel in cell units of the grid.
+  const double cu = pixel->x / width * kGlareCols, cv = pixel->y / height * kGlareRows;
+  double total = 0.0;
+  std::vector<double> g(kGlareRows * kGlareCols, 0.0);
+  for (int r = 0; r < kGlareRows; ++r)
+    for (int c = 0; c < kGlareCols; ++c) {
+      const double du = c + 0.5 - cu, dv = r + 0.5 - cv;
+      g[r * kGlareCols + c] = std::exp(-0.5 * (du * du + dv * dv) / (kTargetSigmaCells * kTargetSigmaCells));
+      total += g[r * kGlareCols + c];
+    }
+  if (!(total > 0.0)) {  // far outside the image: the nearest cell
+    const int r = std::clamp(int(cv), 0, kGlareRows - 1), c = std::clamp(int(cu), 0, kGlareCols - 1);
+    p[1 + r * kGlareCols + c] = 1.0f;
+    return t;
+  }
+  for (size_t k = 0; k < g.size(); ++k) p[1 + k] = float(g[k] / total);
+  return t;
+}
+
+GlareReading read_glare(const Tensor& logits, int height, int width) {
+  SL_CHECK(logits.defined() && logits.numel() == kGlareOutputs, "read_glare: expected ", kGlareOutputs, " logits, got ",
+           logits.defined() ? logits.describe() : std::string("undefined"));
+  const Tensor l = logits.detach().to(DType::F64).contiguous();
+  const double* x = l.data<double>();
+  double top = -1e300;
+  for (int k = 0; k < kGlareOutputs; ++k)
+    if (std::isfinite(x[k])) top = std::max(top, x[k]);
+  std::vector<double> p(kGlareOutputs, 0.0);
+  double total = 0.0;
+  for (int k = 0; k < kGlareOutputs; ++k) total += p[k] = std::isfinite(x[k]) ? std::exp(x[k] - top) : 0.0;
+  GlareReading out;
+  if (!(total > 0.0)) return out;
+  for (double& v : p) v /= total;
+  out.p_sun = std::clamp(1.0 - p[0], 0.0, 1.0);
+  int best = 1;
+  for (int k = 2; k < kGlareOutputs; ++k)
+    if (p[k] > p[best]) best = k;
+  const int br = (best - 1) / kGlareCols, bc = (best - 1) % kGlareCols;
+  double su = 0.0, sv = 0.0, sw = 0.0;
+  for (int r = std::max(0, br - 1); r <= std::min(kGlareRows - 1, br + 1); ++r)
+    for (int c = std::max(0, bc - 1); c <= std::min(kGlareCols - 1, bc + 1); ++c) {
+      const double w = p[1 + r * kGlareCols + c];
+      su += w * (c + 0.5), sv += w * (r + 0.5), sw += w;
+    }
+  const double u = sw > 0.0 ? su / sw : bc + 0.5, v = sw > 0.0 ? sv / sw : br + 0.5;
+  out.pixel = {u / kGlareCols * width, v / kGlareRows * height};
+  return out;
+}
+
+std::shared_ptr<SunGlareDetector> load_sun_glare(const std::string& path) {
+  const nn::CheckpointInfo info = nn::read_checkpoint_info(path);
+  SL_CHECK(info.stage == "sun_glare", "load_sun_glare: '", path, "' is a '", info.stage,
+           "' checkpoint, not a sun-glare detector");
+  const nlohmann::json cfg = nlohmann::json::parse(info.config_json, nullptr, false);
+  SL_CHECK(!cfg.is_discarded() && cfg.contains("width") && cfg["width"].is_number_integer(), "load_sun_glare: '", path,
+           "' has no integer config key 'width'");
+  auto net = std::make_shared<SunGlareDetector>(SunGlareOptions{.width = cfg["width"].get<int64_t>(), .seed = 1});
+  nn::load_checkpoint(path, *net, nullptr);
+  net->eval();
+  return net;
+}
+
+}  // namespace sl::train

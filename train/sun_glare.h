@@ -1,0 +1,77 @@
+// A learned detector of the sun's glare in an LDR photo (issue 53): where, if anywhere, the sun is
+// in view. The hand-made cue (data/visible_sun.h) accepts a clipped blob by fixed thresholds on its
+// size, roundness and halo; it misses the sun behind a lens flare's spikes or in haze, and its
+// looser settings fire on white walls and clouds. This small network looks at the blob AND its
+// surroundings and is trained on crops aimed at labelled suns and on crops without one.
+//
+// Input: glare_input(ldr [3, H, W]) → [4, 64, 128]: the image area-resampled to 64×128 (any H×W;
+// each axis is scaled on its own), minus 0.5, and a fourth channel, the share of each resampled
+// pixel's source pixels that are clipped (every channel ≥ 0.98, as data/visible_sun.h).
+//
+// Output: SunGlareDetector::forward(x [N, 4, 64, 128]) → logits [N, 1 + 16·32]. Index 0 is "no sun
+// in view"; index 1 + r·32 + c is "the sun is in cell (r, c)" of a 16×32 grid over the image
+// (cells of 4×4 input pixels). softmax gives one distribution over both.
+//
+// Training target: glare_target(pixel or none, H, W) → [1 + 512]: one-hot on index 0 without a sun;
+// with one, a Gaussian over the cell centres around its pixel (σ = 0.75 cell), summing to 1. The
+// loss is the cross-entropy of train/sun_distribution.h's sun_distribution_loss.
+//
+// Readout: read_glare(logits [1 + 512], H, W) → p_sun = 1 − softmax[0], and the pixel (continuous
+// coordinates of the H×W image, render/camera.h) at the probability-weighted mean of the cell
+// centres within one cell of the most probable cell.
+//
+// Guarantees: every output finite for finite input (NaN/Inf pixels of the image read as 0);
+// deterministic. Throws sl::Error for an input that is not [3, H, W] or [N, 4, 64, 128], or logits
+// not of 513 values.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <glm/glm.hpp>
+
+#include "autodiff/tensor.h"
+#include "nn/module.h"
+
+namespace sl::train {
+
+inline constexpr int kGlareInputHeight = 64, kGlareInputWidth = 128, kGlareCell = 4;
+inline constexpr int kGlareRows = kGlareInputHeight / kGlareCell, kGlareCols = kGlareInputWidth / kGlareCell;
+inline constexpr int kGlareOutputs = 1 + kGlareRows * kGlareCols;
+
+// The probability of a sun in view above which the detector's answer is used (LightingEstimator):
+// chosen on the validation split with `streetlight-bench sun-glare` (see models/MODEL_CARD.md).
+inline constexpr double kGlareThreshold = 0.95;
+
+struct SunGlareOptions {
+  int64_t width = 24;  // channels of the first layer; later layers use 2·width
+  uint64_t seed = 1;
+};
+
+class SunGlareDetector : public nn::Module {
+ public:
+  explicit SunGlareDetector(SunGlareOptions options = {});
+  Tensor forward(const Tensor& x) override;
+  const SunGlareOptions& options() const { return opt_; }
+
+ private:
+  SunGlareOptions opt_;
+  std::shared_ptr<nn::Module> features_, cells_, none_;
+};
+
+Tensor glare_input(const Tensor& ldr);
+Tensor glare_target(const std::optional<glm::dvec2>& pixel, int height, int width);
+
+struct GlareReading {
+  double p_sun = 0.0;
+  glm::dvec2 pixel{0.0};
+};
+GlareReading read_glare(const Tensor& logits, int height, int width);
+
+// A detector from a checkpoint saved by `streetlight-bench sun-glare` (stage "sun_glare"; its
+// config's "width" sizes the network), in eval mode. Throws sl::Error naming the file when it is
+// not one.
+std::shared_ptr<SunGlareDetector> load_sun_glare(const std::string& path);
+
+}  // namespace sl::train

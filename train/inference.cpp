@@ -38,25 +38,35 @@ std::vector<double> to_doubles(const Tensor& t) {
 }
 
 // The visible sun of the view with the highest score (data/visible_sun.h); direction in world.
-// Without one, the learned glare detector's view of highest probability when it reaches the
-// threshold (train/sun_glare.h).
 struct VisibleSunCue {
   bool found = false, learned = false;
   int view = -1;
   data::VisibleSun sun;
 };
-VisibleSunCue find_visible_sun_cue(const std::vector<InferenceView>& views, const data::VisibleSunParams& params,
-                                   SunGlareDetector* glare, double threshold) {
+VisibleSunCue find_visible_sun_cue(const std::vector<InferenceView>& views, const data::VisibleSunParams& params) {
   VisibleSunCue cue;
   for (size_t k = 0; k < views.size(); ++k) {
     const data::VisibleSun s = data::find_visible_sun(views[k].ldr, views[k].camera, params);
     if (s.found && (!cue.found || s.score > cue.sun.score)) cue = {true, false, static_cast<int>(k), s};
   }
-  if (cue.found || !glare) return cue;
-  for (size_t k = 0; k < views.size(); ++k) {
-    const Tensor logits = glare->forward(unsqueeze(glare_input(views[k].ldr), 0));
-    const render::Intrinsics& in = views[k].camera.intrinsics();
-    const GlareReading r = read_glare(select(logits, 0, 0), in.height, in.width);
+  return cue;
+}
+
+// The learned glare detector's reading of each view (train/sun_glare.h).
+std::vector<GlareReading> read_sun_glare(const std::vector<InferenceView>& views, SunGlareDetector& glare) {
+  std::vector<GlareReading> out;
+  for (const InferenceView& v : views) {
+    const Tensor logits = glare.forward(unsqueeze(glare_input(v.ldr), 0));
+    out.push_back(read_glare(select(logits, 0, 0), v.camera.intrinsics().height, v.camera.intrinsics().width));
+  }
+  return out;
+}
+
+// Where the disk test found nothing: the view the detector is surest of, when it reaches the threshold.
+VisibleSunCue glare_cue(const std::vector<InferenceView>& views, const std::vector<GlareReading>& reads, double threshold) {
+  VisibleSunCue cue;
+  for (size_t k = 0; k < reads.size(); ++k) {
+    const GlareReading& r = reads[k];
     if (r.p_sun < threshold || (cue.found && r.p_sun <= cue.sun.score)) continue;
     cue = {true, true, static_cast<int>(k), data::VisibleSun{}};
     cue.sun.found = true;
@@ -355,7 +365,8 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
   std::vector<Tensor> images(n), rgba(n), g(n);
   std::vector<SkyPrediction> mirror(n);
   for (size_t k = 0; k < n; ++k) images[k] = network_input(views[k].ldr);
-  std::vector<std::exception_ptr> errors(3 * n + 2);
+  std::vector<std::exception_ptr> errors(3 * n + 3);
+  std::vector<GlareReading> glare_reads;
   const auto guarded = [](std::exception_ptr& error, auto&& f) {
     try {
       const NoGradGuard no_grad_here;  // grad mode is per thread; a task may run on any
@@ -401,11 +412,18 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
     // at the end when the cue went first).
     if (want_cue) {
 #pragma omp task shared(cue, views, errors, guarded)
-      guarded(errors[3 * n], [&] { cue = find_visible_sun_cue(views, visible_sun_params_, sun_glare_.get(), sun_glare_threshold_); });
+      guarded(errors[3 * n], [&] { cue = find_visible_sun_cue(views, visible_sun_params_); });
+    }
+    // The glare detector apart from the disk test, so that the thread done first runs it (its
+    // answer is used only where the disk test finds nothing).
+    if (want_cue && sun_glare_) {
+#pragma omp task shared(glare_reads, views, errors, guarded)
+      guarded(errors[3 * n + 2], [&] { glare_reads = read_sun_glare(views, *sun_glare_); });
     }
   }
   for (const std::exception_ptr& e : errors)
     if (e) std::rethrow_exception(e);
+  if (want_cue && !cue.found && sun_glare_) cue = glare_cue(views, glare_reads, sun_glare_threshold_);
   if (sky_code_branch)
     for (size_t k = 0; k < n; ++k) average_sun(views[k], singles[k], mirror[k]);
   if (!sky_code_branch) {

@@ -34,9 +34,10 @@
 //   When nothing is found the estimate is bit-identical to the cue being off.
 // - Learned sun glare (set_sun_glare, off until a detector is given; the tools give the released
 //   models/sun_glare.safetensors): where the disk test finds no sun in any view, the learned
-//   detector (train/sun_glare.h) looks at each view; the view with the highest probability of a
-//   sun in view wins when it reaches the threshold, and the ray through its pixel is the sun as
-//   above (visible_sun_learned, visible_sun_score = that probability). When it does not fire the
+//   detector (train/sun_glare.h) decides: the view with the highest probability of a sun in view
+//   wins when it reaches the threshold, and the ray through its pixel is the sun as above
+//   (visible_sun_learned, visible_sun_score = that probability). It runs as its own task of the
+//   team beside the disk test (about 3 ms of one thread per view). When it does not fire the
 //   estimate is bit-identical to having no detector.
 // - Crop averaging (set_crop_scales, off by default): each view's sun also averaged over centred
 //   crops of it; see set_crop_scales. Off, the estimate is bit-identical to before it existed.

@@ -90,6 +90,8 @@ int run_inference(const std::vector<std::string>& args) {
   }
   if (checkpoint == "released") checkpoint = cli::released_model_path();
   train::LightingEstimator est(checkpoint);
+  // As streetlight-insert: the released sun-glare detector behind the disk test, when present.
+  if (const std::string glare = cli::released_sun_glare_path(); !glare.empty()) est.set_sun_glare(train::load_sun_glare(glare));
   train::LightingPredictor& net = est.predictor();
   const train::LightingPredictorOptions& po = net.options();
   const train::Photo photo = inference_photo(data);
@@ -141,6 +143,10 @@ int run_inference(const std::vector<std::string>& args) {
   }
   part("predict (network, N=1)", [&] { net.predict(image, rgba); });
   part("visible_sun", [&] { data::find_visible_sun(photo.ldr, photo.camera, est.visible_sun_params()); });
+  if (est.sun_glare())
+    part("sun_glare (where the disk test finds nothing)", [&] {
+      est.sun_glare()->forward(unsqueeze(train::glare_input(photo.ldr), 0));
+    });
   // The whole estimate against the plain path it replaced (the same calls in sequence, each op
   // with its own parallel loops, the photo's dome decoded and unread), alternating run by run so
   // that a load beside them weighs on both alike: best and median of --runs each.
@@ -150,7 +156,9 @@ int run_inference(const std::vector<std::string>& args) {
     const train::LightingPrediction p = net.predict(im, r);
     if (po.sky_branch == "sky_decoder") {
       if (est.flip_average()) net.predict_sky_code(unsqueeze(data::flip_horizontal(select(im, 0, 0).contiguous()), 0));
-      if (est.visible_sun()) data::find_visible_sun(photo.ldr, photo.camera, est.visible_sun_params());
+      if (est.visible_sun() && !data::find_visible_sun(photo.ldr, photo.camera, est.visible_sun_params()).found &&
+          est.sun_glare())
+        est.sun_glare()->forward(unsqueeze(train::glare_input(photo.ldr), 0));
       net.sky_decoder()->decode(p.code);
     }
   };

@@ -151,7 +151,7 @@ ProductionScene production_scene(const std::string& size, const std::string& dat
 
 // Lighting inference time, wall and process CPU (best of 5 after a warm-up), of what
 // streetlight-insert runs for the photo: LightingEstimator::estimate() with its defaults (flip
-// averaging, the visible-sun cue) on `model`, a lighting checkpoint: the released model unless
+// averaging, the visible-sun cue with the released sun-glare detector) on `model`, a lighting checkpoint: the released model unless
 // --lighting names another. Without one (a checkout without models/), the default-size model
 // with random initial weights (timing does not depend on the weights, but the released model's
 // backbone is narrower than the default), left in OUT/random_default_lighting.safetensors.
@@ -169,6 +169,8 @@ LightingTime lighting_ms(const train::Photo& photo, std::string model, const std
     nn::save_checkpoint(model, holder, nullptr, nn::CheckpointInfo{.stage = "lighting", .step = 0, .config_json = c.dump()});
   }
   train::LightingEstimator est(model);
+  // As streetlight-insert: the released sun-glare detector behind the disk test, when present.
+  if (const std::string glare = cli::released_sun_glare_path(); !glare.empty()) est.set_sun_glare(train::load_sun_glare(glare));
   LightingTime t{1e300, 1e300, model};
   const train::InferenceView view{photo.ldr, photo.depth, photo.camera};
   est.estimate({view});  // warm-up

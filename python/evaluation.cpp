@@ -14,6 +14,7 @@
 #include <pybind11/stl.h>
 
 #include "python/bindings.h"
+#include "tools/common/cli.h"
 #include "tools/common/evaluation.h"
 
 namespace sl::python {
@@ -81,6 +82,8 @@ py::object evaluate(const py::object& checkpoints, const py::object& data, const
   o.budgets = budgets && !out_dir.empty();  // as the tool: the sweep's plot is a file of --out
   o.flip_average = flip_average;
   o.visible_sun = visible_sun;
+  // The released sun-glare detector behind the disk test, as streetlight-eval loads it by default.
+  if (visible_sun) o.sun_glare = cli::released_sun_glare_path();
   o.crop_scales = crop_scales;
   cli::check_eval_options(o);  // ValueError: before any file is opened
   // Ctrl-C: checked after each image, with the GIL taken back for the check.
@@ -121,7 +124,8 @@ void bind_evaluation(py::module_& m) {
         "  crops: perspective crops per real panorama; limit: at most this many images\n"
         "  view_rows: rows of the novel views; baseline_data: street dataset of the constant baseline\n"
         "  flip_average, visible_sun, crop_scales: the estimator's settings (--no-flip-average,\n"
-        "        --no-visible-sun, --crop-scales)\n"
+        "        --no-visible-sun, --crop-scales); with visible_sun, the released sun-glare detector\n"
+        "        (models/sun_glare.safetensors) backs the disk test, as in the tool\n"
         "  out: also write results.json, results.md and error_time.png there; budgets: with out, the\n"
         "        error-against-time sweep (False: --no-budgets)\n"
         "Timing fields (inference_ms, budgets' ms) are wall-clock. Bad options raise ValueError,\n"

@@ -62,6 +62,7 @@ TEST(InsertTool, WritesEveryOutputWithTheGroundPlaneFallback) {
   EXPECT_LE(j["sun"]["hedge"].get<double>(), 1.0);
   // Whether a sun disk in the photo set the direction (train/inference.h visible sun).
   ASSERT_TRUE(j["sun"]["visible_sun"]["found"].is_boolean()) << j["sun"].dump();
+  if (j["sun"]["visible_sun"]["found"]) EXPECT_TRUE(j["sun"]["visible_sun"]["learned"].is_boolean()) << j["sun"].dump();
   EXPECT_NEAR(j["box3d"]["z"].get<double>(), 8.0, 1e-6);  // 8 m ahead in the camera frame
   EXPECT_GT(j["box2d"][2].get<double>(), j["box2d"][0].get<double>());
   EXPECT_EQ(j["kitti_label"].get<std::string>().rfind("Car ", 0), 0u);
@@ -266,6 +267,19 @@ TEST(InsertTool, BadSamplingKnobsAreCleanErrors) {
                                                       "/intrinsics.json --at 0,8 --out " + c.dir + "/out" + c.base + " " +
                                                       flag + " " + value);
     expect_clean_error(r, c.dir + "/out", flag);
+  }
+}
+
+// --sun-glare must name a sun-glare detector: a missing file or another kind of checkpoint is one
+// line and exit 2, before anything is written.
+TEST(InsertTool, ABadSunGlareFileIsACleanError) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_bad_glare");
+  for (const std::string& glare : {c.dir + "/absent.safetensors", c.dir + "/intrinsics.json"}) {
+    const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                      "/intrinsics.json --at 0,8 --out " + c.dir + "/out" + c.base +
+                                                      " --sun-glare " + glare);
+    expect_clean_error(r, c.dir + "/out", glare);
   }
 }
 

@@ -127,7 +127,9 @@ void bind_lighting(py::module_& m) {
            py::arg("visible_sun") = true, py::arg("crop_scales") = std::vector<double>{},
            "Loads a stage-2 or stage-3 checkpoint; None loads the released model (the tools' default:\n"
            "$STREETLIGHT_MODEL, else models/streetlight.safetensors). flip_average, visible_sun and\n"
-           "crop_scales are streetlight-insert's --no-flip-average, --no-visible-sun and --crop-scales.\n"
+           "crop_scales are streetlight-insert's --no-flip-average, --no-visible-sun and --crop-scales;\n"
+           "with visible_sun, the released sun-glare detector (models/sun_glare.safetensors, when\n"
+           "present) backs the disk test, as in the tools.\n"
            "Raises OSError (FileNotFoundError) when the checkpoint cannot be read.")
       .def_property_readonly("checkpoint", [](const PyEstimator& e) { return e.est->path(); })
       .def_property_readonly("stage", [](const PyEstimator& e) { return e.est->stage(); })
@@ -159,8 +161,9 @@ void bind_lighting(py::module_& m) {
       .def_property_readonly("confidence", &confidence,
                              "the tools' confidences: flip_spread_deg, hedge, crop_spread_deg (smaller is more\n"
                              "confident; None when not measured), probability (models with a sun head: the\n"
-                             "probability within 20 degrees of the sun, larger is more confident) and visible_sun\n"
-                             "(a sun disk in the photo set it)")
+                             "probability within 20 degrees of the sun, larger is more confident), visible_sun\n"
+                             "(a sun seen in the photo set it) and visible_sun_learned (the learned glare\n"
+                             "detector saw it, not the disk test)")
       .def_property_readonly("has_sky_vector", [](const PyLighting& l) { return l.lighting.has_sky_code; })
       .def_property_readonly("sun_from_shadows", [](const PyLighting& l) -> py::object {
             if (!l.shadow_fit) return py::none();

@@ -35,6 +35,7 @@
 #include "nn/checkpoint.h"
 #include "nn/optim.h"
 #include "tools/bench/bench.h"
+#include "tools/bench/ldr_panorama_radiance.h"
 #include "tools/common/cli.h"
 #include "train/metrics.h"
 #include "train/real_sky_benchmark.h"
@@ -49,30 +50,24 @@ namespace {
 
 struct GlareCrop {
   Tensor input;  // glare_input of the crop
-  Tensor ldr;    // the crop itself (validation only, for the hand-made cue)
+  Tensor ldr;    // the crop itself (validation only, for the disk test)
   render::Camera camera;
   std::optional<glm::dvec2> sun_pixel;  // in view
   glm::dvec3 sun{0.0, 1.0, 0.0};
-  bool sun_known = false;
   double weight = 1.0;
-  std::string panorama, kind;
 };
 
-GlareCrop make_crop(const data::PerspectiveCrop& crop, bool visible, const glm::dvec3& sun, bool keep_ldr,
-                    const std::string& name, const char* kind) {
+GlareCrop make_crop(const data::PerspectiveCrop& crop, bool visible, const glm::dvec3& sun, bool keep_ldr) {
   GlareCrop g;
   const Tensor ldr = data::to_ldr(crop.image, 1.0).contiguous();
   g.input = train::glare_input(ldr);
   if (keep_ldr) g.ldr = ldr;
   g.camera = crop.camera;
   g.sun = sun;
-  g.sun_known = visible;
   if (visible) {
     const render::Projection pr = crop.camera.project(crop.camera.position() + 1e3 * sun);
     if (pr.in_image) g.sun_pixel = pr.pixel;
   }
-  g.panorama = name;
-  g.kind = kind;
   return g;
 }
 
@@ -84,12 +79,7 @@ std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLab
   for (int64_t i = 0; i < int64_t(names.size()); ++i) {
     const data::PanoramaSunLabel* l = labels.find(names[size_t(i)]);
     if (!l) continue;
-    data::ImageReadOptions ro;
-    ro.channels = 3;
-    ro.transfer = data::Transfer::Linear;
-    Tensor pano = data::read_image((std::filesystem::path(dir) / l->file).string(), ro).to(DType::F32).contiguous();
-    if (pano.size(2) > train::kLdrWorkingWidth) pano = data::resize_area(pano, train::kLdrWorkingWidth / 2, train::kLdrWorkingWidth);
-    pano = pow_scalar(pano, kLdrGamma).contiguous();
+    const Tensor pano = read_ldr_panorama_radiance((std::filesystem::path(dir) / l->file).string());
     const bool visible = l->has_position && l->sun == data::SunVisibility::Visible;
     const glm::dvec3 d = l->has_position ? labels.direction(*l, int(pano.size(2)), int(pano.size(1))) : glm::dvec3(0, 1, 0);
     const double az = std::atan2(d.x, -d.z), el = std::asin(std::clamp(d.y, -1.0, 1.0));
@@ -112,18 +102,18 @@ std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLab
     if (visible) {
       for (int a = 0; a < aimed; ++a, ++k) {
         const auto cp = params(0.8 * (2.0 * uniform01(s, uint64_t(k), 1) - 1.0), 0.8 * (2.0 * uniform01(s, uint64_t(k), 2) - 1.0), true);
-        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr, l->file, "aimed"));
+        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr));
         per[size_t(i)].back().weight = w;
       }
       for (int a = 0; a < near; ++a, ++k) {
         const double side = uniform01(s, uint64_t(k), 3) < 0.5 ? -1.0 : 1.0;
         const auto cp = params(side * (1.1 + 0.5 * uniform01(s, uint64_t(k), 1)), 0.6 * (2.0 * uniform01(s, uint64_t(k), 2) - 1.0), true);
-        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr, l->file, "near"));
+        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr));
       }
     }
     for (int a = 0; a < random; ++a, ++k) {
       const auto cp = params(0, 0, false);
-      per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), visible, d, keep_ldr, l->file, "random"));
+      per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), visible, d, keep_ldr));
       if (per[size_t(i)].back().sun_pixel) per[size_t(i)].back().weight = w;
     }
   }
@@ -149,15 +139,12 @@ std::vector<GlareCrop> benchmark_crops(const std::string& dir, const std::string
     if (keep_ldr) g.ldr = v.ldr;
     g.camera = v.camera;
     g.sun = c.sample.sun_direction;
-    g.sun_known = c.sun_known;
     // An LDR panorama's occluded sun is not a glare in view.
     const bool glare = c.sun_known && c.sun_in_crop && (!ldr || c.label_sun == "visible");
     if (glare) {
       const render::Projection pr = v.camera.project(v.camera.position() + 1e3 * c.sample.sun_direction);
       if (pr.in_image) g.sun_pixel = pr.pixel;
     }
-    g.panorama = c.panorama;
-    g.kind = ldr ? "bench-ldr" : "bench-hdr";
     out.push_back(std::move(g));
   }
   return out;

@@ -22,6 +22,7 @@
 #include "data/sun_labels.h"
 #include "data/visible_sun.h"
 #include "tools/bench/bench.h"
+#include "tools/bench/ldr_panorama_radiance.h"
 #include "tools/common/cli.h"
 #include "train/metrics.h"
 #include "train/real_sky_benchmark.h"
@@ -58,12 +59,7 @@ struct AimedCrop {
 };
 std::vector<AimedCrop> aimed_crops(const std::string& path, const data::SunLabels& labels,
                                    const data::PanoramaSunLabel& label, int k_crops, uint64_t seed) {
-  data::ImageReadOptions ro;
-  ro.channels = 3;
-  ro.transfer = data::Transfer::Linear;
-  Tensor pano = data::read_image(path, ro).to(DType::F32).contiguous();
-  if (pano.size(2) > 1024) pano = data::resize_area(pano, 512, 1024);
-  pano = pow_scalar(pano, kLdrGamma).contiguous();
+  const Tensor pano = read_ldr_panorama_radiance(path);
   const glm::dvec3 d = labels.direction(label, int(pano.size(2)), int(pano.size(1)));
   const double az = std::atan2(d.x, -d.z), el = std::asin(std::clamp(d.y, -1.0, 1.0));
   std::vector<AimedCrop> out;

@@ -37,8 +37,10 @@
 //   detector (train/sun_glare.h) decides: the view with the highest probability of a sun in view
 //   wins when it reaches the threshold, and the ray through its pixel is the sun as above
 //   (visible_sun_learned, visible_sun_score = that probability). It runs as its own task of the
-//   team beside the disk test (about 3 ms of one thread per view). When it does not fire the
-//   estimate is bit-identical to having no detector.
+//   team beside the disk test (about 3 ms of one thread per view). When it does not fire, and it
+//   has no azimuth head, the estimate is bit-identical to having no detector. A detector with an
+//   azimuth head also reweighs the sun head's distribution by its azimuth probabilities (see
+//   set_sun_glare; glare_azimuth_used), in every view: a second opinion on front and back.
 // - Crop averaging (set_crop_scales, off by default): each view's sun also averaged over centred
 //   crops of it; see set_crop_scales. Off, the estimate is bit-identical to before it existed.
 // - Sun distribution (checkpoints with model.sun_grid, issue 53): the sky vector's direction is
@@ -140,6 +142,9 @@ struct EstimatedLighting {
   // visible_sun_score is then its probability of a sun in view.
   bool visible_sun_found = false;
   bool visible_sun_learned = false;
+  // Whether the glare detector's azimuth head reweighed the sun head's distribution (see
+  // LightingEstimator::set_sun_glare); sun_probability is then read from the reweighed one.
+  bool glare_azimuth_used = false;
   int visible_sun_view = -1;
   glm::dvec2 visible_sun_pixel{0.0};
   double visible_sun_score = 0.0;
@@ -191,7 +196,12 @@ class LightingEstimator {
   const data::VisibleSunParams& visible_sun_params() const { return visible_sun_params_; }
   // The learned glare detector behind the disk test (null: none) and its probability threshold in
   // (0, 1] (throws outside).
-  void set_sun_glare(std::shared_ptr<SunGlareDetector> detector, double threshold = kGlareThreshold);
+  // With an azimuth head (train/sun_glare.h), its flip-averaged azimuth probabilities reweigh the
+  // sun head's distribution before its mode is read (train/sun_distribution.h, weigh_by_azimuth,
+  // raised to azimuth_weight; 0 turns it off), in every view, whether or not the sun is in view.
+  void set_sun_glare(std::shared_ptr<SunGlareDetector> detector, double threshold = kGlareThreshold,
+                     double azimuth_weight = kGlareAzimuthWeight);
+  double sun_glare_azimuth_weight() const { return sun_glare_azimuth_weight_; }
   const std::shared_ptr<SunGlareDetector>& sun_glare() const { return sun_glare_; }
 
  private:
@@ -203,6 +213,8 @@ class LightingEstimator {
     double flip_spread_deg = std::numeric_limits<double>::quiet_NaN();  // see EstimatedLighting
     double crop_spread_deg = std::numeric_limits<double>::quiet_NaN();  // see EstimatedLighting
     double sun_probability = std::numeric_limits<double>::quiet_NaN();  // see EstimatedLighting
+    std::vector<double> glare_azimuth;  // the glare detector's azimuth probabilities (empty: none)
+    bool glare_azimuth_used = false;
   };
   // estimate()'s steps for one view: the frame, camera and grid (checks the view); the RGBα
   // unprojection; the network's input (the LDR resized); the sky prediction of that input's
@@ -226,6 +238,7 @@ class LightingEstimator {
   data::VisibleSunParams visible_sun_params_;
   std::shared_ptr<SunGlareDetector> sun_glare_;
   double sun_glare_threshold_ = kGlareThreshold;
+  double sun_glare_azimuth_weight_ = kGlareAzimuthWeight;
 };
 
 // The sun-strength scale that makes a fully sun-blocked ground point of this lighting as much

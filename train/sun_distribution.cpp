@@ -155,6 +155,42 @@ std::vector<double> softmax_row(const std::vector<double>& z) {
   return p;
 }
 
+std::vector<double> weigh_by_azimuth(const SunGrid& g, const std::vector<double>& p, const std::vector<double>& q,
+                                     double weight) {
+  validate(g);
+  SL_CHECK(g.enabled(), "weigh_by_azimuth: the sun grid is off");
+  SL_CHECK(static_cast<int64_t>(p.size()) == g.cells(), "weigh_by_azimuth: ", p.size(), " probabilities for a grid of ",
+           g.cells(), " cells");
+  SL_CHECK(!q.empty(), "weigh_by_azimuth: no azimuth sectors");
+  SL_CHECK(std::isfinite(weight) && weight >= 0.0, "weigh_by_azimuth: the weight must be finite and >= 0, got ", weight);
+  double total = 0.0;
+  for (const double v : p) {
+    SL_CHECK(std::isfinite(v) && v >= 0.0, "weigh_by_azimuth: a probability is not finite and >= 0 (", v, ")");
+    total += v;
+  }
+  SL_CHECK(total > 0.0, "weigh_by_azimuth: the probabilities sum to 0");
+  for (const double v : q) SL_CHECK(std::isfinite(v) && v >= 0.0, "weigh_by_azimuth: an azimuth value is not finite and >= 0 (", v, ")");
+  if (weight == 0.0) return p;
+  // The factor of each of the grid's sectors: q at the sector of q holding its centre azimuth.
+  const int64_t a = g.azimuth_bins, b = static_cast<int64_t>(q.size());
+  std::vector<double> factor(static_cast<size_t>(a));
+  for (int64_t j = 0; j < a; ++j) {
+    const double u = (double(j) + 0.5) / double(a);  // the centre's share of the way from −π to π
+    const int64_t s = std::clamp<int64_t>(static_cast<int64_t>(std::floor(u * double(b))), 0, b - 1);
+    factor[size_t(j)] = std::pow(std::max(q[size_t(s)], 1e-6), weight);
+  }
+  std::vector<double> out(p.size());
+  double sum = 0.0;
+  for (int64_t r = 0; r < g.elevation_bins; ++r)
+    for (int64_t j = 0; j < a; ++j) {
+      const size_t k = static_cast<size_t>(r * a + j);
+      sum += out[k] = p[k] * factor[size_t(j)];
+    }
+  if (!(sum > 0.0)) return p;  // every cell underflowed: keep the sun head's answer
+  for (double& v : out) v /= sum;
+  return out;
+}
+
 SunReadout read_sun_distribution(const SunGrid& g, const std::vector<double>& p, double radius_deg) {
   validate(g);
   SL_CHECK(g.enabled(), "read_sun_distribution: the sun grid is off");

@@ -38,6 +38,13 @@
 //   mode cell's centre (in [0, 1]; 1 = certain). With two peaks at separated azimuths it answers
 //   at the larger one, never between them.
 //   Throws for a p that is not K finite non-negative values with a positive sum.
+// - weigh_by_azimuth(grid, p, q, weight) → p reweighed by a second opinion on the azimuth alone
+//   (the learned glare detector's azimuth head, train/sun_glare.h): p'_k ∝ p_k · q_s(k)^weight,
+//   s(k) the sector of q (A' sectors over the same azimuth range) holding cell k's sector centre,
+//   normalised to sum 1. weight 0 returns p unchanged (the same values); a q of all equal values
+//   also leaves p as it is (up to rounding). q values are floored at 1e-6 so that no cell is ruled
+//   out. Throws for a p that read_sun_distribution would refuse, an empty q, a negative or
+//   non-finite q value, or a weight that is negative or not finite.
 // - low_sun_weight(sun, boost, below_deg) → a label's weight factor 1 + boost · clamp((below − e)
 //   / below, 0, 1), e = the sun's elevation in degrees (below the horizon counts as 0): 1 at and
 //   above `below_deg`, 1 + boost at the horizon, linear between. The labelled training suns sit
@@ -82,6 +89,9 @@ struct SunReadout {
 };
 
 SunReadout read_sun_distribution(const SunGrid& grid, const std::vector<double>& p, double radius_deg = 20.0);
+
+std::vector<double> weigh_by_azimuth(const SunGrid& grid, const std::vector<double>& p, const std::vector<double>& q,
+                                     double weight);
 
 double low_sun_weight(const glm::dvec3& sun, double boost, double below_deg);
 

@@ -11,6 +11,7 @@
 #include "nn/layers.h"
 #include <nlohmann/json.hpp>
 #include "util/error.h"
+#include "util/math.h"
 
 namespace sl::train {
 
@@ -35,10 +36,21 @@ SunGlareDetector::SunGlareDetector(SunGlareOptions options) : nn::Module("SunGla
                       std::make_shared<nn::Conv2d>(w2, w2, 3, nn::ConvOptions{.padding = 4, .dilation = 4}), relu()}));
   cells_ = register_module("cells", std::make_shared<nn::Conv2d>(w2, 1, 1));
   none_ = register_module("none", std::make_shared<nn::Linear>(2 * w2, 1));
+  SL_CHECK(opt_.azimuth_bins >= 0 && opt_.azimuth_bins <= 360, "SunGlareDetector: azimuth_bins must be in [0, 360], got ",
+           opt_.azimuth_bins);
+  if (has_azimuth()) {
+    // The features at 4×8 cells: where in the view it is bright, hazy or shaded, not the blob.
+    azimuth_pool_ = register_module("azimuth_pool", std::make_shared<nn::AvgPool2d>(4));
+    azimuth_ = register_module("azimuth", std::make_shared<nn::Sequential>(std::vector<std::shared_ptr<nn::Module>>{
+                                              std::make_shared<nn::Linear>(w2 * 32, 64), relu(),
+                                              std::make_shared<nn::Linear>(64, opt_.azimuth_bins)}));
+  }
   init_parameters(opt_.seed);
 }
 
-Tensor SunGlareDetector::forward(const Tensor& x) {
+Tensor SunGlareDetector::forward(const Tensor& x) { return forward_heads(x).glare; }
+
+GlareHeads SunGlareDetector::forward_heads(const Tensor& x) {
   SL_CHECK(x.defined() && x.dim() == 4 && x.size(1) == 4 && x.size(2) == kGlareInputHeight && x.size(3) == kGlareInputWidth,
            "SunGlareDetector: expected [N, 4, 64, 128], got ", x.defined() ? x.describe() : std::string("undefined"));
   const int64_t n = x.size(0);
@@ -46,8 +58,35 @@ Tensor SunGlareDetector::forward(const Tensor& x) {
   const Tensor cells = reshape(cells_->forward(f), {n, kGlareRows * kGlareCols});
   const Tensor pooled = concat({mean(f, {2, 3}), max(f, {2, 3})}, 1);     // [N, 4w]
   const Tensor none = none_->forward(pooled);                               // [N, 1]
-  return concat({none, cells}, 1);
+  GlareHeads out;
+  out.glare = concat({none, cells}, 1);
+  if (has_azimuth()) out.azimuth = azimuth_->forward(reshape(azimuth_pool_->forward(f), {n, f.size(1) * 32}));
+  return out;
 }
+
+std::vector<double> azimuth_target(int64_t bins, double azimuth_rad, double width_deg) {
+  SL_CHECK(bins > 0, "azimuth_target: bins must be positive, got ", bins);
+  SL_CHECK(std::isfinite(azimuth_rad), "azimuth_target: the azimuth is not finite");
+  SL_CHECK(std::isfinite(width_deg) && width_deg > 0.0, "azimuth_target: width_deg must be positive, got ", width_deg);
+  const double sigma = width_deg * kPi / 180.0;
+  std::vector<double> t(static_cast<size_t>(bins));
+  double total = 0.0;
+  for (int64_t j = 0; j < bins; ++j) {
+    const double centre = -kPi + (double(j) + 0.5) * 2.0 * kPi / double(bins);
+    const double d = std::remainder(centre - azimuth_rad, 2.0 * kPi);
+    total += t[size_t(j)] = std::exp(-0.5 * d * d / (sigma * sigma));
+  }
+  if (!(total > 0.0)) {  // narrower than a sector: the sector holding it
+    std::fill(t.begin(), t.end(), 0.0);
+    const double u = (std::remainder(azimuth_rad, 2.0 * kPi) + kPi) / (2.0 * kPi) * double(bins);
+    t[size_t(std::clamp<int64_t>(int64_t(std::floor(u)), 0, bins - 1))] = 1.0;
+    return t;
+  }
+  for (double& v : t) v /= total;
+  return t;
+}
+
+std::vector<double> mirror_sectors(const std::vector<double>& q) { return {q.rbegin(), q.rend()}; }
 
 Tensor glare_input(const Tensor& ldr) {
   SL_CHECK(ldr.defined() && ldr.dim() == 3 && ldr.size(0) == 3 && ldr.size(1) > 0 && ldr.size(2) > 0,
@@ -99,7 +138,7 @@ Tensor glare_target(const std::optional<glm::dvec2>& pixel, int height, int widt
   return t;
 }
 
-GlareReading read_glare(const Tensor& logits, int height, int width) {
+GlareReading read_glare(const Tensor& logits, int height, int width, const Tensor& azimuth_logits) {
   SL_CHECK(logits.defined() && logits.numel() == kGlareOutputs, "read_glare: expected ", kGlareOutputs, " logits, got ",
            logits.defined() ? logits.describe() : std::string("undefined"));
   const Tensor l = logits.detach().to(DType::F64).contiguous();
@@ -126,6 +165,16 @@ GlareReading read_glare(const Tensor& logits, int height, int width) {
     }
   const double u = sw > 0.0 ? su / sw : bc + 0.5, v = sw > 0.0 ? sv / sw : br + 0.5;
   out.pixel = {u / kGlareCols * width, v / kGlareRows * height};
+  if (azimuth_logits.defined()) {
+    std::vector<double> z = azimuth_logits.detach().to(DType::F64).contiguous().to_vector();
+    for (double& v : z)
+      if (!std::isfinite(v)) v = -1e300;
+    double m = -1e300, s = 0.0;
+    for (const double v : z) m = std::max(m, v);
+    out.azimuth.resize(z.size());
+    for (size_t k = 0; k < z.size(); ++k) s += out.azimuth[k] = std::exp(z[k] - m);
+    for (double& v : out.azimuth) v = s > 0.0 ? v / s : 1.0 / double(z.size());
+  }
   return out;
 }
 
@@ -136,7 +185,15 @@ std::shared_ptr<SunGlareDetector> load_sun_glare(const std::string& path) {
   const nlohmann::json cfg = nlohmann::json::parse(info.config_json, nullptr, false);
   SL_CHECK(!cfg.is_discarded() && cfg.contains("width") && cfg["width"].is_number_integer(), "load_sun_glare: '", path,
            "' has no integer config key 'width'");
-  auto net = std::make_shared<SunGlareDetector>(SunGlareOptions{.width = cfg["width"].get<int64_t>(), .seed = 1});
+  int64_t bins = 0;
+  if (cfg.contains("azimuth_bins")) {
+    SL_CHECK(cfg["azimuth_bins"].is_number_integer() && cfg["azimuth_bins"].get<int64_t>() >= 0 &&
+                 cfg["azimuth_bins"].get<int64_t>() <= 360,
+             "load_sun_glare: '", path, "' has config key 'azimuth_bins' that is not an integer in [0, 360]");
+    bins = cfg["azimuth_bins"].get<int64_t>();
+  }
+  auto net = std::make_shared<SunGlareDetector>(
+      SunGlareOptions{.width = cfg["width"].get<int64_t>(), .azimuth_bins = bins, .seed = 1});
   nn::load_checkpoint(path, *net, nullptr);
   net->eval();
   return net;

@@ -20,6 +20,20 @@
 // coordinates of the H×W image, render/camera.h) at the probability-weighted mean of the cell
 // centres within one cell of the most probable cell.
 //
+// Azimuth head (optional, issue 53: front and back): with azimuth_bins A > 0 the detector also
+// says where the sun is in AZIMUTH, in view or not, from the same features: forward_heads(x).azimuth
+// → logits [N, A] over the sectors of the camera's canonical frame (train/street_batch.h: the camera
+// looks at azimuth 0; sector j spans [−π + j·2π/A, −π + (j+1)·2π/A), as train/sun_distribution.h's
+// sectors). It reads the crop's light at coarse resolution (the features average-pooled to 4×8
+// cells), where backlit haze, the sky's brightness gradient and the shading of walls tell in
+// front from behind. Trained by cross-entropy against azimuth_target. A detector without it
+// (azimuth_bins 0, the 0.7.3 file) has the same parameters and outputs as before.
+// - azimuth_target(A, φ, width_deg) → [A] probabilities ∝ exp(−Δ²/2σ²) over the sector centres,
+//   Δ the wrapped difference to φ, σ = width_deg; sums to 1.
+// - read_glare(logits, H, W, azimuth_logits) also fills GlareReading::azimuth with the softmax of
+//   the azimuth logits (empty without them).
+// - mirror_sectors(q): the sectors of the mirrored image (φ → −φ maps sector j to A − 1 − j).
+//
 // Guarantees: every output finite for finite input (NaN/Inf pixels of the image read as 0);
 // deterministic. Throws sl::Error for an input that is not [3, H, W] or [N, 4, 64, 128], or logits
 // not of 513 values.
@@ -28,6 +42,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <glm/glm.hpp>
 
@@ -43,34 +58,51 @@ inline constexpr int kGlareOutputs = 1 + kGlareRows * kGlareCols;
 // The probability of a sun in view above which the detector's answer is used (LightingEstimator):
 // chosen on the validation split with `streetlight-bench sun-glare` (see models/MODEL_CARD.md).
 inline constexpr double kGlareThreshold = 0.95;
+// The exponent of the azimuth head's probabilities where they reweigh the sun head's distribution
+// (train/sun_distribution.h, weigh_by_azimuth; LightingEstimator): chosen among 0, 0.5, 1 and 2 on
+// the validation split with `streetlight-eval --glare-azimuth-weight` (models/README.md). 0 leaves
+// the sun head's answer.
+inline constexpr double kGlareAzimuthWeight = 0.5;
 
 struct SunGlareOptions {
-  int64_t width = 24;  // channels of the first layer; later layers use 2·width
+  int64_t width = 24;         // channels of the first layer; later layers use 2·width
+  int64_t azimuth_bins = 0;   // sectors of the azimuth head; 0: no azimuth head
   uint64_t seed = 1;
+};
+
+struct GlareHeads {
+  Tensor glare;    // [N, 1 + 16·32]
+  Tensor azimuth;  // [N, azimuth_bins]; undefined without the azimuth head
 };
 
 class SunGlareDetector : public nn::Module {
  public:
   explicit SunGlareDetector(SunGlareOptions options = {});
-  Tensor forward(const Tensor& x) override;
+  Tensor forward(const Tensor& x) override;  // the glare logits only
+  GlareHeads forward_heads(const Tensor& x);
   const SunGlareOptions& options() const { return opt_; }
+  bool has_azimuth() const { return opt_.azimuth_bins > 0; }
 
  private:
   SunGlareOptions opt_;
-  std::shared_ptr<nn::Module> features_, cells_, none_;
+  std::shared_ptr<nn::Module> features_, cells_, none_, azimuth_pool_, azimuth_;
 };
 
 Tensor glare_input(const Tensor& ldr);
 Tensor glare_target(const std::optional<glm::dvec2>& pixel, int height, int width);
 
+std::vector<double> azimuth_target(int64_t bins, double azimuth_rad, double width_deg);
+std::vector<double> mirror_sectors(const std::vector<double>& q);
+
 struct GlareReading {
   double p_sun = 0.0;
   glm::dvec2 pixel{0.0};
+  std::vector<double> azimuth;  // the azimuth head's probabilities per sector; empty without it
 };
-GlareReading read_glare(const Tensor& logits, int height, int width);
+GlareReading read_glare(const Tensor& logits, int height, int width, const Tensor& azimuth_logits = Tensor());
 
 // A detector from a checkpoint saved by `streetlight-bench sun-glare` (stage "sun_glare"; its
-// config's "width" sizes the network), in eval mode. Throws sl::Error naming the file when it is
+// config's "width" sizes the network, and "azimuth_bins", when present, its azimuth head), in eval mode. Throws sl::Error naming the file when it is
 // not one.
 std::shared_ptr<SunGlareDetector> load_sun_glare(const std::string& path);
 

@@ -382,12 +382,17 @@ TEST(Inference, WithoutAVisibleSunTheCueChangesNothing) {
 
 // A glare detector whose every weight is 0 and whose "no sun" bias is b: every cell has the same
 // probability and p_sun = 512 / (512 + e^b), so for b = −50 it always fires and for b = +50 never.
-std::shared_ptr<SunGlareDetector> constant_glare(double none_bias) {
-  auto net = std::make_shared<SunGlareDetector>(SunGlareOptions{.width = 2, .seed = 1});
+// With azimuth_bins > 0 it also has an azimuth head whose logits are `azimuth_bias` (0 elsewhere).
+std::shared_ptr<SunGlareDetector> constant_glare(double none_bias, int64_t azimuth_bins = 0,
+                                                 const std::vector<double>& azimuth_bias = {}) {
+  auto net = std::make_shared<SunGlareDetector>(SunGlareOptions{.width = 2, .azimuth_bins = azimuth_bins, .seed = 1});
   NoGradGuard ng;
   for (auto& [name, t] : net->named_parameters()) {
     float* p = t.data<float>();
-    for (int64_t i = 0; i < t.numel(); ++i) p[i] = name == "none.bias" ? float(none_bias) : 0.0f;
+    for (int64_t i = 0; i < t.numel(); ++i)
+      p[i] = name == "none.bias" ? float(none_bias)
+             : name == "azimuth.2.bias" && size_t(i) < azimuth_bias.size() ? float(azimuth_bias[size_t(i)])
+                                                                           : 0.0f;
   }
   return net;
 }
@@ -431,6 +436,62 @@ TEST(Inference, TheLearnedGlareDetectorFillsInWhereTheDiskTestFindsNothing) {
   EXPECT_FALSE(est.estimate({no_disk}).visible_sun_found);
   EXPECT_THROW(est.set_sun_glare(constant_glare(0.0), 0.0), Error);
   EXPECT_THROW(est.set_sun_glare(constant_glare(0.0), 1.5), Error);
+}
+
+// A detector with an azimuth head reweighs the sun head's distribution (train/sun_distribution.h
+// weigh_by_azimuth) before its mode is read, whether or not it fires; at weight 0 the estimate is
+// the same bits as without a detector.
+TEST(Inference, TheGlareDetectorsAzimuthHeadReweighsTheSunHead) {
+  const std::string dir = test::tool_dir("inference_glare_azimuth");
+  nlohmann::json c = tiny_lighting_config();
+  c["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
+  const std::string path = dir + "/sun_head.safetensors";
+  auto predictor = std::make_shared<LightingPredictor>(predictor_options(c));
+  {
+    nn::Module holder("LightingModel");
+    holder.register_module("predictor", predictor);
+    nn::save_checkpoint(path, holder, nullptr, nn::CheckpointInfo{.stage = "lighting", .step = 1, .config_json = c.dump()});
+  }
+  LightingEstimator est(path);
+  const InferenceView v = view_at(0.0);
+  const EstimatedLighting plain = est.estimate({v});
+  ASSERT_FALSE(plain.visible_sun_found);
+  EXPECT_FALSE(plain.glare_azimuth_used);
+  // An azimuth head sure the sun is behind the camera: sectors 0 and 7 of 8 (|azimuth| > 135°),
+  // symmetric, so that the flip-averaged reading is the head's own softmax.
+  const std::vector<double> behind = {8.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 8.0};
+  est.set_sun_glare(constant_glare(50.0, 8, behind), kGlareThreshold, 1.0);
+  const EstimatedLighting reweighed = est.estimate({v});
+  EXPECT_FALSE(reweighed.visible_sun_found);
+  EXPECT_TRUE(reweighed.glare_azimuth_used);
+  EXPECT_GT(std::abs(azimuth_deg_of(reweighed.sun_direction_canonical)), 135.0);
+  // The same readout by hand: the flip-averaged sun head's distribution reweighed by the softmax.
+  {
+    NoGradGuard ng;
+    const SunGrid grid{4, 16};
+    const Tensor image = unsqueeze(resize_bilinear(v.ldr, c["model"]["image_height"].get<int64_t>(),
+                                                   c["model"]["image_width"].get<int64_t>()),
+                                   0);
+    std::vector<double> p = softmax_row(select(est.predictor().predict_sky(image).sun_logits, 0, 0).to_vector());
+    const std::vector<double> m = mirror_cells(
+        grid, softmax_row(select(est.predictor().predict_sky(unsqueeze(data::flip_horizontal(select(image, 0, 0).contiguous()), 0))
+                                     .sun_logits,
+                                 0, 0)
+                              .to_vector()));
+    for (size_t k = 0; k < p.size(); ++k) p[k] = 0.5 * (p[k] + m[k]);
+    const SunReadout r = read_sun_distribution(grid, weigh_by_azimuth(grid, p, softmax_row(behind), 1.0));
+    EXPECT_LT(glm::length(reweighed.sun_direction_canonical - r.direction), 1e-5);
+    EXPECT_NEAR(reweighed.sun_probability, r.confidence, 1e-9);
+  }
+  // Weight 0: the same bits as without a detector.
+  est.set_sun_glare(constant_glare(50.0, 8, behind), kGlareThreshold, 0.0);
+  const EstimatedLighting off = est.estimate({v});
+  EXPECT_FALSE(off.glare_azimuth_used);
+  EXPECT_EQ(off.sun_direction_canonical, plain.sun_direction_canonical);
+  EXPECT_EQ(max(abs(sub(off.env, plain.env))).item(), 0.0);
+  EXPECT_EQ(off.sun_probability, plain.sun_probability);
+  EXPECT_THROW(est.set_sun_glare(constant_glare(50.0, 8, behind), kGlareThreshold, -1.0), Error);
+  EXPECT_THROW(est.set_sun_glare(constant_glare(50.0, 8, behind), kGlareThreshold, std::nan("")), Error);
 }
 
 TEST(Inference, AnExplicitSunEditWinsOverTheVisibleSun) {

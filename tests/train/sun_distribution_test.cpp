@@ -96,6 +96,42 @@ TEST(SunDistribution, TwoSeparatedPeaksReadOutAtTheLargerOne) {
   EXPECT_LT(train::read_sun_distribution(kGrid, uniform).confidence, 0.1);
 }
 
+// A second opinion on the azimuth alone (the glare detector's azimuth head) moves the mode to the
+// peak it favours; weight 0 and a flat opinion change nothing; bad input is refused.
+TEST(SunDistribution, AnAzimuthOpinionReweighsThePeaks) {
+  const glm::dvec3 front = sun(10, 20), back = sun(-170, 20);
+  std::vector<double> p = peak(front, 0.6), q = peak(back, 0.4);
+  for (size_t k = 0; k < p.size(); ++k) p[k] += q[k];
+  ASSERT_LT(angle_deg(train::read_sun_distribution(kGrid, p).direction, front), 4.0);
+  // 8 sectors; the two behind the camera (|azimuth| > 135°) three times as likely as the others.
+  std::vector<double> behind(8, 1.0);
+  behind[0] = behind[7] = 3.0;
+  const std::vector<double> w = train::weigh_by_azimuth(kGrid, p, behind, 1.0);
+  double total = 0.0;
+  for (const double v : w) total += v;
+  EXPECT_NEAR(total, 1.0, 1e-12);
+  const train::SunReadout r = train::read_sun_distribution(kGrid, w);
+  EXPECT_LT(angle_deg(r.direction, back), 4.0);
+  EXPECT_NEAR(r.confidence, 0.4 * 3.0 / (0.4 * 3.0 + 0.6), 0.02);
+  // At a weight of 0.25 the opinion is too weak to overturn the front peak.
+  EXPECT_LT(angle_deg(train::read_sun_distribution(kGrid, train::weigh_by_azimuth(kGrid, p, behind, 0.25)).direction, front), 4.0);
+  // Weight 0 returns the same values; a flat opinion the same up to rounding.
+  EXPECT_EQ(train::weigh_by_azimuth(kGrid, p, behind, 0.0), p);
+  const std::vector<double> flat = train::weigh_by_azimuth(kGrid, p, std::vector<double>(8, 0.125), 2.0);
+  double sum_p = 0.0;
+  for (const double v : p) sum_p += v;
+  for (size_t k = 0; k < p.size(); ++k) EXPECT_NEAR(flat[k], p[k] / sum_p, 1e-12);
+  // A zero opinion never rules a cell out: the floor keeps every cell positive.
+  std::vector<double> zero_front(8, 0.0);
+  zero_front[0] = 1.0;
+  for (const double v : train::weigh_by_azimuth(kGrid, p, zero_front, 3.0)) EXPECT_TRUE(std::isfinite(v));
+  EXPECT_THROW(train::weigh_by_azimuth(kGrid, p, {}, 1.0), Error);
+  EXPECT_THROW(train::weigh_by_azimuth(kGrid, p, behind, -1.0), Error);
+  EXPECT_THROW(train::weigh_by_azimuth(kGrid, p, behind, std::nan("")), Error);
+  EXPECT_THROW(train::weigh_by_azimuth(kGrid, p, {1.0, -1.0}, 1.0), Error);
+  EXPECT_THROW(train::weigh_by_azimuth(kGrid, std::vector<double>(3, 1.0), behind, 1.0), Error);
+}
+
 // An uncertain elevation reads at its median in degrees, not where the cells are densest. At
 // one azimuth, the mass is spread evenly per degree over elevations 10°-50°: the median is 30°.
 // The equal-area rings are taller the higher they lie, so the densest cell is the ring over

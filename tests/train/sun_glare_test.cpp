@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -131,6 +132,70 @@ TEST(SunGlare, ForwardGivesFiniteLogitsAndLearnsABlob) {
   EXPECT_THROW(net.forward(Tensor::zeros({1, 3, 64, 128})), Error);
 }
 
+// The azimuth head (front and back): its target peaks at the sun's sector, wraps around at ±180°
+// and sums to 1; the mirror image reverses the sectors; the head learns which side is bright.
+TEST(SunGlare, TheAzimuthTargetPeaksAtTheSunsSectorAndWraps) {
+  const std::vector<double> t = train::azimuth_target(8, 0.1, 20.0);
+  ASSERT_EQ(t.size(), 8u);
+  double total = 0.0;
+  for (const double v : t) total += v;
+  EXPECT_NEAR(total, 1.0, 1e-12);
+  EXPECT_EQ(std::max_element(t.begin(), t.end()) - t.begin(), 4);  // sector 4 spans [0°, 45°)
+  // Just beside ±180°: sectors 0 and 7 hold nearly all of it, and the same for either sign.
+  const std::vector<double> a = train::azimuth_target(8, M_PI - 0.01, 20.0), b = train::azimuth_target(8, -M_PI + 0.01, 20.0);
+  EXPECT_GT(a[0] + a[7], 0.95);
+  for (size_t j = 0; j < 8; ++j) EXPECT_NEAR(a[j], b[7 - j], 1e-12);
+  EXPECT_EQ(train::mirror_sectors({1.0, 2.0, 3.0}), (std::vector<double>{3.0, 2.0, 1.0}));
+  // Narrower than a sector: one-hot at the sector that holds it.
+  const std::vector<double> one = train::azimuth_target(8, -3.0, 1e-3);
+  EXPECT_EQ(one[0], 1.0);
+  EXPECT_THROW(train::azimuth_target(0, 0.0, 20.0), Error);
+  EXPECT_THROW(train::azimuth_target(8, std::nan(""), 20.0), Error);
+  EXPECT_THROW(train::azimuth_target(8, 0.0, 0.0), Error);
+}
+
+TEST(SunGlare, TheAzimuthHeadLearnsWhichSideIsBright) {
+  train::SunGlareDetector net({.width = 4, .azimuth_bins = 4, .seed = 5});
+  ASSERT_TRUE(net.has_azimuth());
+  // A sky brighter on the left (the sun to the left, sector 1 of 4: [−90°, 0°)) and on the right
+  // (sector 2), no glare in view.
+  auto image = [](bool left) {
+    Tensor ldr = Tensor::full({3, 128, 256}, 0.3);
+    float* p = ldr.data<float>();
+    for (int ch = 0; ch < 3; ++ch)
+      for (int r = 0; r < 128; ++r)
+        for (int c = 0; c < 128; ++c) p[(ch * 128 + r) * 256 + (left ? c : 128 + c)] = 0.8f;
+    return train::glare_input(ldr);
+  };
+  const Tensor x = stack({image(true), image(false)}, 0);
+  const Tensor glare = stack({train::glare_target(std::nullopt, 128, 256), train::glare_target(std::nullopt, 128, 256)}, 0);
+  const Tensor az = stack({Tensor::from_vector(train::azimuth_target(4, -0.25 * M_PI, 20.0), {4}).to(DType::F32),
+                           Tensor::from_vector(train::azimuth_target(4, 0.25 * M_PI, 20.0), {4}).to(DType::F32)},
+                          0);
+  const Tensor w = Tensor::from_vector({1.0, 1.0}, {2});
+  nn::Adam opt(net.named_parameters(), {.lr = 1e-3});
+  for (int step = 0; step < 60; ++step) {
+    const train::GlareHeads h = net.forward_heads(x);
+    ASSERT_EQ(h.azimuth.shape(), (Shape{2, 4}));
+    const Tensor loss = add(train::sun_distribution_loss(h.glare, glare, w), train::sun_distribution_loss(h.azimuth, az, w));
+    ASSERT_TRUE(std::isfinite(loss.item()));
+    opt.zero_grad();
+    backward(loss);
+    opt.step();
+  }
+  NoGradGuard ng;
+  const train::GlareHeads h = net.forward_heads(x);
+  const train::GlareReading left = train::read_glare(select(h.glare, 0, 0), 128, 256, select(h.azimuth, 0, 0));
+  const train::GlareReading right = train::read_glare(select(h.glare, 0, 1), 128, 256, select(h.azimuth, 0, 1));
+  ASSERT_EQ(left.azimuth.size(), 4u);
+  EXPECT_NEAR(left.azimuth[0] + left.azimuth[1] + left.azimuth[2] + left.azimuth[3], 1.0, 1e-12);
+  EXPECT_GT(left.azimuth[1], 0.5);
+  EXPECT_GT(right.azimuth[2], 0.5);
+  // Without the head the reading has no azimuth, and forward() is the glare logits alone.
+  EXPECT_TRUE(train::read_glare(select(h.glare, 0, 0), 128, 256).azimuth.empty());
+  EXPECT_EQ(max(abs(sub(net.forward(x), h.glare))).item(), 0.0);
+}
+
 TEST(SunGlare, LoadsWhatTheBenchSavedAndRefusesOtherCheckpoints) {
   train::SunGlareDetector net({.width = 3, .seed = 9});
   const std::string good = scratch("glare.safetensors"), other = scratch("not_glare.safetensors");
@@ -140,6 +205,14 @@ TEST(SunGlare, LoadsWhatTheBenchSavedAndRefusesOtherCheckpoints) {
   const Tensor x = Tensor::uniform({1, 4, 64, 128}, -0.5, 0.5, 4);
   NoGradGuard ng;
   EXPECT_EQ(max(abs(sub(loaded->forward(x), net.forward(x)))).item(), 0.0);
+  // A detector with an azimuth head loads with it ("azimuth_bins" in its config).
+  train::SunGlareDetector with_head({.width = 3, .azimuth_bins = 8, .seed = 2});
+  const std::string head = scratch("glare_azimuth.safetensors");
+  nn::save_checkpoint(head, with_head, nullptr, {.stage = "sun_glare", .step = 1, .config_json = R"({"width": 3, "azimuth_bins": 8})"});
+  const auto loaded_head = train::load_sun_glare(head);
+  ASSERT_TRUE(loaded_head->has_azimuth());
+  EXPECT_EQ(max(abs(sub(loaded_head->forward_heads(x).azimuth, with_head.forward_heads(x).azimuth))).item(), 0.0);
+  EXPECT_FALSE(loaded->has_azimuth());
   try {
     train::load_sun_glare(other);
     ADD_FAILURE() << "expected sl::Error";

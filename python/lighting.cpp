@@ -112,6 +112,7 @@ py::dict confidence(const PyLighting& l) {
   d["probability"] = nan_to_none(e.sun_probability);
   d["visible_sun"] = e.visible_sun_found;
   d["visible_sun_learned"] = e.visible_sun_learned;
+  d["glare_azimuth_used"] = e.glare_azimuth_used;
   if (e.visible_sun_found) d["visible_sun_pixel"] = py::make_tuple(e.visible_sun_pixel.x, e.visible_sun_pixel.y);
   return d;
 }
@@ -162,8 +163,9 @@ void bind_lighting(py::module_& m) {
                              "the tools' confidences: flip_spread_deg, hedge, crop_spread_deg (smaller is more\n"
                              "confident; None when not measured), probability (models with a sun head: the\n"
                              "probability within 20 degrees of the sun, larger is more confident), visible_sun\n"
-                             "(a sun seen in the photo set it) and visible_sun_learned (the learned glare\n"
-                             "detector saw it, not the disk test)")
+                             "(a sun seen in the photo set it), visible_sun_learned (the learned glare\n"
+                             "detector saw it, not the disk test) and glare_azimuth_used (the detector's azimuth\n"
+                             "head reweighed the sun head's distribution)")
       .def_property_readonly("has_sky_vector", [](const PyLighting& l) { return l.lighting.has_sky_code; })
       .def_property_readonly("sun_from_shadows", [](const PyLighting& l) -> py::object {
             if (!l.shadow_fit) return py::none();

@@ -36,6 +36,7 @@
 // error against the ground truth against lighting + insertion time in ms (one line per checkpoint).
 // The scoring itself is tools/common/evaluation.h (shared with the Python module's
 // streetlight.evaluate); this file is the command line.
+#include <cmath>
 #include <iostream>
 #include <string>
 
@@ -94,6 +95,9 @@ int run(int argc, char** argv) {
                {"--sun-glare", "FILE", "the learned sun-glare detector behind the disk test (default: the released one,\n"
                 "                               models/sun_glare.safetensors, when present; train/sun_glare.h)"},
                {"--no-sun-glare", "", "the disk test alone finds a visible sun"},
+               {"--glare-azimuth-weight", "W", "the exponent of the detector's azimuth head where it reweighs the sun head's\n"
+                "                               distribution (default the released choice, train/sun_glare.h; 0 off; only for\n"
+                "                               a detector with an azimuth head)"},
                {"--out", "DIR", "write results.json, results.md and error_time.png here"},
                {"--json", "", "print the results as one JSON object on stdout"}});
   if (!a.parse(argc, argv)) return 0;
@@ -116,6 +120,9 @@ int run(int argc, char** argv) {
   o.visible_sun = !a.has("--no-visible-sun");
   if (o.visible_sun && !a.has("--no-sun-glare"))
     o.sun_glare = a.has("--sun-glare") ? a.get("--sun-glare") : sl::cli::released_sun_glare_path();
+  o.glare_azimuth_weight = a.number("--glare-azimuth-weight", o.glare_azimuth_weight);
+  SL_CHECK(std::isfinite(o.glare_azimuth_weight) && o.glare_azimuth_weight >= 0.0,
+           "--glare-azimuth-weight must be a finite number >= 0, got ", o.glare_azimuth_weight);
   const EvalReport report = evaluate(o);
   if (a.has("--out")) write_eval_report(report, a.get("--out"));
   if (a.has("--json")) std::cout << report.results.dump() << "\n";

@@ -149,7 +149,8 @@ json sun_json(const EstimatedLighting& light) {
           {"hedge", hedge_json(light)},
           {"crop_spread_deg", crop_spread_json(light)},
           {"probability", std::isfinite(light.sun_probability) ? json(light.sun_probability) : json()},
-          {"visible_sun", visible_sun_json(light)}};
+          {"visible_sun", visible_sun_json(light)},
+          {"glare_azimuth_used", light.glare_azimuth_used}};
 }
 
 // --refine N, --refine-lr, --refine-volume, --discriminator: checked before anything is estimated

@@ -12,6 +12,9 @@
 // - any other panorama (sun occluded or absent): `random` crops, none with a sun in view.
 // Plus, with --hdr-data, the benchmark's own crops of the HDR skies (as streetlight-eval draws them).
 // The validation score adds the benchmark's own crops of the validation LDR panoramas (8 each).
+// With --azimuth-bins, the detector's azimuth head (front and back) trains on the random crops of
+// every panorama whose sun position is known (plus --azimuth-crops more of each) and on the HDR
+// crops, and is scored on the val crops with a known sun: the share put in the right half.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -39,6 +42,7 @@
 #include "tools/common/cli.h"
 #include "train/metrics.h"
 #include "train/real_sky_benchmark.h"
+#include "train/street_batch.h"
 #include "train/sun_distribution.h"
 #include "train/sun_glare.h"
 #include "util/error.h"
@@ -55,7 +59,20 @@ struct GlareCrop {
   std::optional<glm::dvec2> sun_pixel;  // in view
   glm::dvec3 sun{0.0, 1.0, 0.0};
   double weight = 1.0;
+  // The sun's azimuth in the crop camera's canonical frame (train/street_batch.h), where the sun's
+  // position is known (in view or not), for the azimuth head; its weight there.
+  std::optional<double> azimuth;
+  double azimuth_weight = 0.0;
 };
+
+// The sun's azimuth φ = atan2(x, −z) in the camera's canonical frame and the azimuth head's weight
+// for it: the label's (half for a low-confidence label) times cos(elevation), since a sun near the
+// zenith has no azimuth to tell.
+void set_azimuth(GlareCrop& g, double label_weight) {
+  const glm::dvec3 c = train::canonical_frame(g.camera).direction(g.sun);
+  g.azimuth = std::atan2(c.x, -c.z);
+  g.azimuth_weight = label_weight * std::sqrt(std::max(0.0, 1.0 - std::clamp(c.y, -1.0, 1.0) * std::clamp(c.y, -1.0, 1.0)));
+}
 
 GlareCrop make_crop(const data::PerspectiveCrop& crop, bool visible, const glm::dvec3& sun, bool keep_ldr) {
   GlareCrop g;
@@ -73,7 +90,7 @@ GlareCrop make_crop(const data::PerspectiveCrop& crop, bool visible, const glm::
 
 std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLabels& labels,
                                       const std::vector<std::string>& names, int aimed, int near, int random,
-                                      uint64_t seed, bool keep_ldr) {
+                                      uint64_t seed, bool keep_ldr, int azimuth_crops = 0) {
   std::vector<std::vector<GlareCrop>> per(names.size());
 #pragma omp parallel for schedule(dynamic, 1)
   for (int64_t i = 0; i < int64_t(names.size()); ++i) {
@@ -116,6 +133,17 @@ std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLab
       per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), visible, d, keep_ldr));
       if (per[size_t(i)].back().sun_pixel) per[size_t(i)].back().weight = w;
     }
+    // More random crops where the sun's position is known, for the azimuth head.
+    if (l->has_position)
+      for (int a = 0; a < azimuth_crops; ++a, ++k) {
+        const auto cp = params(0, 0, false);
+        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), visible, d, keep_ldr));
+        if (per[size_t(i)].back().sun_pixel) per[size_t(i)].back().weight = w;
+      }
+    // The azimuth head learns from the random crops only: the aimed and near crops all face the
+    // sun, and would teach it that the sun is mostly in front.
+    if (l->has_position)
+      for (size_t c = size_t(visible ? aimed + near : 0); c < per[size_t(i)].size(); ++c) set_azimuth(per[size_t(i)][c], w);
   }
   std::vector<GlareCrop> out;
   for (auto& v : per)
@@ -141,6 +169,7 @@ std::vector<GlareCrop> benchmark_crops(const std::string& dir, const std::string
     g.sun = c.sample.sun_direction;
     // An LDR panorama's occluded sun is not a glare in view.
     const bool glare = c.sun_known && c.sun_in_crop && (!ldr || c.label_sun == "visible");
+    if (c.sun_known) set_azimuth(g, 1.0);
     if (glare) {
       const render::Projection pr = v.camera.project(v.camera.position() + 1e3 * c.sample.sun_direction);
       if (pr.in_image) g.sun_pixel = pr.pixel;
@@ -172,6 +201,43 @@ Tensor batch_logits(train::SunGlareDetector& net, const std::vector<GlareCrop>& 
   TensorList xs;
   for (size_t i = begin; i < end; ++i) xs.push_back(crops[i].input);
   return net.forward(stack(xs, 0));
+}
+
+// The azimuth head on the crops whose sun's azimuth is known (flip-averaged, as LightingEstimator
+// reads it): the share in the right half (in front of the camera or behind it), against always
+// answering the more common half; the median azimuth error of its most probable sector's centre.
+void score_azimuth(train::SunGlareDetector& net, const std::vector<GlareCrop>& crops, FILE* log) {
+  const int64_t a = net.options().azimuth_bins;
+  int known = 0, right = 0, front = 0;
+  std::vector<double> errors;
+  NoGradGuard ng;
+  net.eval();
+  for (const GlareCrop& c : crops) {
+    if (!c.azimuth) continue;
+    const train::GlareHeads h = net.forward_heads(unsqueeze(c.input, 0));
+    const train::GlareHeads m = net.forward_heads(unsqueeze(mirror(c.input, 2), 0));
+    std::vector<double> q = train::read_glare(select(h.glare, 0, 0), 1, 1, select(h.azimuth, 0, 0)).azimuth;
+    const std::vector<double> mq = train::mirror_sectors(train::read_glare(select(m.glare, 0, 0), 1, 1, select(m.azimuth, 0, 0)).azimuth);
+    double p_front = 0.0;
+    size_t best = 0;
+    for (size_t j = 0; j < q.size(); ++j) {
+      q[j] = 0.5 * (q[j] + mq[j]);
+      const double centre = -kPi + (double(j) + 0.5) * 2.0 * kPi / double(a);
+      if (std::abs(centre) < 0.5 * kPi) p_front += q[j];
+      if (q[j] > q[best]) best = j;
+    }
+    const bool truth_front = std::abs(*c.azimuth) < 0.5 * kPi;
+    ++known;
+    front += truth_front;
+    right += (p_front >= 0.5) == truth_front;
+    const double centre = -kPi + (double(best) + 0.5) * 2.0 * kPi / double(a);
+    errors.push_back(std::abs(std::remainder(centre - *c.azimuth, 2.0 * kPi)) / kDegToRad);
+  }
+  if (known == 0) return;
+  std::sort(errors.begin(), errors.end());
+  std::fprintf(log, "  azimuth head: %d crops with a known sun; right half %.3f (the more common half alone %.3f); "
+               "median azimuth error of the mode %.1f deg\n",
+               known, double(right) / known, double(std::max(front, known - front)) / known, errors[errors.size() / 2]);
 }
 
 // Scores of the detector (at several thresholds) and of the hand-made cue on one set of crops.
@@ -206,6 +272,7 @@ void score(train::SunGlareDetector& net, const std::vector<GlareCrop>& crops, co
     std::fprintf(log, "  %-34s within 5 deg %4d, within 10 %4d of %4d, farther %3d; false fires %4d of %5d\n",
                  name.c_str(), hit5, hit10, in_view, far, false_fire, outside);
   };
+  if (net.has_azimuth()) score_azimuth(net, crops, log);
   const bool have_ldr = !crops.empty() && crops[0].ldr.defined();
   auto hand = [&](size_t i) -> std::optional<glm::dvec3> {
     const data::VisibleSun s = data::find_visible_sun(crops[i].ldr, crops[i].camera);
@@ -234,7 +301,8 @@ void score(train::SunGlareDetector& net, const std::vector<GlareCrop>& crops, co
 int run_sun_glare(const std::vector<std::string>& args) {
   std::string data_dir, split_file, hdr_dir, hdr_split, out, checkpoint;
   int64_t steps = 3000, batch = 32, aimed = 8, near = 3, random = 6, hdr_crops = 16, width = 24;
-  double lr = 2e-3;
+  int64_t azimuth_bins = 0, azimuth_crops = 0;
+  double lr = 2e-3, azimuth_loss = 1.0, azimuth_width = 20.0;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     auto value = [&]() -> std::string {
@@ -245,7 +313,8 @@ int run_sun_glare(const std::vector<std::string>& args) {
       std::printf(
           "usage: streetlight-bench sun-glare --data DIR --split-file FILE [--hdr-data DIR --hdr-split-file FILE]\n"
           "                                  [--out CKPT | --checkpoint CKPT] [--steps N] [--batch B] [--lr X]\n"
-          "                                  [--aimed K] [--near K] [--random K] [--hdr-crops K] [--width W]\n\n"
+          "                                  [--aimed K] [--near K] [--random K] [--hdr-crops K] [--width W]\n"
+          "                                  [--azimuth-bins A] [--azimuth-crops K] [--azimuth-loss X] [--azimuth-width DEG]\n\n"
           "Trains the learned sun-glare detector (train/sun_glare.h) on crops of the TRAIN split of the labelled\n"
           "LDR panoramas DIR: per panorama with a visible sun, --aimed crops aimed at it, --near just beside it and\n"
           "--random at random (defaults 8, 3, 6); --random crops of every other panorama; with --hdr-data, the\n"
@@ -254,7 +323,12 @@ int run_sun_glare(const std::vector<std::string>& args) {
           "Then scores it beside the visible-sun disk test on the same kinds of crops of the VAL split, and on the\n"
           "benchmark's own val crops: fires within 5 and 10 degrees of a sun in view and false fires, at thresholds\n"
           "0.5 to 0.99, alone and behind the disk test. Test is never read. scripts/train_sun_glare.sh has the\n"
-          "released detector's flags.\n");
+          "released detector's flags.\n\n"
+          "--azimuth-bins A (default 0: none) adds the azimuth head: where the sun is in azimuth, in view or not,\n"
+          "trained on every crop whose sun position is known by cross-entropy (weight --azimuth-loss, default 1)\n"
+          "against a Gaussian of --azimuth-width degrees (default 20), weighted by cos(elevation); --azimuth-crops K\n"
+          "more random crops of each panorama with a known sun (default 0). Its score: the share of val crops put in\n"
+          "the right half (in front of the camera or behind it) and the median azimuth error of its mode.\n");
       return 0;
     }
     if (a == "--data") data_dir = value();
@@ -270,6 +344,15 @@ int run_sun_glare(const std::vector<std::string>& args) {
     else if (a == "--random") random = cli::parse_integer("sun-glare: --random", value(), 0, 256);
     else if (a == "--hdr-crops") hdr_crops = cli::parse_integer("sun-glare: --hdr-crops", value(), 1, 1024);
     else if (a == "--width") width = cli::parse_integer("sun-glare: --width", value(), 1, 256);
+    else if (a == "--azimuth-bins") azimuth_bins = cli::parse_integer("sun-glare: --azimuth-bins", value(), 0, 360);
+    else if (a == "--azimuth-crops") azimuth_crops = cli::parse_integer("sun-glare: --azimuth-crops", value(), 0, 256);
+    else if (a == "--azimuth-loss" || a == "--azimuth-width") {
+      const std::string v = value();
+      char* end = nullptr;
+      const double x = std::strtod(v.c_str(), &end);
+      SL_CHECK(end && *end == '\0' && std::isfinite(x) && x > 0.0, "sun-glare: ", a, " must be a positive number, got '", v, "'");
+      (a == "--azimuth-loss" ? azimuth_loss : azimuth_width) = x;
+    }
     else if (a == "--lr") {
       const std::string v = value();
       char* end = nullptr;
@@ -284,23 +367,30 @@ int run_sun_glare(const std::vector<std::string>& args) {
 
   // Scoring a saved detector takes its width from the file (train::load_sun_glare).
   std::shared_ptr<train::SunGlareDetector> held =
-      checkpoint.empty() ? std::make_shared<train::SunGlareDetector>(train::SunGlareOptions{.width = width, .seed = 1})
+      checkpoint.empty() ? std::make_shared<train::SunGlareDetector>(
+                               train::SunGlareOptions{.width = width, .azimuth_bins = azimuth_bins, .seed = 1})
                          : train::load_sun_glare(checkpoint);
   train::SunGlareDetector& net = *held;
   if (checkpoint.empty()) {
     auto t0 = std::chrono::steady_clock::now();
     std::vector<GlareCrop> crops =
-        panorama_crops(data_dir, labels, split_list(split_file, "train"), int(aimed), int(near), int(random), 0x676c617265ULL, false);
+        panorama_crops(data_dir, labels, split_list(split_file, "train"), int(aimed), int(near), int(random), 0x676c617265ULL, false,
+                       int(azimuth_crops));
     if (!hdr_dir.empty())
       for (GlareCrop& c : benchmark_crops(hdr_dir, hdr_split, "train", int(hdr_crops), false)) crops.push_back(std::move(c));
     int pos = 0;
     for (const GlareCrop& c : crops) pos += bool(c.sun_pixel);
     std::fprintf(stderr, "sun-glare: %zu training crops (%d with the sun in view) in %.0f s\n", crops.size(), pos,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-    std::vector<Tensor> targets(crops.size());
-    for (size_t i = 0; i < crops.size(); ++i)
+    std::vector<Tensor> targets(crops.size()), azimuth_targets(crops.size());
+    for (size_t i = 0; i < crops.size(); ++i) {
       targets[i] = train::glare_target(crops[i].sun_pixel, int(crops[i].camera.intrinsics().height),
                                        int(crops[i].camera.intrinsics().width));
+      if (azimuth_bins > 0)
+        azimuth_targets[i] = crops[i].azimuth ? Tensor::from_vector(train::azimuth_target(azimuth_bins, *crops[i].azimuth, azimuth_width),
+                                                                    {azimuth_bins}).to(DType::F32)
+                                              : Tensor::zeros({azimuth_bins}, DType::F32);
+    }
     net.train();
     nn::Adam opt(net.named_parameters(), {.lr = lr});
     std::vector<size_t> order(crops.size());
@@ -310,13 +400,14 @@ int run_sun_glare(const std::vector<std::string>& args) {
     for (int64_t step = 0; step < steps; ++step) {
       // Cosine decay to zero over the run.
       opt.set_lr(lr * 0.5 * (1.0 + std::cos(kPi * double(step) / double(std::max<int64_t>(1, steps)))));
-      TensorList xs, ts;
-      std::vector<double> ws;
+      TensorList xs, ts, azs;
+      std::vector<double> ws, aws;
       for (int64_t b = 0; b < batch; ++b) {
         const size_t i = order[size_t(hash_counter(0x7374657073ULL, uint64_t(step), uint64_t(b)) % order.size())];
         Tensor x = crops[i].input, t = targets[i];
         // Mirror half the crops: the cells' columns and the image flip together.
-        if (uniform01(0x666c6970ULL, uint64_t(step), uint64_t(b)) < 0.5) {
+        const bool mirrored = uniform01(0x666c6970ULL, uint64_t(step), uint64_t(b)) < 0.5;
+        if (mirrored) {
           x = mirror(x, 2);
           const Tensor cells = reshape(slice(t, 0, 1, train::kGlareOutputs), {train::kGlareRows, train::kGlareCols});
           t = concat({slice(t, 0, 0, 1), reshape(mirror(cells, 1), {train::kGlareRows * train::kGlareCols})}, 0);
@@ -324,9 +415,16 @@ int run_sun_glare(const std::vector<std::string>& args) {
         xs.push_back(x);
         ts.push_back(t);
         ws.push_back(crops[i].weight);
+        if (azimuth_bins > 0) {
+          azs.push_back(mirrored ? Tensor::from_vector(train::mirror_sectors(azimuth_targets[i].to_vector()), {azimuth_bins}).to(DType::F32)
+                                 : azimuth_targets[i]);
+          aws.push_back(crops[i].azimuth ? azimuth_loss * crops[i].azimuth_weight : 0.0);
+        }
       }
-      const Tensor logits = net.forward(stack(xs, 0));
-      const Tensor loss = train::sun_distribution_loss(logits, stack(ts, 0), Tensor::from_vector(ws, {batch}));
+      const train::GlareHeads heads = net.forward_heads(stack(xs, 0));
+      Tensor loss = train::sun_distribution_loss(heads.glare, stack(ts, 0), Tensor::from_vector(ws, {batch}));
+      if (azimuth_bins > 0)
+        loss = add(loss, train::sun_distribution_loss(heads.azimuth, stack(azs, 0), Tensor::from_vector(aws, {batch})));
       opt.zero_grad();
       backward(loss);
       opt.step();
@@ -337,6 +435,12 @@ int run_sun_glare(const std::vector<std::string>& args) {
     }
     nlohmann::json cfg = {{"width", width}, {"steps", steps}, {"batch", batch}, {"lr", lr}, {"aimed", aimed},
                           {"near", near}, {"random", random}, {"hdr_crops", hdr_dir.empty() ? 0 : hdr_crops}};
+    if (azimuth_bins > 0) {
+      cfg["azimuth_bins"] = azimuth_bins;
+      cfg["azimuth_crops"] = azimuth_crops;
+      cfg["azimuth_loss"] = azimuth_loss;
+      cfg["azimuth_width"] = azimuth_width;
+    }
     nn::save_checkpoint(out, net, nullptr, {.stage = "sun_glare", .step = steps, .config_json = cfg.dump()});
     std::fprintf(stderr, "sun-glare: saved %s\n", out.c_str());
   }

@@ -176,6 +176,40 @@ TEST(Inference, EstimateIsTheSameOnOneAndTwoThreads) {
   EXPECT_EQ(one.sun_flip_spread_deg, two.sun_flip_spread_deg);
 }
 
+// A tiny checkpoint with a sun head over a 4 × 16 grid (model.sun_grid), and its config.
+nlohmann::json sun_head_config() {
+  nlohmann::json c = tiny_lighting_config();
+  c["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
+  return c;
+}
+std::string sun_head_checkpoint(const std::string& dir, const nlohmann::json& c) {
+  const std::string path = dir + "/sun_head.safetensors";
+  auto predictor = std::make_shared<LightingPredictor>(predictor_options(c));
+  nn::Module holder("LightingModel");
+  holder.register_module("predictor", predictor);
+  nn::save_checkpoint(path, holder, nullptr, nn::CheckpointInfo{.stage = "lighting", .step = 1, .config_json = c.dump()});
+  return path;
+}
+
+// The sun head's distribution for a view by hand, from the predictor's own passes: the photo's,
+// averaged with the mirrored photo's (mirrored back) when `flip`.
+std::vector<double> sun_head_probabilities(LightingEstimator& est, const nlohmann::json& c, const InferenceView& v, bool flip) {
+  NoGradGuard ng;
+  const SunGrid grid{c["model"]["sun_grid"]["elevation_bins"].get<int64_t>(), c["model"]["sun_grid"]["azimuth_bins"].get<int64_t>()};
+  const Tensor image = unsqueeze(resize_bilinear(v.ldr, c["model"]["image_height"].get<int64_t>(),
+                                                 c["model"]["image_width"].get<int64_t>()),
+                                 0);
+  std::vector<double> p = softmax_row(select(est.predictor().predict_sky(image).sun_logits, 0, 0).to_vector());
+  if (!flip) return p;
+  const std::vector<double> m = mirror_cells(
+      grid, softmax_row(select(est.predictor().predict_sky(unsqueeze(data::flip_horizontal(select(image, 0, 0).contiguous()), 0))
+                                   .sun_logits,
+                               0, 0)
+                            .to_vector()));
+  for (size_t k = 0; k < p.size(); ++k) p[k] = 0.5 * (p[k] + m[k]);
+  return p;
+}
+
 // The confidence of an estimate is the angle between the sun of the photo's pass and the mirror
 // image of the mirrored photo's pass: what the two single passes give, the same for the photo and
 // its mirror image, the larger of two views', and not measured without flip averaging.
@@ -185,15 +219,8 @@ TEST(Inference, EstimateIsTheSameOnOneAndTwoThreads) {
 // photo gets the mirror image of the sun.
 TEST(Inference, ASunHeadsModeIsTheSunAndItsMassTheConfidence) {
   const std::string dir = test::tool_dir("inference_sun_head");
-  nlohmann::json c = tiny_lighting_config();
-  c["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
-  const std::string path = dir + "/sun_head.safetensors";
-  auto predictor = std::make_shared<LightingPredictor>(predictor_options(c));
-  {
-    nn::Module holder("LightingModel");
-    holder.register_module("predictor", predictor);
-    nn::save_checkpoint(path, holder, nullptr, nn::CheckpointInfo{.stage = "lighting", .step = 1, .config_json = c.dump()});
-  }
+  const nlohmann::json c = sun_head_config();
+  const std::string path = sun_head_checkpoint(dir, c);
   LightingEstimator est(path);
   est.set_visible_sun(false);
   const InferenceView v = view_at(0.0);
@@ -202,20 +229,7 @@ TEST(Inference, ASunHeadsModeIsTheSunAndItsMassTheConfidence) {
     est.set_flip_average(flip);
     const EstimatedLighting l = est.estimate({v});
     // The same readout by hand, from the predictor's own passes.
-    NoGradGuard ng;
-    const Tensor image = unsqueeze(resize_bilinear(v.ldr, c["model"]["image_height"].get<int64_t>(),
-                                                   c["model"]["image_width"].get<int64_t>()),
-                                   0);
-    std::vector<double> p = softmax_row(select(est.predictor().predict_sky(image).sun_logits, 0, 0).to_vector());
-    if (flip) {
-      const std::vector<double> m = mirror_cells(
-          grid, softmax_row(select(est.predictor().predict_sky(unsqueeze(data::flip_horizontal(select(image, 0, 0).contiguous()), 0))
-                                       .sun_logits,
-                                   0, 0)
-                                .to_vector()));
-      for (size_t k = 0; k < p.size(); ++k) p[k] = 0.5 * (p[k] + m[k]);
-    }
-    const SunReadout r = read_sun_distribution(grid, p);
+    const SunReadout r = read_sun_distribution(grid, sun_head_probabilities(est, c, v, flip));
     EXPECT_LT(glm::length(l.sun_direction_canonical - r.direction), 1e-5) << "flip " << flip;
     EXPECT_NEAR(l.sun_probability, r.confidence, 1e-9);
     EXPECT_GT(l.sun_probability, 0.0);
@@ -443,15 +457,8 @@ TEST(Inference, TheLearnedGlareDetectorFillsInWhereTheDiskTestFindsNothing) {
 // the same bits as without a detector.
 TEST(Inference, TheGlareDetectorsAzimuthHeadReweighsTheSunHead) {
   const std::string dir = test::tool_dir("inference_glare_azimuth");
-  nlohmann::json c = tiny_lighting_config();
-  c["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
-  const std::string path = dir + "/sun_head.safetensors";
-  auto predictor = std::make_shared<LightingPredictor>(predictor_options(c));
-  {
-    nn::Module holder("LightingModel");
-    holder.register_module("predictor", predictor);
-    nn::save_checkpoint(path, holder, nullptr, nn::CheckpointInfo{.stage = "lighting", .step = 1, .config_json = c.dump()});
-  }
+  const nlohmann::json c = sun_head_config();
+  const std::string path = sun_head_checkpoint(dir, c);
   LightingEstimator est(path);
   const InferenceView v = view_at(0.0);
   const EstimatedLighting plain = est.estimate({v});
@@ -467,19 +474,9 @@ TEST(Inference, TheGlareDetectorsAzimuthHeadReweighsTheSunHead) {
   EXPECT_GT(std::abs(azimuth_deg_of(reweighed.sun_direction_canonical)), 135.0);
   // The same readout by hand: the flip-averaged sun head's distribution reweighed by the softmax.
   {
-    NoGradGuard ng;
     const SunGrid grid{4, 16};
-    const Tensor image = unsqueeze(resize_bilinear(v.ldr, c["model"]["image_height"].get<int64_t>(),
-                                                   c["model"]["image_width"].get<int64_t>()),
-                                   0);
-    std::vector<double> p = softmax_row(select(est.predictor().predict_sky(image).sun_logits, 0, 0).to_vector());
-    const std::vector<double> m = mirror_cells(
-        grid, softmax_row(select(est.predictor().predict_sky(unsqueeze(data::flip_horizontal(select(image, 0, 0).contiguous()), 0))
-                                     .sun_logits,
-                                 0, 0)
-                              .to_vector()));
-    for (size_t k = 0; k < p.size(); ++k) p[k] = 0.5 * (p[k] + m[k]);
-    const SunReadout r = read_sun_distribution(grid, weigh_by_azimuth(grid, p, softmax_row(behind), 1.0));
+    const SunReadout r =
+        read_sun_distribution(grid, weigh_by_azimuth(grid, sun_head_probabilities(est, c, v, true), softmax_row(behind), 1.0));
     EXPECT_LT(glm::length(reweighed.sun_direction_canonical - r.direction), 1e-5);
     EXPECT_NEAR(reweighed.sun_probability, r.confidence, 1e-9);
   }

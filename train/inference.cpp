@@ -52,23 +52,13 @@ VisibleSunCue find_visible_sun_cue(const std::vector<InferenceView>& views, cons
   return cue;
 }
 
-// The learned glare detector's reading of each view (train/sun_glare.h).
-// Each view's reading; with an azimuth head, its azimuth probabilities are averaged with the mirror
-// image's, mirrored back (as the sun head's flip averaging).
-std::vector<GlareReading> read_sun_glare(const std::vector<InferenceView>& views, SunGlareDetector& glare) {
+// The learned glare detector's reading of each view (train/sun_glare.h), flip-averaged; with `map`
+// its glare map too.
+std::vector<GlareReading> read_sun_glare(const std::vector<InferenceView>& views, SunGlareDetector& glare, bool map) {
   std::vector<GlareReading> out;
-  for (const InferenceView& v : views) {
-    const Tensor input = glare_input(v.ldr);
-    const GlareHeads h = glare.forward_heads(unsqueeze(input, 0));
-    const int height = int(v.camera.intrinsics().height), width = int(v.camera.intrinsics().width);
-    out.push_back(read_glare(select(h.glare, 0, 0), height, width,
-                             h.azimuth.defined() ? select(h.azimuth, 0, 0) : Tensor()));
-    if (!h.azimuth.defined()) continue;
-    const GlareHeads m = glare.forward_heads(unsqueeze(data::flip_horizontal(input), 0));
-    const std::vector<double> mq = mirror_sectors(read_glare(select(m.glare, 0, 0), height, width, select(m.azimuth, 0, 0)).azimuth);
-    std::vector<double>& q = out.back().azimuth;
-    for (size_t j = 0; j < q.size(); ++j) q[j] = 0.5 * (q[j] + mq[j]);
-  }
+  for (const InferenceView& v : views)
+    out.push_back(read_glare_flip_averaged(glare, glare_input(v.ldr), int(v.camera.intrinsics().height),
+                                           int(v.camera.intrinsics().width), map));
   return out;
 }
 
@@ -206,14 +196,18 @@ double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
 }
 }  // namespace
 
-void LightingEstimator::set_sun_glare(std::shared_ptr<SunGlareDetector> detector, double threshold, double azimuth_weight) {
+void LightingEstimator::set_sun_glare(std::shared_ptr<SunGlareDetector> detector, double threshold, double azimuth_weight,
+                                      double map_weight) {
   SL_CHECK(threshold > 0.0 && threshold <= 1.0, "set_sun_glare: the threshold must be in (0, 1], got ", threshold);
   SL_CHECK(std::isfinite(azimuth_weight) && azimuth_weight >= 0.0,
            "set_sun_glare: the azimuth weight must be finite and >= 0, got ", azimuth_weight);
+  SL_CHECK(std::isfinite(map_weight) && map_weight >= 0.0, "set_sun_glare: the map weight must be finite and >= 0, got ",
+           map_weight);
   if (detector) detector->eval();
   sun_glare_ = std::move(detector);
   sun_glare_threshold_ = threshold;
   sun_glare_azimuth_weight_ = azimuth_weight;
+  sun_glare_map_weight_ = map_weight;
 }
 
 void LightingEstimator::set_crop_scales(std::vector<double> scales) {
@@ -352,6 +346,11 @@ void LightingEstimator::sun_from_distribution(const InferenceView& v, Single& s,
     p = weigh_by_azimuth(grid, p, s.glare_azimuth, sun_glare_azimuth_weight_);
     s.glare_azimuth_used = true;
   }
+  // Its glare map, below the threshold: where in view a sun is likelier (or, mostly, that none is).
+  if (!s.glare_cells.empty() && sun_glare_map_weight_ > 0.0) {
+    p = weigh_by_cells(grid, p, glare_sky_factor(grid, s.camera, s.glare_cells), sun_glare_map_weight_);
+    s.glare_map_used = true;
+  }
   const SunReadout r = read_sun_distribution(grid, p);
   s.sun_probability = r.confidence;
   s.pred.code.dir = Tensor::from_vector({r.direction.x, r.direction.y, r.direction.z}, {1, 3}).to(s.pred.code.dir.dtype());
@@ -436,7 +435,7 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
     // answer is used only where the disk test finds nothing).
     if (want_cue && sun_glare_) {
 #pragma omp task shared(glare_reads, views, errors, guarded)
-      guarded(errors[3 * n + 2], [&] { glare_reads = read_sun_glare(views, *sun_glare_); });
+      guarded(errors[3 * n + 2], [&] { glare_reads = read_sun_glare(views, *sun_glare_, sun_glare_map_weight_ > 0.0); });
     }
   }
   for (const std::exception_ptr& e : errors)
@@ -444,7 +443,10 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
   if (want_cue && !cue.found && sun_glare_) cue = glare_cue(views, glare_reads, sun_glare_threshold_);
   if (sky_code_branch)
     for (size_t k = 0; k < n; ++k) {
-      if (k < glare_reads.size()) singles[k].glare_azimuth = glare_reads[k].azimuth;
+      if (k < glare_reads.size()) {
+        singles[k].glare_azimuth = glare_reads[k].azimuth;
+        if (sun_glare_map_weight_ > 0.0) singles[k].glare_cells = glare_reads[k].cells;
+      }
       average_sun(views[k], singles[k], mirror[k]);
     }
   if (!sky_code_branch) {
@@ -463,7 +465,10 @@ EstimatedLighting LightingEstimator::estimate(const std::vector<InferenceView>& 
       out.sun_probability = std::isfinite(out.sun_probability) ? std::min(out.sun_probability, s.sun_probability)
                                                                : s.sun_probability;
   out.network_sun_probability = out.sun_probability;
-  for (const Single& s : singles) out.glare_azimuth_used = out.glare_azimuth_used || s.glare_azimuth_used;
+  for (const Single& s : singles) {
+    out.glare_azimuth_used = out.glare_azimuth_used || s.glare_azimuth_used;
+    out.glare_map_used = out.glare_map_used || s.glare_map_used;
+  }
   out.network_sun_crop_spread_deg = out.sun_crop_spread_deg;
   out.frame = ref.frame;
   out.camera = ref.camera;

@@ -40,7 +40,8 @@
 //   team beside the disk test (about 3 ms of one thread per view). When it does not fire, and it
 //   has no azimuth head, the estimate is bit-identical to having no detector. A detector with an
 //   azimuth head also reweighs the sun head's distribution by its azimuth probabilities (see
-//   set_sun_glare; glare_azimuth_used), in every view: a second opinion on front and back.
+//   set_sun_glare; glare_azimuth_used), in every view: a second opinion on front and back. With a
+//   map weight > 0 its glare map reweighs the distribution too, below the threshold (glare_map_used).
 // - Crop averaging (set_crop_scales, off by default): each view's sun also averaged over centred
 //   crops of it; see set_crop_scales. Off, the estimate is bit-identical to before it existed.
 // - Sun distribution (checkpoints with model.sun_grid, issue 53): the sky vector's direction is
@@ -145,6 +146,8 @@ struct EstimatedLighting {
   // Whether the glare detector's azimuth head reweighed the sun head's distribution (see
   // LightingEstimator::set_sun_glare); sun_probability is then read from the reweighed one.
   bool glare_azimuth_used = false;
+  // Whether the glare detector's map reweighed it (set_sun_glare's map_weight > 0).
+  bool glare_map_used = false;
   int visible_sun_view = -1;
   glm::dvec2 visible_sun_pixel{0.0};
   double visible_sun_score = 0.0;
@@ -199,9 +202,14 @@ class LightingEstimator {
   // With an azimuth head (train/sun_glare.h), its flip-averaged azimuth probabilities reweigh the
   // sun head's distribution before its mode is read (train/sun_distribution.h, weigh_by_azimuth,
   // raised to azimuth_weight; 0 turns it off), in every view, whether or not the sun is in view.
+  // With map_weight > 0, the glare map, averaged with the mirror image's, reweighs it too
+  // (train/sun_glare.h glare_sky_factor, weigh_by_cells, raised to map_weight), after the azimuth
+  // head; the threshold's answer still wins where it fires. Throws for a weight that is negative
+  // or not finite.
   void set_sun_glare(std::shared_ptr<SunGlareDetector> detector, double threshold = kGlareThreshold,
-                     double azimuth_weight = kGlareAzimuthWeight);
+                     double azimuth_weight = kGlareAzimuthWeight, double map_weight = kGlareMapWeight);
   double sun_glare_azimuth_weight() const { return sun_glare_azimuth_weight_; }
+  double sun_glare_map_weight() const { return sun_glare_map_weight_; }
   const std::shared_ptr<SunGlareDetector>& sun_glare() const { return sun_glare_; }
 
  private:
@@ -215,6 +223,8 @@ class LightingEstimator {
     double sun_probability = std::numeric_limits<double>::quiet_NaN();  // see EstimatedLighting
     std::vector<double> glare_azimuth;  // the glare detector's azimuth probabilities (empty: none)
     bool glare_azimuth_used = false;
+    std::vector<double> glare_cells;  // the glare map, flip-averaged (empty: not used)
+    bool glare_map_used = false;
   };
   // estimate()'s steps for one view: the frame, camera and grid (checks the view); the RGBα
   // unprojection; the network's input (the LDR resized); the sky prediction of that input's
@@ -239,6 +249,7 @@ class LightingEstimator {
   std::shared_ptr<SunGlareDetector> sun_glare_;
   double sun_glare_threshold_ = kGlareThreshold;
   double sun_glare_azimuth_weight_ = kGlareAzimuthWeight;
+  double sun_glare_map_weight_ = kGlareMapWeight;
 };
 
 // The sun-strength scale that makes a fully sun-blocked ground point of this lighting as much

@@ -155,40 +155,79 @@ std::vector<double> softmax_row(const std::vector<double>& z) {
   return p;
 }
 
-std::vector<double> weigh_by_azimuth(const SunGrid& g, const std::vector<double>& p, const std::vector<double>& q,
-                                     double weight) {
+namespace {
+
+// The checks weigh_by_azimuth and weigh_by_cells share: p as read_sun_distribution takes it, a finite
+// weight >= 0.
+void check_weighing(const SunGrid& g, const std::vector<double>& p, double weight, const char* who) {
   validate(g);
-  SL_CHECK(g.enabled(), "weigh_by_azimuth: the sun grid is off");
-  SL_CHECK(static_cast<int64_t>(p.size()) == g.cells(), "weigh_by_azimuth: ", p.size(), " probabilities for a grid of ",
-           g.cells(), " cells");
-  SL_CHECK(!q.empty(), "weigh_by_azimuth: no azimuth sectors");
-  SL_CHECK(std::isfinite(weight) && weight >= 0.0, "weigh_by_azimuth: the weight must be finite and >= 0, got ", weight);
+  SL_CHECK(g.enabled(), who, ": the sun grid is off");
+  SL_CHECK(static_cast<int64_t>(p.size()) == g.cells(), who, ": ", p.size(), " probabilities for a grid of ", g.cells(),
+           " cells");
+  SL_CHECK(std::isfinite(weight) && weight >= 0.0, who, ": the weight must be finite and >= 0, got ", weight);
   double total = 0.0;
   for (const double v : p) {
-    SL_CHECK(std::isfinite(v) && v >= 0.0, "weigh_by_azimuth: a probability is not finite and >= 0 (", v, ")");
+    SL_CHECK(std::isfinite(v) && v >= 0.0, who, ": a probability is not finite and >= 0 (", v, ")");
     total += v;
   }
-  SL_CHECK(total > 0.0, "weigh_by_azimuth: the probabilities sum to 0");
+  SL_CHECK(total > 0.0, who, ": the probabilities sum to 0");
+}
+
+// p_k · factor_k, normalised; p itself when every product underflowed.
+std::vector<double> weigh(const std::vector<double>& p, const std::vector<double>& factor) {
+  std::vector<double> out(p.size());
+  double sum = 0.0;
+  for (size_t k = 0; k < p.size(); ++k) sum += out[k] = p[k] * factor[k];
+  if (!(sum > 0.0)) return p;  // every cell underflowed: keep the sun head's answer
+  for (double& v : out) v /= sum;
+  return out;
+}
+
+}  // namespace
+
+std::vector<double> weigh_by_azimuth(const SunGrid& g, const std::vector<double>& p, const std::vector<double>& q,
+                                     double weight) {
+  check_weighing(g, p, weight, "weigh_by_azimuth");
+  SL_CHECK(!q.empty(), "weigh_by_azimuth: no azimuth sectors");
   for (const double v : q) SL_CHECK(std::isfinite(v) && v >= 0.0, "weigh_by_azimuth: an azimuth value is not finite and >= 0 (", v, ")");
   if (weight == 0.0) return p;
   // The factor of each of the grid's sectors: q at the sector of q holding its centre azimuth.
   const int64_t a = g.azimuth_bins, b = static_cast<int64_t>(q.size());
-  std::vector<double> factor(static_cast<size_t>(a));
+  std::vector<double> sector(static_cast<size_t>(a));
   for (int64_t j = 0; j < a; ++j) {
     const double u = (double(j) + 0.5) / double(a);  // the centre's share of the way from −π to π
     const int64_t s = std::clamp<int64_t>(static_cast<int64_t>(std::floor(u * double(b))), 0, b - 1);
-    factor[size_t(j)] = std::pow(std::max(q[size_t(s)], 1e-6), weight);
+    sector[size_t(j)] = std::pow(std::max(q[size_t(s)], 1e-6), weight);
   }
-  std::vector<double> out(p.size());
-  double sum = 0.0;
-  for (int64_t r = 0; r < g.elevation_bins; ++r)
-    for (int64_t j = 0; j < a; ++j) {
-      const size_t k = static_cast<size_t>(r * a + j);
-      sum += out[k] = p[k] * factor[size_t(j)];
-    }
-  if (!(sum > 0.0)) return p;  // every cell underflowed: keep the sun head's answer
-  for (double& v : out) v /= sum;
-  return out;
+  std::vector<double> factor(p.size());
+  for (size_t k = 0; k < p.size(); ++k) factor[k] = sector[k % size_t(a)];
+  return weigh(p, factor);
+}
+
+std::vector<double> weigh_by_cells(const SunGrid& g, const std::vector<double>& p, const std::vector<double>& f,
+                                   double weight) {
+  check_weighing(g, p, weight, "weigh_by_cells");
+  SL_CHECK(f.size() == p.size(), "weigh_by_cells: ", f.size(), " factors for a grid of ", g.cells(), " cells");
+  for (const double v : f) SL_CHECK(std::isfinite(v) && v >= 0.0, "weigh_by_cells: a factor is not finite and >= 0 (", v, ")");
+  if (weight == 0.0) return p;
+  std::vector<double> factor(f.size());
+  for (size_t k = 0; k < f.size(); ++k) factor[k] = std::pow(std::max(f[k], 1e-6), weight);
+  return weigh(p, factor);
+}
+
+int64_t cell_of_direction(const SunGrid& g, const glm::dvec3& d) {
+  validate(g);
+  SL_CHECK(g.enabled(), "cell_of_direction: the sun grid is off");
+  const double len = glm::length(d);
+  SL_CHECK(std::isfinite(len) && len > 0.0, "cell_of_direction: (", d.x, ", ", d.y, ", ", d.z, ") is not a direction");
+  const glm::dvec3 u = d / len;
+  if (u.y < 0.0) return -1;
+  // Rings are equal in sin(elevation) = u.y; sector j spans [−π + j·2π/A, −π + (j+1)·2π/A).
+  const int64_t ring = std::min<int64_t>(static_cast<int64_t>(u.y * double(g.elevation_bins)), g.elevation_bins - 1);
+  const double phi = std::atan2(u.x, -u.z);
+  const int64_t sector = std::clamp<int64_t>(static_cast<int64_t>(std::floor((phi + kPi) / (2.0 * kPi) * double(g.azimuth_bins))),
+                                             0, g.azimuth_bins - 1);
+  return ring * g.azimuth_bins + sector;
 }
 
 SunReadout read_sun_distribution(const SunGrid& g, const std::vector<double>& p, double radius_deg) {

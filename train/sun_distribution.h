@@ -45,6 +45,13 @@
 //   also leaves p as it is (up to rounding). q values are floored at 1e-6 so that no cell is ruled
 //   out. Throws for a p that read_sun_distribution would refuse, an empty q, a negative or
 //   non-finite q value, or a weight that is negative or not finite.
+// - weigh_by_cells(grid, p, f, weight) → p'_k ∝ p_k · f_k^weight, normalised: p reweighed by a
+//   second opinion given per cell, as a likelihood ratio (the learned glare detector's map,
+//   train/sun_glare.h glare_sky_factor). Same rules as weigh_by_azimuth: weight 0 returns p
+//   unchanged; equal factors leave p as it is (up to rounding); factors are floored at 1e-6; throws
+//   for a bad p, a weight that is negative or not finite, or f not K finite values >= 0.
+// - cell_of_direction(grid, d) → the cell holding direction d (any length > 0), or −1 below the
+//   horizon (d.y < 0). Throws for a zero or non-finite d.
 // - low_sun_weight(sun, boost, below_deg) → a label's weight factor 1 + boost · clamp((below − e)
 //   / below, 0, 1), e = the sun's elevation in degrees (below the horizon counts as 0): 1 at and
 //   above `below_deg`, 1 + boost at the horizon, linear between. The labelled training suns sit
@@ -92,6 +99,11 @@ SunReadout read_sun_distribution(const SunGrid& grid, const std::vector<double>&
 
 std::vector<double> weigh_by_azimuth(const SunGrid& grid, const std::vector<double>& p, const std::vector<double>& q,
                                      double weight);
+
+std::vector<double> weigh_by_cells(const SunGrid& grid, const std::vector<double>& p, const std::vector<double>& f,
+                                   double weight);
+
+int64_t cell_of_direction(const SunGrid& grid, const glm::dvec3& d);
 
 double low_sun_weight(const glm::dvec3& sun, double boost, double below_deg);
 

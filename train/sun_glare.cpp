@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "autodiff/ops.h"
+#include "data/augment.h"
 #include "data/panorama.h"
 #include "nn/checkpoint.h"
 #include "nn/layers.h"
@@ -152,6 +153,7 @@ GlareReading read_glare(const Tensor& logits, int height, int width, const Tenso
   GlareReading out;
   if (!(total > 0.0)) return out;
   for (double& v : p) v /= total;
+  out.cells = p;
   out.p_sun = std::clamp(1.0 - p[0], 0.0, 1.0);
   int best = 1;
   for (int k = 2; k < kGlareOutputs; ++k)
@@ -176,6 +178,64 @@ GlareReading read_glare(const Tensor& logits, int height, int width, const Tenso
     for (double& v : out.azimuth) v = s > 0.0 ? v / s : 1.0 / double(z.size());
   }
   return out;
+}
+
+std::vector<double> mirror_glare_cells(const std::vector<double>& cells) {
+  SL_CHECK(cells.size() == size_t(kGlareOutputs), "mirror_glare_cells: expected ", kGlareOutputs, " values, got ",
+           cells.size());
+  std::vector<double> out(cells.size());
+  out[0] = cells[0];
+  for (int r = 0; r < kGlareRows; ++r)
+    for (int c = 0; c < kGlareCols; ++c) out[size_t(1 + r * kGlareCols + (kGlareCols - 1 - c))] = cells[size_t(1 + r * kGlareCols + c)];
+  return out;
+}
+
+GlareReading read_glare_flip_averaged(SunGlareDetector& detector, const Tensor& input, int height, int width,
+                                      bool average_map) {
+  SL_CHECK(input.dim() == 3 && input.size(0) == 4 && input.size(1) == kGlareInputHeight && input.size(2) == kGlareInputWidth,
+           "read_glare_flip_averaged: expected an input [4, ", kGlareInputHeight, ", ", kGlareInputWidth, "], got ",
+           input.describe());
+  const GlareHeads h = detector.forward_heads(unsqueeze(input, 0));
+  const auto azimuth_of = [](const GlareHeads& g) { return g.azimuth.defined() ? select(g.azimuth, 0, 0) : Tensor(); };
+  GlareReading out = read_glare(select(h.glare, 0, 0), height, width, azimuth_of(h));
+  if (!h.azimuth.defined() && !average_map) return out;
+  const GlareHeads m = detector.forward_heads(unsqueeze(data::flip_horizontal(input), 0));
+  const GlareReading mr = read_glare(select(m.glare, 0, 0), height, width, azimuth_of(m));
+  if (h.azimuth.defined()) {
+    const std::vector<double> mq = mirror_sectors(mr.azimuth);
+    for (size_t j = 0; j < out.azimuth.size(); ++j) out.azimuth[j] = 0.5 * (out.azimuth[j] + mq[j]);
+  }
+  if (average_map && !out.cells.empty() && !mr.cells.empty()) {
+    const std::vector<double> mc = mirror_glare_cells(mr.cells);
+    for (size_t j = 0; j < out.cells.size(); ++j) out.cells[j] = 0.5 * (out.cells[j] + mc[j]);
+  }
+  return out;
+}
+
+std::vector<double> glare_sky_factor(const SunGrid& grid, const render::Camera& camera, const std::vector<double>& cells) {
+  validate(grid);
+  SL_CHECK(grid.enabled(), "glare_sky_factor: the sun grid is off");
+  SL_CHECK(cells.size() == size_t(kGlareOutputs), "glare_sky_factor: expected ", kGlareOutputs, " values, got ",
+           cells.size());
+  for (const double v : cells) SL_CHECK(std::isfinite(v) && v >= 0.0, "glare_sky_factor: a value is not finite and >= 0 (", v, ")");
+  const double w = camera.intrinsics().width, h = camera.intrinsics().height;
+  std::vector<double> sum(size_t(grid.cells()), 0.0), count(size_t(grid.cells()), 0.0);
+  for (int r = 0; r < kGlareRows; ++r)
+    for (int c = 0; c < kGlareCols; ++c) {
+      const glm::dvec3 d = camera.ray((c + 0.5) / kGlareCols * w, (r + 0.5) / kGlareRows * h).direction;
+      const int64_t k = cell_of_direction(grid, d);
+      if (k < 0) continue;
+      sum[size_t(k)] += cells[size_t(1 + r * kGlareCols + c)];
+      count[size_t(k)] += 1.0;
+    }
+  // The detector's posterior over a region against its training prior, over that ratio for the
+  // region out of view: (q_in / π_in) / (q₀ / π₀), with π_in = (1 − π₀)·n/512 for n glare cells.
+  const double out_of_view = std::max(cells[0], 1e-12) / kGlareNoSunPrior;
+  const double per_cell_prior = (1.0 - kGlareNoSunPrior) / double(kGlareRows * kGlareCols);
+  std::vector<double> f(size_t(grid.cells()), 1.0);
+  for (size_t k = 0; k < f.size(); ++k)
+    if (count[k] > 0.0) f[k] = sum[k] / count[k] / per_cell_prior / out_of_view;
+  return f;
 }
 
 std::shared_ptr<SunGlareDetector> load_sun_glare(const std::string& path) {

@@ -33,6 +33,25 @@
 // - read_glare(logits, H, W, azimuth_logits) also fills GlareReading::azimuth with the softmax of
 //   the azimuth logits (empty without them).
 // - mirror_sectors(q): the sectors of the mirrored image (φ → −φ maps sector j to A − 1 − j).
+// - read_glare_flip_averaged(detector, x [4, 64, 128], H, W, average_map): read_glare of x, with its
+//   azimuth probabilities (with average_map, its cells too) averaged with those of x's mirror image,
+//   mirrored back, as the sun head's flip averaging; p_sun and pixel stay x's own. One pass when
+//   there is nothing to average (no azimuth head, no average_map).
+//
+// Glare map (issue 53: the sun in view that the threshold misses): below kGlareThreshold the
+// detector's map still says where in the image a sun is likelier. glare_sky_factor turns it into
+// a likelihood ratio over the cells of the sun head's grid (train/sun_distribution.h), which
+// LightingEstimator multiplies in (weigh_by_cells) with exponent kGlareMapWeight.
+// - GlareReading::cells: the softmax over the 1 + 16·32 outputs (index 0: no sun in view).
+// - mirror_glare_cells(cells) → the cells of the mirrored image (column c → 31 − c; index 0 kept).
+// - glare_sky_factor(grid, camera, cells) → [K]: for a sun-grid cell k that the centre rays of n_k
+//   ≥ 1 glare cells fall in (camera: the view's camera in the sun grid's frame, i.e. the canonical
+//   frame; rays below the horizon are dropped), (Σ_c q_c / n_k) / ((1 − π₀) / 512) divided by
+//   q₀ / π₀: how much likelier the detector makes the sun there than its training prior did,
+//   relative to the cells out of view, whose factor is 1. π₀ = kGlareNoSunPrior, the share of
+//   the released detector's training crops without a sun in view. Finite and ≥ 0 for any cells of
+//   finite values ≥ 0 (q₀ is floored at 1e-12); throws for cells not of 513 values; the camera's
+//   image may have any size (the glare cells scale with it).
 //
 // Guarantees: every output finite for finite input (NaN/Inf pixels of the image read as 0);
 // deterministic. Throws sl::Error for an input that is not [3, H, W] or [N, 4, 64, 128], or logits
@@ -48,6 +67,8 @@
 
 #include "autodiff/tensor.h"
 #include "nn/module.h"
+#include "render/camera.h"
+#include "train/sun_distribution.h"
 
 namespace sl::train {
 
@@ -63,6 +84,13 @@ inline constexpr double kGlareThreshold = 0.95;
 // the validation split with `streetlight-eval --glare-azimuth-weight` (models/README.md). 0 leaves
 // the sun head's answer.
 inline constexpr double kGlareAzimuthWeight = 0.5;
+
+// The share of the released detector's training crops with no sun in view (13 652 of 18 984,
+// models/README.md): the prior of glare_sky_factor.
+inline constexpr double kGlareNoSunPrior = 0.719;
+// The exponent of glare_sky_factor where it reweighs the sun head's distribution (LightingEstimator,
+// weigh_by_cells); 0 leaves the sun head's answer.
+inline constexpr double kGlareMapWeight = 0.0;
 
 struct SunGlareOptions {
   int64_t width = 24;         // channels of the first layer; later layers use 2·width
@@ -98,8 +126,14 @@ struct GlareReading {
   double p_sun = 0.0;
   glm::dvec2 pixel{0.0};
   std::vector<double> azimuth;  // the azimuth head's probabilities per sector; empty without it
+  std::vector<double> cells;    // softmax over the 1 + 16·32 outputs; index 0: no sun in view
 };
 GlareReading read_glare(const Tensor& logits, int height, int width, const Tensor& azimuth_logits = Tensor());
+
+std::vector<double> mirror_glare_cells(const std::vector<double>& cells);
+GlareReading read_glare_flip_averaged(SunGlareDetector& detector, const Tensor& input, int height, int width,
+                                      bool average_map = false);
+std::vector<double> glare_sky_factor(const SunGrid& grid, const render::Camera& camera, const std::vector<double>& cells);
 
 // A detector from a checkpoint saved by `streetlight-bench sun-glare` (stage "sun_glare"; its
 // config's "width" sizes the network, and "azimuth_bins", when present, its azimuth head), in eval mode. Throws sl::Error naming the file when it is

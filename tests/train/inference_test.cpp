@@ -491,6 +491,48 @@ TEST(Inference, TheGlareDetectorsAzimuthHeadReweighsTheSunHead) {
   EXPECT_THROW(est.set_sun_glare(constant_glare(50.0, 8, behind), kGlareThreshold, std::nan("")), Error);
 }
 
+// Below the threshold, the glare map (train/sun_glare.h glare_sky_factor) reweighs the sun head's
+// distribution when its weight is > 0: the same readout as by hand; weight 0 gives the bits of no
+// detector. The constant detector's map is flat over the image (every cell's logit 0), so its
+// mirror image is itself.
+TEST(Inference, TheGlareMapReweighsTheSunHeadBelowTheThreshold) {
+  const std::string dir = test::tool_dir("inference_glare_map");
+  const nlohmann::json c = sun_head_config();
+  LightingEstimator est(sun_head_checkpoint(dir, c));
+  const InferenceView v = view_at(0.0);
+  const EstimatedLighting plain = est.estimate({v});
+  ASSERT_FALSE(plain.visible_sun_found);
+  // none logit ln 512: p_sun = 0.5, below the threshold; each cell 0.5 / 512.
+  const double none = std::log(512.0);
+  est.set_sun_glare(constant_glare(none), kGlareThreshold, 0.0, 1.0);
+  const EstimatedLighting l = est.estimate({v});
+  EXPECT_FALSE(l.visible_sun_found);
+  EXPECT_TRUE(l.glare_map_used);
+  EXPECT_FALSE(l.glare_azimuth_used);
+  {
+    const SunGrid grid{4, 16};
+    std::vector<double> logits(kGlareOutputs, 0.0);
+    logits[0] = none;
+    const render::Intrinsics& in = v.camera.intrinsics();
+    const GlareReading g = read_glare(Tensor::from_vector(logits, {kGlareOutputs}), in.height, in.width);
+    const Camera canonical = canonical_frame(v.camera).camera(v.camera);
+    const std::vector<double> f = glare_sky_factor(grid, canonical, g.cells);
+    const SunReadout r = read_sun_distribution(grid, weigh_by_cells(grid, sun_head_probabilities(est, c, v, true), f, 1.0));
+    EXPECT_LT(glm::length(l.sun_direction_canonical - r.direction), 1e-5);
+    EXPECT_NEAR(l.sun_probability, r.confidence, 1e-9);
+    // The flat map raises the cells in view (0.5 / 512 per cell against the prior's 0.281 / 512).
+    EXPECT_NEAR(*std::max_element(f.begin(), f.end()), kGlareNoSunPrior / (1.0 - kGlareNoSunPrior), 1e-6);  // float32 logits
+  }
+  est.set_sun_glare(constant_glare(none), kGlareThreshold, 0.0, 0.0);
+  const EstimatedLighting off = est.estimate({v});
+  EXPECT_FALSE(off.glare_map_used);
+  EXPECT_EQ(off.sun_direction_canonical, plain.sun_direction_canonical);
+  EXPECT_EQ(max(abs(sub(off.env, plain.env))).item(), 0.0);
+  EXPECT_EQ(off.sun_probability, plain.sun_probability);
+  EXPECT_THROW(est.set_sun_glare(constant_glare(none), kGlareThreshold, 0.0, -1.0), Error);
+  EXPECT_THROW(est.set_sun_glare(constant_glare(none), kGlareThreshold, 0.0, std::nan("")), Error);
+}
+
 TEST(Inference, AnExplicitSunEditWinsOverTheVisibleSun) {
   const std::string dir = test::tool_dir("inference_visible_sun_edit");
   LightingEstimator est(test::tiny_lighting_checkpoint(dir));

@@ -28,6 +28,8 @@ double angle_deg(const glm::dvec3& a, const glm::dvec3& b) {
 
 const SunGrid kGrid{8, 32};
 
+double elevation_of(const glm::dvec3& d) { return std::asin(glm::normalize(d).y) * 180.0 / M_PI; }
+
 // A peaked distribution: the soft target of a narrow lobe at `s`, scaled to `mass`.
 std::vector<double> peak(const glm::dvec3& s, double mass, double width_deg = 6.0) {
   std::vector<double> t = train::soft_target(kGrid, s, width_deg);
@@ -130,6 +132,60 @@ TEST(SunDistribution, AnAzimuthOpinionReweighsThePeaks) {
   EXPECT_THROW(train::weigh_by_azimuth(kGrid, p, behind, std::nan("")), Error);
   EXPECT_THROW(train::weigh_by_azimuth(kGrid, p, {1.0, -1.0}, 1.0), Error);
   EXPECT_THROW(train::weigh_by_azimuth(kGrid, std::vector<double>(3, 1.0), behind, 1.0), Error);
+}
+
+// A second opinion per cell, as a likelihood ratio: a factor of 4 on the smaller peak's cells
+// overturns the larger one; weight 0 and equal factors change nothing; nothing is ruled out.
+TEST(SunDistribution, ACellOpinionReweighsThePeaks) {
+  const glm::dvec3 high = sun(30, 50), low = sun(-60, 10);
+  std::vector<double> p = peak(high, 0.6), q = peak(low, 0.4);
+  for (size_t k = 0; k < p.size(); ++k) p[k] += q[k];
+  ASSERT_LT(angle_deg(train::read_sun_distribution(kGrid, p).direction, high), 4.0);
+  std::vector<double> f(p.size(), 1.0);
+  for (int64_t k = 0; k < kGrid.cells(); ++k)
+    if (k / kGrid.azimuth_bins < 2) f[size_t(k)] = 4.0;  // the two rings nearest the horizon (< 14.5°)
+  const std::vector<double> w = train::weigh_by_cells(kGrid, p, f, 1.0);
+  double total = 0.0;
+  for (const double v : w) total += v;
+  EXPECT_NEAR(total, 1.0, 1e-12);
+  EXPECT_LT(angle_deg(train::read_sun_distribution(kGrid, w).direction, low), 6.0);
+  EXPECT_LT(elevation_of(train::read_sun_distribution(kGrid, w).direction), 15.0);
+  EXPECT_LT(angle_deg(train::read_sun_distribution(kGrid, train::weigh_by_cells(kGrid, p, f, 0.05)).direction, high), 4.0);
+  EXPECT_EQ(train::weigh_by_cells(kGrid, p, f, 0.0), p);
+  const std::vector<double> flat = train::weigh_by_cells(kGrid, p, std::vector<double>(p.size(), 7.0), 2.0);
+  double sum_p = 0.0;
+  for (const double v : p) sum_p += v;
+  for (size_t k = 0; k < p.size(); ++k) EXPECT_NEAR(flat[k], p[k] / sum_p, 1e-12);
+  for (const double v : train::weigh_by_cells(kGrid, p, std::vector<double>(p.size(), 0.0), 3.0)) {
+    EXPECT_TRUE(std::isfinite(v));
+    EXPECT_GT(v, 0.0);  // p is positive everywhere; the floor keeps it so
+  }
+  // weigh_by_azimuth is weigh_by_cells with a factor per sector: the same bits.
+  std::vector<double> behind(8, 1.0), per_cell(p.size());
+  behind[0] = behind[7] = 3.0;
+  for (size_t k = 0; k < p.size(); ++k) per_cell[k] = behind[(k % size_t(kGrid.azimuth_bins)) * 8 / size_t(kGrid.azimuth_bins)];
+  EXPECT_EQ(train::weigh_by_cells(kGrid, p, per_cell, 1.5), train::weigh_by_azimuth(kGrid, p, behind, 1.5));
+  EXPECT_THROW(train::weigh_by_cells(kGrid, p, std::vector<double>(3, 1.0), 1.0), Error);
+  EXPECT_THROW(train::weigh_by_cells(kGrid, p, f, -1.0), Error);
+  EXPECT_THROW(train::weigh_by_cells(kGrid, p, f, std::nan("")), Error);
+  f[5] = std::nan("");
+  EXPECT_THROW(train::weigh_by_cells(kGrid, p, f, 1.0), Error);
+}
+
+// Every cell's centre lies in that cell; below the horizon there is none.
+TEST(SunDistribution, ADirectionFallsInTheCellWhoseCentreItIs) {
+  const Tensor c = train::cell_directions(kGrid, DType::F64);
+  const double* d = c.data<double>();
+  for (int64_t k = 0; k < kGrid.cells(); ++k) {
+    const glm::dvec3 dir(d[3 * k], d[3 * k + 1], d[3 * k + 2]);
+    EXPECT_EQ(train::cell_of_direction(kGrid, dir), k);
+    EXPECT_EQ(train::cell_of_direction(kGrid, 5.0 * dir), k);
+  }
+  EXPECT_EQ(train::cell_of_direction(kGrid, {0.0, 1.0, 0.0}) / kGrid.azimuth_bins, kGrid.elevation_bins - 1);  // the zenith
+  EXPECT_EQ(train::cell_of_direction(kGrid, sun(0, -5)), -1);
+  EXPECT_EQ(train::cell_of_direction(kGrid, sun(-180, 0)), 0);  // the horizon, azimuth −180°: ring 0, sector 0
+  EXPECT_THROW(train::cell_of_direction(kGrid, {0.0, 0.0, 0.0}), Error);
+  EXPECT_THROW(train::cell_of_direction(kGrid, {std::nan(""), 1.0, 0.0}), Error);
 }
 
 // An uncertain elevation reads at its median in degrees, not where the cells are densest. At

@@ -196,6 +196,70 @@ TEST(SunGlare, TheAzimuthHeadLearnsWhichSideIsBright) {
   EXPECT_EQ(max(abs(sub(net.forward(x), h.glare))).item(), 0.0);
 }
 
+// The glare map as a likelihood ratio over the sun head's grid: a map with half its mass on one
+// cell above the horizon raises the sun-grid cell its centre ray falls in, and only cells in view;
+// a map sure of no sun in view lowers every cell in view and leaves the rest at 1.
+TEST(SunGlare, TheGlareMapFavoursTheSkyCellsWhereItSeesTheSun) {
+  const train::SunGrid grid{8, 32};
+  const render::Camera cam(render::intrinsics_from_fov(1.2, 256, 128), render::rotation_from_yaw_pitch_roll(0.0, 0.0, 0.0),
+                           {0.0, 1.6, 0.0});
+  std::vector<double> cells(kGlareOutputs, 0.0);
+  const int r = 3, c = 24;  // above the horizon (row 8 of 16 for a level camera), right of centre
+  cells[0] = 0.5;
+  cells[size_t(1 + r * kGlareCols + c)] = 0.5;
+  const std::vector<double> f = train::glare_sky_factor(grid, cam, cells);
+  ASSERT_EQ(f.size(), size_t(grid.cells()));
+  const glm::dvec3 ray = cam.ray((c + 0.5) / kGlareCols * 256, (r + 0.5) / kGlareRows * 128).direction;
+  const int64_t hit = train::cell_of_direction(grid, ray);
+  ASSERT_GE(hit, 0);
+  EXPECT_EQ(std::max_element(f.begin(), f.end()) - f.begin(), hit);
+  // Its value: (0.5 / n) / ((1 − π₀) / 512) over (0.5 / π₀), n the glare cells whose rays share it.
+  int n = 0, in_view = 0;
+  std::vector<bool> seen(f.size(), false);
+  for (int rr = 0; rr < kGlareRows; ++rr)
+    for (int cc = 0; cc < kGlareCols; ++cc) {
+      const int64_t k = train::cell_of_direction(grid, cam.ray((cc + 0.5) / kGlareCols * 256, (rr + 0.5) / kGlareRows * 128).direction);
+      if (k < 0) continue;
+      n += k == hit;
+      if (!seen[size_t(k)]) ++in_view;
+      seen[size_t(k)] = true;
+    }
+  const double pi0 = train::kGlareNoSunPrior;
+  EXPECT_NEAR(f[size_t(hit)], (0.5 / n) / ((1.0 - pi0) / 512.0) / (0.5 / pi0), 1e-9);
+  int ones = 0, zeros = 0;
+  for (size_t k = 0; k < f.size(); ++k) {
+    if (k == size_t(hit)) continue;
+    if (seen[k]) {
+      EXPECT_EQ(f[k], 0.0) << k;
+      ++zeros;
+    } else {
+      EXPECT_EQ(f[k], 1.0) << k;
+      ++ones;
+    }
+  }
+  EXPECT_GT(zeros, 10);   // the sky in view
+  EXPECT_GT(ones, 100);   // out of view, or behind
+  // A map sure there is no sun in view.
+  std::vector<double> none(kGlareOutputs, 1e-9);
+  none[0] = 1.0;
+  const std::vector<double> g = train::glare_sky_factor(grid, cam, none);
+  for (size_t k = 0; k < g.size(); ++k) {
+    if (seen[k]) EXPECT_LT(g[k], 1e-5) << k;
+    else EXPECT_EQ(g[k], 1.0) << k;
+  }
+  // All finite for a map of zeros, mass at the floor.
+  for (const double v : train::glare_sky_factor(grid, cam, std::vector<double>(kGlareOutputs, 0.0))) EXPECT_TRUE(std::isfinite(v));
+  // The mirror image of the map: column c ↔ 31 − c, twice the identity.
+  const std::vector<double> m = train::mirror_glare_cells(cells);
+  EXPECT_EQ(m[0], 0.5);
+  EXPECT_EQ(m[size_t(1 + r * kGlareCols + (kGlareCols - 1 - c))], 0.5);
+  EXPECT_EQ(train::mirror_glare_cells(m), cells);
+  EXPECT_THROW(train::glare_sky_factor(grid, cam, std::vector<double>(5, 0.0)), Error);
+  cells[7] = -1.0;
+  EXPECT_THROW(train::glare_sky_factor(grid, cam, cells), Error);
+  EXPECT_THROW(train::mirror_glare_cells(std::vector<double>(5, 0.0)), Error);
+}
+
 TEST(SunGlare, LoadsWhatTheBenchSavedAndRefusesOtherCheckpoints) {
   train::SunGlareDetector net({.width = 3, .seed = 9});
   const std::string good = scratch("glare.safetensors"), other = scratch("not_glare.safetensors");

@@ -98,6 +98,8 @@ int run(int argc, char** argv) {
                {"--glare-azimuth-weight", "W", "the exponent of the detector's azimuth head where it reweighs the sun head's\n"
                 "                               distribution (default the released choice, train/sun_glare.h; 0 off; only for\n"
                 "                               a detector with an azimuth head)"},
+               {"--glare-map-weight", "W", "the exponent of the detector's glare map where, below its threshold, it reweighs the\n"
+                "                               sun head's distribution (default the released choice, train/sun_glare.h; 0 off)"},
                {"--out", "DIR", "write results.json, results.md and error_time.png here"},
                {"--json", "", "print the results as one JSON object on stdout"}});
   if (!a.parse(argc, argv)) return 0;
@@ -123,6 +125,9 @@ int run(int argc, char** argv) {
   o.glare_azimuth_weight = a.number("--glare-azimuth-weight", o.glare_azimuth_weight);
   SL_CHECK(std::isfinite(o.glare_azimuth_weight) && o.glare_azimuth_weight >= 0.0,
            "--glare-azimuth-weight must be a finite number >= 0, got ", o.glare_azimuth_weight);
+  o.glare_map_weight = a.number("--glare-map-weight", o.glare_map_weight);
+  SL_CHECK(std::isfinite(o.glare_map_weight) && o.glare_map_weight >= 0.0,
+           "--glare-map-weight must be a finite number >= 0, got ", o.glare_map_weight);
   const EvalReport report = evaluate(o);
   if (a.has("--out")) write_eval_report(report, a.get("--out"));
   if (a.has("--json")) std::cout << report.results.dump() << "\n";

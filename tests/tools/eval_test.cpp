@@ -129,22 +129,23 @@ TEST(EvalTool, MissingDataIsACleanError) {
   EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
 }
 
-// The glare detector's azimuth weight (train/inference.h set_sun_glare): a negative number or a
-// word is one error line naming the option, exit 2, nothing written.
-TEST(EvalTool, ABadGlareAzimuthWeightIsACleanError) {
+// The glare detector's two weights (train/inference.h set_sun_glare): a negative number, infinity or
+// a word is one error line naming the option, exit 2, nothing written.
+TEST(EvalTool, ABadGlareWeightIsACleanError) {
   if (!sl::test::tool_built("streetlight-eval")) GTEST_SKIP();
   const std::string dir = sl::test::tool_dir("eval_azimuth_weight");
   const std::string data = sl::test::tiny_dataset("eval_tiny_dataset", 3);
   const std::string ckpt = sl::test::tiny_lighting_checkpoint(dir);
-  for (const char* bad : {"-1", "abc", "inf"}) {
-    const auto r = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --data " + data +
-                                                              " --split train --no-budgets --glare-azimuth-weight " + bad +
-                                                              " --out " + dir + "/bad");
-    EXPECT_EQ(r.code, 2) << bad << ": " << r.out;
-    EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
-    EXPECT_NE(r.out.find("--glare-azimuth-weight"), std::string::npos) << r.out;
-    EXPECT_FALSE(fs::exists(dir + "/bad")) << bad;
-  }
+  for (const char* option : {"--glare-azimuth-weight", "--glare-map-weight"})
+    for (const char* bad : {"-1", "abc", "inf"}) {
+      const auto r = sl::test::run_tool("streetlight-eval", "--checkpoint " + ckpt + " --data " + data +
+                                                                " --split train --no-budgets " + option + " " + bad +
+                                                                " --out " + dir + "/bad");
+      EXPECT_EQ(r.code, 2) << option << " " << bad << ": " << r.out;
+      EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
+      EXPECT_NE(r.out.find(option), std::string::npos) << r.out;
+      EXPECT_FALSE(fs::exists(dir + "/bad")) << bad;
+    }
 }
 
 // Crop averaging (train/inference.h set_crop_scales) from the command line: off by default, and

@@ -214,14 +214,11 @@ void score_azimuth(train::SunGlareDetector& net, const std::vector<GlareCrop>& c
   net.eval();
   for (const GlareCrop& c : crops) {
     if (!c.azimuth) continue;
-    const train::GlareHeads h = net.forward_heads(unsqueeze(c.input, 0));
-    const train::GlareHeads m = net.forward_heads(unsqueeze(mirror(c.input, 2), 0));
-    std::vector<double> q = train::read_glare(select(h.glare, 0, 0), 1, 1, select(h.azimuth, 0, 0)).azimuth;
-    const std::vector<double> mq = train::mirror_sectors(train::read_glare(select(m.glare, 0, 0), 1, 1, select(m.azimuth, 0, 0)).azimuth);
+    // Flip-averaged, as the estimator reads it.
+    const std::vector<double> q = train::read_glare_flip_averaged(net, c.input, 1, 1).azimuth;
     double p_front = 0.0;
     size_t best = 0;
     for (size_t j = 0; j < q.size(); ++j) {
-      q[j] = 0.5 * (q[j] + mq[j]);
       const double centre = -kPi + (double(j) + 0.5) * 2.0 * kPi / double(a);
       if (std::abs(centre) < 0.5 * kPi) p_front += q[j];
       if (q[j] > q[best]) best = j;

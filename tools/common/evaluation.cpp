@@ -177,17 +177,22 @@ double predicted_sun_share(const EstimatedLighting& l) {
   return sl::data::sun_hardness(l.env.to(DType::F32).contiguous(), 8.0, 0.25).share;
 }
 
+// The learned glare detector's file ("" none) and its two weights (LightingEstimator::set_sun_glare).
+struct GlareUse {
+  std::string path;
+  double azimuth_weight = 0.0, map_weight = 0.0;
+};
+
 json eval_lighting(const std::string& ckpt, const std::string& data, const std::string& split, int64_t limit,
                    int view_rows, std::vector<cli::PlotPoint>* plot, const std::string& label, const RealSkyData* real,
-                   bool oracle, bool flip_average, bool visible_sun, const std::string& sun_glare, double glare_azimuth_weight,
-                   const std::vector<double>& crop_scales,
+                   bool oracle, bool flip_average, bool visible_sun, const GlareUse& glare, const std::vector<double>& crop_scales,
                    const std::function<void()>& on_image) {
   LightingEstimator est(ckpt);
   est.set_flip_average(flip_average);
   est.set_crop_scales(crop_scales);
   est.set_visible_sun(visible_sun);
-  if (visible_sun && !sun_glare.empty())
-    est.set_sun_glare(train::load_sun_glare(sun_glare), train::kGlareThreshold, glare_azimuth_weight);
+  if (visible_sun && !glare.path.empty())
+    est.set_sun_glare(train::load_sun_glare(glare.path), train::kGlareThreshold, glare.azimuth_weight, glare.map_weight);
   // Every score carries its group for the bootstrap: the street's id, or the real crop's panorama.
   Grouped sun_err, sun_in, sun_out, ps, sps, ups, usps, ins_psnr, ins_ratio, oracle_psnr, oracle_ratio;
   // One entry per image with a sun label: which image, the error and both directions (in the
@@ -246,6 +251,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         per_image.back()["visible_sun_found"] = l.visible_sun_found;
         per_image.back()["visible_sun_learned"] = l.visible_sun_learned;
         per_image.back()["glare_azimuth_used"] = l.glare_azimuth_used;
+        per_image.back()["glare_map_used"] = l.glare_map_used;
         per_image.back()["predicted_sun_share"] = predicted_sun_share(l);
         cue_all += l.visible_sun_found;
       } else {
@@ -319,6 +325,7 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
         per_image.back()["visible_sun_found"] = l.visible_sun_found;
         per_image.back()["visible_sun_learned"] = l.visible_sun_learned;
         per_image.back()["glare_azimuth_used"] = l.glare_azimuth_used;
+        per_image.back()["glare_map_used"] = l.glare_map_used;
         per_image.back()["predicted_sun_share"] = predicted_sun_share(l);
         cue_all += l.visible_sun_found;
         (c.sun_in_crop ? cue_in : cue_out) += l.visible_sun_found;
@@ -355,8 +362,9 @@ json eval_lighting(const std::string& ckpt, const std::string& data, const std::
     for (const auto& [t, e] : line) plot->push_back({label, t, e});
   }
   json r = {{"checkpoint", ckpt}, {"stage", est.stage()}, {"step", est.step()}, {"flip_average", flip_average},
-            {"visible_sun", visible_sun}, {"sun_glare", visible_sun ? sun_glare : std::string()},
-            {"glare_azimuth_weight", visible_sun && !sun_glare.empty() ? glare_azimuth_weight : 0.0}, {"crop_scales", crop_scales},
+            {"visible_sun", visible_sun}, {"sun_glare", visible_sun ? glare.path : std::string()},
+            {"glare_azimuth_weight", visible_sun && !glare.path.empty() ? glare.azimuth_weight : 0.0},
+            {"glare_map_weight", visible_sun && !glare.path.empty() ? glare.map_weight : 0.0}, {"crop_scales", crop_scales},
             {"sky_branch", est.predictor().options().sky_branch},
             {"volume_branch", est.predictor().options().volume_branch},
             {"images", count}, {"sun_unknown", sun_unknown},
@@ -521,7 +529,7 @@ EvalReport evaluate(const EvalOptions& o) {
         // The oracle row depends only on the data: computed with the first lighting checkpoint.
         const bool want_oracle = street && !oracle_done;
         results.push_back(eval_lighting(ckpts[i], data, split, limit, rows, want_plot ? &plot : nullptr, names[i],
-                                        real.get(), want_oracle, o.flip_average, o.visible_sun, o.sun_glare, o.glare_azimuth_weight, crop_scales,
+                                        real.get(), want_oracle, o.flip_average, o.visible_sun, GlareUse{o.sun_glare, o.glare_azimuth_weight, o.glare_map_weight}, crop_scales,
                                         o.on_image));
         oracle_done = oracle_done || want_oracle;
         plotted = plotted || want_plot;

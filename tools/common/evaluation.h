@@ -41,6 +41,7 @@ struct EvalOptions {
   bool flip_average = true;              // average the sun with the mirrored image's
   std::string sun_glare;                 // the learned sun-glare detector behind it ("" none)
   double glare_azimuth_weight = train::kGlareAzimuthWeight;  // its azimuth head's weight (LightingEstimator::set_sun_glare)
+  double glare_map_weight = train::kGlareMapWeight;          // its glare map's weight (the same)
   bool visible_sun = true;               // a visible sun disk sets the direction
   std::vector<double> crop_scales;       // centred crops averaged into the sun (empty: off)
   // Called after each scored image (from the calling thread); may throw to stop the evaluation.

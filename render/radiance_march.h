@@ -17,6 +17,10 @@
 
 #include <glm/glm.hpp>
 
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
+
 #include "autodiff/vector_math.h"
 #include "render/environment_map.h"
 #include "render/radiance_query.h"
@@ -64,11 +68,13 @@ struct LogProjection {
       v[a] = d >= 0 ? half_dims[a] + k_pos[a] * std::log1p(d * inv_r0) : half_dims[a] - k_neg[a] * std::log1p(-d * inv_r0);
     }
   }
-  // to_voxel() of the K points o + t_k·l at once (v: 3 per point). In float, the logarithms go
+  // to_voxel() of the K points o + t_k·l at once (v: 3 per point, or in float with `planar`, axis
+  // by axis: v[a·K + k]). In float, the logarithms go
   // through vm::log in one call (log(1 + x) for log1p(x): an absolute error of about 1e-7 voxel,
   // the same on every SIMD level); the exact volume marches of inference spent 8% of their time
   // in scalar log1pf. Forward and backward call this alike, so they still see the same samples.
-  void to_voxel_all(const T o[3], const T l[3], const std::vector<double>& t, std::vector<T>& v) const {
+  void to_voxel_all(const T o[3], const T l[3], const std::vector<double>& t, std::vector<T>& v,
+                    bool planar = false) const {
     const size_t K = t.size();
     v.resize(3 * K);
     if constexpr (std::is_same_v<T, float>) {
@@ -98,13 +104,15 @@ struct LogProjection {
         }
       }
       vm::log(arg, arg, int64_t(3 * K));
+      const size_t stride = planar ? 1 : 3;
       for (int a = 0; a < 3; ++a) {
         const float h = half_dims[a], kp = k_pos[a], kn = k_neg[a];
         const float* const log_a = arg + a * K;
         const unsigned char* const positive_a = positive + a * K;
+        float* const out_a = planar ? out + a * K : out + a;
         for (size_t k = 0; k < K; ++k) {
           const float up = h + kp * log_a[k], down = h - kn * log_a[k];
-          out[3 * k + size_t(a)] = positive_a[k] ? up : down;
+          out_a[stride * k] = positive_a[k] ? up : down;
         }
       }
     } else {
@@ -216,6 +224,38 @@ void sample_distances(const LogProjection<T>& proj, const RadianceQueryOptions& 
   }
 }
 
+// Nearest lookup's voxel of each of K samples from their planar voxel coordinates v[a·K + k]:
+// clamp(⌊v⌋, 0, dim − 1) per axis, then (x·Y + y)·Z + z. The float → int64 conversion is the
+// hardware's truncation, which gives 0x8000000000000000 for NaN, ±∞ and |v| ≥ 2^63 (the clamp
+// makes that 0), scalar (cvttss2si) and in lanes (cvttps2qq) alike, so both paths give the same
+// indices for every input (NearestVoxels.LanesEqualTheScalarLoop). The scalar loop was half of
+// march_prefix's time under perf on an Intel Xeon (rounding and conversions share one port there).
+inline void nearest_voxels_scalar(const float* v, int K, const int64_t dims[3], int64_t* out, int begin = 0) {
+  for (int k = begin; k < K; ++k) {
+    int64_t idx[3];
+    for (int a = 0; a < 3; ++a) idx[a] = std::clamp<int64_t>(int64_t(std::floor(v[a * K + k])), 0, dims[a] - 1);
+    out[k] = (idx[0] * dims[1] + idx[1]) * dims[2] + idx[2];
+  }
+}
+
+inline void nearest_voxels(const float* v, int K, const int64_t dims[3], int64_t* out) {
+  int k = 0;
+#if defined(__AVX512F__) && defined(__AVX512DQ__) && defined(__AVX512VL__)
+  const __m512i zero = _mm512_setzero_si512(), y = _mm512_set1_epi64(dims[1]), z = _mm512_set1_epi64(dims[2]);
+  const __m512i top[3] = {_mm512_set1_epi64(dims[0] - 1), _mm512_set1_epi64(dims[1] - 1), _mm512_set1_epi64(dims[2] - 1)};
+  for (; k + 8 <= K; k += 8) {
+    __m512i idx[3];
+    for (int a = 0; a < 3; ++a) {
+      const __m256 f = _mm256_roundscale_ps(_mm256_loadu_ps(v + a * K + k), _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC);
+      idx[a] = _mm512_min_epi64(_mm512_max_epi64(_mm512_cvttps_epi64(f), zero), top[a]);
+    }
+    const __m512i xy = _mm512_add_epi64(_mm512_mullo_epi64(idx[0], y), idx[1]);
+    _mm512_storeu_si512(out + k, _mm512_add_epi64(_mm512_mullo_epi64(xy, z), idx[2]));
+  }
+#endif
+  nearest_voxels_scalar(v, K, dims, out, k);
+}
+
 // The part of march() before any sample is read: the ray's validity, L_env(l) and the
 // transmittance `stop` that ends the march, the clip to the grid, the K sample distances and
 // voxel coordinates, and with nearest lookup each sample's voxel (m.nearest). Returns false when
@@ -245,7 +285,10 @@ bool march_prefix(const Geometry& geo, const VsgGrid& grid, const LogProjection<
   const int64_t dims[3] = {geo.X, geo.Y, geo.Z};
   stop = T(opt.min_transmittance) / std::max(T(1), env_max);
   sample_distances(proj, opt, origin, dir, t0, t1, m.tk, m.cumulative);
-  proj.to_voxel_all(o, m.dir, m.tk, m.voxel);
+  // Float with nearest lookup: the coordinates axis by axis, for nearest_voxels' lanes (march()
+  // reads m.voxel only for trilinear lookup).
+  constexpr bool kFloat = std::is_same_v<T, float>;
+  proj.to_voxel_all(o, m.dir, m.tk, m.voxel, kFloat && !opt.trilinear);
   const int K = opt.samples;
   if (!opt.trilinear) {
     if (m.nearest.size() < size_t(K)) {
@@ -254,11 +297,15 @@ bool march_prefix(const Geometry& geo, const VsgGrid& grid, const LogProjection<
     }
     int64_t* const nearest = m.nearest.data();
     const T* const voxel = m.voxel.data();
-    for (int k = 0; k < K; ++k) {
-      const T* p = &voxel[size_t(3 * k)];
-      int64_t idx[3];
-      for (int a = 0; a < 3; ++a) idx[a] = std::clamp<int64_t>(int64_t(std::floor(p[a])), 0, dims[a] - 1);
-      nearest[k] = (idx[0] * geo.Y + idx[1]) * geo.Z + idx[2];
+    if constexpr (kFloat) {
+      nearest_voxels(voxel, K, dims, nearest);
+    } else {
+      for (int k = 0; k < K; ++k) {
+        const T* p = &voxel[size_t(3 * k)];
+        int64_t idx[3];
+        for (int a = 0; a < 3; ++a) idx[a] = std::clamp<int64_t>(int64_t(std::floor(p[a])), 0, dims[a] - 1);
+        nearest[k] = (idx[0] * geo.Y + idx[1]) * geo.Z + idx[2];
+      }
     }
   }
   return true;

@@ -8,6 +8,7 @@
 #include "autodiff/gradcheck.h"
 #include "autodiff/ops.h"
 #include "render/environment_map.h"
+#include "render/radiance_march.h"
 
 using sl::render::env_lookup;
 using sl::render::parse_sample_spacing;
@@ -377,6 +378,25 @@ TEST(RayMarcher, BatchEqualsOneRayAtATime) {
       for (int c = 0; c < 3; ++c) ASSERT_EQ(batch[size_t(r)].radiance[c], one.radiance[c]) << r;
       ASSERT_EQ(batch[size_t(r)].transmittance, one.transmittance) << r;
     }
+  }
+}
+
+// nearest_voxels (AVX-512 lanes where compiled, else the scalar loop) is the scalar loop, index
+// for index: every K around the lane width, coordinates inside, on and outside the grid's faces,
+// far outside it, and -0. (NaN and ±∞ are left out: int64_t() of them is undefined in C++, though
+// both paths give the hardware's 0x8000000000000000 and then 0.)
+TEST(NearestVoxels, LanesEqualTheScalarLoop) {
+  const int64_t dims[3] = {64, 64, 16};
+  const std::vector<double> u = Tensor::uniform({3 * 40}, -6.0, 70.0, 71).to_vector();
+  const float edges[] = {-0.0f, 0.0f, -1e-7f, 0.999999f, 1.0f, 15.0f, 15.99999f, 16.0f, 63.0f, 63.99999f, 64.0f,
+                         64.5f, -1e6f, 1e6f, -1e12f, 1e12f};
+  for (int K : {1, 7, 8, 9, 16, 31, 32, 33, 40}) {
+    std::vector<float> v(size_t(3 * K));
+    for (size_t i = 0; i < v.size(); ++i) v[i] = i % 5 == 4 ? edges[(i / 5) % std::size(edges)] : float(u[i]);
+    std::vector<int64_t> lanes(static_cast<size_t>(K)), scalar(static_cast<size_t>(K));
+    sl::render::detail::nearest_voxels(v.data(), K, dims, lanes.data());
+    sl::render::detail::nearest_voxels_scalar(v.data(), K, dims, scalar.data());
+    for (int k = 0; k < K; ++k) ASSERT_EQ(lanes[size_t(k)], scalar[size_t(k)]) << "K " << K << " sample " << k;
   }
 }
 

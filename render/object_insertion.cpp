@@ -130,11 +130,10 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
     // it is drawn, and the image is assembled by plain loops (no ray buffer, no tape).
     const bool cv = opt.diffuse_control_variate;
     std::vector<float> shaded, ratio;  // Σ w·L (+ c·E/aa) per pixel of fg.pixels; S per texel of sh.texels
-    // The exact corrections' marcher (object and shadows share it: one float32 copy of the volume).
-    std::unique_ptr<const RayMarcher> exact;
-    if (opt.cache_exact_light_rays > 0 || opt.cache_shadow_exact_rays > 0)
-      exact = std::make_unique<const RayMarcher>(in.vsg, in.env, in.grid, opt.query);
     if (!bvh.empty()) {
+      // One float32 copy of the volume marches everything: both caches' probes, the shadow
+      // cache's exact directions and the exact corrections (a copy each was three, 2 MB apiece).
+      const RayMarcher volume(in.vsg, in.env, in.grid, opt.query);
       if (!gs.empty()) {
         std::vector<glm::vec3> origins(gs.size()), normals(gs.size());
         for (size_t i = 0; i < gs.size(); ++i) {
@@ -144,10 +143,10 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
         glm::vec3 lo, hi;
         origin_bounds(origins, lo, hi);
         RadianceCache fg_cache(in, opt, env_map, lo, hi, opt.cache_max_xz, opt.cache_max_y, 0.0,
-                               opt.cache_sparse ? &origins : nullptr);
+                               opt.cache_sparse ? &origins : nullptr, &volume);
         if (cv) fg_cache.build_irradiance(opt.cv_normals_height, opt.cv_quadrature_supersample, normals, &origins);
         shade_foreground(opt, bvh, env_map, gs, fg_cache, cv, fg, shaded,
-                         opt.cache_exact_light_rays > 0 ? exact.get() : nullptr);
+                         opt.cache_exact_light_rays > 0 ? &volume : nullptr);
         out.stats.exact_correction_rays += fg.exact_correction_rays;
       }
       const std::vector<glm::vec3> texel_origins = shadow_texels(in, opt, bvh.bounds(), env_map, depth, sh, out.stats);
@@ -162,9 +161,10 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
           sh_opt.cache_width = 2 * sh_opt.cache_height;
         }
         const RadianceCache sh_cache(in, sh_opt, env_map, lo, hi, opt.cache_shadow_max_xz, opt.cache_shadow_max_y,
-                                     opt.cache_shadow_exact_sky * sky_mean, opt.cache_sparse ? &origins : nullptr);
+                                     opt.cache_shadow_exact_sky * sky_mean, opt.cache_sparse ? &origins : nullptr,
+                                     &volume);
         out.stats.exact_correction_rays += shade_shadows(opt, bvh, env_map, sh, texel_origins, sh_cache, eps, ratio,
-                                                         opt.cache_shadow_exact_rays > 0 ? exact.get() : nullptr);
+                                                         opt.cache_shadow_exact_rays > 0 ? &volume : nullptr);
         out.stats.exact_query_rays = sh_cache.exact_rays();
       }
     } else {

@@ -20,12 +20,13 @@ namespace sl::render::insertion {
 
 RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& opt, const EnvironmentMap& env_map,
               const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y, double exact_sky,
-              const std::vector<glm::vec3>* occupied)
+              const std::vector<glm::vec3>* occupied, const RayMarcher* marcher)
     : env_map_(env_map), H_(opt.cache_height), W_(opt.cache_width) {
   if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return;  // no rays read it
   if (exact_sky > 0) {
     exact_sky_ = float(exact_sky);
-    marcher_ = std::make_unique<const RayMarcher>(in.vsg, in.env, in.grid, opt.query);
+    if (!marcher) own_marcher_ = std::make_unique<const RayMarcher>(in.vsg, in.env, in.grid, opt.query);
+    marcher_ = marcher ? marcher : own_marcher_.get();
   }
   lo_ = lo;
   for (int a = 0; a < 3; ++a) {
@@ -61,8 +62,8 @@ RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& 
   // Every probe × direction marched by RayMarcher: radiance_query's forward bit for bit
   // (RayMarcher.EqualsTheQueryBitForBit), without the op's tensors and its planar volume reads.
   std::optional<RayMarcher> own;
-  if (!marcher_) own.emplace(in.vsg, in.env, in.grid, opt.query);
-  const RayMarcher& marcher = marcher_ ? *marcher_ : *own;
+  if (!marcher_ && !marcher) own.emplace(in.vsg, in.env, in.grid, opt.query);
+  const RayMarcher& probe_marcher = marcher_ ? *marcher_ : marcher ? *marcher : *own;
   cache_.resize(size_t(4 * P * D));
   // Dynamic: a march's length depends on the volume along its direction.
   parallel_for_dynamic(P * D, 64, [&](int64_t b, int64_t e) {
@@ -75,7 +76,7 @@ RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& 
         ls[size_t(3 * (i - b) + c)] = l[c];
       }
     }
-    marcher(e - b, xs.data(), ls.data(), marched.data());  // in lanes: the same bits
+    probe_marcher(e - b, xs.data(), ls.data(), marched.data());  // in lanes: the same bits
     for (int64_t i = b; i < e; ++i) {
       const RayMarcher::Result& r = marched[size_t(i - b)];
       const glm::vec3& L_env = sky[size_t(i % D)];
@@ -92,7 +93,7 @@ RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& 
 void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<glm::vec3>& normals,
                                      const std::vector<glm::vec3>* origins) {
   if (cache_.empty()) return;
-  SL_CHECK(!marcher_, "RadianceCache: build_irradiance() integrates the probes; exact directions would differ");
+  SL_CHECK(!(exact_sky_ > 0.0f), "RadianceCache: build_irradiance() integrates the probes; exact directions would differ");
   hn_ = std::max(2, hn);
   wn_ = 2 * hn_;
   const int ss = std::max(1, supersample);

@@ -20,6 +20,9 @@
 //   gives) instead of read from the probes. A sun's transmittance changes faster in space than
 //   the probes follow, and its rays carry most of the light (streetlight-bench insert, rows
 //   shadow_exact_sky*); the sky's other directions stay cached. Not with build_irradiance().
+// - marcher, when given, marches the probes and the exact directions in place of a copy of the
+//   volume the cache would build; it must be RayMarcher(in.vsg, in.env, in.grid, opt.query) (the
+//   same bits) and outlive the cache.
 // - build_irradiance(hn, ss, normals): E(probe, n) = ∫_{n·l>0} (n·l) L_probe(l) dΩ (and the
 //   same with (n·l)(1 − n·l)^5 for the control variate's grazing term) for the
 //   nodes of an hn × 2·hn grid of normals that bilinear reads of `normals` touch, as a sum over
@@ -50,7 +53,7 @@ class RadianceCache {
  public:
   RadianceCache(const InsertionInputs& in, const InsertionOptions& opt, const EnvironmentMap& env_map,
                 const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y, double exact_sky = 0,
-                const std::vector<glm::vec3>* occupied = nullptr);
+                const std::vector<glm::vec3>* occupied = nullptr, const RayMarcher* marcher = nullptr);
 
   glm::vec3 radiance(const float* origin, const float* dir) const;
   // radiance() at the unit panorama coordinates of a valid direction (no atan2/asin).
@@ -81,7 +84,7 @@ class RadianceCache {
 
  private:
   glm::vec3 cached(const Corners& at, const equirect::UV& unit, const glm::vec3& sky) const;  // the probes' read
-  bool exact_direction(const glm::vec3& sky) const { return marcher_ && std::max({sky.x, sky.y, sky.z}) > exact_sky_; }
+  bool exact_direction(const glm::vec3& sky) const { return exact_sky_ > 0.0f && std::max({sky.x, sky.y, sky.z}) > exact_sky_; }
   void probe_weights(const float* origin, int64_t probe[8], float w[8]) const;
   std::vector<uint8_t> needed_pairs(const std::vector<glm::vec3>& normals, const std::vector<glm::vec3>& origins) const;
   void dense_weights(const float* origin, int64_t probe[8], float w[8]) const;
@@ -90,7 +93,8 @@ class RadianceCache {
   const EnvironmentMap& env_map_;
   int H_, W_;
   float exact_sky_ = 0.0f;
-  std::unique_ptr<const RayMarcher> marcher_;  // with exact directions
+  std::unique_ptr<const RayMarcher> own_marcher_;  // with exact directions and no marcher given
+  const RayMarcher* marcher_ = nullptr;             // with exact directions: the one given or own_marcher_
   mutable std::atomic<int64_t> exact_rays_{0};
   glm::vec3 lo_{0.0f};
   int n_[3] = {2, 2, 2};

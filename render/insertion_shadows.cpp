@@ -197,9 +197,11 @@ int64_t shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const Environ
       // The rays and their occlusion first, then the cache's reads in ray order: each read is a
       // chain of 32 dependent FMAs, and with nothing else between them consecutive reads overlap
       // (interleaved with the sampling and the BVH they did not: perf, KITTI insertion bench).
+      // Likewise all N draws, then their BVH tests: a traversal between two draws kept each draw's
+      // chain of divisions and square roots (the sky's inverse CDF) from overlapping the next.
+      for (int k = 0; k < N; ++k) drawn[size_t(k)] = sampler.cached(t, k);
       for (int k = 0; k < N; ++k) {
-        const ShadowSampler::Ray s = sampler.cached(t, k);
-        drawn[size_t(k)] = s;
+        const ShadowSampler::Ray& s = drawn[size_t(k)];
         if (!(s.w > 0)) continue;
         Ray r;
         r.origin = o;

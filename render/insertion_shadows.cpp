@@ -23,8 +23,12 @@ struct ShadowSampler {
   const EnvironmentMap& env_map;
   uint64_t seed, choice_seed, rot_seed;
   Frame frame{glm::vec3(0, 1, 0)};
+  // The split sampling's rotations of texel t (split_sample(rot_seed, t, …) draws them per ray):
+  // once per texel for the loops over its rays.
+  SplitRotations rotations(int64_t t) const { return split_rotations(rot_seed, uint64_t(t)); }
   // The direction alone (what the texel pruning needs: no density).
-  glm::vec3 direction(int64_t t, int k) const {
+  glm::vec3 direction(int64_t t, int k) const { return direction(t, k, rotations(t)); }
+  glm::vec3 direction(int64_t t, int k, const SplitRotations& rot) const {
     if (!opt.importance_sampling) {
       const float u1 = uniform01f(seed, uint64_t(t), 2 * k), u2 = uniform01f(seed, uint64_t(t), 2 * k + 1);
       return frame.to_world(cosine_hemisphere(u1, u2));
@@ -37,7 +41,7 @@ struct ShadowSampler {
       return uniform01f(choice_seed, uint64_t(t), k) < 0.5f ? frame.to_world(cosine_hemisphere(u1, u2))
                                                            : env_sample(env_map, opt, u1, u2);
     }
-    const SplitSample sp = split_sample(rot_seed, uint64_t(t), k, N, n_cos);
+    const SplitSample sp = split_sample(rot, k, N, n_cos);
     return sp.technique == 0 ? frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y)) : env_sample(env_map, opt, sp.u.x, sp.u.y);
   }
   std::pair<glm::vec3, double> operator()(int64_t t, int k) const {
@@ -55,13 +59,14 @@ struct ShadowSampler {
     double w;
     equirect::UV unit;
   };
-  Ray cached(int64_t t, int k) const {
+  Ray cached(int64_t t, int k) const { return cached(t, k, rotations(t)); }
+  Ray cached(int64_t t, int k, const SplitRotations& rot) const {
     const int N = opt.shadow_rays, n_cos = N / 2;
     if (!opt.importance_sampling || n_cos == 0 || !opt.bilinear_env_sampling) {
       const auto [d, w] = (*this)(t, k);
       return {d, w, equirect::direction_to_uv(d.x, d.y, d.z, 1, 1)};
     }
-    const SplitSample sp = split_sample(rot_seed, uint64_t(t), k, N, n_cos);
+    const SplitSample sp = split_sample(rot, k, N, n_cos);
     Ray r;
     if (sp.technique == 0) {
       r.d = frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y));
@@ -107,7 +112,8 @@ std::vector<glm::vec3> shadow_texels(const InsertionInputs& in, const InsertionO
       // Only rays with d.y > 0 carry weight; a box wholly below the origin meets none of them.
       if (opt.prune && box.hi.y <= origin[size_t(t)].y) continue;
       bool any = !opt.prune;
-      for (int k = 0; k < N && !any; ++k) any = ray_hits_box(origin[size_t(t)], sampler.direction(t, k), box);
+      const SplitRotations rot = sampler.rotations(t);
+      for (int k = 0; k < N && !any; ++k) any = ray_hits_box(origin[size_t(t)], sampler.direction(t, k, rot), box);
       needed[size_t(t)] = any ? 1 : 0;  // none can meet the object: S = 1 exactly
     }
   });
@@ -199,7 +205,8 @@ int64_t shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const Environ
       // (interleaved with the sampling and the BVH they did not: perf, KITTI insertion bench).
       // Likewise all N draws, then their BVH tests: a traversal between two draws kept each draw's
       // chain of divisions and square roots (the sky's inverse CDF) from overlapping the next.
-      for (int k = 0; k < N; ++k) drawn[size_t(k)] = sampler.cached(t, k);
+      const SplitRotations rot = sampler.rotations(t);
+      for (int k = 0; k < N; ++k) drawn[size_t(k)] = sampler.cached(t, k, rot);
       for (int k = 0; k < N; ++k) {
         const ShadowSampler::Ray& s = drawn[size_t(k)];
         if (!(s.w > 0)) continue;

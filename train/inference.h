@@ -37,11 +37,12 @@
 //   detector (train/sun_glare.h) decides: the view with the highest probability of a sun in view
 //   wins when it reaches the threshold, and the ray through its pixel is the sun as above
 //   (visible_sun_learned, visible_sun_score = that probability). It runs as its own task of the
-//   team beside the disk test (about 3 ms of one thread per view). When it does not fire, and it
-//   has no azimuth head, the estimate is bit-identical to having no detector. A detector with an
-//   azimuth head also reweighs the sun head's distribution by its azimuth probabilities (see
-//   set_sun_glare; glare_azimuth_used), in every view: a second opinion on front and back. With a
-//   map weight > 0 its glare map reweighs the distribution too, below the threshold (glare_map_used).
+//   team beside the disk test (about 3 ms of one thread per view). When it does not fire, has no
+//   azimuth head and its map weight is 0 (the default), the estimate is bit-identical to having no
+//   detector. A detector with an azimuth head also reweighs the sun head's distribution by its
+//   azimuth probabilities (see set_sun_glare; glare_azimuth_used), in every view: a second opinion
+//   on front and back. With a map weight > 0 its glare map reweighs the distribution too, below the
+//   threshold (glare_map_used).
 // - Crop averaging (set_crop_scales, off by default): each view's sun also averaged over centred
 //   crops of it; see set_crop_scales. Off, the estimate is bit-identical to before it existed.
 // - Sun distribution (checkpoints with model.sun_grid, issue 53): the sky vector's direction is

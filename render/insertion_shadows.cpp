@@ -26,8 +26,8 @@ struct ShadowSampler {
   // The split sampling's rotations of texel t (split_sample(rot_seed, t, …) draws them per ray):
   // once per texel for the loops over its rays.
   SplitRotations rotations(int64_t t) const { return split_rotations(rot_seed, uint64_t(t)); }
-  // The direction alone (what the texel pruning needs: no density).
-  glm::vec3 direction(int64_t t, int k) const { return direction(t, k, rotations(t)); }
+  // The direction alone (what the texel pruning needs: no density). Every draw takes its texel's
+  // rotations, made once by the caller's loop over the texel's rays.
   glm::vec3 direction(int64_t t, int k, const SplitRotations& rot) const {
     if (!opt.importance_sampling) {
       const float u1 = uniform01f(seed, uint64_t(t), 2 * k), u2 = uniform01f(seed, uint64_t(t), 2 * k + 1);
@@ -44,8 +44,8 @@ struct ShadowSampler {
     const SplitSample sp = split_sample(rot, k, N, n_cos);
     return sp.technique == 0 ? frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y)) : env_sample(env_map, opt, sp.u.x, sp.u.y);
   }
-  std::pair<glm::vec3, double> operator()(int64_t t, int k) const {
-    const glm::vec3 d = direction(t, k);
+  std::pair<glm::vec3, double> operator()(int64_t t, int k, const SplitRotations& rot) const {
+    const glm::vec3 d = direction(t, k, rot);
     if (!opt.importance_sampling) return {d, 1.0};  // w = π cancels
     const int N = opt.shadow_rays, n_cos = N / 2;
     const double c_cos = n_cos == 0 ? 0.5 : double(n_cos) / N;
@@ -59,11 +59,10 @@ struct ShadowSampler {
     double w;
     equirect::UV unit;
   };
-  Ray cached(int64_t t, int k) const { return cached(t, k, rotations(t)); }
   Ray cached(int64_t t, int k, const SplitRotations& rot) const {
     const int N = opt.shadow_rays, n_cos = N / 2;
     if (!opt.importance_sampling || n_cos == 0 || !opt.bilinear_env_sampling) {
-      const auto [d, w] = (*this)(t, k);
+      const auto [d, w] = (*this)(t, k, rot);
       return {d, w, equirect::direction_to_uv(d.x, d.y, d.z, 1, 1)};
     }
     const SplitSample sp = split_sample(rot, k, N, n_cos);
@@ -144,15 +143,16 @@ void trace_shadows(const InsertionInputs& in, const InsertionOptions& opt, const
     for (int64_t i = b; i < e; ++i) {
       const int64_t t = sh.texels[size_t(i)];
       const glm::vec3 o = origin[size_t(t)];
+      const SplitRotations rot = sampler.rotations(t);
       for (int k = 0; k < N; ++k) {
         glm::vec3 dir;
         double w;
         if (opt.radiance_cache) {  // the directions shade_shadows() draws
-          const ShadowSampler::Ray c = sampler.cached(t, k);
+          const ShadowSampler::Ray c = sampler.cached(t, k, rot);
           dir = c.d;
           w = c.w;
         } else {
-          std::tie(dir, w) = sampler(t, k);
+          std::tie(dir, w) = sampler(t, k, rot);
         }
         const size_t slot = size_t(i * N + k);
         Ray r;

@@ -127,7 +127,8 @@ void bind_lighting(py::module_& m) {
       .def(py::init(&make_estimator), py::arg("checkpoint") = py::none(), py::kw_only(), py::arg("flip_average") = true,
            py::arg("visible_sun") = true, py::arg("crop_scales") = std::vector<double>{},
            "Loads a stage-2 or stage-3 checkpoint; None loads the released model (the tools' default:\n"
-           "$STREETLIGHT_MODEL, else models/streetlight.safetensors). flip_average, visible_sun and\n"
+           "$STREETLIGHT_MODEL, else models/streetlight.safetensors, else the copy installed beside this\n"
+           "module, else the source tree's). flip_average, visible_sun and\n"
            "crop_scales are streetlight-insert's --no-flip-average, --no-visible-sun and --crop-scales;\n"
            "with visible_sun, the released sun-glare detector (models/sun_glare.safetensors, when\n"
            "present) backs the disk test, as in the tools.\n"

@@ -43,7 +43,17 @@ bool Args::parse(int argc, char** argv) {
       return false;
     }
     if (a == "--version") {
+      // The release, and the weights a run without --checkpoint would load.
       std::printf("%s %s\n", program_.c_str(), version());
+      std::string model;
+      try {
+        model = released_model_path();
+      } catch (const Error& e) {
+        model = std::string("none: ") + e.what();
+      }
+      const std::string glare = released_sun_glare_path();
+      std::printf("released model: %s\nsun-glare detector: %s\n", model.c_str(),
+                  glare.empty() ? "none found" : glare.c_str());
       return false;
     }
     std::string value;
@@ -206,33 +216,6 @@ void Progress::finish(const std::string& extra) {
                  (long long)total_, (long long)counted(), elapsed, extra.c_str());
   else
     std::fprintf(stderr, "%s done: %lld in %.1fs %s\n", label_.c_str(), (long long)counted(), elapsed, extra.c_str());
-}
-
-std::string released_model_path() {
-  std::vector<std::string> tried;
-  if (const char* env = std::getenv("STREETLIGHT_MODEL"); env && *env) {
-    SL_CHECK(std::filesystem::is_regular_file(env), "STREETLIGHT_MODEL names '", env, "', which is not a file");
-    return env;
-  }
-  for (const std::string& p : {std::string("models/streetlight.safetensors"),
-                               std::string(STREETLIGHT_SOURCE_DIR) + "/models/streetlight.safetensors"}) {
-    if (std::filesystem::is_regular_file(p)) return p;
-    tried.push_back(p);
-  }
-  SL_CHECK(false, "no --checkpoint given and the released model is missing (looked for '", tried[0], "' and '",
-           tried[1], "'); pass --checkpoint CKPT or set STREETLIGHT_MODEL");
-  return {};
-}
-
-std::string released_sun_glare_path() {
-  if (const char* env = std::getenv("STREETLIGHT_SUN_GLARE"); env && *env) {
-    SL_CHECK(std::filesystem::is_regular_file(env), "STREETLIGHT_SUN_GLARE names '", env, "', which is not a file");
-    return env;
-  }
-  for (const std::string& p : {std::string("models/sun_glare.safetensors"),
-                               std::string(STREETLIGHT_SOURCE_DIR) + "/models/sun_glare.safetensors"})
-    if (std::filesystem::is_regular_file(p)) return p;
-  return {};
 }
 
 }  // namespace sl::cli

@@ -7,10 +7,8 @@
 //   error. Flags may repeat when declared repeatable (--set, --checkpoint).
 // - run_main(): sl::Error -> one line "error: <message>" on stderr and exit 2 (bad input);
 //   any other exception -> "error: ..." and exit 1 (failure at run time).
-// - released_model_path(): the released weights that streetlight-insert and streetlight-eval use
-//   when --checkpoint is omitted: $STREETLIGHT_MODEL if set, else models/streetlight.safetensors
-//   in the working directory, else in the source tree the tools were built from. Throws
-//   sl::Error listing where it looked when none exists.
+// - --version also says which released weights a run without --checkpoint would load
+//   (tools/common/released_models.h, which this header includes).
 // - Progress: on a terminal, one self-overwriting bar with rate and ETA; otherwise a plain line
 //   at most every `plain_interval_s` seconds (and at the end), so logs stay short. The rate counts
 //   from where this process began: the first update's `done` − 1 (a resumed run's first step is
@@ -26,14 +24,9 @@
 #include <string>
 #include <vector>
 
-namespace sl::cli {
+#include "tools/common/released_models.h"
 
-std::string released_model_path();
-// The released learned sun-glare detector (train/sun_glare.h), which the tools put behind the
-// visible-sun disk test unless --no-sun-glare: $STREETLIGHT_SUN_GLARE if set (it must be a file),
-// else models/sun_glare.safetensors in the working directory, else in the source tree; "" when
-// there is none (the detector is optional).
-std::string released_sun_glare_path();
+namespace sl::cli {
 
 int64_t parse_integer(const std::string& what, const std::string& value, int64_t lo, int64_t hi);
 

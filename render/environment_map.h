@@ -71,6 +71,19 @@ class EnvironmentMap {
   // The same given the direction's cos(elevation) = √(x² + z²) (no cosine of v; equal to the
   // above up to float rounding).
   float pdf_bilinear_unit(const equirect::UV& unit, double cos_elevation) const;
+  // Batches of the two above (render/environment_map_lanes.cpp): for i < n,
+  // directions[i] = sample_bilinear_direction(u1[i], u2[i], units[i]), and
+  // densities[i] = pdf_bilinear_unit(units[i], cos_elevation[i]) (without cos_elevation when it is
+  // null). The same bits as the one-at-a-time forms: their double arithmetic runs in 8 AVX-512
+  // lanes where compiled (the inverse CDFs' divisions and square roots, which a scalar draw
+  // chains), libm's sines and cosines one by one; groups with unusual input take the scalar path.
+  void sample_bilinear_directions(int n, const float* u1, const float* u2, glm::vec3* directions,
+                                  equirect::UV* units) const;
+  void pdf_bilinear_units(int n, const equirect::UV* units, const double* cos_elevation, float* densities) const;
+  // The scalar loops the batches equal (the fallback, and the reference of their tests).
+  void sample_bilinear_directions_scalar(int n, const float* u1, const float* u2, glm::vec3* directions,
+                                         equirect::UV* units) const;
+  void pdf_bilinear_units_scalar(int n, const equirect::UV* units, const double* cos_elevation, float* densities) const;
 
   // Integral of radiance over the sphere, per channel (W/m²/sr × sr).
   glm::dvec3 integral() const;

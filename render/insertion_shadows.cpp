@@ -78,6 +78,41 @@ struct ShadowSampler {
     r.w = (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0;
     return r;
   }
+  // cached(t, k, rot) for every k < N into out[k], the sky's draws and all N densities each made
+  // as one batch (EnvironmentMap's lanes: the same bits, without a chain of divisions and square
+  // roots per ray; the draws were 13% of the insertion under perf on an Intel Xeon).
+  void cached_all(int64_t t, const SplitRotations& rot, Ray* out) const {
+    const int N = opt.shadow_rays, n_cos = N / 2;
+    if (!opt.importance_sampling || n_cos == 0 || !opt.bilinear_env_sampling) {
+      for (int k = 0; k < N; ++k) out[k] = cached(t, k, rot);
+      return;
+    }
+    static thread_local std::vector<float> u1, u2, pe;
+    static thread_local std::vector<int> sky;
+    static thread_local std::vector<glm::vec3> dirs;
+    static thread_local std::vector<equirect::UV> units;
+    u1.clear(), u2.clear(), sky.clear();
+    for (int k = 0; k < N; ++k) {
+      const SplitSample sp = split_sample(rot, k, N, n_cos);
+      if (sp.technique == 0) {
+        out[k].d = frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y));
+        out[k].unit = equirect::direction_to_uv(out[k].d.x, out[k].d.y, out[k].d.z, 1, 1);
+      } else {
+        u1.push_back(sp.u.x), u2.push_back(sp.u.y), sky.push_back(k);
+      }
+    }
+    const int n_sky = int(sky.size());
+    dirs.resize(size_t(n_sky)), units.resize(size_t(std::max(N, n_sky))), pe.resize(size_t(N));
+    env_map.sample_bilinear_directions(n_sky, u1.data(), u2.data(), dirs.data(), units.data());
+    for (int j = 0; j < n_sky; ++j) out[sky[size_t(j)]].d = dirs[size_t(j)], out[sky[size_t(j)]].unit = units[size_t(j)];
+    for (int k = 0; k < N; ++k) units[size_t(k)] = out[k].unit;
+    env_map.pdf_bilinear_units(N, units.data(), nullptr, pe.data());
+    const double c_cos = double(n_cos) / N;
+    for (int k = 0; k < N; ++k) {
+      const double cos_t = out[k].d.y, pdf = c_cos * std::max(0.0, cos_t) / kPi + (1.0 - c_cos) * pe[size_t(k)];
+      out[k].w = (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0;
+    }
+  }
 };
 
 ShadowSampler make_sampler(const InsertionOptions& opt, const EnvironmentMap& env_map) {
@@ -206,7 +241,7 @@ int64_t shade_shadows(const InsertionOptions& opt, const Bvh& bvh, const Environ
       // Likewise all N draws, then their BVH tests: a traversal between two draws kept each draw's
       // chain of divisions and square roots (the sky's inverse CDF) from overlapping the next.
       const SplitRotations rot = sampler.rotations(t);
-      for (int k = 0; k < N; ++k) drawn[size_t(k)] = sampler.cached(t, k, rot);
+      sampler.cached_all(t, rot, drawn.data());
       for (int k = 0; k < N; ++k) {
         const ShadowSampler::Ray& s = drawn[size_t(k)];
         if (!(s.w > 0)) continue;

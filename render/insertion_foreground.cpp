@@ -153,6 +153,23 @@ void light_rays(const InsertionOptions& opt, const LightSampling& sampling, cons
   const int aa = opt.stratify_per_pixel ? opt.aa_samples : 1;
   const disney::Point point = inference ? disney::point(g.material, g.n, g.wo) : disney::Point{};
   const SplitRotations rotations = inference ? split_rotations(rot_seed, g.stream / uint64_t(aa)) : SplitRotations{};
+  // With the bilinear sky sampler, the sky's directions are all drawn first, as one batch
+  // (EnvironmentMap's lanes: the same bits, without a chain of divisions and square roots per
+  // draw); the loop below takes them in order.
+  static thread_local std::vector<float> sky_u1, sky_u2;
+  static thread_local std::vector<glm::vec3> sky_l;
+  static thread_local std::vector<equirect::UV> sky_unit;
+  const bool batched = inference && opt.bilinear_env_sampling;
+  if (batched) {
+    sky_u1.clear(), sky_u2.clear();
+    for (int k = 0; k < N; ++k) {
+      const SplitSample sp = split_sample(rotations, k, N, n_brdf, int(g.stream % uint64_t(aa)), aa);
+      if (sp.technique != 0) sky_u1.push_back(sp.u.x), sky_u2.push_back(sp.u.y);
+    }
+    sky_l.resize(sky_u1.size()), sky_unit.resize(sky_u1.size());
+    env_map.sample_bilinear_directions(int(sky_u1.size()), sky_u1.data(), sky_u2.data(), sky_l.data(), sky_unit.data());
+  }
+  size_t next_sky = 0;
   for (int k = 0; k < N; ++k) {
     glm::vec3 l, f(0.0f);
     float pdf;
@@ -182,7 +199,8 @@ void light_rays(const InsertionOptions& opt, const LightSampling& sampling, cons
         l = b.wi;
       } else {
         if (opt.bilinear_env_sampling) {
-          l = env_map.sample_bilinear_direction(sp.u.x, sp.u.y, unit);
+          l = sky_l[next_sky];
+          unit = sky_unit[next_sky++];
           have_unit = true;
         } else {
           l = env_sample(env_map, opt, sp.u.x, sp.u.y);

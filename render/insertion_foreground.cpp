@@ -7,6 +7,7 @@
 
 #include "render/exact_correction.h"
 #include "render/insertion_denoise.h"
+#include "render/insertion_mixture_pdf.h"
 #include "render/pixel_window.h"
 #include "render/qmc_sampler.h"
 #include "render/sampling.h"
@@ -138,6 +139,66 @@ struct LightSampling {
   float c_brdf, c_env, norm;
 };
 
+// Inference with the bilinear sky sampler: stratified multi-sample MIS of BRDF and sky
+// sampling, one stratified set per pixel interleaved over its anti-aliasing samples. The BRDF's
+// value and density come with its sample (or from one evaluate()); the panorama coordinates with
+// the sky's sample, so the sky's density and the cache's read share them. The sky's directions
+// are drawn as one batch, then the sky's densities of all N rays as another (EnvironmentMap's
+// lanes: the same bits, without a chain of divisions and square roots per ray), and `finish`
+// takes each ray in order. cos(elevation) and the mixture are rounded per technique as the
+// one-ray-at-a-time code rounded them (render/insertion_mixture_pdf.h).
+template <class Finish>
+void bilinear_light_rays(const LightSampling& sampling, const EnvironmentMap& env_map, const GSample& g,
+                         const disney::Point& point, const SplitRotations& rotations, int aa, Finish&& finish) {
+  const int N = sampling.N, n_brdf = sampling.n_brdf;
+  static thread_local std::vector<SplitSample> splits;
+  static thread_local std::vector<float> sky_u1, sky_u2, sky_pe;
+  static thread_local std::vector<glm::vec3> ray_l;
+  static thread_local std::vector<disney::Sample> ray_b;
+  static thread_local std::vector<equirect::UV> ray_unit, sky_unit;
+  static thread_local std::vector<double> sky_cos;
+  static thread_local std::vector<char> ray_has_unit;
+  splits.resize(size_t(N));
+  sky_u1.clear(), sky_u2.clear();
+  for (int k = 0; k < N; ++k) {
+    splits[size_t(k)] = split_sample(rotations, k, N, n_brdf, int(g.stream % uint64_t(aa)), aa);
+    if (splits[size_t(k)].technique != 0) sky_u1.push_back(splits[size_t(k)].u.x), sky_u2.push_back(splits[size_t(k)].u.y);
+  }
+  ray_l.resize(size_t(N)), ray_b.resize(size_t(N)), ray_unit.resize(size_t(N)), ray_has_unit.resize(size_t(N));
+  env_map.sample_bilinear_directions(int(sky_u1.size()), sky_u1.data(), sky_u2.data(), ray_l.data() + n_brdf,
+                                     ray_unit.data() + n_brdf);
+  // The densities' inputs, packed for the rays that have panorama coordinates.
+  sky_unit.clear(), sky_cos.clear();
+  for (int k = 0; k < N; ++k) {
+    const SplitSample& sp = splits[size_t(k)];
+    glm::vec3& l = ray_l[size_t(k)];
+    bool have_unit = true;
+    if (sp.technique == 0) {
+      ray_b[size_t(k)] = disney::sample(point, sp.u.x, sp.u.y, uniform01f(sampling.choice_seed, g.stream, k + N));
+      l = ray_b[size_t(k)].wi;
+      have_unit = glm::dot(l, l) > 0.0f;
+      if (have_unit) ray_unit[size_t(k)] = equirect::direction_to_unit(l.x, l.y, l.z);  // l is unit
+    } else {
+      ray_b[size_t(k)] = disney::evaluate(point, l);
+    }
+    ray_has_unit[size_t(k)] = have_unit;
+    if (have_unit) {
+      sky_unit.push_back(ray_unit[size_t(k)]);
+      sky_cos.push_back(sky_cos_elevation(l, sp.technique != 0));
+    }
+  }
+  sky_pe.resize(sky_unit.size());
+  env_map.pdf_bilinear_units(int(sky_unit.size()), sky_unit.data(), sky_cos.data(), sky_pe.data());
+  size_t next = 0;
+  for (int k = 0; k < N; ++k) {
+    const bool have_unit = ray_has_unit[size_t(k)] != 0;
+    const float pe = have_unit ? sky_pe[next++] : 0.0f;
+    const disney::Sample& b = ray_b[size_t(k)];
+    const float pdf = mixture_pdf(sampling.c_brdf, b.pdf, sampling.c_env, pe, splits[size_t(k)].technique != 0);
+    finish(k, ray_l[size_t(k)], b.f, true, pdf, have_unit ? ray_unit[size_t(k)] : equirect::UV{0.5, 0.5}, have_unit);
+  }
+}
+
 // cv: the sample's control-variate lobe (disney::diffuse_control), or null without one.
 // full, when given, gets each weight before the control variate's term is taken off.
 void light_rays(const InsertionOptions& opt, const LightSampling& sampling, const Bvh& bvh, const EnvironmentMap& env_map,
@@ -153,71 +214,9 @@ void light_rays(const InsertionOptions& opt, const LightSampling& sampling, cons
   const int aa = opt.stratify_per_pixel ? opt.aa_samples : 1;
   const disney::Point point = inference ? disney::point(g.material, g.n, g.wo) : disney::Point{};
   const SplitRotations rotations = inference ? split_rotations(rot_seed, g.stream / uint64_t(aa)) : SplitRotations{};
-  // With the bilinear sky sampler, the sky's directions are all drawn first, as one batch
-  // (EnvironmentMap's lanes: the same bits, without a chain of divisions and square roots per
-  // draw); the loop below takes them in order.
-  static thread_local std::vector<float> sky_u1, sky_u2;
-  static thread_local std::vector<glm::vec3> sky_l;
-  static thread_local std::vector<equirect::UV> sky_unit;
-  const bool batched = inference && opt.bilinear_env_sampling;
-  if (batched) {
-    sky_u1.clear(), sky_u2.clear();
-    for (int k = 0; k < N; ++k) {
-      const SplitSample sp = split_sample(rotations, k, N, n_brdf, int(g.stream % uint64_t(aa)), aa);
-      if (sp.technique != 0) sky_u1.push_back(sp.u.x), sky_u2.push_back(sp.u.y);
-    }
-    sky_l.resize(sky_u1.size()), sky_unit.resize(sky_u1.size());
-    env_map.sample_bilinear_directions(int(sky_u1.size()), sky_u1.data(), sky_u2.data(), sky_l.data(), sky_unit.data());
-  }
-  size_t next_sky = 0;
-  for (int k = 0; k < N; ++k) {
-    glm::vec3 l, f(0.0f);
-    float pdf;
-    equirect::UV unit{0.5, 0.5};
-    bool have_f = false, have_unit = false;
-    const bool split = opt.importance_sampling && n_brdf > 0;
-    const float u1 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k);
-    const float u2 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k + 1);
-    if (!opt.importance_sampling) {  // training: cosine-weighted hemisphere
-      l = frame.to_world(cosine_hemisphere(u1, u2));
-      pdf = cosine_hemisphere_pdf(glm::dot(l, g.n));
-    } else if (n_brdf == 0) {  // a single sample: one-sample MIS (balance heuristic)
-      if (uniform01f(choice_seed, g.stream, k) < 0.5f)
-        l = disney::sample(g.material, g.n, g.wo, u1, u2, uniform01f(choice_seed, g.stream, k + N)).wi;
-      else
-        l = env_sample(env_map, opt, u1, u2);
-      pdf = 0.5f * disney::pdf(g.material, g.n, g.wo, l) + 0.5f * env_pdf(env_map, opt, l);
-    } else {  // inference: stratified multi-sample MIS of BRDF and environment sampling
-      // One stratified set per pixel, interleaved over its anti-aliasing samples. The BRDF's
-      // value and density come with its sample (or from one evaluate()); the panorama
-      // coordinates with the environment's sample, so the env density and the cache's read
-      // share them.
-      const SplitSample sp = split_sample(rotations, k, N, n_brdf, int(g.stream % uint64_t(aa)), aa);
-      disney::Sample b;
-      if (sp.technique == 0) {
-        b = disney::sample(point, sp.u.x, sp.u.y, uniform01f(choice_seed, g.stream, k + N));
-        l = b.wi;
-      } else {
-        if (opt.bilinear_env_sampling) {
-          l = sky_l[next_sky];
-          unit = sky_unit[next_sky++];
-          have_unit = true;
-        } else {
-          l = env_sample(env_map, opt, sp.u.x, sp.u.y);
-        }
-        b = disney::evaluate(point, l);
-      }
-      if (!have_unit && glm::dot(l, l) > 0.0f) {
-        unit = equirect::direction_to_unit(l.x, l.y, l.z);  // l is unit (both techniques)
-        have_unit = true;
-      }
-      const float pe = !have_unit                    ? 0.0f
-                       : opt.bilinear_env_sampling ? env_map.pdf_bilinear_unit(unit, std::sqrt(l.x * l.x + l.z * l.z))
-                                                   : env_map.pdf(l);
-      pdf = c_brdf * b.pdf + c_env * pe;
-      f = b.f;
-      have_f = true;
-    }
+  // One light ray's tail: its weight, the self-occlusion test, and the three outputs.
+  auto finish = [&](int k, glm::vec3 l, const glm::vec3& f, bool have_f, float pdf, equirect::UV unit,
+                    bool have_unit) {
     const float cos_l = glm::dot(l, g.n);
     glm::vec3 w(0.0f);
     if (cos_l > 0 && pdf > 0 && std::isfinite(pdf)) {
@@ -237,6 +236,48 @@ void light_rays(const InsertionOptions& opt, const LightSampling& sampling, cons
     ls[k] = l;
     ws[k] = w;
     if (units) units[k] = have_unit ? unit : equirect::direction_to_uv(l.x, l.y, l.z, 1, 1);
+  };
+  if (inference && opt.bilinear_env_sampling) {
+    bilinear_light_rays(sampling, env_map, g, point, rotations, aa, finish);
+    return;
+  }
+  for (int k = 0; k < N; ++k) {
+    glm::vec3 l, f(0.0f);
+    float pdf;
+    equirect::UV unit{0.5, 0.5};
+    bool have_f = false, have_unit = false;
+    const bool split = opt.importance_sampling && n_brdf > 0;
+    const float u1 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k);
+    const float u2 = split ? 0.0f : uniform01f(light_seed, g.stream, 2 * k + 1);
+    if (!opt.importance_sampling) {  // training: cosine-weighted hemisphere
+      l = frame.to_world(cosine_hemisphere(u1, u2));
+      pdf = cosine_hemisphere_pdf(glm::dot(l, g.n));
+    } else if (n_brdf == 0) {  // a single sample: one-sample MIS (balance heuristic)
+      if (uniform01f(choice_seed, g.stream, k) < 0.5f)
+        l = disney::sample(g.material, g.n, g.wo, u1, u2, uniform01f(choice_seed, g.stream, k + N)).wi;
+      else
+        l = env_sample(env_map, opt, u1, u2);
+      pdf = 0.5f * disney::pdf(g.material, g.n, g.wo, l) + 0.5f * env_pdf(env_map, opt, l);
+    } else {  // inference with the texel sky sampler: the MIS of bilinear_light_rays(), per ray
+      const SplitSample sp = split_sample(rotations, k, N, n_brdf, int(g.stream % uint64_t(aa)), aa);
+      disney::Sample b;
+      if (sp.technique == 0) {
+        b = disney::sample(point, sp.u.x, sp.u.y, uniform01f(choice_seed, g.stream, k + N));
+        l = b.wi;
+      } else {
+        l = env_map.sample(sp.u.x, sp.u.y).direction;
+        b = disney::evaluate(point, l);
+      }
+      if (glm::dot(l, l) > 0.0f) {
+        unit = equirect::direction_to_unit(l.x, l.y, l.z);  // l is unit (both techniques)
+        have_unit = true;
+      }
+      const float pe = have_unit ? env_map.pdf(l) : 0.0f;
+      pdf = c_brdf * b.pdf + c_env * pe;
+      f = b.f;
+      have_f = true;
+    }
+    finish(k, l, f, have_f, pdf, unit, have_unit);
   }
 }
 

@@ -176,21 +176,27 @@ InsertionResult insert_objects(const InsertionInputs& in, const InsertionOptions
                            int64_t(sh.texels.size()) * opt.shadow_rays;
     std::vector<float> s_img;
     upsample_shadows(in, opt, sh, depth, ratio, s_img);
-    // I_edit = α·I_obj + (1 − α)·(S ⊙ I), written channel-first.
-    std::vector<float> colour(size_t(3 * HW), 0.0f);
-    for (size_t i = 0; i < fg.pixels.size(); ++i)
-      for (int c = 0; c < 3; ++c) colour[size_t(3 * fg.pixels[i] + c)] = shaded[3 * i + size_t(c)];
+    // I_edit = α·I_obj + (1 − α)·(S ⊙ I), written channel-first. α·I_obj is `shaded` at the
+    // object's pixels (fg.pixels, increasing) and 0 elsewhere, read in step with p (no image of it).
+    SL_CHECK(std::is_sorted(fg.pixels.begin(), fg.pixels.end()) &&
+                 std::adjacent_find(fg.pixels.begin(), fg.pixels.end()) == fg.pixels.end(),
+             "insert_objects: the object's pixels are not increasing");
     const Tensor bg = in.background.detach().to(DType::F32).contiguous();
     const float* pb = bg.data<float>();
     Tensor comp = Tensor::empty({3, H, W}, DType::F32), smap = Tensor::empty({3, H, W}, DType::F32);
     float *pc = comp.data<float>(), *ps = smap.data<float>();
     parallel_for(HW, 4096, [&](int64_t b, int64_t e) {
-      for (int64_t p = b; p < e; ++p)
+      size_t i = size_t(std::lower_bound(fg.pixels.begin(), fg.pixels.end(), b) - fg.pixels.begin());
+      for (int64_t p = b; p < e; ++p) {
+        const bool object = i < fg.pixels.size() && fg.pixels[i] == p;
         for (int c = 0; c < 3; ++c) {
           const float S = s_img[size_t(3 * p + c)];
+          const float colour = object ? shaded[3 * i + size_t(c)] : 0.0f;
           ps[c * HW + p] = S;
-          pc[c * HW + p] = colour[size_t(3 * p + c)] + (1.0f - fg.coverage[size_t(p)]) * S * pb[c * HW + p];
+          pc[c * HW + p] = colour + (1.0f - fg.coverage[size_t(p)]) * S * pb[c * HW + p];
         }
+        if (object) ++i;
+      }
     });
     out.composite = comp.to(dt);
     out.shadow_map = smap.to(dt);

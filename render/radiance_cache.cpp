@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <optional>
 #include <utility>
@@ -37,12 +38,19 @@ RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& 
   const int64_t dense = int64_t(n_[0]) * n_[1] * n_[2];
   if (occupied) {  // only the corners of cells that hold an origin
     slot_.assign(size_t(dense), -1);
-    for (const glm::vec3& x : *occupied) {
-      int64_t probe[8];
-      float w[8];
-      dense_weights(&x[0], probe, w);
-      for (int c = 0; c < 8; ++c) slot_[size_t(probe[c])] = 0;
-    }
+    // In parallel: every mark stores 0, so the marks do not depend on the order (a mark already
+    // made is not stored again, so the threads share the marked lines).
+    parallel_for(int64_t(occupied->size()), 1024, [&](int64_t b, int64_t e) {
+      for (int64_t i = b; i < e; ++i) {
+        int64_t probe[8];
+        float w[8];
+        dense_weights(&(*occupied)[size_t(i)][0], probe, w);
+        for (int c = 0; c < 8; ++c) {
+          std::atomic_ref<int64_t> mark(slot_[size_t(probe[c])]);
+          if (mark.load(std::memory_order_relaxed) != 0) mark.store(0, std::memory_order_relaxed);
+        }
+      }
+    });
     for (int64_t j = 0; j < dense; ++j)
       if (slot_[size_t(j)] == 0) {
         slot_[size_t(j)] = int64_t(dense_of_.size());
@@ -101,11 +109,28 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
   const int wq = std::max({2 * hq, ss * env_map_.width(), ss * W_});
   const int64_t Q = int64_t(hq) * wq, P = probes(), D = int64_t(H_) * W_;
   node_row_.assign(size_t(hn_) * wn_, -1);
-  for (const glm::vec3& n : normals) {
-    if (!all_finite(n) || !(glm::dot(n, n) > 0.0f)) continue;
-    const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
-    for (int k = 0; k < 4; ++k) node_row_[size_t(taps.index[k])] = 0;
-  }
+  SL_CHECK(int64_t(hn_) * wn_ <= INT32_MAX, "RadianceCache: normal grid ", wn_, "x", hn_, " is too large");
+  // Each normal's taps once (an atan2 and an asin), in parallel; they mark the touched nodes
+  // here and the (node, probe) pairs in needed_pairs(). Every mark stores the same value, so the
+  // marks do not depend on the order or the thread count (a mark already made is not stored
+  // again: the threads then share the marked lines instead of taking them from each other).
+  std::vector<NormalTaps> ntaps(normals.size());
+  parallel_for(int64_t(normals.size()), 1024, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) {
+      const glm::vec3& n = normals[size_t(i)];
+      NormalTaps& nt = ntaps[size_t(i)];
+      nt.valid = all_finite(n) && glm::dot(n, n) > 0.0f;
+      nt.nonzero = 0;
+      if (!nt.valid) continue;
+      const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
+      for (int k = 0; k < 4; ++k) {
+        nt.index[k] = int32_t(taps.index[k]);
+        if (taps.weight[k] != 0.0) nt.nonzero |= uint8_t(1u << k);
+        std::atomic_ref<int64_t> mark(node_row_[size_t(taps.index[k])]);
+        if (mark.load(std::memory_order_relaxed) != 0) mark.store(0, std::memory_order_relaxed);
+      }
+    }
+  });
   // Rows in tiles of the normal grid (kTile × kTile nodes, tile by tile): a block of kBlock rows
   // then holds normals of a narrow cone, and the quadrature directions below every one of their
   // hemispheres drop out of its GEMM (see below). A row's E does not depend on its block.
@@ -172,7 +197,7 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
   irradiance_.assign(size_t(2 * Nn * 3 * P), 0.0f);
   const int64_t blocks = packed_kernel ? std::max<int64_t>(1, Nn / kBlock) : (Nn + kBlock - 1) / kBlock;
   const bool finite = std::all_of(lq.begin(), lq.end(), [](float v) { return std::isfinite(v); });
-  const std::vector<uint8_t> needed = origins ? needed_pairs(normals, *origins) : std::vector<uint8_t>{};
+  const std::vector<uint8_t> needed = origins ? needed_pairs(ntaps, *origins) : std::vector<uint8_t>{};
   // The quadrature directions axis by axis, so that the loop over them below runs in vector lanes.
   std::vector<float> qx(static_cast<size_t>(Q)), qy(static_cast<size_t>(Q)), qz(static_cast<size_t>(Q));
   for (int64_t q = 0; q < Q; ++q) {
@@ -300,24 +325,30 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
 
 // Per (normal node row, probe): 1 where irradiance(corners(origins[i]), normals[i]) reads it
 // with a non-zero weight, the reads of shade_foreground().
-std::vector<uint8_t> RadianceCache::needed_pairs(const std::vector<glm::vec3>& normals,
+std::vector<uint8_t> RadianceCache::needed_pairs(const std::vector<NormalTaps>& taps,
                                                  const std::vector<glm::vec3>& origins) const {
-  SL_CHECK(origins.size() == normals.size(), "RadianceCache: ", origins.size(), " origins for ", normals.size(),
+  SL_CHECK(origins.size() == taps.size(), "RadianceCache: ", origins.size(), " origins for ", taps.size(),
            " normals");
   const int64_t P = probes();
   std::vector<uint8_t> needed(size_t(touched_ * P), 0);
-  for (size_t i = 0; i < normals.size(); ++i) {
-    const glm::vec3& n = normals[i];
-    if (!all_finite(n) || !(glm::dot(n, n) > 0.0f)) continue;
-    const Corners at = corners(&origins[i][0]);
-    const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
-    for (int k = 0; k < 4; ++k) {
-      const int64_t row = node_row_[size_t(taps.index[k])];
-      if (row < 0 || taps.weight[k] == 0.0) continue;
-      for (int c = 0; c < 8; ++c)
-        if (at.weight[c] != 0.0f) needed[size_t(row * P + at.probe[c])] = 1;
+  // In parallel: every mark stores 1, so the result does not depend on the order (and a mark
+  // already made is not stored again, as in build_irradiance()).
+  parallel_for(int64_t(taps.size()), 1024, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) {
+      const NormalTaps& nt = taps[size_t(i)];
+      if (!nt.valid) continue;
+      const Corners at = corners(&origins[size_t(i)][0]);
+      for (int k = 0; k < 4; ++k) {
+        const int64_t row = node_row_[size_t(nt.index[k])];
+        if (row < 0 || !(nt.nonzero & (1u << k))) continue;
+        for (int c = 0; c < 8; ++c) {
+          if (at.weight[c] == 0.0f) continue;
+          std::atomic_ref<uint8_t> mark(needed[size_t(row * P + at.probe[c])]);
+          if (mark.load(std::memory_order_relaxed) == 0) mark.store(1, std::memory_order_relaxed);
+        }
+      }
     }
-  }
+  });
   return needed;
 }
 

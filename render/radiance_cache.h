@@ -86,7 +86,13 @@ class RadianceCache {
   glm::vec3 cached(const Corners& at, const equirect::UV& unit, const glm::vec3& sky) const;  // the probes' read
   bool exact_direction(const glm::vec3& sky) const { return exact_sky_ > 0.0f && std::max({sky.x, sky.y, sky.z}) > exact_sky_; }
   void probe_weights(const float* origin, int64_t probe[8], float w[8]) const;
-  std::vector<uint8_t> needed_pairs(const std::vector<glm::vec3>& normals, const std::vector<glm::vec3>& origins) const;
+  // A normal's four bilinear taps on the normal grid (wn_ × hn_): indices, and which weights are non-zero.
+  struct NormalTaps {
+    int32_t index[4];
+    uint8_t nonzero;  // bit k: weight[k] != 0
+    bool valid;       // a finite, non-zero normal
+  };
+  std::vector<uint8_t> needed_pairs(const std::vector<NormalTaps>& taps, const std::vector<glm::vec3>& origins) const;
   void dense_weights(const float* origin, int64_t probe[8], float w[8]) const;
   glm::vec3 probe(int64_t p) const;
 

@@ -18,6 +18,13 @@ namespace sl::render::insertion {
 namespace {
 
 // The k-th shadow direction of texel t and its weight cos/pdf (0 marks an unusable sample).
+// The weight cos θ / pdf of a shadow ray under the mixture of the cosine lobe (share c_cos) and
+// the sky's density env_pdf; 0 below the horizon or where the mixture has no density.
+inline double mixture_weight(double cos_t, double c_cos, double env_pdf) {
+  const double pdf = c_cos * std::max(0.0, cos_t) / kPi + (1.0 - c_cos) * env_pdf;
+  return (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0;
+}
+
 struct ShadowSampler {
   const InsertionOptions& opt;
   const EnvironmentMap& env_map;
@@ -49,8 +56,7 @@ struct ShadowSampler {
     if (!opt.importance_sampling) return {d, 1.0};  // w = π cancels
     const int N = opt.shadow_rays, n_cos = N / 2;
     const double c_cos = n_cos == 0 ? 0.5 : double(n_cos) / N;
-    const double cos_t = d.y, pdf = c_cos * std::max(0.0, cos_t) / kPi + (1.0 - c_cos) * env_pdf(env_map, opt, d);
-    return {d, (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0};
+    return {d, mixture_weight(d.y, c_cos, env_pdf(env_map, opt, d))};
   }
   // Inference with the radiance cache: operator() with the direction's panorama coordinates,
   // taken from the environment sample itself (no atan2/asin) when it is one.
@@ -73,9 +79,7 @@ struct ShadowSampler {
     } else {
       r.d = env_map.sample_bilinear_direction(sp.u.x, sp.u.y, r.unit);
     }
-    const double c_cos = double(n_cos) / N;
-    const double cos_t = r.d.y, pdf = c_cos * std::max(0.0, cos_t) / kPi + (1.0 - c_cos) * env_map.pdf_bilinear_unit(r.unit);
-    r.w = (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0;
+    r.w = mixture_weight(r.d.y, double(n_cos) / N, env_map.pdf_bilinear_unit(r.unit));
     return r;
   }
   // cached(t, k, rot) for every k < N into out[k], the sky's draws and all N densities each made
@@ -108,10 +112,7 @@ struct ShadowSampler {
     for (int k = 0; k < N; ++k) units[size_t(k)] = out[k].unit;
     env_map.pdf_bilinear_units(N, units.data(), nullptr, pe.data());
     const double c_cos = double(n_cos) / N;
-    for (int k = 0; k < N; ++k) {
-      const double cos_t = out[k].d.y, pdf = c_cos * std::max(0.0, cos_t) / kPi + (1.0 - c_cos) * pe[size_t(k)];
-      out[k].w = (cos_t > 0 && pdf > 0) ? cos_t / pdf : 0.0;
-    }
+    for (int k = 0; k < N; ++k) out[k].w = mixture_weight(out[k].d.y, c_cos, pe[size_t(k)]);
   }
 };
 

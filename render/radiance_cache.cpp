@@ -19,6 +19,20 @@
 
 namespace sl::render::insertion {
 
+namespace {
+
+// Stores `value` in a shared slot unless it already holds it. Parallel loops mark slots this way:
+// every writer stores the same value, so the result does not depend on the order or the thread
+// count, and a slot already marked is only read, so the threads share its line instead of taking
+// it from each other.
+template <class T>
+void mark(T& slot, T value) {
+  std::atomic_ref<T> ref(slot);
+  if (ref.load(std::memory_order_relaxed) != value) ref.store(value, std::memory_order_relaxed);
+}
+
+}  // namespace
+
 RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& opt, const EnvironmentMap& env_map,
               const glm::vec3& lo, const glm::vec3& hi, int max_xz, int max_y, double exact_sky,
               const std::vector<glm::vec3>* occupied, const RayMarcher* marcher)
@@ -45,10 +59,7 @@ RadianceCache::RadianceCache(const InsertionInputs& in, const InsertionOptions& 
         int64_t probe[8];
         float w[8];
         dense_weights(&(*occupied)[size_t(i)][0], probe, w);
-        for (int c = 0; c < 8; ++c) {
-          std::atomic_ref<int64_t> mark(slot_[size_t(probe[c])]);
-          if (mark.load(std::memory_order_relaxed) != 0) mark.store(0, std::memory_order_relaxed);
-        }
+        for (int c = 0; c < 8; ++c) mark(slot_[size_t(probe[c])], int64_t{0});
       }
     });
     for (int64_t j = 0; j < dense; ++j)
@@ -126,8 +137,7 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
       for (int k = 0; k < 4; ++k) {
         nt.index[k] = int32_t(taps.index[k]);
         if (taps.weight[k] != 0.0) nt.nonzero |= uint8_t(1u << k);
-        std::atomic_ref<int64_t> mark(node_row_[size_t(taps.index[k])]);
-        if (mark.load(std::memory_order_relaxed) != 0) mark.store(0, std::memory_order_relaxed);
+        mark(node_row_[size_t(taps.index[k])], int64_t{0});
       }
     }
   });
@@ -341,11 +351,8 @@ std::vector<uint8_t> RadianceCache::needed_pairs(const std::vector<NormalTaps>& 
       for (int k = 0; k < 4; ++k) {
         const int64_t row = node_row_[size_t(nt.index[k])];
         if (row < 0 || !(nt.nonzero & (1u << k))) continue;
-        for (int c = 0; c < 8; ++c) {
-          if (at.weight[c] == 0.0f) continue;
-          std::atomic_ref<uint8_t> mark(needed[size_t(row * P + at.probe[c])]);
-          if (mark.load(std::memory_order_relaxed) == 0) mark.store(1, std::memory_order_relaxed);
-        }
+        for (int c = 0; c < 8; ++c)
+          if (at.weight[c] != 0.0f) mark(needed[size_t(row * P + at.probe[c])], uint8_t{1});
       }
     }
   });

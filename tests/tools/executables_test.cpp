@@ -107,6 +107,19 @@ TEST(Executables, BenchCountsThatAreNotIntegersAreOneLineErrors) {
   }
 }
 
+// streetlight-bench sun-glare scores the detector on val, or on new crops of train (--score-split
+// train, its fit); the test split is never read: asking for it is a one-line error, exit 2.
+TEST(Executables, BenchSunGlareNeverScoresTheTestSplit) {
+  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
+  if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
+  const ProcessResult r = run(bench + " sun-glare --data d --split-file s.json --checkpoint c --score-split test");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_NE(r.out.find("--score-split"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("'test'"), std::string::npos) << r.out;
+}
+
 // gen-mesh --kind: the benchmark set's procedural meshes (tools/bench/procedural_mesh.h) are a
 // pure function of (kind, triangles, seed), reach the triangle target and overshoot it by at most
 // one part, and an unknown kind is a one-line error.

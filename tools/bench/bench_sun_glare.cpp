@@ -1,7 +1,8 @@
 // streetlight-bench sun-glare: trains the learned sun-glare detector (train/sun_glare.h) on crops of
 // the TRAIN split and scores it, beside the hand-made cue (data/visible_sun.h), on crops of the
 // VALIDATION split: how often it fires within 5° of a sun in view, how often it fires where no sun
-// is in view, at several thresholds. Test is never read.
+// is in view, at several thresholds. `--score-split train` scores on new crops of the training
+// panoramas instead (how well it fits what it learned from). Test is never read.
 //
 // Crops of the labelled LDR panoramas (256×128, horizontal fov uniform in [50°, 80°], roll 0,
 // resampled in linear radiance as the benchmark's crops are):
@@ -296,7 +297,7 @@ void score(train::SunGlareDetector& net, const std::vector<GlareCrop>& crops, co
 }
 
 int run_sun_glare(const std::vector<std::string>& args) {
-  std::string data_dir, split_file, hdr_dir, hdr_split, out, checkpoint;
+  std::string data_dir, split_file, hdr_dir, hdr_split, out, checkpoint, score_split = "val";
   int64_t steps = 3000, batch = 32, aimed = 8, near = 3, random = 6, hdr_crops = 16, width = 24;
   int64_t azimuth_bins = 0, azimuth_crops = 0;
   double lr = 2e-3, azimuth_loss = 1.0, azimuth_width = 20.0;
@@ -311,7 +312,8 @@ int run_sun_glare(const std::vector<std::string>& args) {
           "usage: streetlight-bench sun-glare --data DIR --split-file FILE [--hdr-data DIR --hdr-split-file FILE]\n"
           "                                  [--out CKPT | --checkpoint CKPT] [--steps N] [--batch B] [--lr X]\n"
           "                                  [--aimed K] [--near K] [--random K] [--hdr-crops K] [--width W]\n"
-          "                                  [--azimuth-bins A] [--azimuth-crops K] [--azimuth-loss X] [--azimuth-width DEG]\n\n"
+          "                                  [--azimuth-bins A] [--azimuth-crops K] [--azimuth-loss X] [--azimuth-width DEG]\n"
+          "                                  [--score-split val|train]\n\n"
           "Trains the learned sun-glare detector (train/sun_glare.h) on crops of the TRAIN split of the labelled\n"
           "LDR panoramas DIR: per panorama with a visible sun, --aimed crops aimed at it, --near just beside it and\n"
           "--random at random (defaults 8, 3, 6); --random crops of every other panorama; with --hdr-data, the\n"
@@ -319,8 +321,9 @@ int run_sun_glare(const std::vector<std::string>& args) {
           "--width, default 24). With --checkpoint it loads a saved detector instead (its width from the file).\n"
           "Then scores it beside the visible-sun disk test on the same kinds of crops of the VAL split, and on the\n"
           "benchmark's own val crops: fires within 5 and 10 degrees of a sun in view and false fires, at thresholds\n"
-          "0.5 to 0.99, alone and behind the disk test. Test is never read. scripts/train_sun_glare.sh has the\n"
-          "released detector's flags.\n\n"
+          "0.5 to 0.99, alone and behind the disk test. --score-split train scores on new crops of the TRAIN split\n"
+          "instead (how well it fits the panoramas it learned from). Test is never read. scripts/train_sun_glare.sh\n"
+          "has the released detector's flags.\n\n"
           "--azimuth-bins A (default 0: none) adds the azimuth head: where the sun is in azimuth, in view or not,\n"
           "trained on every crop whose sun position is known by cross-entropy (weight --azimuth-loss, default 1)\n"
           "against a Gaussian of --azimuth-width degrees (default 20), weighted by cos(elevation); --azimuth-crops K\n"
@@ -334,6 +337,11 @@ int run_sun_glare(const std::vector<std::string>& args) {
     else if (a == "--hdr-split-file") hdr_split = value();
     else if (a == "--out") out = value();
     else if (a == "--checkpoint") checkpoint = value();
+    else if (a == "--score-split") {
+      score_split = value();
+      SL_CHECK(score_split == "val" || score_split == "train", "sun-glare: --score-split must be val or train, got '",
+               score_split, "' (test is never read)");
+    }
     else if (a == "--steps") steps = cli::parse_integer("sun-glare: --steps", value(), 0, 10000000);
     else if (a == "--batch") batch = cli::parse_integer("sun-glare: --batch", value(), 1, 4096);
     else if (a == "--aimed") aimed = cli::parse_integer("sun-glare: --aimed", value(), 0, 256);
@@ -441,12 +449,13 @@ int run_sun_glare(const std::vector<std::string>& args) {
     nn::save_checkpoint(out, net, nullptr, {.stage = "sun_glare", .step = steps, .config_json = cfg.dump()});
     std::fprintf(stderr, "sun-glare: saved %s\n", out.c_str());
   }
-  // Validation.
-  score(net, panorama_crops(data_dir, labels, split_list(split_file, "val"), int(aimed), int(near), int(random), 0x76616cULL, true),
-        "val, generated crops (aimed, near, random)", stdout);
-  score(net, benchmark_crops(data_dir, split_file, "val", 8, true), "val, the benchmark's LDR crops (8 per panorama)", stdout);
+  // Validation (or, with --score-split train, new crops of the training panoramas: the seed differs from training's).
+  const std::string& sp = score_split;
+  score(net, panorama_crops(data_dir, labels, split_list(split_file, sp), int(aimed), int(near), int(random), 0x76616cULL, true),
+        (sp + ", generated crops (aimed, near, random)").c_str(), stdout);
+  score(net, benchmark_crops(data_dir, split_file, sp, 8, true), (sp + ", the benchmark's LDR crops (8 per panorama)").c_str(), stdout);
   if (!hdr_dir.empty())
-    score(net, benchmark_crops(hdr_dir, hdr_split, "val", 8, true), "val, the benchmark's HDR crops (8 per sky)", stdout);
+    score(net, benchmark_crops(hdr_dir, hdr_split, sp, 8, true), (sp + ", the benchmark's HDR crops (8 per sky)").c_str(), stdout);
   return 0;
 }
 

@@ -143,10 +143,11 @@ struct LightSampling {
 // sampling, one stratified set per pixel interleaved over its anti-aliasing samples. The BRDF's
 // value and density come with its sample (or from one evaluate()); the panorama coordinates with
 // the sky's sample, so the sky's density and the cache's read share them. The sky's directions
-// are drawn as one batch, then the sky's densities of all N rays as another (EnvironmentMap's
-// lanes: the same bits, without a chain of divisions and square roots per ray), and `finish`
-// takes each ray in order. cos(elevation) and the mixture are rounded per technique as the
-// one-ray-at-a-time code rounded them (render/insertion_mixture_pdf.h).
+// are drawn as one batch, the BRDF's directions' coordinates made as another, then the sky's
+// densities of all N rays as a third (lanes: the same bits as one at a time, without a chain of
+// divisions and square roots, or an atan2 and an asin, per ray), and `finish` takes each ray in
+// order. cos(elevation) and the mixture are rounded per technique as the one-ray-at-a-time code
+// rounded them (render/insertion_mixture_pdf.h).
 template <class Finish>
 void bilinear_light_rays(const LightSampling& sampling, const EnvironmentMap& env_map, const GSample& g,
                          const disney::Point& point, const SplitRotations& rotations, int aa, Finish&& finish) {
@@ -167,17 +168,21 @@ void bilinear_light_rays(const LightSampling& sampling, const EnvironmentMap& en
   ray_l.resize(size_t(N)), ray_b.resize(size_t(N)), ray_unit.resize(size_t(N)), ray_has_unit.resize(size_t(N));
   env_map.sample_bilinear_directions(int(sky_u1.size()), sky_u1.data(), sky_u2.data(), ray_l.data() + n_brdf,
                                      ray_unit.data() + n_brdf);
+  // The BRDF's draws (the first n_brdf), then their panorama coordinates as one batch.
+  for (int k = 0; k < n_brdf; ++k) {
+    const SplitSample& sp = splits[size_t(k)];
+    ray_b[size_t(k)] = disney::sample(point, sp.u.x, sp.u.y, uniform01f(sampling.choice_seed, g.stream, k + N));
+    ray_l[size_t(k)] = ray_b[size_t(k)].wi;
+  }
+  equirect::directions_to_units(n_brdf, ray_l.data(), ray_unit.data());
   // The densities' inputs, packed for the rays that have panorama coordinates.
   sky_unit.clear(), sky_cos.clear();
   for (int k = 0; k < N; ++k) {
     const SplitSample& sp = splits[size_t(k)];
-    glm::vec3& l = ray_l[size_t(k)];
+    const glm::vec3& l = ray_l[size_t(k)];
     bool have_unit = true;
     if (sp.technique == 0) {
-      ray_b[size_t(k)] = disney::sample(point, sp.u.x, sp.u.y, uniform01f(sampling.choice_seed, g.stream, k + N));
-      l = ray_b[size_t(k)].wi;
       have_unit = glm::dot(l, l) > 0.0f;
-      if (have_unit) ray_unit[size_t(k)] = equirect::direction_to_unit(l.x, l.y, l.z);  // l is unit
     } else {
       ray_b[size_t(k)] = disney::evaluate(point, l);
     }
@@ -235,7 +240,7 @@ void light_rays(const InsertionOptions& opt, const LightSampling& sampling, cons
     }
     ls[k] = l;
     ws[k] = w;
-    if (units) units[k] = have_unit ? unit : equirect::direction_to_uv(l.x, l.y, l.z, 1, 1);
+    if (units) units[k] = have_unit ? unit : equirect::direction_to_unit(l.x, l.y, l.z);
   };
   if (inference && opt.bilinear_env_sampling) {
     bilinear_light_rays(sampling, env_map, g, point, rotations, aa, finish);

@@ -69,22 +69,23 @@ struct ShadowSampler {
     const int N = opt.shadow_rays, n_cos = N / 2;
     if (!opt.importance_sampling || n_cos == 0 || !opt.bilinear_env_sampling) {
       const auto [d, w] = (*this)(t, k, rot);
-      return {d, w, equirect::direction_to_uv(d.x, d.y, d.z, 1, 1)};
+      return {d, w, equirect::direction_to_unit(d.x, d.y, d.z)};
     }
     const SplitSample sp = split_sample(rot, k, N, n_cos);
     Ray r;
     if (sp.technique == 0) {
       r.d = frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y));
-      r.unit = equirect::direction_to_uv(r.d.x, r.d.y, r.d.z, 1, 1);
+      r.unit = equirect::direction_to_unit(r.d.x, r.d.y, r.d.z);  // the bits of cached_all()'s batch
     } else {
       r.d = env_map.sample_bilinear_direction(sp.u.x, sp.u.y, r.unit);
     }
     r.w = mixture_weight(r.d.y, double(n_cos) / N, env_map.pdf_bilinear_unit(r.unit));
     return r;
   }
-  // cached(t, k, rot) for every k < N into out[k], the sky's draws and all N densities each made
-  // as one batch (EnvironmentMap's lanes: the same bits, without a chain of divisions and square
-  // roots per ray; the draws were 13% of the insertion under perf on an Intel Xeon).
+  // cached(t, k, rot) for every k < N into out[k], the cosine draws' panorama coordinates, the
+  // sky's draws and all N densities each made as one batch (lanes: the same bits as one at a
+  // time, without an atan2 and an asin, or a chain of divisions and square roots, per ray; the
+  // sky's draws were 13% of the insertion under perf on an Intel Xeon).
   void cached_all(int64_t t, const SplitRotations& rot, Ray* out) const {
     const int N = opt.shadow_rays, n_cos = N / 2;
     if (!opt.importance_sampling || n_cos == 0 || !opt.bilinear_env_sampling) {
@@ -92,21 +93,24 @@ struct ShadowSampler {
       return;
     }
     static thread_local std::vector<float> u1, u2, pe;
-    static thread_local std::vector<int> sky;
+    static thread_local std::vector<int> sky, cosine;
     static thread_local std::vector<glm::vec3> dirs;
     static thread_local std::vector<equirect::UV> units;
-    u1.clear(), u2.clear(), sky.clear();
+    u1.clear(), u2.clear(), sky.clear(), cosine.clear(), dirs.clear();
     for (int k = 0; k < N; ++k) {
       const SplitSample sp = split_sample(rot, k, N, n_cos);
       if (sp.technique == 0) {
         out[k].d = frame.to_world(cosine_hemisphere(sp.u.x, sp.u.y));
-        out[k].unit = equirect::direction_to_uv(out[k].d.x, out[k].d.y, out[k].d.z, 1, 1);
+        dirs.push_back(out[k].d), cosine.push_back(k);
       } else {
         u1.push_back(sp.u.x), u2.push_back(sp.u.y), sky.push_back(k);
       }
     }
-    const int n_sky = int(sky.size());
-    dirs.resize(size_t(n_sky)), units.resize(size_t(std::max(N, n_sky))), pe.resize(size_t(N));
+    const int n_sky = int(sky.size()), n_cosine = int(cosine.size());
+    units.resize(size_t(std::max({N, n_sky, n_cosine}))), pe.resize(size_t(N));
+    equirect::directions_to_units(n_cosine, dirs.data(), units.data());
+    for (int j = 0; j < n_cosine; ++j) out[cosine[size_t(j)]].unit = units[size_t(j)];
+    dirs.resize(size_t(n_sky));
     env_map.sample_bilinear_directions(n_sky, u1.data(), u2.data(), dirs.data(), units.data());
     for (int j = 0; j < n_sky; ++j) out[sky[size_t(j)]].d = dirs[size_t(j)], out[sky[size_t(j)]].unit = units[size_t(j)];
     for (int k = 0; k < N; ++k) units[size_t(k)] = out[k].unit;

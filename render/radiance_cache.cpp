@@ -121,19 +121,22 @@ void RadianceCache::build_irradiance(int hn, int supersample, const std::vector<
   const int64_t Q = int64_t(hq) * wq, P = probes(), D = int64_t(H_) * W_;
   node_row_.assign(size_t(hn_) * wn_, -1);
   SL_CHECK(int64_t(hn_) * wn_ <= INT32_MAX, "RadianceCache: normal grid ", wn_, "x", hn_, " is too large");
-  // Each normal's taps once (an atan2 and an asin), in parallel; they mark the touched nodes
-  // here and the (node, probe) pairs in needed_pairs(). Every mark stores the same value, so the
-  // marks do not depend on the order or the thread count (a mark already made is not stored
-  // again: the threads then share the marked lines instead of taking them from each other).
+  // Each normal's taps once (its panorama coordinates a batch per chunk: the bits irradiance()
+  // reads them with), in parallel; they mark the touched nodes here and the (node, probe) pairs
+  // in needed_pairs(). Every mark stores the same value, so the marks do not depend on the order
+  // or the thread count (a mark already made is not stored again: the threads then share the
+  // marked lines instead of taking them from each other).
   std::vector<NormalTaps> ntaps(normals.size());
   parallel_for(int64_t(normals.size()), 1024, [&](int64_t b, int64_t e) {
+    std::vector<equirect::UV> units(size_t(e - b));
+    equirect::directions_to_units(int(e - b), &normals[size_t(b)], units.data());
     for (int64_t i = b; i < e; ++i) {
       const glm::vec3& n = normals[size_t(i)];
       NormalTaps& nt = ntaps[size_t(i)];
       nt.valid = all_finite(n) && glm::dot(n, n) > 0.0f;
       nt.nonzero = 0;
       if (!nt.valid) continue;
-      const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
+      const EnvTaps taps = env_bilinear_taps_unit(units[size_t(i - b)], wn_, hn_);
       for (int k = 0; k < 4; ++k) {
         nt.index[k] = int32_t(taps.index[k]);
         if (taps.weight[k] != 0.0) nt.nonzero |= uint8_t(1u << k);
@@ -370,7 +373,7 @@ RadianceCache::Irradiance RadianceCache::irradiance(const Corners& at, const glm
   if (irradiance_.empty() || !all_finite(n) || !(glm::dot(n, n) > 0.0f)) return out;
   const int64_t* probe = at.probe;
   const float* wp = at.weight;
-  const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_uv(n.x, n.y, n.z, 1, 1), wn_, hn_);
+  const EnvTaps taps = env_bilinear_taps_unit(equirect::direction_to_unit(n.x, n.y, n.z), wn_, hn_);  // as marked
   const int64_t P = probes();
   for (int k = 0; k < 4; ++k) {
     const int64_t row = node_row_[size_t(taps.index[k])];
@@ -390,7 +393,7 @@ RadianceCache::Irradiance RadianceCache::irradiance(const Corners& at, const glm
 glm::vec3 RadianceCache::radiance(const float* origin, const float* dir) const {
   const glm::vec3 l(dir[0], dir[1], dir[2]);
   if (!(glm::dot(l, l) > 0.0f) || !all_finite(l)) return glm::vec3(0.0f);
-  return radiance_unit(origin, equirect::direction_to_uv(l.x, l.y, l.z, 1, 1));  // one atan2/asin for both maps
+  return radiance_unit(origin, equirect::direction_to_unit(l.x, l.y, l.z));  // one conversion for both maps
 }
 
 RadianceCache::Corners RadianceCache::corners(const float* origin) const {

@@ -2,9 +2,9 @@
 //
 // direction_to_uv spends an asin and an atan2 of libm per direction; the insertion's inner loops
 // convert millions (the shadow rays' cosine draws, the light rays' BRDF draws, the control
-// variate's normals), and under perf on an Intel Xeon the two were 4.3% of the cycles of
-// streetlight-bench insert --size kitti (1 thread). Here both angles are one arctangent of a
-// ratio in [0, 1]:
+// variate's normals, the ray marcher's sky lookups), and under perf on an Intel Xeon the two were
+// 4.3% of the cycles of streetlight-bench insert --size kitti (1 thread). Here both angles are
+// one arctangent of a ratio in [0, 1]:
 //   θ = atan2(y, √(x² + z²)),  φ = atan2(x, −z),
 // each reduced the way atan2 is (t = min/max of the two magnitudes, then π/2 − ·, π − · and the
 // sign), with atan(t) = t·P(t²) the minimax polynomial of scripts/fit_atan_poly.py (11 terms,

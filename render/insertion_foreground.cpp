@@ -219,6 +219,9 @@ void light_rays(const InsertionOptions& opt, const LightSampling& sampling, cons
   const int aa = opt.stratify_per_pixel ? opt.aa_samples : 1;
   const disney::Point point = inference ? disney::point(g.material, g.n, g.wo) : disney::Point{};
   const SplitRotations rotations = inference ? split_rotations(rot_seed, g.stream / uint64_t(aa)) : SplitRotations{};
+  // A failed ray's panorama coordinates are the normal's: made once, at the sample's first.
+  equirect::UV normal_unit{};
+  bool have_normal_unit = false;
   // One light ray's tail: its weight, the self-occlusion test, and the three outputs.
   auto finish = [&](int k, glm::vec3 l, const glm::vec3& f, bool have_f, float pdf, equirect::UV unit,
                     bool have_unit) {
@@ -235,7 +238,8 @@ void light_rays(const InsertionOptions& opt, const LightSampling& sampling, cons
       if (cv && all_finite(w)) w -= cv->c * ((1.0f + cv->kappa * disney::schlick_weight(cos_l)) * cos_l / pdf * norm);
     } else {
       l = g.n;
-      have_unit = false;
+      if (units && !have_normal_unit) normal_unit = equirect::direction_to_unit(l.x, l.y, l.z), have_normal_unit = true;
+      unit = normal_unit, have_unit = true;
       if (full) full[k] = glm::vec3(0.0f);
     }
     ls[k] = l;

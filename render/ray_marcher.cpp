@@ -82,7 +82,8 @@ void RayMarcher::operator()(int64_t n, const float* origins, const float* dirs, 
 
 #if defined(__AVX512F__)
 // 16 rays in the lanes of AVX-512 registers. Each ray's prefix (validity, L_env, clip, sample
-// voxels) is march_prefix(), as in march(); then per sample k, all lanes at once: α from the
+// voxels) is march_prefix(), as in march(), L_env's panorama coordinates converted for the 16 as
+// one batch (the same bits); then per sample k, all lanes at once: α from the
 // sample's voxel, the lobe's exponent, e = vm::exp of all of them, and the sums of composite()
 // with march()'s pruning and stop as lane masks. Every lane performs march()'s and composite()'s
 // operations on its ray in their order (the same FMAs), so the bits are RayMarcher's
@@ -112,11 +113,15 @@ void RayMarcher::march_lanes(int64_t n, const float* origins, const float* dirs,
   for (int64_t g0 = 0; g0 < n; g0 += kLanes) {
     const int lanes = int(std::min<int64_t>(kLanes, n - g0));
     alignas(64) float v[3][kLanes] = {}, sky[3][kLanes] = {}, stop[kLanes] = {};
+    glm::vec3 l[kLanes];
+    equirect::UV unit[kLanes];
+    for (int j = 0; j < lanes; ++j) l[j] = glm::vec3(dirs[3 * (g0 + j)], dirs[3 * (g0 + j) + 1], dirs[3 * (g0 + j) + 2]);
+    equirect::directions_to_units(lanes, l, unit);
     __mmask16 live = 0;
     for (int j = 0; j < kLanes; ++j) {
       const int64_t i = g0 + j;
       float s = 0;
-      if (j < lanes && march_prefix(geo, grid_, *proj_, opt_, env, origins + 3 * i, dirs + 3 * i, m, s)) {
+      if (j < lanes && march_prefix(geo, grid_, *proj_, opt_, env, origins + 3 * i, dirs + 3 * i, m, s, &unit[j])) {
         live = __mmask16(live | (1u << j));
         for (int c = 0; c < 3; ++c) {
           v[c][j] = -m.dir[c];

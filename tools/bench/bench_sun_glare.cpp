@@ -75,9 +75,43 @@ void set_azimuth(GlareCrop& g, double label_weight) {
   g.azimuth_weight = label_weight * std::sqrt(std::max(0.0, 1.0 - std::clamp(c.y, -1.0, 1.0) * std::clamp(c.y, -1.0, 1.0)));
 }
 
-GlareCrop make_crop(const data::PerspectiveCrop& crop, bool visible, const glm::dvec3& sun, bool keep_ldr) {
+// Photometric jitter of a training crop (--jitter-*): the crops are drawn once, so each gets its own
+// camera: exposure 2^s, white-balance gains 2^u_c (scaled so grey keeps its Rec. 709 luminance) and a
+// tone curve v^(2^t), with s, u_c, t uniform in ±stops. Applied to the LDR crop in linear radiance
+// (v^2.2); a pixel clipped in every channel (≥ 0.98, as data/visible_sun.h) stays as it is, since a
+// sun's core clips under any exposure a street photo would use.
+struct Jitter {
+  double exposure = 0.0, white_balance = 0.0, tone = 0.0;
+  bool on() const { return exposure > 0.0 || white_balance > 0.0 || tone > 0.0; }
+};
+
+Tensor jitter_ldr(const Tensor& ldr, const Jitter& j, uint64_t seed) {
+  if (!j.on()) return ldr;
+  auto draw = [&](uint64_t k, double stops) { return stops * (2.0 * uniform01(seed, k, 0) - 1.0); };
+  double gain[3];
+  for (int c = 0; c < 3; ++c) gain[c] = std::exp2(draw(uint64_t(c), j.white_balance));
+  const double grey = luminance(gain[0], gain[1], gain[2]), exposure = std::exp2(draw(3, j.exposure));
+  const float tone = float(std::exp2(draw(4, j.tone)));
+  float g[3];
+  for (int c = 0; c < 3; ++c) g[c] = float(exposure * gain[c] / grey);
+  Tensor out = ldr.contiguous().clone();
+  float* v = out.data<float>();
+  const int64_t n = out.size(1) * out.size(2);
+  for (int64_t i = 0; i < n; ++i) {
+    if (v[i] >= 0.98f && v[n + i] >= 0.98f && v[2 * n + i] >= 0.98f) continue;
+    for (int c = 0; c < 3; ++c) {
+      float& x = v[c * n + i];
+      const float lin = std::pow(std::max(x, 0.0f), float(kLdrGamma)) * g[c];
+      x = std::pow(std::min(1.0f, std::pow(lin, 1.0f / float(kLdrGamma))), tone);
+    }
+  }
+  return out;
+}
+
+GlareCrop make_crop(const data::PerspectiveCrop& crop, bool visible, const glm::dvec3& sun, bool keep_ldr,
+                    const Jitter& jitter = {}, uint64_t jitter_seed = 0) {
   GlareCrop g;
-  const Tensor ldr = data::to_ldr(crop.image, 1.0).contiguous();
+  const Tensor ldr = jitter_ldr(data::to_ldr(crop.image, 1.0).contiguous(), jitter, jitter_seed);
   g.input = train::glare_input(ldr);
   if (keep_ldr) g.ldr = ldr;
   g.camera = crop.camera;
@@ -91,7 +125,7 @@ GlareCrop make_crop(const data::PerspectiveCrop& crop, bool visible, const glm::
 
 std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLabels& labels,
                                       const std::vector<std::string>& names, int aimed, int near, int random,
-                                      uint64_t seed, bool keep_ldr, int azimuth_crops = 0) {
+                                      uint64_t seed, bool keep_ldr, int azimuth_crops = 0, const Jitter& jitter = {}) {
   std::vector<std::vector<GlareCrop>> per(names.size());
 #pragma omp parallel for schedule(dynamic, 1)
   for (int64_t i = 0; i < int64_t(names.size()); ++i) {
@@ -120,25 +154,25 @@ std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLab
     if (visible) {
       for (int a = 0; a < aimed; ++a, ++k) {
         const auto cp = params(0.8 * (2.0 * uniform01(s, uint64_t(k), 1) - 1.0), 0.8 * (2.0 * uniform01(s, uint64_t(k), 2) - 1.0), true);
-        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr));
+        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr, jitter, hash_counter(s, uint64_t(k), 7)));
         per[size_t(i)].back().weight = w;
       }
       for (int a = 0; a < near; ++a, ++k) {
         const double side = uniform01(s, uint64_t(k), 3) < 0.5 ? -1.0 : 1.0;
         const auto cp = params(side * (1.1 + 0.5 * uniform01(s, uint64_t(k), 1)), 0.6 * (2.0 * uniform01(s, uint64_t(k), 2) - 1.0), true);
-        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr));
+        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr, jitter, hash_counter(s, uint64_t(k), 7)));
       }
     }
     for (int a = 0; a < random; ++a, ++k) {
       const auto cp = params(0, 0, false);
-      per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), visible, d, keep_ldr));
+      per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), visible, d, keep_ldr, jitter, hash_counter(s, uint64_t(k), 7)));
       if (per[size_t(i)].back().sun_pixel) per[size_t(i)].back().weight = w;
     }
     // More random crops where the sun's position is known, for the azimuth head.
     if (l->has_position)
       for (int a = 0; a < azimuth_crops; ++a, ++k) {
         const auto cp = params(0, 0, false);
-        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), visible, d, keep_ldr));
+        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), visible, d, keep_ldr, jitter, hash_counter(s, uint64_t(k), 7)));
         if (per[size_t(i)].back().sun_pixel) per[size_t(i)].back().weight = w;
       }
     // The azimuth head learns from the random crops only: the aimed and near crops all face the
@@ -154,7 +188,7 @@ std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLab
 
 // The benchmark's own crops of a folder's split (LDR panoramas or HDR skies).
 std::vector<GlareCrop> benchmark_crops(const std::string& dir, const std::string& split_file, const std::string& split,
-                                       int crops, bool keep_ldr) {
+                                       int crops, bool keep_ldr, const Jitter& jitter = {}) {
   const bool ldr = train::is_ldr_panorama_folder(dir);
   const train::RealSkyFolder f =
       ldr ? train::load_ldr_panorama_folder(dir, (std::filesystem::path(dir) / "sun_labels.csv").string(), split_file, split, crops)
@@ -164,7 +198,7 @@ std::vector<GlareCrop> benchmark_crops(const std::string& dir, const std::string
     if (c.sample.views.empty()) continue;
     const data::StreetView& v = c.sample.views[0];
     GlareCrop g;
-    g.input = train::glare_input(v.ldr);
+    g.input = train::glare_input(jitter_ldr(v.ldr, jitter, hash_counter(0x6a6974746572ULL, uint64_t(out.size()), 0)));
     if (keep_ldr) g.ldr = v.ldr;
     g.camera = v.camera;
     g.sun = c.sample.sun_direction;
@@ -301,6 +335,7 @@ int run_sun_glare(const std::vector<std::string>& args) {
   int64_t steps = 3000, batch = 32, aimed = 8, near = 3, random = 6, hdr_crops = 16, width = 24;
   int64_t azimuth_bins = 0, azimuth_crops = 0;
   double lr = 2e-3, azimuth_loss = 1.0, azimuth_width = 20.0;
+  Jitter jitter;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     auto value = [&]() -> std::string {
@@ -313,7 +348,8 @@ int run_sun_glare(const std::vector<std::string>& args) {
           "                                  [--out CKPT | --checkpoint CKPT] [--steps N] [--batch B] [--lr X]\n"
           "                                  [--aimed K] [--near K] [--random K] [--hdr-crops K] [--width W]\n"
           "                                  [--azimuth-bins A] [--azimuth-crops K] [--azimuth-loss X] [--azimuth-width DEG]\n"
-          "                                  [--score-split val|train]\n\n"
+          "                                  [--score-split val|train] [--jitter-exposure S] [--jitter-white-balance S]\n"
+          "                                  [--jitter-tone S]\n\n"
           "Trains the learned sun-glare detector (train/sun_glare.h) on crops of the TRAIN split of the labelled\n"
           "LDR panoramas DIR: per panorama with a visible sun, --aimed crops aimed at it, --near just beside it and\n"
           "--random at random (defaults 8, 3, 6); --random crops of every other panorama; with --hdr-data, the\n"
@@ -328,7 +364,9 @@ int run_sun_glare(const std::vector<std::string>& args) {
           "trained on every crop whose sun position is known by cross-entropy (weight --azimuth-loss, default 1)\n"
           "against a Gaussian of --azimuth-width degrees (default 20), weighted by cos(elevation); --azimuth-crops K\n"
           "more random crops of each panorama with a known sun (default 0). Its score: the share of val crops put in\n"
-          "the right half (in front of the camera or behind it) and the median azimuth error of its mode.\n");
+          "the right half (in front of the camera or behind it) and the median azimuth error of its mode.\n\n"
+          "--jitter-exposure, --jitter-white-balance, --jitter-tone S (stops, default 0: off) give each training crop\n"
+          "its own exposure, white balance and tone curve, uniform in ±S (pixels clipped in every channel kept).\n");
       return 0;
     }
     if (a == "--data") data_dir = value();
@@ -358,6 +396,14 @@ int run_sun_glare(const std::vector<std::string>& args) {
       SL_CHECK(end && *end == '\0' && std::isfinite(x) && x > 0.0, "sun-glare: ", a, " must be a positive number, got '", v, "'");
       (a == "--azimuth-loss" ? azimuth_loss : azimuth_width) = x;
     }
+    else if (a == "--jitter-exposure" || a == "--jitter-white-balance" || a == "--jitter-tone") {
+      const std::string v = value();
+      char* end = nullptr;
+      const double x = std::strtod(v.c_str(), &end);
+      SL_CHECK(end && *end == '\0' && std::isfinite(x) && x >= 0.0 && x <= 4.0, "sun-glare: ", a,
+               " must be a number of stops in [0, 4], got '", v, "'");
+      (a == "--jitter-exposure" ? jitter.exposure : a == "--jitter-tone" ? jitter.tone : jitter.white_balance) = x;
+    }
     else if (a == "--lr") {
       const std::string v = value();
       char* end = nullptr;
@@ -380,9 +426,9 @@ int run_sun_glare(const std::vector<std::string>& args) {
     auto t0 = std::chrono::steady_clock::now();
     std::vector<GlareCrop> crops =
         panorama_crops(data_dir, labels, split_list(split_file, "train"), int(aimed), int(near), int(random), 0x676c617265ULL, false,
-                       int(azimuth_crops));
+                       int(azimuth_crops), jitter);
     if (!hdr_dir.empty())
-      for (GlareCrop& c : benchmark_crops(hdr_dir, hdr_split, "train", int(hdr_crops), false)) crops.push_back(std::move(c));
+      for (GlareCrop& c : benchmark_crops(hdr_dir, hdr_split, "train", int(hdr_crops), false, jitter)) crops.push_back(std::move(c));
     int pos = 0;
     for (const GlareCrop& c : crops) pos += bool(c.sun_pixel);
     std::fprintf(stderr, "sun-glare: %zu training crops (%d with the sun in view) in %.0f s\n", crops.size(), pos,
@@ -440,6 +486,7 @@ int run_sun_glare(const std::vector<std::string>& args) {
     }
     nlohmann::json cfg = {{"width", width}, {"steps", steps}, {"batch", batch}, {"lr", lr}, {"aimed", aimed},
                           {"near", near}, {"random", random}, {"hdr_crops", hdr_dir.empty() ? 0 : hdr_crops}};
+    if (jitter.on()) cfg["jitter"] = {{"exposure", jitter.exposure}, {"white_balance", jitter.white_balance}, {"tone", jitter.tone}};
     if (azimuth_bins > 0) {
       cfg["azimuth_bins"] = azimuth_bins;
       cfg["azimuth_crops"] = azimuth_crops;

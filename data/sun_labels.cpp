@@ -8,76 +8,13 @@
 #include <set>
 #include <sstream>
 
+#include "data/csv.h"
 #include "render/equirect.h"
 #include "util/error.h"
 
 namespace sl::data {
 
 namespace {
-
-struct Record {
-  std::vector<std::string> fields;
-  int line = 0;  // first line of the record
-};
-
-// RFC 4180: splits `text` into records of fields. Quotes only open a field at its start; inside
-// one, "" is a literal quote and commas and line breaks are data.
-std::vector<Record> parse_csv(const std::string& text, const std::string& path) {
-  std::vector<Record> out;
-  Record rec;
-  std::string field;
-  bool in_quotes = false, field_started = false, quoted_field = false;
-  int line = 1, quote_line = 0;
-  rec.line = 1;
-  auto end_field = [&] {
-    rec.fields.push_back(field);
-    field.clear();
-    field_started = quoted_field = false;
-  };
-  auto end_record = [&](int next_line) {
-    end_field();
-    // A blank line is one empty unquoted field: skip it.
-    if (!(rec.fields.size() == 1 && rec.fields[0].empty())) out.push_back(rec);
-    rec = Record{};
-    rec.line = next_line;
-  };
-  for (size_t i = 0; i < text.size(); ++i) {
-    const char c = text[i];
-    if (in_quotes) {
-      if (c == '"') {
-        if (i + 1 < text.size() && text[i + 1] == '"') {
-          field += '"';
-          ++i;
-        } else {
-          in_quotes = false;
-        }
-      } else {
-        if (c == '\n') ++line;
-        field += c;
-      }
-      continue;
-    }
-    if (c == '"' && !field_started) {
-      in_quotes = quoted_field = field_started = true;
-      quote_line = line;
-    } else if (c == ',') {
-      end_field();
-    } else if (c == '\r' && i + 1 < text.size() && text[i + 1] == '\n') {
-      // CRLF: the \n ends the record.
-    } else if (c == '\n') {
-      ++line;
-      end_record(line);
-    } else {
-      SL_CHECK(!quoted_field, "sun labels '", path, ":", line, "': text after a closing quote (a quote inside a quoted "
-               "field must be doubled)");
-      field += c;
-      field_started = true;
-    }
-  }
-  SL_CHECK(!in_quotes, "sun labels '", path, ":", quote_line, "': a quoted field is never closed");
-  if (field_started || !rec.fields.empty()) end_record(line);
-  return out;
-}
 
 // A value as shown in a message: on one line (a quoted field may hold line breaks).
 std::string shown(std::string v) {
@@ -135,10 +72,10 @@ SunLabels read_sun_labels(const std::string& path, int frame_width, int frame_he
   SL_CHECK(in.good(), "sun labels '", path, "' cannot be opened");
   std::ostringstream ss;
   ss << in.rdbuf();
-  const std::vector<Record> recs = parse_csv(ss.str(), path);
+  const std::vector<CsvRecord> recs = parse_csv(ss.str(), "sun labels", path);
   SL_CHECK(!recs.empty(), "sun labels '", path, ":1': the file is empty (expected the header ",
            "file,sun,u,v,confidence,scene,note)");
-  const Record& header = recs[0];
+  const CsvRecord& header = recs[0];
   std::map<std::string, size_t> col;
   for (size_t i = 0; i < header.fields.size(); ++i) col.emplace(header.fields[i], i);
   for (const char* need : {"file", "sun", "u", "v", "confidence", "scene"})
@@ -158,7 +95,7 @@ SunLabels read_sun_labels(const std::string& path, int frame_width, int frame_he
   out.frame_height = frame_height;
   std::set<std::string> seen;
   for (size_t r = 1; r < recs.size(); ++r) {
-    const Record& rec = recs[r];
+    const CsvRecord& rec = recs[r];
     const std::string where = cat(path, ":", rec.line);
     if (rec.fields.size() < header.fields.size())
       fail("sun labels '", where, "': missing column '", header.fields[rec.fields.size()], "' (", rec.fields.size(),

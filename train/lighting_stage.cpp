@@ -573,7 +573,8 @@ std::unique_ptr<Stage> make_lighting_stage(const nlohmann::json& config) {
     SL_CHECK(!paths.empty(), "data.ldr_fraction > 0 but no LDR panoramas were found (data.ldr_dir, data.ldr_split)");
     train = mixed_source(std::move(train),
                          ldr_panorama_source(paths, configured_ldr_labels(config), ro, seed, paths.size(), true,
-                                             static_cast<int>(d.value("ldr_working_width", int64_t{1024}))),
+                                             static_cast<int>(d.value("ldr_working_width", int64_t{1024})),
+                                             configured_ldr_place_balance(config, paths)),
                          ldr);
   }
   // Validation: real crops of the validation panoramas whenever a split names them (also in a

@@ -13,9 +13,11 @@
 #include "data/hdri_split.h"
 #include "data/image_io.h"
 #include "data/panorama.h"
+#include "data/places.h"
 #include "data/sun_labels.h"
 #include "util/error.h"
 #include "util/file_kind.h"
+#include "util/random.h"
 
 using sl::data::HdriFolder;
 using sl::data::panorama_street_sample;
@@ -60,6 +62,9 @@ struct PanoramaDraw {
   size_t panorama;
   uint64_t stream;
 };
+// The random stream of a place-balanced draw's panorama (apart from the crop's own streams).
+constexpr uint64_t kPlaceStream = 0x706c616365ULL;  // "place"
+
 PanoramaDraw panorama_draw(size_t i, uint64_t draw, bool vary_with_draw, size_t n, size_t per) {
   if (vary_with_draw) return {i % n, draw};
   return {std::min(i / per, n - 1), static_cast<uint64_t>(i)};
@@ -109,13 +114,21 @@ SampleSource panorama_source(const std::vector<std::string>& paths, const Panora
 
 SampleSource ldr_panorama_source(const std::vector<std::string>& paths, const std::string& labels_path,
                                  const PanoramaSampleOptions& options, uint64_t seed, size_t items, bool vary_with_draw,
-                                 int working_width) {
+                                 int working_width, const LdrPlaceBalance& balance) {
   SL_CHECK(!paths.empty(), "ldr_panorama_source: no panoramas");
   SL_CHECK(working_width >= 2 && working_width % 2 == 0, "ldr_panorama_source: working width must be even, got ",
            working_width);
   const data::SunLabels labels = data::read_sun_labels(labels_path);
-  std::vector<std::string> sorted = paths;
-  std::sort(sorted.begin(), sorted.end());
+  SL_CHECK(balance.exponent == 1.0 || balance.places.size() == paths.size(), "ldr_panorama_source: ",
+           balance.places.size(), " places for ", paths.size(), " panoramas");
+  std::vector<size_t> order(paths.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return paths[a] < paths[b]; });
+  std::vector<std::string> sorted, sorted_places;
+  for (size_t i : order) {
+    sorted.push_back(paths[i]);
+    if (balance.exponent != 1.0) sorted_places.push_back(balance.places[i]);
+  }
   auto panos = std::make_shared<std::vector<data::LdrPanorama>>();
   auto names = std::make_shared<std::vector<std::string>>();
   for (const std::string& path : sorted) {
@@ -140,8 +153,15 @@ SampleSource ldr_panorama_source(const std::vector<std::string>& paths, const st
   }
   const size_t n = panos->size();
   const size_t per = std::max<size_t>(1, items / n);
-  return SampleSource{items, [panos, names, options, seed, vary_with_draw, n, per](size_t i, uint64_t draw) {
-                        const auto [k, stream] = panorama_draw(i, draw, vary_with_draw, n, per);
+  // Place balance: the cumulative weights of the panoramas (sorted order), empty when off.
+  std::vector<double> cumulative;
+  if (balance.exponent != 1.0 && vary_with_draw) {
+    cumulative = data::place_balanced_weights(sorted_places, balance.exponent);
+    for (size_t k = 1; k < cumulative.size(); ++k) cumulative[k] += cumulative[k - 1];
+  }
+  return SampleSource{items, [panos, names, options, seed, vary_with_draw, n, per, cumulative](size_t i, uint64_t draw) {
+                        auto [k, stream] = panorama_draw(i, draw, vary_with_draw, n, per);
+                        if (!cumulative.empty()) k = data::pick_weighted(cumulative, uniform01(seed, kPlaceStream, draw));
                         return data::ldr_panorama_street_sample((*panos)[k], "ldr:" + (*names)[k] + "#" + std::to_string(stream),
                                                                 seed, stream, options);
                       }};
@@ -182,6 +202,23 @@ std::string configured_ldr_labels(const nlohmann::json& config) {
   const std::string labels = d.value("ldr_labels", std::string());
   if (!labels.empty()) return labels;
   return (std::filesystem::path(d.value("ldr_dir", std::string())) / "sun_labels.csv").string();
+}
+
+LdrPlaceBalance configured_ldr_place_balance(const nlohmann::json& config, const std::vector<std::string>& paths) {
+  const auto& d = config.at("data");
+  LdrPlaceBalance b;
+  b.exponent = d.value("ldr_place_balance", 1.0);
+  if (b.exponent == 1.0) return b;
+  std::string table = d.value("ldr_places", std::string());
+  data::Places places;
+  if (!table.empty()) {
+    places = data::read_places(table);
+  } else {
+    table = (std::filesystem::path(d.value("ldr_dir", std::string())) / "places.csv").string();
+    if (std::filesystem::exists(table)) places = data::read_places(table);
+  }
+  for (const auto& p : paths) b.places.push_back(places.place_of(std::filesystem::path(p).filename().string()));
+  return b;
 }
 
 SampleSource concat_sources(SampleSource a, SampleSource b) {

@@ -62,9 +62,25 @@ SampleSource panorama_source(const std::vector<std::string>& paths, const data::
 // 522 training panoramas of configs/pano_ldr_split.json take 7.7 GB at 1024 and 1.9 GB at 512
 // (data.ldr_working_width; the real-sky benchmark always reads at 1024). A sample's low-confidence
 // label weighs options.low_label_weight (StreetSample::sun_weight).
+//
+// Place balance (data.ldr_place_balance, data/places.h): with balance.exponent < 1, a training
+// draw (vary_with_draw) picks its panorama at random, a pure function of (seed, draw), with the
+// weights place_balanced_weights gives the panoramas' places (balance.places, one per path in
+// the order of `paths`), instead of cycling through them: a place of m panoramas gets a share
+// proportional to m^exponent. Exponent 1 (the default) leaves the cycle as it was, bit for bit.
+// Fixed sets ignore it.
+struct LdrPlaceBalance {
+  double exponent = 1.0;
+  std::vector<std::string> places;  // one per path; needed when exponent < 1
+};
 SampleSource ldr_panorama_source(const std::vector<std::string>& paths, const std::string& labels_path,
                                  const data::PanoramaSampleOptions& options, uint64_t seed, size_t items,
-                                 bool vary_with_draw, int working_width = 1024);
+                                 bool vary_with_draw, int working_width = 1024, const LdrPlaceBalance& balance = {});
+
+// The places of `paths` (file names looked up in data.ldr_places, or places.csv beside the
+// images when that key is empty; a missing default table leaves every file to its repository
+// prefix, data/places.h), and the balance data.ldr_place_balance asks for.
+LdrPlaceBalance configured_ldr_place_balance(const nlohmann::json& config, const std::vector<std::string>& paths);
 
 SampleSource mixed_source(SampleSource a, SampleSource b, double fraction_b);
 

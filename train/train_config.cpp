@@ -44,6 +44,8 @@ json default_train_config() {
         {"ldr_fraction", 0.0},
         {"ldr_val_crops", 4},
         {"ldr_low_label_weight", 1.0},
+        {"ldr_place_balance", 1.0},
+        {"ldr_places", ""},
         {"real_tone_stops", 0.0},
         {"sun_aim_share", 0.0},
         {"ldr_working_width", 1024},
@@ -214,6 +216,9 @@ void check_train_config(const json& c) {
   SL_CHECK(std::isfinite(tone) && tone >= 0 && tone <= 2, "data.real_tone_stops must lie in [0, 2], got ", tone);
   const double aim = c.at("data").at("sun_aim_share").get<double>();
   SL_CHECK(std::isfinite(aim) && aim >= 0 && aim <= 1, "data.sun_aim_share must lie in [0, 1], got ", aim);
+  const double balance = c.at("data").at("ldr_place_balance").get<double>();
+  SL_CHECK(std::isfinite(balance) && balance >= 0 && balance <= 1, "data.ldr_place_balance must lie in [0, 1], got ",
+           balance);
   const double low = c.at("data").at("ldr_low_label_weight").get<double>();
   SL_CHECK(std::isfinite(low) && low >= 0 && low <= 1, "data.ldr_low_label_weight must lie in [0, 1], got ", low);
   const double width = c.at("loss").at("sun_distribution_width_deg").get<double>();

@@ -3,6 +3,7 @@
 // accepts them, every file of each folder is in exactly one split, and the places MANIFEST.md
 // names never straddle two splits.
 #include "data/hdri_split.h"
+#include "data/places.h"
 
 #include <gtest/gtest.h>
 
@@ -147,22 +148,10 @@ std::map<std::string, std::set<std::string>> first_split_places(const std::map<s
   return places;
 }
 
-// places.csv (file,place) of the panoramas added on 2026-11-28: place → files.
+// places.csv (file,place) of the panoramas added on 2026-11-28, read by data/places.h: place → files.
 std::map<std::string, std::set<std::string>> read_places(const std::string& path) {
   std::map<std::string, std::set<std::string>> places;
-  std::ifstream in(path);
-  std::string line;
-  std::getline(in, line);
-  if (!line.empty() && line.back() == '\r') line.pop_back();  // the file has CRLF line ends
-  EXPECT_EQ(line, "file,place") << path;
-  while (std::getline(in, line)) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    const size_t comma = line.find(',');
-    if (comma == std::string::npos) continue;
-    std::string place = line.substr(comma + 1);
-    if (place.size() >= 2 && place.front() == '"') place = place.substr(1, place.size() - 2);
-    places[place].insert(line.substr(0, comma));
-  }
+  for (const auto& [file, place] : sl::data::read_places(path).place) places[place].insert(file);
   return places;
 }
 

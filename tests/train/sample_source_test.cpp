@@ -6,10 +6,12 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "data/image_io.h"
 #include "support/street_fixture.h"
 #include "support/tiny_stage.h"
 #include "train/lighting_stage.h"
@@ -121,4 +123,55 @@ TEST(SampleSource, CacheSizeMustBeANonNegativeMebibyteCount) {
 }
 
 }  // namespace
+
+// Place balance (data.ldr_place_balance): three LDR panoramas, two of place A and one of B. The
+// default cycle draws B a third of the time, and exponent 1 with places given draws exactly the
+// same crops; exponent 0 gives each place half the draws.
+TEST(SampleSource, PlaceBalanceGivesEachPlaceItsShare) {
+  const std::string dir = temp_dir("place_balance");
+  const Tensor ldr = Tensor::full({3, 32, 64}, 0.5);
+  data::ImageWriteOptions wo;
+  wo.transfer = data::Transfer::Linear;
+  {
+    std::ofstream csv(dir + "/sun_labels.csv");
+    csv << "file,sun,u,v,confidence,scene,note\n";
+    for (const char* f : {"a1.png", "a2.png", "b.png"}) {
+      data::write_image(dir + "/" + f, ldr, wo);
+      csv << f << ",none,,,high,street,\n";
+    }
+  }
+  const std::vector<std::string> paths = {dir + "/b.png", dir + "/a1.png", dir + "/a2.png"};
+  data::PanoramaSampleOptions o;
+  o.crop.width = 16;
+  o.crop.height = 8;
+  o.pano_width = 32;
+  o.pano_height = 16;
+  const std::string labels = dir + "/sun_labels.csv";
+  train::LdrPlaceBalance same;
+  same.places = {"B", "A", "A"};
+  train::LdrPlaceBalance places = same;
+  places.exponent = 0.0;
+  const SampleSource cycle = train::ldr_panorama_source(paths, labels, o, 7, 3, true, 64);
+  const SampleSource one = train::ldr_panorama_source(paths, labels, o, 7, 3, true, 64, same);
+  const SampleSource balanced = train::ldr_panorama_source(paths, labels, o, 7, 3, true, 64, places);
+  const int draws = 600;
+  int b_cycle = 0, b_balanced = 0;
+  for (int d = 0; d < draws; ++d) {
+    const auto i = static_cast<size_t>(d % 3);
+    const StreetSample s = cycle.load(i, static_cast<uint64_t>(d));
+    EXPECT_EQ(s.id, one.load(i, static_cast<uint64_t>(d)).id);
+    b_cycle += s.id.rfind("ldr:b.png#", 0) == 0;
+    b_balanced += balanced.load(i, static_cast<uint64_t>(d)).id.rfind("ldr:b.png#", 0) == 0;
+  }
+  EXPECT_EQ(b_cycle, draws / 3);
+  // Binomial(600, 0.5): sd 12.2, so ±61 is five of them.
+  EXPECT_NEAR(b_balanced, draws / 2, 61);
+  // A pure function of (index, draw): the same draw twice is the same crop.
+  EXPECT_EQ(balanced.load(0, 123).id, balanced.load(2, 123).id);
+  // The places must come one per panorama.
+  train::LdrPlaceBalance short_list = places;
+  short_list.places.pop_back();
+  EXPECT_THROW(train::ldr_panorama_source(paths, labels, o, 7, 3, true, 64, short_list), Error);
+}
+
 }  // namespace sl::test

@@ -95,6 +95,12 @@ TEST(TrainConfig, LdrPanoramaSharesAreCheckedNamingTheirKeys) {
     c["loss"]["ldr_sun_energy_range"] = bad;
     EXPECT_NE(refusal(c).find("loss.ldr_sun_energy_range"), std::string::npos) << bad.dump() << ": " << refusal(c);
   }
+  c["loss"]["ldr_sun_energy_range"] = {1.0, 10.0};
+  EXPECT_EQ(refusal(c), "");
+  for (double bad : {-0.1, 1.5}) {  // data.ldr_place_balance is an exponent in [0, 1]
+    c["data"]["ldr_place_balance"] = bad;
+    EXPECT_NE(refusal(c).find("data.ldr_place_balance must lie in [0, 1]"), std::string::npos) << refusal(c);
+  }
 }
 
 // train.freeze is a list of names, for the lighting stages only; a lighting stage may start from

@@ -3,6 +3,7 @@
 #include "nn/module.h"
 #include "nn/modules/activations.h"
 #include "nn/modules/conv.h"
+#include "nn/modules/depthwise_conv.h"
 #include "nn/modules/dropout.h"
 #include "nn/modules/flatten.h"
 #include "nn/modules/layer_norm.h"

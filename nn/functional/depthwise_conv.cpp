@@ -40,17 +40,32 @@ struct Plane {
   Plane input_grad_plane() const { return Plane(Ho, Wo, kh, kw, 1, 1, kh - 1 - ph, kw - 1 - pw); }
 };
 
+// Calls f(phase_row_offset, k0, k1, m0) for each column phase q of a padded row: entries
+// [k0, k1) of the phase (at phase_row_offset) hold the plane's columns m0, m0 + sw, ...
+template <class F>
+void for_each_phase(const Plane& g, F&& f) {
+  for (int64_t q = 0; q < g.sw; ++q) {
+    const int64_t k0 = q >= g.pw ? 0 : (g.pw - q + g.sw - 1) / g.sw;  // first k·sw + q >= pw
+    const int64_t last = g.pw + g.W - 1 - q;                           // k·sw + q <= pw + W − 1
+    const int64_t k1 = last < 0 ? 0 : last / g.sw + 1;
+    if (k1 > k0) f(q * g.phase_len, k0, k1, k0 * g.sw + q - g.pw);
+  }
+}
+
 // dst (g.padded_size()) = the zero-padded, phase-split copy of one plane src (g.in_size()).
 template <class T>
 void pad_plane(const Plane& g, const T* src, T* dst) {
   std::fill(dst, dst + g.padded_size(), T(0));
   for (int64_t r = 0; r < g.H; ++r) {
     const T* row = src + r * g.W;
+    T* out = dst + (r + g.ph) * g.pitch();
     if (g.sw == 1) {
-      std::copy(row, row + g.W, dst + g.padded_at(r + g.ph, g.pw));
+      std::copy(row, row + g.W, out + g.pw);
       continue;
     }
-    for (int64_t m = 0; m < g.W; ++m) dst[g.padded_at(r + g.ph, m + g.pw)] = row[m];
+    for_each_phase(g, [&](int64_t off, int64_t k0, int64_t k1, int64_t m0) {
+      for (int64_t k = k0; k < k1; ++k) out[off + k] = row[m0 + (k - k0) * g.sw];
+    });
   }
 }
 
@@ -59,11 +74,14 @@ template <class T>
 void unpad_plane(const Plane& g, const T* src, T* dst) {
   for (int64_t r = 0; r < g.H; ++r) {
     T* row = dst + r * g.W;
+    const T* in = src + (r + g.ph) * g.pitch();
     if (g.sw == 1) {
-      std::copy_n(src + g.padded_at(r + g.ph, g.pw), g.W, row);
+      std::copy_n(in + g.pw, g.W, row);
       continue;
     }
-    for (int64_t m = 0; m < g.W; ++m) row[m] = src[g.padded_at(r + g.ph, m + g.pw)];
+    for_each_phase(g, [&](int64_t off, int64_t k0, int64_t k1, int64_t m0) {
+      for (int64_t k = k0; k < k1; ++k) row[m0 + (k - k0) * g.sw] = in[off + k];
+    });
   }
 }
 
@@ -148,6 +166,47 @@ void filter_grad_plane(const Plane& g, const T* xp, const T* dy, T* acc, double*
   }
 }
 
+// The same sums for a KH×KW kernel, a block of kLanes output columns at a time: the taps'
+// per-column sums of one block stay in registers over all rows, instead of a pass over memory
+// per tap and row. Each column's sum runs over the rows in order as above, and the blocks and
+// their columns are added in column order, so the result is a function of the shapes only.
+template <class T, int KH, int KW>
+void filter_grad_plane_tiled(const Plane& g, const T* xp, const T* dy, double* dw, double* db) {
+  constexpr int kTaps = KH * KW, kLanes = 64 / sizeof(T);
+  double sums[kTaps + 1] = {};
+  for (int64_t j0 = 0; j0 < g.Wo; j0 += kLanes) {
+    const int64_t cnt = std::min<int64_t>(kLanes, g.Wo - j0);
+    T a[kTaps + 1][kLanes] = {};
+    for (int64_t i = 0; i < g.Ho; ++i) {
+      const T* d = dy + i * g.Wo + j0;
+      const T* s[kTaps];
+      for (int u = 0; u < KH; ++u)
+        for (int v = 0; v < KW; ++v) s[u * KW + v] = xp + g.tap_at(i, u, v) + j0;
+      if (cnt == kLanes) {
+        for (int t = 0; t < kTaps; ++t)
+#pragma omp simd
+          for (int l = 0; l < kLanes; ++l) a[t][l] += d[l] * s[t][l];
+#pragma omp simd
+        for (int l = 0; l < kLanes; ++l) a[kTaps][l] += d[l];
+      } else {
+        for (int t = 0; t < kTaps; ++t)
+          for (int64_t l = 0; l < cnt; ++l) a[t][l] += d[l] * s[t][l];
+        for (int64_t l = 0; l < cnt; ++l) a[kTaps][l] += d[l];
+      }
+    }
+    for (int t = 0; t <= kTaps; ++t)
+      for (int64_t l = 0; l < cnt; ++l) sums[t] += a[t][l];
+  }
+  for (int t = 0; t < kTaps; ++t) dw[t] = sums[t];
+  *db = sums[kTaps];
+}
+
+template <class T>
+void filter_grad(const Plane& g, const T* xp, const T* dy, T* acc, double* dw, double* db) {
+  if (g.kh == 3 && g.kw == 3) return filter_grad_plane_tiled<T, 3, 3>(g, xp, dy, dw, db);
+  filter_grad_plane(g, xp, dy, acc, dw, db);
+}
+
 template <class T>
 void depthwise_forward(const Plane& g, int64_t planes, int64_t C, const T* x, const T* w, const T* b, T* y) {
   parallel_for(planes, detail::grain_for(g.taps() * g.out_size() + g.padded_size()), [&](int64_t p0, int64_t p1) {
@@ -185,17 +244,18 @@ void depthwise_backward(const Plane& g, int64_t N, int64_t C, const T* x, const 
     for (int64_t p = p0; p < p1; ++p) {
       const int64_t c = p % C;
       const T* dyp = dy + p * g.out_size();
-      if (filter) {
-        pad_plane(g, x + p * g.in_size(), xp.data());
-        filter_grad_plane(g, xp.data(), dyp, acc.data(), part_w.data() + p * taps, part_b.data() + p);
-      }
-      if (!dx) continue;
-      if (correlation) {
+      // The input gradient first: its sequential pass over dy leaves the plane in cache for the
+      // filter gradient, which reads it in column blocks.
+      if (dx && correlation) {
         pad_plane(t, dyp, gp.data());
         correlate(t, gp.data(), flipped.data() + c * taps, T(0), dx + p * g.in_size());
-      } else {
+      } else if (dx) {
         scatter_plane(g, dyp, w + c * taps, gp.data());
         unpad_plane(g, gp.data(), dx + p * g.in_size());
+      }
+      if (filter) {
+        pad_plane(g, x + p * g.in_size(), xp.data());
+        filter_grad(g, xp.data(), dyp, acc.data(), part_w.data() + p * taps, part_b.data() + p);
       }
     }
   });

@@ -190,11 +190,29 @@ def grid_sample_family():
     fam.write("grid_sample.safetensors")
 
 
+def depthwise_conv_family():
+    fam = Family(7)
+    cases = [  # name, x, kernel (kh, kw), stride, padding, bias
+        ("dw_s1_p1", (2, 4, 7, 8), (3, 3), (1, 1), (1, 1), True),
+        ("dw_s2_p1", (2, 3, 9, 8), (3, 3), (2, 2), (1, 1), True),
+        ("dw_s2_p0_nobias", (1, 5, 8, 9), (3, 3), (2, 2), (0, 0), False),
+        ("dw_mixed", (2, 3, 8, 10), (3, 2), (2, 1), (1, 0), True),
+        ("dw_k5_p2", (1, 2, 10, 9), (5, 5), (1, 1), (2, 2), True),
+    ]
+    for name, xs, k, s, p, bias in cases:
+        C = xs[1]
+        inputs = {"x": fam.randn(*xs), "w": fam.randn(C, 1, *k, scale=0.3), "b": fam.randn(C) if bias else None}
+        fam.add(name, "depthwise_conv2d", {"stride": s, "padding": p}, inputs,
+                lambda x, w, b, s=s, p=p, C=C: F.conv2d(x, w, b, s, p, 1, C))
+    fam.write("depthwise_conv.safetensors")
+
+
 def main():
     torch.manual_seed(0)
     torch.set_num_threads(1)
     os.makedirs(OUT_DIR, exist_ok=True)
-    for family in (conv_family, upsample_family, pool_family, norm_family, linear_family, grid_sample_family):
+    for family in (conv_family, upsample_family, pool_family, norm_family, linear_family, grid_sample_family,
+                   depthwise_conv_family):
         family()
     total = sum(os.path.getsize(os.path.join(OUT_DIR, f)) for f in os.listdir(OUT_DIR))
     print(f"wrote {len(os.listdir(OUT_DIR))} files, {total} bytes, to {OUT_DIR}", file=sys.stderr)

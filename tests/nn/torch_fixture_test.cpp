@@ -8,6 +8,7 @@
 
 #include "autodiff/ops.h"
 #include "nn/functional/conv.h"
+#include "nn/functional/depthwise_conv.h"
 #include "nn/functional/linear.h"
 #include "nn/functional/normalization.h"
 #include "nn/functional/pooling.h"
@@ -20,6 +21,7 @@ using nn::avg_pool3d;
 using nn::batch_norm;
 using nn::conv2d;
 using nn::conv3d;
+using nn::depthwise_conv2d;
 using nn::global_avg_pool;
 using nn::group_norm;
 using nn::instance_norm;
@@ -95,6 +97,13 @@ TEST(TorchFixtures, ConvolutionMatchesPyTorch) {
     if (c.at("op") == "conv2d")
       return conv2d(in["x"], in["w"], get(in, "b"), arr<2>(c["stride"]), arr<2>(c["padding"]), arr<2>(c["dilation"]));
     return conv3d(in["x"], in["w"], get(in, "b"), arr<3>(c["stride"]), arr<3>(c["padding"]), arr<3>(c["dilation"]));
+  });
+}
+
+// F.conv2d with groups = C.
+TEST(TorchFixtures, DepthwiseConvolutionMatchesPyTorch) {
+  run_family("depthwise_conv.safetensors", [](const Fixture&, const std::string&, const json& c, auto& in) {
+    return depthwise_conv2d(in["x"], in["w"], get(in, "b"), arr<2>(c["stride"]), arr<2>(c["padding"]));
   });
 }
 

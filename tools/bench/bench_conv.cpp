@@ -12,6 +12,7 @@
 
 #include "autodiff/ops.h"
 #include "nn/functional/conv.h"
+#include "nn/functional/depthwise_conv.h"
 #include "tools/bench/bench.h"
 #include "tools/bench/timing.h"
 
@@ -22,6 +23,7 @@ struct ConvCase {
   const char* name;
   Shape x, w;
   int64_t stride, pad;
+  bool depthwise = false;  // nn::depthwise_conv2d, w [C, 1, k, k]
 };
 
 // The shapes the method's networks spend their time in: a ResNet 3×3 block, the 3D UNet's
@@ -55,13 +57,28 @@ const std::vector<ConvCase>& resnet18_layer_cases() {
   return cases;
 }
 
+// The depthwise 3×3 layers of a MobileNetV2 on the 128×256 input, batch 4 (input sizes; the
+// stride-2 layers halve them).
+const std::vector<ConvCase>& mobilenet_v2_depthwise_cases() {
+  static const std::vector<ConvCase> cases = {
+      {"mnv2_dw_c32_64x128", {4, 32, 64, 128}, {32, 1, 3, 3}, 1, 1, true},
+      {"mnv2_dw_c96_64x128_s2", {4, 96, 64, 128}, {96, 1, 3, 3}, 2, 1, true},
+      {"mnv2_dw_c144_32x64", {4, 144, 32, 64}, {144, 1, 3, 3}, 1, 1, true},
+      {"mnv2_dw_c144_32x64_s2", {4, 144, 32, 64}, {144, 1, 3, 3}, 2, 1, true},
+      {"mnv2_dw_c384_8x16", {4, 384, 8, 16}, {384, 1, 3, 3}, 1, 1, true},
+      {"mnv2_dw_c960_4x8", {4, 960, 4, 8}, {960, 1, 3, 3}, 1, 1, true},
+  };
+  return cases;
+}
+
 Tensor run_conv(const ConvCase& c, const Tensor& x, const Tensor& w, const Tensor& b) {
+  if (c.depthwise) return nn::depthwise_conv2d(x, w, b, {c.stride, c.stride}, {c.pad, c.pad});
   if (c.x.size() == 4) return nn::conv2d(x, w, b, {c.stride, c.stride}, {c.pad, c.pad});
   return nn::conv3d(x, w, b, {c.stride, c.stride, c.stride}, {c.pad, c.pad, c.pad});
 }
 
 int run_conv_command(const std::vector<std::string>& args) {
-  bool json = false, resnet_layers = false;
+  bool json = false, resnet_layers = false, depthwise = false;
   std::string only;
   int repeat = 5;
   bool cpu_time = false;
@@ -77,10 +94,13 @@ int run_conv_command(const std::vector<std::string>& args) {
       json = true;
     } else if (a == "--resnet18-layers") {
       resnet_layers = true;
+    } else if (a == "--depthwise") {
+      depthwise = true;
     } else if (a == "--help" || a == "-h") {
-      std::printf("usage: streetlight-bench conv [--json] [--resnet18-layers]\n  forward and forward+backward GFLOP/s of "
+      std::printf("usage: streetlight-bench conv [--json] [--resnet18-layers | --depthwise]\n  forward and forward+backward GFLOP/s of "
                   "conv2d/conv3d on the PyTorch comparison shapes (OMP_NUM_THREADS threads)\n"
                   "  --resnet18-layers: the distinct convolutions of the `networks` ResNet-18 instead\n"
+                  "  --depthwise: a MobileNetV2's depthwise 3x3 layers (depthwise_conv2d) instead\n"
                   "  --only NAME: just the case NAME (for profiling)\n  --repeat N: best of N runs (default 5)\n"
                   "  --cpu-time: process CPU time instead of wall time (with OMP_NUM_THREADS=1, a figure\n"
                   "    that other processes' load on the machine disturbs less)\n");
@@ -90,14 +110,16 @@ int run_conv_command(const std::vector<std::string>& args) {
       return 2;
     }
   }
-  return run_conv_benchmarks(json, resnet_layers, only, repeat, cpu_time);
+  const ConvSet set = depthwise ? ConvSet::MobileNetV2Depthwise
+                                : resnet_layers ? ConvSet::ResNet18Layers : ConvSet::Comparison;
+  return run_conv_benchmarks(json, set, only, repeat, cpu_time);
 }
 
 const Registrar reg("conv", "conv2d/conv3d forward and forward+backward GFLOP/s", &run_conv_command);
 
 }  // namespace
 
-int run_conv_benchmarks(bool json, bool resnet18_layers, const std::string& only, int repeat, bool cpu_time) {
+int run_conv_benchmarks(bool json, ConvSet set, const std::string& only, int repeat, bool cpu_time) {
   auto best_ms = [cpu_time](auto&& f, int runs) {
     if (!cpu_time) return bench::best_ms(f, runs);
     auto cpu_ms = [] {
@@ -114,7 +136,10 @@ int run_conv_benchmarks(bool json, bool resnet18_layers, const std::string& only
     }
     return best;
   };
-  for (const ConvCase& c : resnet18_layers ? resnet18_layer_cases() : conv_cases()) {
+  const std::vector<ConvCase>& cases = set == ConvSet::ResNet18Layers         ? resnet18_layer_cases()
+                                       : set == ConvSet::MobileNetV2Depthwise ? mobilenet_v2_depthwise_cases()
+                                                                              : conv_cases();
+  for (const ConvCase& c : cases) {
     if (!only.empty() && only != c.name) continue;
     Tensor x = Tensor::normal(c.x, 0, 1, 1);
     Tensor w = Tensor::normal(c.w, 0, 0.1, 2);

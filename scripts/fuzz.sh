@@ -8,7 +8,7 @@
 #
 # --build-only builds every library, every tool and every harness with clang and stops (CI runs it,
 # so that code clang refuses cannot land unnoticed).
-# TARGET: safetensors gltf image kitti calibration_json dataset config rays batch_list sun_labels (default:
+# TARGET: safetensors gltf image kitti calibration_json dataset config rays batch_list sun_labels tflite (default:
 # all). Each run stops after N seconds (default 60) or N executions, whichever comes first.
 # --markdown prints the table as Markdown rows (tests/fuzz/README.md keeps the measured one). The
 # working corpus grows in build-fuzz/fuzz-corpus/<target>/ (seeded from tests/fuzz/corpus/);
@@ -17,7 +17,7 @@
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 build="${STREETLIGHT_FUZZ_BUILD:-$root/build-fuzz}"
-all=(safetensors gltf image kitti calibration_json dataset config rays batch_list sun_labels)
+all=(safetensors gltf image kitti calibration_json dataset config rays batch_list sun_labels tflite)
 seconds=60
 runs=-1
 build_only=0

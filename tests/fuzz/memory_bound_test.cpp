@@ -10,6 +10,8 @@
 //                bufferView's bytes (instancing a mesh under many nodes is legitimate) + 1 MiB
 //   images       8 bytes per declared value (w·h·c floats: the decode buffer and the tensor),
 //                at most kMaxImageValues (2^28) values, + the decoder's own state (~1 MiB)
+//   TFLite       the file (read whole) + 32·file + 1 MiB (nn::tflite::kMaxModelBytesPerFileByte: vectors,
+//                strings, copied buffers and the structs themselves, shared objects counted per use)
 //   velodyne     2·file + 1 MiB;  ray file: 3·file + 1 MiB (floats, then 32-byte Rays)
 //   JSON files   (configs, calibration, index.json, meta.json, --batch lists) 64·file + 1 MiB:
 //                nlohmann's DOM costs up to ~48 bytes per input byte for "[[[[..." nesting.
@@ -22,10 +24,12 @@
 #include "data/image_io.h"
 #include "data/kitti.h"
 #include "nn/safetensors.h"
+#include "nn/tflite.h"
 #include "render/gltf_loader.h"
 #include "render/ray_file.h"
 #include "tests/fuzz/alloc_counter.h"
 #include "tests/fuzz/hostile_files.h"
+#include "tests/support/tflite_builder.h"
 #include "tools/common/config.h"
 
 namespace sl::test {
@@ -177,6 +181,27 @@ TEST_F(MemoryBound, DeeplyNestedJsonConfigCostsABoundedMultipleOfItsSize) {
   const std::string path = write_temp("nested.json", text);
   sl::cli::Config config(nlohmann::json{{"a", 1}});
   EXPECT_LE(peak_of([&] { config.merge_file(path); }), 64 * text.size() + kMiB);
+}
+
+TEST_F(MemoryBound, TfliteTensorSharedTwentyThousandTimesIsRefusedWithinItsBound) {
+  // One tensor whose buffer holds 64 KiB, referenced 20,000 times: 1.3 GB if each were copied.
+  TinyTflite t = tiny_tflite();
+  t.buffers->items[1] = fb_table()->ref(0, fb_vec(std::vector<uint8_t>(65536, 1)));
+  t.tensor[1]->refs[0].second = fb_vec<int32_t>({2, 1, 1, 32768});
+  t.tensor[1]->refs.back().second = fb_table()->ref(2, fb_vec<float>({1.0f}));
+  t.tensors->items.assign(20000, t.tensor[1]);
+  const std::string bytes = FbWriter().build(t.model);
+  const std::string path = write_temp("shared.tflite", bytes);
+  EXPECT_LE(peak_of([&] { sl::nn::tflite::read(path); }), 33 * bytes.size() + kMiB);
+}
+
+TEST_F(MemoryBound, TfliteVectorOfTwoBillionTensorsAllocatesNothingOfItsSize) {
+  TinyTflite t = tiny_tflite();
+  std::string bytes = t.bytes;
+  const uint32_t claimed = 0x7FFFFFFFu;
+  std::memcpy(&bytes[t.tensors->pos], &claimed, 4);
+  const std::string path = write_temp("huge_vector.tflite", bytes);
+  EXPECT_LE(peak_of([&] { sl::nn::tflite::read(path); }), 33 * bytes.size() + kMiB);
 }
 
 }  // namespace

@@ -17,7 +17,7 @@ const std::vector<Target>& targets() {
       {"safetensors", &fuzz_safetensors}, {"gltf", &fuzz_gltf},       {"image", &fuzz_image},
       {"kitti", &fuzz_kitti},             {"calibration_json", &fuzz_calibration_json},
       {"dataset", &fuzz_dataset},         {"config", &fuzz_config},   {"rays", &fuzz_rays},
-      {"batch_list", &fuzz_batch_list},   {"sun_labels", &fuzz_sun_labels},
+      {"batch_list", &fuzz_batch_list},   {"sun_labels", &fuzz_sun_labels}, {"tflite", &fuzz_tflite},
   };
   return all;
 }

@@ -28,6 +28,7 @@ void fuzz_config(const uint8_t* data, size_t size);            // tools/common/c
 void fuzz_rays(const uint8_t* data, size_t size);              // streetlight-bench trace --rays file
 void fuzz_batch_list(const uint8_t* data, size_t size);        // streetlight-insert --batch LIST.json
 void fuzz_sun_labels(const uint8_t* data, size_t size);        // data/sun_labels (pano_ldr/sun_labels.csv)
+void fuzz_tflite(const uint8_t* data, size_t size);            // nn/tflite parse + dequantize
 
 struct Target {
   const char* name;  // the corpus folder: tests/fuzz/corpus/<name>/

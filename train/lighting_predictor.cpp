@@ -37,6 +37,10 @@ void validate(const LightingPredictorOptions& o) {
   SL_CHECK(!o.sun_grid.enabled() || o.sky_branch == "sky_decoder", "model.sun_grid needs the \"sky_decoder\" sky branch, got \"",
            o.sky_branch, "\"");
   SL_CHECK(!o.sun_image_statistics || o.sun_grid.enabled(), "model.sun_image_statistics needs model.sun_grid (the sun head)");
+  SL_CHECK(o.sun_backbone.empty() || o.sun_backbone == "mobilenet_v2",
+           "model.sun_backbone must be \"\" or \"mobilenet_v2\", got \"", o.sun_backbone, "\"");
+  SL_CHECK(o.sun_backbone.empty() || o.sun_grid.enabled(), "model.sun_backbone needs model.sun_grid (the sun head)");
+  SL_CHECK(o.sun_backbone_channels >= 1, "model.sun_backbone_channels must be positive, got ", o.sun_backbone_channels);
   SL_CHECK(o.head_grid_channels >= 0, "model.head_grid_channels must be >= 0, got ", o.head_grid_channels);
   if (o.volume_branch) {
     const int64_t f = int64_t{1} << o.unet_depth;
@@ -65,10 +69,18 @@ LightingPredictor::LightingPredictor(const LightingPredictorOptions& options)
     sky_head_ = register_module("sky_head", std::make_shared<nn::MLP>(nn::MlpOptions{
                                                 .widths = {feat, opt_.head_hidden, sky.code_dim}}));
     sky_decoder_ = register_module("sky_decoder", std::make_shared<SkyDecoder>(sky));
-    if (opt_.sun_grid.enabled())
+    if (opt_.sun_grid.enabled()) {
+      int64_t sun_inputs = feat + (opt_.sun_image_statistics ? kImageStatistics : 0);
+      if (!opt_.sun_backbone.empty()) {
+        const auto hw = backbone_grid_size(opt_.image_height, opt_.image_width);
+        sun_backbone_ = register_module("sun_backbone", std::make_shared<nn::MobileNetV2>());
+        sun_backbone_grid_ = register_module(
+            "sun_backbone_grid", std::make_shared<nn::Conv2d>(nn::MobileNetV2::kFeatures, opt_.sun_backbone_channels, 1));
+        sun_inputs += opt_.sun_backbone_channels * hw[0] * hw[1];
+      }
       sun_head_ = register_module("sun_head", std::make_shared<nn::MLP>(nn::MlpOptions{
-                                                  .widths = {feat + (opt_.sun_image_statistics ? kImageStatistics : 0),
-                                                             opt_.head_hidden, opt_.sun_grid.cells()}}));
+                                                  .widths = {sun_inputs, opt_.head_hidden, opt_.sun_grid.cells()}}));
+    }
   } else if (opt_.sky_branch == "direct") {
     // Without sky modelling: g → 4×16 feature map → (upsample, conv) per level → log env.
     const int levels = direct_levels(sky.height);
@@ -149,10 +161,16 @@ Tensor LightingPredictor::volume(const Tensor& g, const Tensor& rgba) {
 
 Tensor LightingPredictor::sun_logits(const Tensor& g, const Tensor& image) {
   if (!sun_head_) return Tensor();
-  if (!opt_.sun_image_statistics) return sun_head_->forward(g);
+  if (!opt_.sun_image_statistics && !sun_backbone_) return sun_head_->forward(g);
   SL_CHECK(image.defined() && image.dim() == 4 && image.size(0) == g.size(0), "LightingPredictor::sun_logits: expected the ",
            g.size(0), " image(s) g came from, got ", image.defined() ? image.describe() : std::string("undefined"));
-  return sun_head_->forward(concat({g, image_statistics(image).to(g.dtype())}, 1));
+  TensorList inputs{g};
+  if (opt_.sun_image_statistics) inputs.push_back(image_statistics(image).to(g.dtype()));
+  if (sun_backbone_) {
+    const Tensor x = nn::imagenet_input(image.dtype() == g.dtype() ? image : image.to(g.dtype()));
+    inputs.push_back(flatten(relu(sun_backbone_grid_->forward(sun_backbone_->forward_map(x))), 1));
+  }
+  return sun_head_->forward(concat(inputs, 1));
 }
 
 SkyPrediction LightingPredictor::predict_sky(const Tensor& image) {

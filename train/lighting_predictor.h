@@ -9,7 +9,10 @@
 //         directions on the upper hemisphere (train/sun_distribution.h, issue 53); inference
 //         reads the sky vector's direction at its mode (train/inference.h). With
 //         sun_image_statistics on, the sun head's input is g concatenated with 102 photometric
-//         statistics of the image (train/image_statistics.h)
+//         statistics of the image (train/image_statistics.h); with sun_backbone "mobilenet_v2" it
+//         also sees an ImageNet MobileNetV2's map of the image (nn/modules/mobilenet_v2.h, stride 32,
+//         1280 channels) reduced by a 1×1 conv + ReLU to sun_backbone_channels and flattened
+//         ("sun_backbone.*", "sun_backbone_grid.*"), after g and the statistics
 //     (b) volume: MLP(g) → coarse feature volume [N, C, X/s, Y/s, Z/s] → trilinear ×s,
 //         concatenated with the unprojected RGBα volume [N, 4, X, Y, Z] (unprojection.h),
 //         → UNet3D → raw [N, 8, X, Y, Z] → vsg_activate → VSG parameters
@@ -27,7 +30,8 @@
 // Contract: forward(image, rgba) with image [N, 3, image_height, image_width] (LDR in [0, 1])
 // and rgba [N, 4, X, Y, Z] (ignored, may be undefined, without the volume branch). Outputs are
 // exposure-normalised radiance (sky_autoencoder.h). Shapes are checked, naming the input.
-// Parameter names: backbone.*, head_grid.* (with head_grid_channels > 0), sky_head.*, sun_head.* (sun_grid on), sky_decoder.*, env_decoder.*, env_constant,
+// Parameter names: backbone.*, head_grid.* (with head_grid_channels > 0), sky_head.*, sun_head.* (sun_grid on),
+// sun_backbone.*, sun_backbone_grid.* (with sun_backbone), sky_decoder.*, env_decoder.*, env_constant,
 // volume_mlp.*, volume_unet.*. Deterministic init from options.seed.
 #pragma once
 #include <array>
@@ -35,6 +39,7 @@
 #include <string>
 
 #include "nn/module.h"
+#include "nn/modules/mobilenet_v2.h"
 #include "nn/modules/resnet.h"
 #include "train/sky_autoencoder.h"
 #include "train/sun_distribution.h"
@@ -57,6 +62,8 @@ struct LightingPredictorOptions {
   SkyAutoencoderOptions sky;    // dome size and code size (must match the stage-1 model)
   SunGrid sun_grid;             // off (0 × 0): the sky vector's direction alone (releases up to 2026-11-27)
   bool sun_image_statistics = false;  // the sun head also sees image_statistics(image) (needs sun_grid)
+  std::string sun_backbone;           // "" or "mobilenet_v2": a second backbone for the sun head alone (needs sun_grid)
+  int64_t sun_backbone_channels = 16;  // its map's channels after the 1×1 reduction
   uint64_t seed = 0;
 };
 
@@ -88,7 +95,7 @@ class LightingPredictor : public nn::Module {
   // rgba), each the same ops on the same values as here. features: image [N, 3, h, w] -> g [N, feat];
   // sky_code: g [N, feat] -> SkyCode ("sky_decoder" only; throws otherwise); sun_logits: g and the
   // image g came from -> [N, K] (undefined without a sun head; the image is read only with
-  // sun_image_statistics on); volume: g [N, feat] and rgba [N, 4, X, Y, Z] -> activated VSG
+  // sun_image_statistics or a sun_backbone); volume: g [N, feat] and rgba [N, 4, X, Y, Z] -> activated VSG
   // [N, 8, X, Y, Z] (volume branch only; throws otherwise). Shapes are checked as predict() checks them.
   Tensor features(const Tensor& image) { return head_features(image); }
   SkyCode sky_code(const Tensor& g);
@@ -98,6 +105,8 @@ class LightingPredictor : public nn::Module {
   // The frozen decoder (null unless sky_branch is "sky_decoder").
   const std::shared_ptr<SkyDecoder>& sky_decoder() const { return sky_decoder_; }
   nn::ResNet& backbone() { return *backbone_; }
+  // The sun head's own backbone (null without options.sun_backbone).
+  const std::shared_ptr<nn::MobileNetV2>& sun_backbone() const { return sun_backbone_; }
   // Restores train/eval recursively, keeping every frozen part (the sky decoder, and what
   // train.freeze names) in eval mode: a frozen backbone's batch norms keep their statistics.
   void set_training(bool on);
@@ -107,7 +116,8 @@ class LightingPredictor : public nn::Module {
 
   LightingPredictorOptions opt_;
   std::shared_ptr<nn::ResNet> backbone_;
-  std::shared_ptr<nn::Module> head_grid_, sky_head_, sun_head_, env_decoder_, volume_mlp_, volume_unet_;
+  std::shared_ptr<nn::Module> head_grid_, sky_head_, sun_head_, env_decoder_, volume_mlp_, volume_unet_, sun_backbone_grid_;
+  std::shared_ptr<nn::MobileNetV2> sun_backbone_;
   std::shared_ptr<SkyDecoder> sky_decoder_;
   std::array<int64_t, 3> coarse_{};
 };

@@ -15,6 +15,8 @@
 #include "data/panorama.h"
 #include "data/sun_extraction.h"
 #include "nn/checkpoint.h"
+#include "nn/modules/mobilenet_v2_tflite.h"
+#include "nn/safetensors.h"
 #include "render/environment_map.h"
 #include "render/radiance_query.h"
 #include "train/adversarial_stage.h"
@@ -171,6 +173,17 @@ void LightingStage::initialise() {
     SL_CHECK(!sky.empty(), "stage ", name(), ": init.sky_checkpoint must name the stage-1 checkpoint");
     nn::load_checkpoint(sky, *teacher_, nullptr);
     if (predictor_->sky_decoder()) predictor_->sky_decoder()->load_state_dict(teacher_->decoder()->state_dict());
+  }
+  // init.sun_backbone_weights: ImageNet weights (a TFLite MobileNetV2) for the sun head's own
+  // backbone, unless init.checkpoint brought one (a later run of the same model).
+  const std::string sun_weights = init.at("sun_backbone_weights").get<std::string>();
+  if (!sun_weights.empty()) {
+    SL_CHECK(predictor_->sun_backbone() != nullptr, "init.sun_backbone_weights '", sun_weights,
+             "' needs model.sun_backbone \"mobilenet_v2\"");
+    bool brought = false;
+    if (!prev.empty())
+      for (const auto& [n, t] : nn::read_safetensors(prev).tensors) brought |= n.rfind("predictor.sun_backbone.", 0) == 0;
+    if (!brought) nn::load_mobilenet_v2_tflite(*predictor_->sun_backbone(), sun_weights);
   }
   // The pseudo-labels f̃_int, f̃_lat live in the latent space of the teacher's decoder: they mean
   // something to the predictor only when that decoder is its own frozen one, bit for bit.

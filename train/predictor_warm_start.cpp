@@ -62,12 +62,13 @@ Tensor widen_backbone_tensor(const std::string& name, const Tensor& old, const T
 
 bool warm_start_predictor(const std::string& path, const std::shared_ptr<LightingPredictor>& predictor,
                           const std::shared_ptr<SkyAutoencoder>& teacher) {
-  bool has_teacher = false, has_sun_head = false, has_head_grid = false, has_third_block = false;
+  bool has_teacher = false, has_sun_head = false, has_head_grid = false, has_third_block = false, has_sun_backbone = false;
   int64_t sun_head_inputs = 0, stem_width = 0;
   for (const auto& [name, t] : nn::read_safetensors(path).tensors) {
     has_teacher |= name.rfind("teacher.", 0) == 0;
     has_sun_head |= name.rfind("predictor.sun_head.", 0) == 0;
     has_head_grid |= name.rfind("predictor.head_grid.", 0) == 0;
+    has_sun_backbone |= name.rfind("predictor.sun_backbone.", 0) == 0;
     has_third_block |= name.rfind("predictor.backbone.layer1.2.", 0) == 0;  // ResNet-34's, not -18's
     if (name == "predictor.sun_head.net.0.weight") sun_head_inputs = t.size(1);
     if (name == "predictor.backbone.conv1.weight") stem_width = t.size(0);
@@ -84,13 +85,16 @@ bool warm_start_predictor(const std::string& path, const std::shared_ptr<Lightin
   // its last batch norm's scale and shift at zero, so it adds nothing to its shortcut and, the
   // input being a ReLU's output, passes it on unchanged (the "zero-γ" residual initialisation).
   // A narrower backbone (model.backbone_width) widens: see widen_backbone_tensor; the heads get
-  // zero columns for the new features.
+  // zero columns for the new features. A sun head gains its own backbone (model.sun_backbone) the
+  // same way: zero columns for its features, which come last; the backbone keeps its initialisation
+  // (init.sun_backbone_weights, loaded after this, replaces it).
   const LightingPredictorOptions& mine = predictor->options();
   std::shared_ptr<LightingPredictor> loaded = predictor;
   // The checkpoint's own architecture: this model's, less what the checkpoint does not have.
   LightingPredictorOptions without = mine;
   if (!has_sun_head) without.sun_grid = SunGrid{}, without.sun_image_statistics = false;
   if (!has_head_grid) without.head_grid_channels = 0;
+  if (!has_sun_backbone) without.sun_backbone.clear();
   if (!has_third_block && mine.backbone_depth == 34) without.backbone_depth = 18;
   if (stem_width > 0 && stem_width < mine.backbone_width) {
     SL_CHECK(mine.head_grid_channels == 0 && !mine.sun_image_statistics, "init.checkpoint '", path,
@@ -108,7 +112,7 @@ bool warm_start_predictor(const std::string& path, const std::shared_ptr<Lightin
            "start the grid from a model without model.sun_image_statistics");
   if (without.sun_grid.enabled() != mine.sun_grid.enabled() || without.head_grid_channels != mine.head_grid_channels ||
       without.sun_image_statistics != mine.sun_image_statistics || without.backbone_depth != mine.backbone_depth ||
-      without.backbone_width != mine.backbone_width)
+      without.backbone_width != mine.backbone_width || without.sun_backbone != mine.sun_backbone)
     loaded = std::make_shared<LightingPredictor>(without);
   Holder previous;
   previous.register_module("predictor", loaded);

@@ -8,7 +8,8 @@
 //   model's answers are unchanged (tested in tests/train/lighting_stage_test.cpp):
 //   - the sun head (model.sun_grid): it keeps its own initialisation;
 //   - the sun head's image statistics (model.sun_image_statistics) and the heads' feature grid
-//     (model.head_grid_channels): the heads' first layers gain zero columns;
+//     (model.head_grid_channels) and the sun head's own backbone (model.sun_backbone): the heads'
+//     first layers gain zero columns (a new backbone keeps its initialisation);
 //   - a ResNet-34 backbone from a ResNet-18 (model.backbone_depth): the extra blocks end in a batch
 //     norm at zero, so each passes its input on unchanged;
 //   - a wider backbone (model.backbone_width): the old channels keep their indices and values, no

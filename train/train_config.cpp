@@ -21,7 +21,7 @@ json default_train_config() {
   return json{
       {"stage", kStageSky},
       {"seed", 0},
-      {"init", {{"sky_checkpoint", ""}, {"checkpoint", ""}, {"reinitialise", json::array()}}},
+      {"init", {{"sky_checkpoint", ""}, {"checkpoint", ""}, {"reinitialise", json::array()}, {"sun_backbone_weights", ""}}},
       {"data",
        {{"dataset", ""},
         {"train_split", "train"},
@@ -68,6 +68,8 @@ json default_train_config() {
         {"head_grid_channels", 0},
         {"sun_grid", {{"elevation_bins", 0}, {"azimuth_bins", 0}}},
         {"sun_image_statistics", false},
+        {"sun_backbone", ""},
+        {"sun_backbone_channels", 16},
         {"sky_branch", "sky_decoder"},
         {"volume_branch", true},
         {"volume",
@@ -277,6 +279,8 @@ LightingPredictorOptions predictor_options(const json& c) {
   o.sun_grid.elevation_bins = grid.value("elevation_bins", int64_t{0});
   o.sun_grid.azimuth_bins = grid.value("azimuth_bins", int64_t{0});
   o.sun_image_statistics = m.value("sun_image_statistics", false);  // absent before 0.7.2
+  o.sun_backbone = m.value("sun_backbone", std::string());          // absent before 0.7.5
+  o.sun_backbone_channels = m.value("sun_backbone_channels", int64_t{16});
   o.sky_branch = m.at("sky_branch").get<std::string>();
   o.volume_branch = m.at("volume_branch").get<bool>();
   const auto dims = v.at("dims").get<std::vector<int64_t>>();

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <set>
@@ -18,6 +19,7 @@
 #include "data/sun_extraction.h"
 #include "nn/checkpoint.h"
 #include "render/equirect.h"
+#include "support/test_files.h"
 #include "support/tiny_stage.h"
 #include "train/image_statistics.h"
 #include "train/sky_autoencoder.h"
@@ -457,6 +459,91 @@ TEST(LightingStage, ASunHeadGainsImageStatisticsFromAModelWithout) {
     ADD_FAILURE() << "accepted model.sun_image_statistics without model.sun_grid";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("model.sun_image_statistics"), std::string::npos) << e.what();
+  }
+}
+
+// Issue 53: a sun head gains its own backbone (model.sun_backbone, an ImageNet MobileNetV2) from a
+// model without one: the loaded tensors are unchanged, the sun head's first layer gets zero columns
+// for the new map, so the logits start where the loaded model's are; init.sun_backbone_weights
+// puts the ImageNet weights in the new backbone, and a step trains the new columns.
+TEST(LightingStage, ASunHeadGainsItsOwnImageNetBackboneFromAModelWithout) {
+  const std::string dir = temp_dir("lighting_sun_backbone");
+  nlohmann::json c = tiny_config(kStageLighting);
+  c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  c["loss"]["sun_distribution"] = 1.0;
+  c["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
+  const std::string exported = dir + "/exported.safetensors";
+  const Tensor image = Tensor::uniform({2, 3, c["model"]["image_height"].get<int64_t>(),
+                                        c["model"]["image_width"].get<int64_t>()}, 0.0, 1.0, 7);
+  std::vector<double> logits_before;
+  const nn::StateDict before = export_trained_predictor(c, exported, [&](LightingStage& stage) {
+    stage.predictor().set_training(false);
+    const NoGradGuard no_grad;
+    logits_before = stage.predictor().predict_sky(image).sun_logits.to_vector();
+  });
+  nlohmann::json g = from_exported(c, exported);
+  g["model"]["sun_backbone"] = "mobilenet_v2";
+  g["model"]["sun_backbone_channels"] = 2;
+  const std::string weights = shared_data("weights/mobilenet_v2_1.0_224_quant.tflite");
+  const bool imagenet = std::filesystem::is_regular_file(weights);
+  if (imagenet) g["init"]["sun_backbone_weights"] = weights;
+  LightingStage stage(g, memory_source(2), memory_source(1));
+  stage.initialise();
+  const auto hw = train::backbone_grid_size(c["model"]["image_height"].get<int64_t>(), c["model"]["image_width"].get<int64_t>());
+  for (const auto& [name, t] : stage.predictor().state_dict()) {
+    if (name.rfind("sun_backbone", 0) == 0) continue;  // new
+    ASSERT_TRUE(before.count(name)) << name;
+    if (name != "sun_head.net.0.weight") {
+      EXPECT_EQ(t.to_vector(), before.at(name).to_vector()) << name;
+      continue;
+    }
+    ASSERT_EQ(t.size(1), before.at(name).size(1) + 2 * hw[0] * hw[1]);
+    expect_widened(name, t, before.at(name));
+  }
+  if (imagenet) {  // the stem holds the file's weights, not the seeded initialisation
+    const nn::MobileNetV2 fresh;
+    EXPECT_NE(stage.predictor().sun_backbone()->stem().parameter("weight").to_vector(),
+              fresh.stem().parameter("weight").to_vector());
+  }
+  {
+    stage.predictor().set_training(false);
+    const NoGradGuard no_grad;
+    const std::vector<double> logits = stage.predictor().predict_sky(image).sun_logits.to_vector();
+    ASSERT_EQ(logits.size(), logits_before.size());
+    for (size_t i = 0; i < logits.size(); ++i) EXPECT_NEAR(logits[i], logits_before[i], 1e-5) << i;
+    stage.predictor().set_training(true);
+  }
+  const Metrics m = stage.step(0);
+  EXPECT_TRUE(std::isfinite(m.at("sun_distribution")));
+  const Tensor w = stage.predictor().state_dict().at("sun_head.net.0.weight");
+  const int64_t old_cols = before.at("sun_head.net.0.weight").size(1);
+  const std::vector<double> v = w.to_vector();
+  double moved = 0;
+  for (size_t i = 0; i < v.size(); ++i)
+    if (static_cast<int64_t>(i) % w.size(1) >= old_cols) moved += std::fabs(v[i]);
+  EXPECT_GT(moved, 0.0) << "the new backbone's columns did not train";
+  // The backbone needs the sun head, and its weights need the backbone: each refusal names its key.
+  nlohmann::json bad = c;
+  bad["model"]["sun_grid"] = {{"elevation_bins", 0}, {"azimuth_bins", 0}};
+  bad["loss"]["sun_distribution"] = 0.0;
+  bad["model"]["sun_backbone"] = "mobilenet_v2";
+  try {
+    LightingStage refused(bad, memory_source(2), memory_source(1));
+    ADD_FAILURE() << "accepted model.sun_backbone without model.sun_grid";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("model.sun_backbone"), std::string::npos) << e.what();
+  }
+  nlohmann::json unknown = g;
+  unknown["model"]["sun_backbone"] = "resnet50";
+  EXPECT_THROW(LightingStage(unknown, memory_source(2), memory_source(1)), Error);
+  nlohmann::json orphan = from_exported(c, exported);
+  orphan["init"]["sun_backbone_weights"] = weights;
+  LightingStage without(orphan, memory_source(2), memory_source(1));
+  try {
+    without.initialise();
+    ADD_FAILURE() << "accepted init.sun_backbone_weights without model.sun_backbone";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("init.sun_backbone_weights"), std::string::npos) << e.what();
   }
 }
 

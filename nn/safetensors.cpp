@@ -76,6 +76,8 @@ uint16_t float_to_half(float f) {
   return sign | static_cast<uint16_t>(r);  // subnormal (r may round up into the smallest normal)
 }
 
+}  // namespace
+
 // IEEE binary16 -> binary32, exact (subnormals, infinities and NaN included).
 float half_to_float(uint16_t h) {
   const uint32_t sign = uint32_t(h & 0x8000u) << 16;
@@ -96,6 +98,8 @@ float half_to_float(uint16_t h) {
   }
   return std::bit_cast<float>(bits);
 }
+
+namespace {
 
 template <class S>
 void widen_to_i64(const char* src, int64_t n, int64_t* dst) {

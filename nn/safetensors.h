@@ -49,6 +49,9 @@ void write_safetensors(const std::string& path, const StateDict& tensors, const 
                        const SafetensorsWriteOptions& options = {});
 SafetensorsFile read_safetensors(const std::string& path);
 
+// IEEE binary16 -> binary32, exact (subnormals, infinities and NaN included); also nn/tflite.cpp's.
+float half_to_float(uint16_t h);
+
 // Writes `bytes` to `path` atomically (temp file in the same folder, fsync, rename).
 void write_file_atomically(const std::string& path, const std::string& bytes);
 

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <limits>
 
+#include "nn/safetensors.h"
 #include "util/error.h"
 
 namespace sl::nn::tflite {
@@ -483,22 +484,6 @@ Model read(const std::string& path) {
 }
 
 namespace {
-
-float half_to_float(uint16_t h) {
-  const uint32_t sign = uint32_t(h & 0x8000u) << 16;
-  uint32_t exp = (h >> 10) & 0x1fu, mant = h & 0x3ffu, bits;
-  if (exp == 0x1f) {
-    bits = sign | 0x7f800000u | (mant << 13);
-  } else if (exp != 0) {
-    bits = sign | ((exp + 112) << 23) | (mant << 13);
-  } else if (mant == 0) {
-    bits = sign;
-  } else {  // subnormal: value = mant · 2^-24, exact in binary32
-    const float v = static_cast<float>(mant) * 0x1p-24f;
-    return sign ? -v : v;
-  }
-  return std::bit_cast<float>(bits);
-}
 
 template <class Q>
 std::vector<float> dequantize_ints(const TensorInfo& t, const std::string& what, const std::string& file) {

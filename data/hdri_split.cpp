@@ -42,11 +42,27 @@ HdriSplit read_hdri_split(const std::string& path) {
   return s;
 }
 
-std::vector<std::string> HdriSplit::split_paths(const std::string& folder, const std::string& split) const {
-  const auto it = splits.find(split);
-  SL_CHECK(it != splits.end(), "HDRI split file '", file, "' has no split '", split, "'");
+std::vector<std::string> HdriSplit::split_names(const std::string& split) const {
   std::vector<std::string> out;
-  for (const auto& name : it->second) {
+  std::set<std::string> parts;
+  size_t begin = 0;
+  while (true) {
+    const size_t end = split.find('+', begin);
+    const std::string part = split.substr(begin, end == std::string::npos ? std::string::npos : end - begin);
+    SL_CHECK(!part.empty(), "HDRI split file '", file, "': split '", split, "' has an empty part");
+    SL_CHECK(parts.insert(part).second, "HDRI split file '", file, "': split '", split, "' names '", part, "' twice");
+    const auto it = splits.find(part);
+    SL_CHECK(it != splits.end(), "HDRI split file '", file, "' has no split '", part, "'");
+    out.insert(out.end(), it->second.begin(), it->second.end());
+    if (end == std::string::npos) break;
+    begin = end + 1;
+  }
+  return out;
+}
+
+std::vector<std::string> HdriSplit::split_paths(const std::string& folder, const std::string& split) const {
+  std::vector<std::string> out;
+  for (const auto& name : split_names(split)) {
     const fs::path p = fs::path(folder) / name;
     std::error_code ec;
     SL_CHECK(fs::is_regular_file(p, ec), "HDRI split file '", file, "' names '", name, "' (split '", split,

@@ -226,3 +226,33 @@ TEST(HdriSplit, ANameInTwoSplitsIsRefusedNamingTheFileAndTheName) {
 }
 
 }  // namespace sl::test
+
+namespace sl::test {
+
+// "train+val" joins two splits (a final model trained on the validation places too): the names of
+// each part in turn, the paths sorted as for one split; an unknown or repeated part is refused.
+TEST(HdriSplit, APlusJoinsSplitsAndRefusesUnknownOrRepeatedParts) {
+  const std::string dir = scratch("joined_split");
+  fs::create_directories(dir);
+  for (const char* n : {"a.jpg", "b.jpg", "c.jpg", "d.jpg"}) std::ofstream(dir + "/" + n) << "x";
+  const std::string path = dir + "/split.json";
+  std::ofstream(path) << R"({"comment": "c", "train": ["c.jpg", "a.jpg"], "val": ["b.jpg"], "test": ["d.jpg"]})";
+  const HdriSplit s = read_hdri_split(path);
+  EXPECT_EQ(s.split_names("train+val"), (std::vector<std::string>{"c.jpg", "a.jpg", "b.jpg"}));
+  EXPECT_EQ(s.split_names("val+train"), (std::vector<std::string>{"b.jpg", "c.jpg", "a.jpg"}));
+  const std::vector<std::string> joined = s.split_paths(dir, "train+val");
+  std::vector<std::string> expected;
+  for (const char* n : {"a.jpg", "b.jpg", "c.jpg"}) expected.push_back((fs::path(dir) / n).string());
+  EXPECT_EQ(joined, expected);
+  EXPECT_EQ(s.split_paths(dir, "train"), (std::vector<std::string>{expected[0], expected[2]}));
+  for (const std::string bad : {"train+tset", "train+train", "train+", "+val", ""}) {
+    try {
+      s.split_paths(dir, bad);
+      ADD_FAILURE() << "accepted split '" << bad << "'";
+    } catch (const sl::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    }
+  }
+}
+
+}  // namespace sl::test

@@ -109,7 +109,7 @@ TEST(Executables, BenchCountsThatAreNotIntegersAreOneLineErrors) {
 
 // streetlight-bench sun-glare scores the detector on val, or on new crops of train (--score-split
 // train, its fit); the test split is never read: asking for it is a one-line error, exit 2.
-TEST(Executables, BenchSunGlareNeverScoresTheTestSplit) {
+TEST(Executables, BenchSunGlareNeverScoresTheTestSplitNorWhatItTrainedOn) {
   const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
   if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
   const ProcessResult r = run(bench + " sun-glare --data d --split-file s.json --checkpoint c --score-split test");
@@ -118,6 +118,15 @@ TEST(Executables, BenchSunGlareNeverScoresTheTestSplit) {
   EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
   EXPECT_NE(r.out.find("--score-split"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("'test'"), std::string::npos) << r.out;
+  // --train-split train+val (a final detector) may not be scored on val, which it trained on; it
+  // accepts no other split.
+  for (const std::string& args : {std::string("--train-split train+val"), std::string("--train-split test")}) {
+    const ProcessResult t = run(bench + " sun-glare --data d --split-file s.json --out o " + args);
+    EXPECT_EQ(t.code, 2) << args << "\n" << t.out;
+    EXPECT_EQ(t.out.rfind("error: ", 0), 0u) << args << "\n" << t.out;
+    EXPECT_EQ(std::count(t.out.begin(), t.out.end(), '\n'), 1) << args << "\n" << t.out;
+    EXPECT_NE(t.out.find("--train-split"), std::string::npos) << args << "\n" << t.out;
+  }
 }
 
 // gen-mesh --kind: the benchmark set's procedural meshes (tools/bench/procedural_mesh.h) are a

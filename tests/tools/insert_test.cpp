@@ -62,7 +62,9 @@ TEST(InsertTool, WritesEveryOutputWithTheGroundPlaneFallback) {
   EXPECT_LE(j["sun"]["hedge"].get<double>(), 1.0);
   // Whether a sun disk in the photo set the direction (train/inference.h visible sun).
   ASSERT_TRUE(j["sun"]["visible_sun"]["found"].is_boolean()) << j["sun"].dump();
-  if (j["sun"]["visible_sun"]["found"]) EXPECT_TRUE(j["sun"]["visible_sun"]["learned"].is_boolean()) << j["sun"].dump();
+  if (j["sun"]["visible_sun"]["found"]) {
+    EXPECT_TRUE(j["sun"]["visible_sun"]["learned"].is_boolean()) << j["sun"].dump();
+  }
   EXPECT_NEAR(j["box3d"]["z"].get<double>(), 8.0, 1e-6);  // 8 m ahead in the camera frame
   EXPECT_GT(j["box2d"][2].get<double>(), j["box2d"][0].get<double>());
   EXPECT_EQ(j["kitti_label"].get<std::string>().rfind("Car ", 0), 0u);

@@ -33,6 +33,7 @@
 
 #include "autodiff/ops.h"
 #include "data/image_io.h"
+#include "data/hdri_split.h"
 #include "data/panorama.h"
 #include "data/sun_labels.h"
 #include "data/visible_sun.h"
@@ -215,14 +216,7 @@ std::vector<GlareCrop> benchmark_crops(const std::string& dir, const std::string
 }
 
 std::vector<std::string> split_list(const std::string& split_file, const std::string& split) {
-  std::ifstream in(split_file);
-  SL_CHECK(in.good(), "sun-glare: cannot read split file '", split_file, "'");
-  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
-  SL_CHECK(!j.is_discarded() && j.contains(split) && j[split].is_array(), "sun-glare: '", split_file, "' has no list '",
-           split, "'");
-  std::vector<std::string> out;
-  for (const auto& n : j[split]) out.push_back(n.get<std::string>());
-  return out;
+  return data::read_hdri_split(split_file).split_names(split);
 }
 
 // x mirrored along dimension `dim` (data only, not recorded for gradients).
@@ -331,7 +325,7 @@ void score(train::SunGlareDetector& net, const std::vector<GlareCrop>& crops, co
 }
 
 int run_sun_glare(const std::vector<std::string>& args) {
-  std::string data_dir, split_file, hdr_dir, hdr_split, out, checkpoint, score_split = "val";
+  std::string data_dir, split_file, hdr_dir, hdr_split, out, checkpoint, score_split = "val", train_split = "train";
   int64_t steps = 3000, batch = 32, aimed = 8, near = 3, random = 6, hdr_crops = 16, width = 24;
   int64_t azimuth_bins = 0, azimuth_crops = 0;
   double lr = 2e-3, azimuth_loss = 1.0, azimuth_width = 20.0;
@@ -349,7 +343,7 @@ int run_sun_glare(const std::vector<std::string>& args) {
           "                                  [--aimed K] [--near K] [--random K] [--hdr-crops K] [--width W]\n"
           "                                  [--azimuth-bins A] [--azimuth-crops K] [--azimuth-loss X] [--azimuth-width DEG]\n"
           "                                  [--score-split val|train] [--jitter-exposure S] [--jitter-white-balance S]\n"
-          "                                  [--jitter-tone S]\n\n"
+          "                                  [--jitter-tone S] [--train-split train|train+val]\n\n"
           "Trains the learned sun-glare detector (train/sun_glare.h) on crops of the TRAIN split of the labelled\n"
           "LDR panoramas DIR: per panorama with a visible sun, --aimed crops aimed at it, --near just beside it and\n"
           "--random at random (defaults 8, 3, 6); --random crops of every other panorama; with --hdr-data, the\n"
@@ -359,7 +353,8 @@ int run_sun_glare(const std::vector<std::string>& args) {
           "benchmark's own val crops: fires within 5 and 10 degrees of a sun in view and false fires, at thresholds\n"
           "0.5 to 0.99, alone and behind the disk test. --score-split train scores on new crops of the TRAIN split\n"
           "instead (how well it fits the panoramas it learned from). Test is never read. scripts/train_sun_glare.sh\n"
-          "has the released detector's flags.\n\n"
+          "has the released detector's flags. --train-split train+val trains on the validation places too (a final\n"
+          "model whose recipe is fixed; it is then scored with --score-split train).\n\n"
           "--azimuth-bins A (default 0: none) adds the azimuth head: where the sun is in azimuth, in view or not,\n"
           "trained on every crop whose sun position is known by cross-entropy (weight --azimuth-loss, default 1)\n"
           "against a Gaussian of --azimuth-width degrees (default 20), weighted by cos(elevation); --azimuth-crops K\n"
@@ -379,6 +374,11 @@ int run_sun_glare(const std::vector<std::string>& args) {
       score_split = value();
       SL_CHECK(score_split == "val" || score_split == "train", "sun-glare: --score-split must be val or train, got '",
                score_split, "' (test is never read)");
+    }
+    else if (a == "--train-split") {
+      train_split = value();
+      SL_CHECK(train_split == "train" || train_split == "train+val", "sun-glare: --train-split must be train or train+val, got '",
+               train_split, "'");
     }
     else if (a == "--steps") steps = cli::parse_integer("sun-glare: --steps", value(), 0, 10000000);
     else if (a == "--batch") batch = cli::parse_integer("sun-glare: --batch", value(), 1, 4096);
@@ -414,6 +414,8 @@ int run_sun_glare(const std::vector<std::string>& args) {
   SL_CHECK(!data_dir.empty() && !split_file.empty(), "sun-glare: --data DIR and --split-file FILE are required");
   SL_CHECK(hdr_dir.empty() == hdr_split.empty(), "sun-glare: --hdr-data and --hdr-split-file go together");
   SL_CHECK(out.empty() != checkpoint.empty(), "sun-glare: give exactly one of --out (train) and --checkpoint (score)");
+  SL_CHECK(train_split == "train" || score_split != "val",
+           "sun-glare: --score-split val scores on panoramas that --train-split train+val trains on (use --score-split train)");
   const data::SunLabels labels = data::read_sun_labels((std::filesystem::path(data_dir) / "sun_labels.csv").string());
 
   // Scoring a saved detector takes its width from the file (train::load_sun_glare).
@@ -425,10 +427,10 @@ int run_sun_glare(const std::vector<std::string>& args) {
   if (checkpoint.empty()) {
     auto t0 = std::chrono::steady_clock::now();
     std::vector<GlareCrop> crops =
-        panorama_crops(data_dir, labels, split_list(split_file, "train"), int(aimed), int(near), int(random), 0x676c617265ULL, false,
+        panorama_crops(data_dir, labels, split_list(split_file, train_split), int(aimed), int(near), int(random), 0x676c617265ULL, false,
                        int(azimuth_crops), jitter);
     if (!hdr_dir.empty())
-      for (GlareCrop& c : benchmark_crops(hdr_dir, hdr_split, "train", int(hdr_crops), false, jitter)) crops.push_back(std::move(c));
+      for (GlareCrop& c : benchmark_crops(hdr_dir, hdr_split, train_split, int(hdr_crops), false, jitter)) crops.push_back(std::move(c));
     int pos = 0;
     for (const GlareCrop& c : crops) pos += bool(c.sun_pixel);
     std::fprintf(stderr, "sun-glare: %zu training crops (%d with the sun in view) in %.0f s\n", crops.size(), pos,

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "autodiff/vector_math.h"
 #include "tools/bench/bench.h"
 #include "util/compiled_isa.h"
 #include "util/error.h"
@@ -63,10 +64,13 @@ int main(int argc, char** argv) {
                     }) != args.end();
   try {
     const int code = it->second.command(args);
-    // After the figures (a bad-input error stays one line): the machine they were measured on.
+    // After the figures (a bad-input error stays one line): the machine they were measured on, the
+    // kernels this build was compiled for (-march) and the level STREETLIGHT_SIMD leaves the
+    // run-time float32 transcendentals (autodiff/vector_math.h).
     if (code == 0 && !help)
-      std::fprintf(stderr, "streetlight-bench %s ran on: %s, %s kernels, %d OpenMP threads\n", argv[1],
-                   cpu_model_name().c_str(), sl::compiled_isa(), omp_get_max_threads());
+      std::fprintf(stderr, "streetlight-bench %s ran on: %s, %s kernels (compiled), %s transcendentals, %d OpenMP threads\n",
+                   argv[1], cpu_model_name().c_str(), sl::compiled_isa(), sl::vm::simd_level_name(sl::vm::active_simd_level()),
+                   omp_get_max_threads());
     return code;
   } catch (const sl::Error& e) {
     std::fprintf(stderr, "error: %s\n", e.what());

@@ -14,6 +14,9 @@ counts three passes. Both sides report the best of `repeat` runs after a warm-up
 sides alternate for `rounds` rounds (best kept), so that a burst of load from other processes
 does not fall on one side only.
 
+The same for a MobileNetV2's six depthwise 3x3 layers (`streetlight-bench conv --depthwise --json`
+against F.conv2d with groups = channels); their ratio is torch ms / ours ms.
+
 Then the autodiff core (`streetlight-bench ops`: matmul, the elementwise chain
 tanh(exp(x/2)·σ(x)+x) on 16M floats forward and forward+backward), the networks (a ResNet-18,
 BasicBlock, batch 4×3×128×256, and a UNet3D, base 16, 3 levels, 1×16×64×64×16, forward+backward;
@@ -57,6 +60,17 @@ SHAPES = [
     ("conv3d_n1_c16_64x64x16_k3", (1, 16, 64, 64, 16), (16, 16, 3, 3, 3), 1, 1),
 ]
 
+# A MobileNetV2's depthwise 3x3 layers on the 128x256 input, batch 4 (groups = channels) — must
+# match tools/bench/bench_conv.cpp's mobilenet_v2_depthwise_cases (`conv --depthwise`).
+DEPTHWISE_SHAPES = [
+    ("mnv2_dw_c32_64x128", (4, 32, 64, 128), (32, 1, 3, 3), 1, 1),
+    ("mnv2_dw_c96_64x128_s2", (4, 96, 64, 128), (96, 1, 3, 3), 2, 1),
+    ("mnv2_dw_c144_32x64", (4, 144, 32, 64), (144, 1, 3, 3), 1, 1),
+    ("mnv2_dw_c144_32x64_s2", (4, 144, 32, 64), (144, 1, 3, 3), 2, 1),
+    ("mnv2_dw_c384_8x16", (4, 384, 8, 16), (384, 1, 3, 3), 1, 1),
+    ("mnv2_dw_c960_4x8", (4, 960, 4, 8), (960, 1, 3, 3), 1, 1),
+]
+
 
 CLOCK = time.perf_counter  # time.process_time with --cpu-time
 
@@ -83,10 +97,14 @@ def best_ms(fn, repeat):
     return best
 
 
-def torch_conv(repeat):
+def torch_conv(repeat, shapes=SHAPES, depthwise=False):
     rows = {}
-    for name, xs, ws, stride, pad in SHAPES:
-        conv = F.conv2d if len(xs) == 4 else F.conv3d
+    for name, xs, ws, stride, pad in shapes:
+        base = F.conv2d if len(xs) == 4 else F.conv3d
+        groups = xs[1] if depthwise else 1
+
+        def conv(x, w, b, stride, pad, base=base, groups=groups):
+            return base(x, w, b, stride, pad, 1, groups)
         x = torch.randn(*xs, requires_grad=True)
         w = (torch.randn(*ws) * 0.1).requires_grad_(True)
         b = torch.zeros(ws[0], requires_grad=True)
@@ -109,9 +127,9 @@ def torch_conv(repeat):
     return rows
 
 
-def ours_conv(bench, threads, cpu_time=False):
+def ours_conv(bench, threads, cpu_time=False, depthwise=False):
     env = dict(os.environ, OMP_NUM_THREADS=str(threads))
-    cmd = [bench, "conv", "--json"] + (["--cpu-time"] if cpu_time else [])
+    cmd = [bench, "conv", "--json"] + (["--cpu-time"] if cpu_time else []) + (["--depthwise"] if depthwise else [])
     out = subprocess.run(cmd, env=env, check=True, capture_output=True, text=True).stdout
     rows = {}
     for line in out.splitlines():
@@ -271,10 +289,12 @@ def main():
           file=sys.stderr)
     # Alternate the two sides for several rounds and keep each side's best, so that load from
     # other processes during one side's turn does not bias the ratio.
-    rounds = {k: [] for k in ("tconv", "oconv", "tcore", "ocore", "tnet", "onet", "ttrain", "otrain")}
+    rounds = {k: [] for k in ("tconv", "oconv", "tdw", "odw", "tcore", "ocore", "tnet", "onet", "ttrain", "otrain")}
     for _ in range(args.rounds):
         rounds["tconv"].append(torch_conv(args.repeat))
         rounds["oconv"].append(ours_conv(args.bench, args.threads, args.cpu_time))
+        rounds["tdw"].append(torch_conv(args.repeat, DEPTHWISE_SHAPES, depthwise=True))
+        rounds["odw"].append(ours_conv(args.bench, args.threads, args.cpu_time, depthwise=True))
         if not args.cpu_time:
             rounds["tcore"].append(torch_core_ops(args.repeat))
             rounds["ocore"].append(ours_core_ops(args.bench, args.threads))
@@ -309,6 +329,27 @@ def main():
             print(f"geometric mean ratio ({pass_name}): {gm:.2f}   min {min(rs):.2f}")
             if pass_name == "forward_backward":
                 summary.insert(0, ("conv forward+backward, geomean of the 4 shapes", gm))
+
+    theirs_dw = best_rows(rounds["tdw"], lambda r: r["ms"])
+    ours_dw = best_rows(rounds["odw"], lambda r: r["ms"])
+    print(f"\n{'depthwise conv (groups = C)':28s} {'pass':17s} {'torch ms':>9s} {'torch GF/s':>10s} {'ours ms':>9s} "
+          f"{'ours GF/s':>10s} {'ratio':>6s}")
+    dw_ratios = []
+    for name, *_ in DEPTHWISE_SHAPES:
+        for pass_name in ("forward", "forward_backward"):
+            t, o = theirs_dw[(name, pass_name)], ours_dw.get((name, pass_name))
+            if o is None:
+                print(f"{name:28s} {pass_name:17s} {t['ms']:9.2f} {t['gflops']:10.1f} {'missing':>9s}")
+                continue
+            ratio = t["ms"] / o["ms"]
+            if pass_name == "forward_backward":
+                dw_ratios.append(ratio)
+            print(f"{name:28s} {pass_name:17s} {t['ms']:9.2f} {t['gflops']:10.1f} {o['ms']:9.2f} "
+                  f"{o['gflops']:10.1f} {ratio:6.2f}")
+    if dw_ratios:
+        gm = math.exp(sum(math.log(r) for r in dw_ratios) / len(dw_ratios))
+        print(f"geometric mean ratio (forward_backward): {gm:.2f}   min {min(dw_ratios):.2f}")
+        summary.append((f"depthwise conv forward+backward, geomean of the {len(dw_ratios)} MobileNetV2 shapes", gm))
 
     print(f"\n{'autodiff op':28s} {'pass':17s} {'torch ms':>9s} {'torch G/s':>10s} {'ours ms':>9s} {'ours G/s':>10s} {'ratio':>6s}")
     tc = best_rows(rounds["tcore"], lambda r: r[1])

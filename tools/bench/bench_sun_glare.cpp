@@ -32,8 +32,8 @@
 #include <nlohmann/json.hpp>
 
 #include "autodiff/ops.h"
-#include "data/image_io.h"
 #include "data/hdri_split.h"
+#include "data/image_io.h"
 #include "data/panorama.h"
 #include "data/sun_labels.h"
 #include "data/visible_sun.h"

@@ -251,6 +251,33 @@ def best_rows(rows_list, key_ms):
     return best
 
 
+def geomean(named_ratios):
+    """Geometric mean of the ratios of [(name, ratio)], or None when empty."""
+    rs = [r for _, r in named_ratios]
+    return math.exp(sum(math.log(r) for r in rs) / len(rs)) if rs else None
+
+
+def conv_table(title, shapes, theirs, ours):
+    """Prints one row per shape and pass (ratio = torch ms / ours ms, the GFLOP/s ratio) and each
+    pass's geometric mean; returns {pass: [(name, ratio)]}."""
+    print(f"{title:28s} {'pass':17s} {'torch ms':>9s} {'torch GF/s':>10s} {'ours ms':>9s} {'ours GF/s':>10s} {'ratio':>6s}")
+    ratios = {"forward": [], "forward_backward": []}
+    for name, *_ in shapes:
+        for pass_name in ratios:
+            t, o = theirs[(name, pass_name)], ours.get((name, pass_name))
+            if o is None:
+                print(f"{name:28s} {pass_name:17s} {t['ms']:9.2f} {t['gflops']:10.1f} {'missing':>9s}")
+                continue
+            ratio = t["ms"] / o["ms"]
+            ratios[pass_name].append((name, ratio))
+            print(f"{name:28s} {pass_name:17s} {t['ms']:9.2f} {t['gflops']:10.1f} {o['ms']:9.2f} "
+                  f"{o['gflops']:10.1f} {ratio:6.2f}")
+    for pass_name, rs in ratios.items():
+        if rs:
+            print(f"geometric mean ratio ({pass_name}): {geomean(rs):.2f}   min {min(r for _, r in rs):.2f}")
+    return ratios
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("bench", nargs="?", default=os.path.join(ROOT, "build", "tools", "streetlight-bench"))
@@ -309,47 +336,17 @@ def main():
     ours = best_rows(rounds["oconv"], lambda r: r["ms"])
 
     summary = []  # (issue table row, ratio)
-    print(f"{'op':28s} {'pass':17s} {'torch ms':>9s} {'torch GF/s':>10s} {'ours ms':>9s} {'ours GF/s':>10s} {'ratio':>6s}")
-    ratios = {"forward": [], "forward_backward": []}
-    for name, *_ in SHAPES:
-        for pass_name in ("forward", "forward_backward"):
-            t, o = theirs[(name, pass_name)], ours.get((name, pass_name))
-            if o is None:
-                print(f"{name:28s} {pass_name:17s} {t['ms']:9.2f} {t['gflops']:10.1f} {'missing':>9s}")
-                continue
-            ratio = o["gflops"] / t["gflops"]
-            ratios[pass_name].append(ratio)
-            print(f"{name:28s} {pass_name:17s} {t['ms']:9.2f} {t['gflops']:10.1f} {o['ms']:9.2f} "
-                  f"{o['gflops']:10.1f} {ratio:6.2f}")
-            if pass_name == "forward_backward":
-                summary.append((f"conv forward+backward, {name}", ratio))
-    for pass_name, rs in ratios.items():
-        if rs:
-            gm = math.exp(sum(math.log(r) for r in rs) / len(rs))
-            print(f"geometric mean ratio ({pass_name}): {gm:.2f}   min {min(rs):.2f}")
-            if pass_name == "forward_backward":
-                summary.insert(0, ("conv forward+backward, geomean of the 4 shapes", gm))
-
-    theirs_dw = best_rows(rounds["tdw"], lambda r: r["ms"])
-    ours_dw = best_rows(rounds["odw"], lambda r: r["ms"])
-    print(f"\n{'depthwise conv (groups = C)':28s} {'pass':17s} {'torch ms':>9s} {'torch GF/s':>10s} {'ours ms':>9s} "
-          f"{'ours GF/s':>10s} {'ratio':>6s}")
-    dw_ratios = []
-    for name, *_ in DEPTHWISE_SHAPES:
-        for pass_name in ("forward", "forward_backward"):
-            t, o = theirs_dw[(name, pass_name)], ours_dw.get((name, pass_name))
-            if o is None:
-                print(f"{name:28s} {pass_name:17s} {t['ms']:9.2f} {t['gflops']:10.1f} {'missing':>9s}")
-                continue
-            ratio = t["ms"] / o["ms"]
-            if pass_name == "forward_backward":
-                dw_ratios.append(ratio)
-            print(f"{name:28s} {pass_name:17s} {t['ms']:9.2f} {t['gflops']:10.1f} {o['ms']:9.2f} "
-                  f"{o['gflops']:10.1f} {ratio:6.2f}")
-    if dw_ratios:
-        gm = math.exp(sum(math.log(r) for r in dw_ratios) / len(dw_ratios))
-        print(f"geometric mean ratio (forward_backward): {gm:.2f}   min {min(dw_ratios):.2f}")
-        summary.append((f"depthwise conv forward+backward, geomean of the {len(dw_ratios)} MobileNetV2 shapes", gm))
+    ratios = conv_table("op", SHAPES, theirs, ours)
+    summary += [(f"conv forward+backward, {name}", r) for name, r in ratios["forward_backward"]]
+    gm = geomean(ratios["forward_backward"])
+    if gm:
+        summary.insert(0, ("conv forward+backward, geomean of the 4 shapes", gm))
+    print()
+    ratios = conv_table("depthwise conv (groups = C)", DEPTHWISE_SHAPES, best_rows(rounds["tdw"], lambda r: r["ms"]),
+                        best_rows(rounds["odw"], lambda r: r["ms"]))
+    gm = geomean(ratios["forward_backward"])
+    if gm:
+        summary.append((f"depthwise conv forward+backward, geomean of the {len(ratios['forward_backward'])} MobileNetV2 shapes", gm))
 
     print(f"\n{'autodiff op':28s} {'pass':17s} {'torch ms':>9s} {'torch G/s':>10s} {'ours ms':>9s} {'ours G/s':>10s} {'ratio':>6s}")
     tc = best_rows(rounds["tcore"], lambda r: r[1])

@@ -122,6 +122,25 @@ class PredictorWarmStart : public ::testing::Test {
     return g;
   }
 
+  // A grown model starts from the exported one's answers, and one step trains the columns its sun
+  // head's first layer gained (for `what`).
+  void expect_same_answers_then_new_columns_train(LightingStage& stage, const std::string& what) {
+    expect_same_answers(sky_answers(stage, image), answers);
+    EXPECT_TRUE(std::isfinite(stage.step(0).at("loss")));
+    EXPECT_GT(new_columns_mass(stage.predictor().state_dict().at("sun_head.net.0.weight"),
+                               before.at("sun_head.net.0.weight").size(1)),
+              0.0)
+        << what << " did not train";
+  }
+
+  // The config with the sun head (model.sun_grid and its loss) taken away.
+  nlohmann::json without_sun_head() const {
+    nlohmann::json g = c;
+    g["model"]["sun_grid"] = {{"elevation_bins", 0}, {"azimuth_bins", 0}};
+    g["loss"]["sun_distribution"] = 0.0;
+    return g;
+  }
+
   std::string dir, sky, exported;
   nlohmann::json c;
   Tensor image;
@@ -243,12 +262,7 @@ TEST_F(PredictorWarmStart, HeadsGainTheFeatureGridFromAModelWithout) {
     expect_widened(name, t, old);
   }
   EXPECT_EQ(widened, 3);  // the sky head, the sun head and the volume MLP
-  expect_same_answers(sky_answers(stage, image), answers);
-  EXPECT_TRUE(std::isfinite(stage.step(0).at("loss")));
-  EXPECT_GT(new_columns_mass(stage.predictor().state_dict().at("sun_head.net.0.weight"),
-                             before.at("sun_head.net.0.weight").size(1)),
-            0.0)
-      << "the grid's columns did not train";
+  expect_same_answers_then_new_columns_train(stage, "the grid's columns");
 }
 
 TEST_F(PredictorWarmStart, AResNet18BackboneDeepensToAResNet34WithTheSameAnswers) {
@@ -346,16 +360,10 @@ TEST_F(PredictorWarmStart, ASunHeadGainsImageStatisticsFromAModelWithout) {
     ASSERT_EQ(t.size(1), before.at(name).size(1) + train::kImageStatistics);
     expect_widened(name, t, before.at(name));
   }
-  expect_same_answers(sky_answers(stage, image), answers);
-  EXPECT_TRUE(std::isfinite(stage.step(0).at("sun_distribution")));
-  EXPECT_GT(new_columns_mass(stage.predictor().state_dict().at("sun_head.net.0.weight"),
-                             before.at("sun_head.net.0.weight").size(1)),
-            0.0)
-      << "the statistics' columns did not train";
+  expect_same_answers_then_new_columns_train(stage, "the statistics' columns");
+  EXPECT_TRUE(std::isfinite(stage.step(1).at("sun_distribution")));
   // The statistics need the sun head, and say so naming the key.
-  nlohmann::json bad = c;
-  bad["model"]["sun_grid"] = {{"elevation_bins", 0}, {"azimuth_bins", 0}};
-  bad["loss"]["sun_distribution"] = 0.0;
+  nlohmann::json bad = without_sun_head();
   bad["model"]["sun_image_statistics"] = true;
   EXPECT_NE(refusal([&] { LightingStage refused(bad, memory_source(2), memory_source(1)); },
                     "model.sun_image_statistics without model.sun_grid")
@@ -393,16 +401,10 @@ TEST_F(PredictorWarmStart, ASunHeadGainsItsOwnImageNetBackboneFromAModelWithout)
     EXPECT_NE(stage.predictor().sun_backbone()->stem().parameter("weight").to_vector(),
               fresh.stem().parameter("weight").to_vector());
   }
-  expect_same_answers(sky_answers(stage, image), answers);
-  EXPECT_TRUE(std::isfinite(stage.step(0).at("sun_distribution")));
-  EXPECT_GT(new_columns_mass(stage.predictor().state_dict().at("sun_head.net.0.weight"),
-                             before.at("sun_head.net.0.weight").size(1)),
-            0.0)
-      << "the new backbone's columns did not train";
+  expect_same_answers_then_new_columns_train(stage, "the new backbone's columns");
+  EXPECT_TRUE(std::isfinite(stage.step(1).at("sun_distribution")));
   // The backbone needs the sun head, and its weights need the backbone: each refusal names its key.
-  nlohmann::json bad = c;
-  bad["model"]["sun_grid"] = {{"elevation_bins", 0}, {"azimuth_bins", 0}};
-  bad["loss"]["sun_distribution"] = 0.0;
+  nlohmann::json bad = without_sun_head();
   bad["model"]["sun_backbone"] = "mobilenet_v2";
   EXPECT_NE(refusal([&] { LightingStage refused(bad, memory_source(2), memory_source(1)); },
                     "model.sun_backbone without model.sun_grid")

@@ -111,6 +111,7 @@ json default_train_config() {
        {{"lr", 1e-3},
         {"min_lr", 1e-5},
         {"warmup_steps", 20},
+        {"schedule_steps", 0},
         {"weight_decay", 0.0},
         {"ema_decay", 0.0},
         {"clip_grad_norm", 10.0},
@@ -162,6 +163,8 @@ void check_train_config(const json& c) {
            kStageSky, " stage has none to freeze, got ", freeze.dump());
   positive(c, "optim", "lr");
   SL_CHECK(c.at("optim").at("min_lr").get<double>() >= 0, "optim.min_lr must be >= 0");
+  SL_CHECK(c.at("optim").at("schedule_steps").get<int64_t>() >= 0,
+           "optim.schedule_steps must be >= 0 (0: train.steps), got ", c.at("optim").at("schedule_steps").get<int64_t>());
   const double ema = c.at("optim").at("ema_decay").get<double>();
   SL_CHECK(ema >= 0 && ema < 1, "optim.ema_decay must lie in [0, 1) (0: off), got ", ema);
   SL_CHECK(c.at("seed").get<int64_t>() >= 0, "seed must be >= 0, got ", c.at("seed").get<int64_t>());

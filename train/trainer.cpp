@@ -81,9 +81,12 @@ RunResult run_training(Stage& stage, const nlohmann::json& config, const RunOpti
   const int64_t total = t.at("steps").get<int64_t>();
   const int64_t log_every = t.at("log_every").get<int64_t>(), val_every = t.at("val_every").get<int64_t>();
   const int64_t ckpt_every = t.at("checkpoint_every").get<int64_t>(), image_every = t.at("image_every").get<int64_t>();
-  const int64_t warmup = std::min(o.at("warmup_steps").get<int64_t>(), std::max<int64_t>(total - 1, 0));
+  // The schedule's length: train.steps unless optim.schedule_steps sets another, so that a run can
+  // stop part-way through a longer schedule and a resume can change where it ends.
+  const int64_t scheduled = o.value("schedule_steps", int64_t{0}) > 0 ? o.at("schedule_steps").get<int64_t>() : total;
+  const int64_t warmup = std::min(o.at("warmup_steps").get<int64_t>(), std::max<int64_t>(scheduled - 1, 0));
   std::shared_ptr<const nn::LrSchedule> cosine = std::make_shared<nn::CosineLr>(
-      o.at("lr").get<double>(), std::max<int64_t>(total - warmup, 1), o.at("min_lr").get<double>());
+      o.at("lr").get<double>(), std::max<int64_t>(scheduled - warmup, 1), o.at("min_lr").get<double>());
   std::shared_ptr<const nn::LrSchedule> schedule =
       warmup > 0 ? std::make_shared<nn::WarmupLr>(warmup, cosine) : cosine;
 

@@ -8,7 +8,8 @@
 //   exactly what an uninterrupted run computes (bit-identical with the same thread count).
 // - run_training(): from step 0 (after stage.initialise(), which loads the checkpoint the stage
 //   starts from) or from --resume (model, optimiser, step and best metric from the checkpoint).
-//   Per step: lr from the schedule (warmup + cosine), stage.step(); every log_every steps a
+//   Per step: lr from the schedule (warmup + cosine over optim.schedule_steps, train.steps when
+//   0; the run stops at train.steps either way), stage.step(); every log_every steps a
 //   JSON line appended to <out>/metrics.jsonl; every val_every steps validation (a JSON line
 //   with "split": "val") and best.safetensors when the stage's best metric improved; every
 //   checkpoint_every steps and at the end last.safetensors (atomic); every image_every steps

@@ -63,6 +63,9 @@ TEST(TrainExecutable, WrongValueTypeAndBadStageAreErrors) {
   r = run_train(R"({"stage": "sky_autoencoder"})", "--set optim.ema_decay=1");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("optim.ema_decay"), std::string::npos) << r.err;
+  r = run_train(R"({"stage": "sky_autoencoder"})", "--set optim.schedule_steps=-5");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("optim.schedule_steps"), std::string::npos) << r.err;
 }
 
 }  // namespace

@@ -83,6 +83,38 @@ TEST(Trainer, LightingResumeIsBitIdentical) {
   EXPECT_EQ(tail[1], all[3]);
 }
 
+// optim.schedule_steps: a run that stops at train.steps = 2 under a 6-step schedule, then resumes
+// with train.steps = 6, computes what one 6-step run computes; the schedule, not where the run
+// stops, sets the rate.
+TEST(Trainer, AStopInsideALongerScheduleResumesBitIdentically) {
+  const nlohmann::json c = tiny_config(kStageSky);
+  ASSERT_EQ(c["train"]["steps"], 6);
+  const std::string a = temp_dir("schedule_sky_a"), b = temp_dir("schedule_sky_b");
+  SkyStage full(c);
+  const std::vector<double> all = run_losses(full, c, a, "", 0);
+  nlohmann::json head_config = c;
+  head_config["train"]["steps"] = 2;
+  head_config["optim"]["schedule_steps"] = 6;
+  SkyStage first(head_config);
+  const std::vector<double> head = run_losses(first, head_config, b, "", 0);
+  ASSERT_EQ(head.size(), 2u);
+  SkyStage second(c);
+  const std::vector<double> tail = run_losses(second, c, b, b + "/last.safetensors", 0);
+  ASSERT_EQ(tail.size(), 4u);
+  for (size_t i = 0; i < 2; ++i) EXPECT_EQ(head[i], all[i]) << i;
+  for (size_t i = 0; i < 4; ++i) EXPECT_EQ(tail[i], all[i + 2]) << "step " << i + 3;
+  // Without schedule_steps the 2-step run anneals to min_lr by its end and the runs part.
+  nlohmann::json short_config = c;
+  short_config["train"]["steps"] = 2;
+  SkyStage alone(short_config);
+  const std::string d = temp_dir("schedule_sky_d");
+  run_losses(alone, short_config, d, "", 0);
+  SkyStage after(c);
+  const std::vector<double> other = run_losses(after, c, d, d + "/last.safetensors", 0);
+  ASSERT_EQ(other.size(), 4u);
+  EXPECT_NE(other[0], all[2]);
+}
+
 // optim.ema_decay: a resumed run ends with the same weights and averages, and best.safetensors
 // (written at the one validation, the last step) holds the averages as its model and the raw
 // weights as "optim.average.*": last.safetensors the other way round.

@@ -8,6 +8,8 @@
 # cosine to 0, width 32, 16 azimuth sectors), and then scores the detector beside the disk test, and
 # its azimuth head, on the VALIDATION split. The threshold (kGlareThreshold = 0.95) was chosen on that
 # score for 0.7.3; the azimuth weight (kGlareAzimuthWeight = 0.5) with streetlight-eval on val.
+# A cut-off run resumes when the same command is run again (RUNS/sun_glare.safetensors.partial.safetensors,
+# saved every 500 steps and on SIGINT/SIGTERM).
 # Usage: scripts/train_sun_glare.sh [--runs DIR] [--build-dir DIR] [--no-publish]
 #   --runs DIR   run folder (default ../streetlight-runs/glare, outside the repository)
 # Wall time here (AMD EPYC, 2 vCPUs, 2 threads): 173 s of crops and about 4270 s of training under
@@ -20,7 +22,7 @@ while [ $# -gt 0 ]; do
     --runs) runs="${2:?--runs needs a folder}"; shift ;;
     --build-dir) build_dir="${2:?--build-dir needs a folder}"; shift ;;
     --no-publish) publish=0 ;;
-    -h|--help) sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "error: unknown option '$1' (try --help)" >&2; exit 2 ;;
   esac
   shift

@@ -15,6 +15,7 @@
 #include <string>
 #include <thread>
 
+#include "support/tiny_ldr_folder.h"
 #include "tools/common/cli.h"
 #include "util/error.h"
 
@@ -127,6 +128,49 @@ TEST(Executables, BenchSunGlareNeverScoresTheTestSplitNorWhatItTrainedOn) {
     EXPECT_EQ(std::count(t.out.begin(), t.out.end(), '\n'), 1) << args << "\n" << t.out;
     EXPECT_NE(t.out.find("--train-split"), std::string::npos) << args << "\n" << t.out;
   }
+}
+
+// streetlight-bench sun-glare resumes a cut-off training: a run stopped at step 2 of 4 (--stop-at,
+// as a signal would stop it) leaves OUT.partial.safetensors and no OUT; the same command then ends
+// with the very bytes of an uninterrupted run and removes the partial file. Other flags are refused
+// with a one-line error naming the flag's key and the file.
+TEST(Executables, BenchSunGlareResumesBitIdenticallyAndRefusesOtherFlags) {
+  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
+  if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("sl_glare_resume_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  const std::string folder = tiny_ldr_folder(dir.string());
+  const std::string split = (dir / "split.json").string();
+  std::ofstream(split) << R"({"train": ["t1.jpg", "t2.jpg", "b.jpg"], "val": ["a.jpg"]})";
+  const std::string base = "OMP_NUM_THREADS=1 " + bench + " sun-glare --data " + folder + " --split-file " + split +
+                           " --aimed 1 --near 1 --random 1 --batch 2 --width 4 --steps 4";
+  auto slurp = [](const std::filesystem::path& f) {
+    std::ifstream in(f, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::filesystem::path whole = dir / "whole.safetensors", cut = dir / "cut.safetensors";
+  const std::filesystem::path partial = dir / "cut.safetensors.partial.safetensors";
+  ProcessResult r = run(base + " --out " + whole.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run(base + " --out " + cut.string() + " --stop-at 2");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(cut));
+  ASSERT_TRUE(std::filesystem::exists(partial)) << r.out;
+  r = run(base + " --out " + cut.string() + " --lr 1e-3");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_NE(r.out.find("lr"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(partial.filename().string()), std::string::npos) << r.out;
+  r = run(base + " --out " + cut.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("resuming from"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("at step 2"), std::string::npos) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(partial));
+  const std::string a = slurp(whole), b = slurp(cut);
+  EXPECT_GT(a.size(), 0u);
+  EXPECT_TRUE(a == b) << "the resumed detector differs from the uninterrupted one";
+  std::filesystem::remove_all(dir);
 }
 
 // gen-mesh --kind: the benchmark set's procedural meshes (tools/bench/procedural_mesh.h) are a

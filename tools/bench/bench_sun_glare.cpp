@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -47,6 +48,7 @@
 #include "train/street_batch.h"
 #include "train/sun_distribution.h"
 #include "train/sun_glare.h"
+#include "train/trainer.h"
 #include "util/error.h"
 #include "util/math.h"
 #include "util/random.h"
@@ -327,7 +329,7 @@ void score(train::SunGlareDetector& net, const std::vector<GlareCrop>& crops, co
 int run_sun_glare(const std::vector<std::string>& args) {
   std::string data_dir, split_file, hdr_dir, hdr_split, out, checkpoint, score_split = "val", train_split = "train";
   int64_t steps = 3000, batch = 32, aimed = 8, near = 3, random = 6, hdr_crops = 16, width = 24;
-  int64_t azimuth_bins = 0, azimuth_crops = 0;
+  int64_t azimuth_bins = 0, azimuth_crops = 0, checkpoint_every = 500, stop_at = 0;
   double lr = 2e-3, azimuth_loss = 1.0, azimuth_width = 20.0;
   Jitter jitter;
   for (size_t i = 0; i < args.size(); ++i) {
@@ -343,7 +345,8 @@ int run_sun_glare(const std::vector<std::string>& args) {
           "                                  [--aimed K] [--near K] [--random K] [--hdr-crops K] [--width W]\n"
           "                                  [--azimuth-bins A] [--azimuth-crops K] [--azimuth-loss X] [--azimuth-width DEG]\n"
           "                                  [--score-split val|train] [--jitter-exposure S] [--jitter-white-balance S]\n"
-          "                                  [--jitter-tone S] [--train-split train|train+val]\n\n"
+          "                                  [--jitter-tone S] [--train-split train|train+val]\n"
+          "                                  [--checkpoint-every N] [--stop-at STEP]\n\n"
           "Trains the learned sun-glare detector (train/sun_glare.h) on crops of the TRAIN split of the labelled\n"
           "LDR panoramas DIR: per panorama with a visible sun, --aimed crops aimed at it, --near just beside it and\n"
           "--random at random (defaults 8, 3, 6); --random crops of every other panorama; with --hdr-data, the\n"
@@ -361,7 +364,11 @@ int run_sun_glare(const std::vector<std::string>& args) {
           "more random crops of each panorama with a known sun (default 0). Its score: the share of val crops put in\n"
           "the right half (in front of the camera or behind it) and the median azimuth error of its mode.\n\n"
           "--jitter-exposure, --jitter-white-balance, --jitter-tone S (stops, default 0: off) give each training crop\n"
-          "its own exposure, white balance and tone curve, uniform in ±S (pixels clipped in every channel kept).\n");
+          "its own exposure, white balance and tone curve, uniform in ±S (pixels clipped in every channel kept).\n\n"
+          "Training is resumable: every --checkpoint-every steps (default 500), on SIGINT or SIGTERM and at\n"
+          "--stop-at STEP, the detector and its optimiser are saved to OUT.partial.safetensors; the same command\n"
+          "then continues from there, bit-identically (same thread count), and refuses other flags. The file is\n"
+          "removed once OUT is written.\n");
       return 0;
     }
     if (a == "--data") data_dir = value();
@@ -381,6 +388,8 @@ int run_sun_glare(const std::vector<std::string>& args) {
                train_split, "'");
     }
     else if (a == "--steps") steps = cli::parse_integer("sun-glare: --steps", value(), 0, 10000000);
+    else if (a == "--checkpoint-every") checkpoint_every = cli::parse_integer("sun-glare: --checkpoint-every", value(), 1, 10000000);
+    else if (a == "--stop-at") stop_at = cli::parse_integer("sun-glare: --stop-at", value(), 1, 10000000);
     else if (a == "--batch") batch = cli::parse_integer("sun-glare: --batch", value(), 1, 4096);
     else if (a == "--aimed") aimed = cli::parse_integer("sun-glare: --aimed", value(), 0, 256);
     else if (a == "--near") near = cli::parse_integer("sun-glare: --near", value(), 0, 256);
@@ -425,6 +434,30 @@ int run_sun_glare(const std::vector<std::string>& args) {
                          : train::load_sun_glare(checkpoint);
   train::SunGlareDetector& net = *held;
   if (checkpoint.empty()) {
+    // Every flag that shapes the trained detector; a partial checkpoint resumes only under the same ones.
+    nlohmann::json cfg = {{"width", width}, {"steps", steps}, {"batch", batch}, {"lr", lr}, {"aimed", aimed},
+                          {"near", near}, {"random", random}, {"hdr_crops", hdr_dir.empty() ? 0 : hdr_crops}};
+    if (jitter.on()) cfg["jitter"] = {{"exposure", jitter.exposure}, {"white_balance", jitter.white_balance}, {"tone", jitter.tone}};
+    if (azimuth_bins > 0) {
+      cfg["azimuth_bins"] = azimuth_bins;
+      cfg["azimuth_crops"] = azimuth_crops;
+      cfg["azimuth_loss"] = azimuth_loss;
+      cfg["azimuth_width"] = azimuth_width;
+    }
+    if (train_split != "train") cfg["train_split"] = train_split;
+    // Resume: the crops are a pure function of the flags, each step's batch and rate of its index.
+    const std::string partial = out + ".partial.safetensors";
+    const bool resuming = std::filesystem::exists(partial);
+    if (resuming) {
+      const nlohmann::json saved = nlohmann::json::parse(nn::read_checkpoint_info(partial).config_json);
+      for (const auto& [key, v] : cfg.items())
+        SL_CHECK(saved.contains(key) && saved.at(key) == v, "sun-glare: ", partial, " was trained with ", key, " = ",
+                 saved.contains(key) ? saved.at(key).dump() : std::string("(none)"), ", this command has ", v.dump(),
+                 " (run the same command to resume, or remove the file)");
+      for (const auto& [key, v] : saved.items())
+        SL_CHECK(cfg.contains(key), "sun-glare: ", partial, " was trained with ", key, " = ", v.dump(),
+                 ", this command has none (run the same command to resume, or remove the file)");
+    }
     auto t0 = std::chrono::steady_clock::now();
     std::vector<GlareCrop> crops =
         panorama_crops(data_dir, labels, split_list(split_file, train_split), int(aimed), int(near), int(random), 0x676c617265ULL, false,
@@ -446,11 +479,20 @@ int run_sun_glare(const std::vector<std::string>& args) {
     }
     net.train();
     nn::Adam opt(net.named_parameters(), {.lr = lr});
+    int64_t first = 0;
+    if (resuming) {
+      first = nn::load_checkpoint(partial, net, &opt).step;
+      std::fprintf(stderr, "sun-glare: resuming from %s at step %lld\n", partial.c_str(), (long long)first);
+    }
+    auto save_partial = [&](int64_t done) {
+      nn::save_checkpoint(partial, net, &opt, {.stage = "sun_glare_partial", .step = done, .config_json = cfg.dump()});
+    };
+    train::install_stop_handlers();
     std::vector<size_t> order(crops.size());
     std::iota(order.begin(), order.end(), size_t(0));
     double running = 0.0;
     t0 = std::chrono::steady_clock::now();
-    for (int64_t step = 0; step < steps; ++step) {
+    for (int64_t step = first; step < steps; ++step) {
       // Cosine decay to zero over the run.
       opt.set_lr(lr * 0.5 * (1.0 + std::cos(kPi * double(step) / double(std::max<int64_t>(1, steps)))));
       TensorList xs, ts, azs;
@@ -481,21 +523,22 @@ int run_sun_glare(const std::vector<std::string>& args) {
       opt.zero_grad();
       backward(loss);
       opt.step();
-      running = step == 0 ? loss.item() : 0.98 * running + 0.02 * loss.item();
+      running = step == first ? loss.item() : 0.98 * running + 0.02 * loss.item();
       if ((step + 1) % 200 == 0 || step + 1 == steps)
         std::fprintf(stderr, "sun-glare: step %lld/%lld loss %.4f (%.1f steps/s)\n", (long long)(step + 1), (long long)steps,
-                     running, double(step + 1) / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+                     running, double(step + 1 - first) / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+      const bool stop = train::stop_requested() || step + 1 == stop_at;
+      if (step + 1 < steps && (stop || (step + 1) % checkpoint_every == 0)) save_partial(step + 1);
+      if (stop && step + 1 < steps) {
+        std::fprintf(stderr, "sun-glare: stopped at step %lld; saved %s (run the same command to resume)\n",
+                     (long long)(step + 1), partial.c_str());
+        return train::stop_requested() ? 130 : 0;
+      }
     }
-    nlohmann::json cfg = {{"width", width}, {"steps", steps}, {"batch", batch}, {"lr", lr}, {"aimed", aimed},
-                          {"near", near}, {"random", random}, {"hdr_crops", hdr_dir.empty() ? 0 : hdr_crops}};
-    if (jitter.on()) cfg["jitter"] = {{"exposure", jitter.exposure}, {"white_balance", jitter.white_balance}, {"tone", jitter.tone}};
-    if (azimuth_bins > 0) {
-      cfg["azimuth_bins"] = azimuth_bins;
-      cfg["azimuth_crops"] = azimuth_crops;
-      cfg["azimuth_loss"] = azimuth_loss;
-      cfg["azimuth_width"] = azimuth_width;
-    }
+    std::signal(SIGINT, SIG_DFL);  // scoring below stops at once
+    std::signal(SIGTERM, SIG_DFL);
     nn::save_checkpoint(out, net, nullptr, {.stage = "sun_glare", .step = steps, .config_json = cfg.dump()});
+    std::filesystem::remove(partial);
     std::fprintf(stderr, "sun-glare: saved %s\n", out.c_str());
   }
   // Validation (or, with --score-split train, new crops of the training panoramas: the seed differs from training's).

@@ -48,6 +48,15 @@ std::vector<double> run_losses(Stage& stage, const nlohmann::json& c, const std:
   return losses;
 }
 
+// A run cut after head.size() steps and resumed (tail) computed, loss for loss, what the
+// uninterrupted run computed (all).
+void expect_same_losses_as_one_run(const std::vector<double>& head, const std::vector<double>& tail,
+                                   const std::vector<double>& all) {
+  ASSERT_EQ(head.size() + tail.size(), all.size());
+  for (size_t i = 0; i < head.size(); ++i) EXPECT_EQ(head[i], all[i]) << "step " << i + 1;
+  for (size_t i = 0; i < tail.size(); ++i) EXPECT_EQ(tail[i], all[head.size() + i]) << "step " << head.size() + i + 1;
+}
+
 TEST(Trainer, SkyResumeIsBitIdentical) {
   const nlohmann::json c = tiny_config(kStageSky);
   const std::string a = temp_dir("resume_sky_a"), b = temp_dir("resume_sky_b");
@@ -60,8 +69,7 @@ TEST(Trainer, SkyResumeIsBitIdentical) {
   SkyStage second(c);
   const std::vector<double> tail = run_losses(second, c, b, b + "/last.safetensors", 0);
   ASSERT_EQ(tail.size(), 4u);
-  for (size_t i = 0; i < 2; ++i) EXPECT_EQ(head[i], all[i]) << i;
-  for (size_t i = 0; i < 4; ++i) EXPECT_EQ(tail[i], all[i + 2]) << "step " << i + 3;
+  expect_same_losses_as_one_run(head, tail, all);
   EXPECT_TRUE(fs::exists(a + "/best.safetensors"));
   EXPECT_TRUE(fs::exists(a + "/metrics.jsonl"));
 }
@@ -101,8 +109,7 @@ TEST(Trainer, AStopInsideALongerScheduleResumesBitIdentically) {
   SkyStage second(c);
   const std::vector<double> tail = run_losses(second, c, b, b + "/last.safetensors", 0);
   ASSERT_EQ(tail.size(), 4u);
-  for (size_t i = 0; i < 2; ++i) EXPECT_EQ(head[i], all[i]) << i;
-  for (size_t i = 0; i < 4; ++i) EXPECT_EQ(tail[i], all[i + 2]) << "step " << i + 3;
+  expect_same_losses_as_one_run(head, tail, all);
   // Without schedule_steps the 2-step run anneals to min_lr by its end and the runs part.
   nlohmann::json short_config = c;
   short_config["train"]["steps"] = 2;

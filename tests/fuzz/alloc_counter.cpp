@@ -7,12 +7,10 @@
 #include <cstdint>
 #include <cstring>
 
-#if defined(__SANITIZE_ADDRESS__)
+#include "tests/support/address_sanitizer.h"
+
+#if defined(STREETLIGHT_ADDRESS_SANITIZER)
 #define STREETLIGHT_NO_ALLOC_COUNTER 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define STREETLIGHT_NO_ALLOC_COUNTER 1
-#endif
 #endif
 
 namespace {

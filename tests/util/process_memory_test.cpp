@@ -6,14 +6,7 @@
 
 #include <gtest/gtest.h>
 
-// AddressSanitizer brings its own allocator, which malloc_trim does not reach.
-#if defined(__SANITIZE_ADDRESS__)
-#define STREETLIGHT_OWN_ALLOCATOR 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define STREETLIGHT_OWN_ALLOCATOR 1
-#endif
-#endif
+#include "tests/support/address_sanitizer.h"
 
 namespace sl {
 namespace {
@@ -33,7 +26,7 @@ TEST(ProcessMemory, ResidentBytesFollowsTouchedMemory) {
 TEST(ProcessMemory, ReleaseFreeHeapGivesBackPagesHeldBetweenLiveBlocks) {
 #if !defined(__GLIBC__)
   GTEST_SKIP() << "release_free_heap does nothing without glibc";
-#elif defined(STREETLIGHT_OWN_ALLOCATOR)
+#elif defined(STREETLIGHT_ADDRESS_SANITIZER)
   GTEST_SKIP() << "a sanitizer's allocator holds the heap, not glibc's";
 #else
   // 2000 blocks of 96 KiB (below malloc's mmap threshold, so on the heap), each followed by a small

@@ -51,6 +51,14 @@ SunGlareDetector::SunGlareDetector(SunGlareOptions options) : nn::Module("SunGla
 
 Tensor SunGlareDetector::forward(const Tensor& x) { return forward_heads(x).glare; }
 
+Tensor SunGlareDetector::azimuth_features(const Tensor& x) {
+  SL_CHECK(has_azimuth(), "SunGlareDetector::azimuth_features: this detector has no azimuth head");
+  SL_CHECK(x.defined() && x.dim() == 4 && x.size(1) == 4 && x.size(2) == kGlareInputHeight && x.size(3) == kGlareInputWidth,
+           "SunGlareDetector: expected [N, 4, 64, 128], got ", x.defined() ? x.describe() : std::string("undefined"));
+  const Tensor f = features_->forward(x);
+  return reshape(azimuth_pool_->forward(f), {x.size(0), f.size(1) * 32});
+}
+
 GlareHeads SunGlareDetector::forward_heads(const Tensor& x) {
   SL_CHECK(x.defined() && x.dim() == 4 && x.size(1) == 4 && x.size(2) == kGlareInputHeight && x.size(3) == kGlareInputWidth,
            "SunGlareDetector: expected [N, 4, 64, 128], got ", x.defined() ? x.describe() : std::string("undefined"));
@@ -61,7 +69,7 @@ GlareHeads SunGlareDetector::forward_heads(const Tensor& x) {
   const Tensor none = none_->forward(pooled);                               // [N, 1]
   GlareHeads out;
   out.glare = concat({none, cells}, 1);
-  if (has_azimuth()) out.azimuth = azimuth_->forward(reshape(azimuth_pool_->forward(f), {n, f.size(1) * 32}));
+  if (has_azimuth()) out.azimuth = azimuth_->forward(reshape(azimuth_pool_->forward(f), {n, f.size(1) * 32}));  // as azimuth_features
   return out;
 }
 

@@ -108,6 +108,9 @@ class SunGlareDetector : public nn::Module {
   explicit SunGlareDetector(SunGlareOptions options = {});
   Tensor forward(const Tensor& x) override;  // the glare logits only
   GlareHeads forward_heads(const Tensor& x);
+  // What the azimuth head reads: the features average-pooled to 4×8 cells and flattened,
+  // [N, 2·width·32] (for probes of what the detector knows; throws without an azimuth head).
+  Tensor azimuth_features(const Tensor& x);
   const SunGlareOptions& options() const { return opt_; }
   bool has_azimuth() const { return opt_.azimuth_bins > 0; }
 

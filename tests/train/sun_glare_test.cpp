@@ -196,6 +196,30 @@ TEST(SunGlare, TheAzimuthHeadLearnsWhichSideIsBright) {
   EXPECT_EQ(max(abs(sub(net.forward(x), h.glare))).item(), 0.0);
 }
 
+// azimuth_features is what the azimuth head reads: its two layers applied to it by hand give the
+// head's logits, image by image; a detector without the head refuses.
+TEST(SunGlare, TheAzimuthFeaturesAreTheAzimuthHeadsInput) {
+  train::SunGlareDetector net({.width = 3, .azimuth_bins = 8, .seed = 4});
+  const Tensor x = Tensor::uniform({2, 4, train::kGlareInputHeight, train::kGlareInputWidth}, -0.5, 0.5, 9);
+  NoGradGuard ng;
+  const Tensor f = net.azimuth_features(x);
+  ASSERT_EQ(f.shape(), (Shape{2, 2 * 3 * 32}));
+  Tensor w1, b1, w2, b2;
+  for (const auto& [name, p] : net.named_parameters()) {
+    if (name == "azimuth.0.weight") w1 = p;
+    if (name == "azimuth.0.bias") b1 = p;
+    if (name == "azimuth.2.weight") w2 = p;
+    if (name == "azimuth.2.bias") b2 = p;
+  }
+  ASSERT_TRUE(w1.defined() && b1.defined() && w2.defined() && b2.defined());
+  const Tensor by_hand = add(matmul(relu(add(matmul(f, transpose(w1, 0, 1)), b1)), transpose(w2, 0, 1)), b2);
+  EXPECT_LT(max(abs(sub(by_hand, net.forward_heads(x).azimuth))).item(), 1e-5);
+  const Tensor one = net.azimuth_features(slice(x, 0, 1, 2));
+  EXPECT_LT(max(abs(sub(one, slice(f, 0, 1, 2)))).item(), 1e-6);
+  train::SunGlareDetector without({.width = 3, .seed = 4});
+  EXPECT_THROW(without.azimuth_features(x), Error);
+}
+
 // The glare map as a likelihood ratio over the sun head's grid: a map with half its mass on one
 // cell above the horizon raises the sun-grid cell its centre ray falls in, and only cells in view;
 // a map sure of no sun in view lowers every cell in view and leaves the rest at 1.

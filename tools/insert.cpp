@@ -67,6 +67,7 @@ using namespace sl::train;
 using sl::cli::configure_estimator;
 using sl::cli::insertion_options;
 using sl::cli::load_object;
+using sl::cli::note_if_sun_is_a_guess;
 using sl::cli::warn_if_no_shadow_sun;
 
 namespace {
@@ -393,6 +394,9 @@ int single(const cli::Args& a) {
   }
   std::fprintf(stderr, "wrote %s (sun azimuth %.1f°, elevation %.1f°; lighting %.0f ms, insertion %.0f ms)\n",
                a.get("--out").c_str(), azimuth_deg_of(sun), elevation_deg_of(sun), light.inference_ms, ins.render_ms);
+  if (!edit.azimuth_deg && !edit.elevation_deg && !(shadow && shadow->fit.found) && !light.visible_sun_found &&
+      refine.options.steps == 0)
+    note_if_sun_is_a_guess(light.sun_probability, photo.depth_source);
   return 0;
 }
 

@@ -16,6 +16,8 @@
 #include "train/photo_insertion.h"
 #include "util/math.h"
 #include "support/tool_fixture.h"
+#include "nn/checkpoint.h"
+#include "train/lighting_predictor.h"
 
 namespace sl::test {
 
@@ -231,6 +233,42 @@ TEST(InsertTool, SunFromShadowsWithoutGeometryKeepsTheNetworksSun) {
   const auto jp = nlohmann::json::parse(pf), jf = nlohmann::json::parse(ff);
   EXPECT_FALSE(jf["sun_from_shadows"]["found"].get<bool>());
   EXPECT_EQ(jp["sun"]["direction_world"], jf["sun"]["direction_world"]);
+}
+
+// A model with a sun head (model.sun_grid) and random weights spreads its sun over the sky: its
+// probability within 20° is far below one half, and the tool says the sun is a guess, with the
+// probability result.json records and, for a photo without depth, the flags that set the sun by
+// hand. An edited sun is no guess: no note. A model without a sun head has no probability: no note.
+TEST(InsertTool, ANetworkSunItselfUnsureOfIsCalledAGuess) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_sun_guess");
+  nlohmann::json cfg = sl::test::tiny_lighting_config();
+  cfg["model"]["sun_grid"] = {{"elevation_bins", 4}, {"azimuth_bins", 16}};
+  const std::string ckpt = c.dir + "/sun_head.safetensors";
+  nn::Module holder("LightingModel");
+  holder.register_module("predictor", std::make_shared<train::LightingPredictor>(train::predictor_options(cfg)));
+  nn::save_checkpoint(ckpt, holder, nullptr, nn::CheckpointInfo{.stage = "lighting", .step = 1, .config_json = cfg.dump()});
+  std::string base = c.base;
+  base.replace(base.find(c.ckpt), c.ckpt.size(), ckpt);  // the same flags with the sun-head model
+  const std::string args = "--image " + c.dir + "/photo.png --intrinsics " + c.dir + "/intrinsics.json --at 0,8" + base;
+  const auto guess = run_tool("streetlight-insert", args + " --out " + c.dir + "/guess");
+  ASSERT_EQ(guess.code, 0) << guess.out;
+  std::ifstream jf(c.dir + "/guess/result.json");
+  const auto j = nlohmann::json::parse(jf);
+  const double p = j["sun"]["probability"].get<double>();
+  ASSERT_LT(p, 0.5);
+  char expected[64];
+  std::snprintf(expected, sizeof expected, "probability %.2f of lying within", p);
+  EXPECT_NE(guess.out.find("note: the sun's direction is the model's guess"), std::string::npos) << guess.out;
+  EXPECT_NE(guess.out.find(expected), std::string::npos) << guess.out;
+  EXPECT_NE(guess.out.find("--sun-azimuth and --sun-elevation"), std::string::npos) << guess.out;
+  const auto edited = run_tool("streetlight-insert", args + " --sun-azimuth 30 --sun-elevation 40 --out " + c.dir + "/edited");
+  ASSERT_EQ(edited.code, 0) << edited.out;
+  EXPECT_EQ(edited.out.find("note:"), std::string::npos) << edited.out;
+  const auto no_head = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
+                                                        "/intrinsics.json --at 0,8 --out " + c.dir + "/no_head" + c.base);
+  ASSERT_EQ(no_head.code, 0) << no_head.out;
+  EXPECT_EQ(no_head.out.find("note:"), std::string::npos) << no_head.out;
 }
 
 TEST(InsertTool, SunFromShadowsWithAnEditedSunIsACleanError) {

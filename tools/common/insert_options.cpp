@@ -64,4 +64,14 @@ void warn_if_no_shadow_sun(const data::ShadowSunFit& fit, const std::string& dep
                fit.ground_samples, depth_source.c_str());
 }
 
+void note_if_sun_is_a_guess(double sun_probability, const std::string& depth_source) {
+  if (!(sun_probability < kSunGuessProbability)) return;  // also NaN: no sun head
+  const bool geometry = depth_source == "lidar" || depth_source == "depth-file" || depth_source == "dataset";
+  std::fprintf(stderr, "note: the sun's direction is the model's guess (it gives it probability %.2f of lying within "
+               "20°); %s\n", sun_probability,
+               geometry ? "--sun-from-shadows reads it from the photo's own shadows"
+                        : "--sun-azimuth and --sun-elevation set it by hand, or --lidar/--depth with --sun-from-shadows "
+                          "reads it from the photo's shadows");
+}
+
 }  // namespace sl::cli

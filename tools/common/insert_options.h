@@ -1,6 +1,6 @@
 // The flags both modes of streetlight-insert share (a single photo, and --batch): the object to
-// insert, the insertion's sampling options (train/photo_insertion.h), the estimator's options, and
-// the warning when --sun-from-shadows finds no shadow to fit.
+// insert, the insertion's sampling options (train/photo_insertion.h), the estimator's options, the
+// warning when --sun-from-shadows finds no shadow to fit, and the note when the sun is a guess.
 // Throws: sl::Error naming the flag or the file (exit 2 through cli::run_main).
 #pragma once
 #include <string>
@@ -23,5 +23,13 @@ train::PhotoInsertionOptions insertion_options(const Args& a, const render::Radi
 void configure_estimator(train::LightingEstimator& est, const Args& a);
 // --sun-from-shadows without a confident fit: one warning line on stderr (the network's sun stays).
 void warn_if_no_shadow_sun(const data::ShadowSunFit& fit, const std::string& depth_source, const std::string& frame);
+// The network's own sun (no edit, no shadow fit, no visible sun) that the network itself gives less
+// than kSunGuessProbability of lying within 20° of where it put it (EstimatedLighting::sun_probability):
+// one note line on stderr naming the probability and what sets the sun from the photo instead:
+// --sun-from-shadows where the photo has real geometry (depth_source "lidar", "depth-file" or
+// "dataset"), else --sun-azimuth/--sun-elevation. Nothing for a NaN probability (no sun head) or
+// a larger one.
+inline constexpr double kSunGuessProbability = 0.5;
+void note_if_sun_is_a_guess(double sun_probability, const std::string& depth_source);
 
 }  // namespace sl::cli

@@ -173,6 +173,42 @@ TEST(Executables, BenchSunGlareResumesBitIdenticallyAndRefusesOtherFlags) {
   std::filesystem::remove_all(dir);
 }
 
+// --level-aimed K adds K level crops toward each training panorama's visible sun (2 panoramas here),
+// the scores gain a set of level crops toward each val sun, and a partial run made with the flag
+// resumes only with it.
+TEST(Executables, BenchSunGlareLevelCropsAddToTrainingAndToTheScores) {
+  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
+  if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("sl_glare_level_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  const std::string folder = tiny_ldr_folder(dir.string());
+  const std::string split = (dir / "split.json").string();
+  std::ofstream(split) << R"({"train": ["t1.jpg", "t2.jpg", "b.jpg"], "val": ["a.jpg"]})";
+  const std::string base = "OMP_NUM_THREADS=1 " + bench + " sun-glare --data " + folder + " --split-file " + split +
+                           " --aimed 1 --near 1 --random 1 --batch 2 --width 4 --steps 2";
+  auto crops_of = [](const std::string& out) {
+    const size_t at = out.find(" training crops");
+    if (at == std::string::npos) return -1;
+    size_t begin = out.rfind(' ', at - 1);
+    return std::stoi(out.substr(begin + 1, at - begin - 1));
+  };
+  const ProcessResult plain = run(base + " --out " + (dir / "plain.safetensors").string());
+  ASSERT_EQ(plain.code, 0) << plain.out;
+  const ProcessResult level = run(base + " --level-aimed 2 --out " + (dir / "level.safetensors").string());
+  ASSERT_EQ(level.code, 0) << level.out;
+  EXPECT_EQ(crops_of(level.out), crops_of(plain.out) + 4) << plain.out << level.out;
+  const size_t section = level.out.find("level crops toward each visible sun (32 per panorama");
+  ASSERT_NE(section, std::string::npos) << level.out;
+  EXPECT_NE(level.out.find(": 32 crops, sun in view", section), std::string::npos) << level.out;
+  const std::string cut = (dir / "cut.safetensors").string();
+  ASSERT_EQ(run(base + " --level-aimed 2 --stop-at 1 --out " + cut).code, 0);
+  const ProcessResult other = run(base + " --out " + cut);
+  EXPECT_EQ(other.code, 2) << other.out;
+  EXPECT_EQ(std::count(other.out.begin(), other.out.end(), '\n'), 1) << other.out;
+  EXPECT_NE(other.out.find("level_aimed"), std::string::npos) << other.out;
+  std::filesystem::remove_all(dir);
+}
+
 // gen-mesh --kind: the benchmark set's procedural meshes (tools/bench/procedural_mesh.h) are a
 // pure function of (kind, triangles, seed), reach the triangle target and overshoot it by at most
 // one part, and an unknown kind is a one-line error.

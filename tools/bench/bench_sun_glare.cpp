@@ -6,13 +6,19 @@
 //
 // Crops of the labelled LDR panoramas (256×128, horizontal fov uniform in [50°, 80°], roll 0,
 // resampled in linear radiance as the benchmark's crops are):
-// - a panorama with a visible sun: `aimed` crops with the sun in the middle 80% of the view, `near`
-//   crops aimed 1.1-1.6 half-fovs beside it (the sun just out of view: the glare's spill without the
-//   sun), and `random` crops (yaw uniform, pitch uniform in [−5°, 25°]); a crop's sun is in view when
-//   it projects inside the image;
+// - a panorama with a visible sun: `aimed` crops with the sun in the middle 80% of the view (the
+//   middle `aimed_span` of its width and height; 1 puts it anywhere up to the edges), `near` crops
+//   aimed 1.1-1.6 half-fovs beside it (the sun just out of view: the glare's spill without the sun),
+//   `level` crops drawn as the benchmark draws its views (pitch uniform in ±10°) with the yaw put so
+//   that the sun is anywhere across the view's width, in view when its height allows (the
+//   benchmark's suns in view lie in the view's outer tenth 44% of the time,
+//   scripts/sun_in_view_positions.py, where the default aimed crops never put them), and `random`
+//   crops (yaw uniform, pitch uniform in [−5°, 25°]); a crop's sun is in view when it projects
+//   inside the image;
 // - any other panorama (sun occluded or absent): `random` crops, none with a sun in view.
 // Plus, with --hdr-data, the benchmark's own crops of the HDR skies (as streetlight-eval draws them).
-// The validation score adds the benchmark's own crops of the validation LDR panoramas (8 each).
+// The validation score adds the benchmark's own crops of the validation LDR panoramas (8 each) and 32
+// level crops toward each validation sun.
 // With --azimuth-bins, the detector's azimuth head (front and back) trains on the random crops of
 // every panorama whose sun position is known (plus --azimuth-crops more of each) and on the HDR
 // crops, and is scored on the val crops with a known sun: the share put in the right half.
@@ -129,7 +135,8 @@ GlareCrop make_crop(const data::PerspectiveCrop& crop, bool visible, const glm::
 
 std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLabels& labels,
                                       const std::vector<std::string>& names, int aimed, int near, int random,
-                                      uint64_t seed, bool keep_ldr, int azimuth_crops = 0, const Jitter& jitter = {}) {
+                                      uint64_t seed, bool keep_ldr, int azimuth_crops = 0, const Jitter& jitter = {},
+                                      int level = 0, double aimed_span = 0.8) {
   std::vector<std::vector<GlareCrop>> per(names.size());
 #pragma omp parallel for schedule(dynamic, 1)
   for (int64_t i = 0; i < int64_t(names.size()); ++i) {
@@ -157,7 +164,8 @@ std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLab
     };
     if (visible) {
       for (int a = 0; a < aimed; ++a, ++k) {
-        const auto cp = params(0.8 * (2.0 * uniform01(s, uint64_t(k), 1) - 1.0), 0.8 * (2.0 * uniform01(s, uint64_t(k), 2) - 1.0), true);
+        const auto cp = params(aimed_span * (2.0 * uniform01(s, uint64_t(k), 1) - 1.0),
+                               aimed_span * (2.0 * uniform01(s, uint64_t(k), 2) - 1.0), true);
         per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr, jitter, hash_counter(s, uint64_t(k), 7)));
         per[size_t(i)].back().weight = w;
       }
@@ -167,6 +175,19 @@ std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLab
         per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr, jitter, hash_counter(s, uint64_t(k), 7)));
       }
     }
+    // Level crops toward the sun: the benchmark's pitch range, the sun anywhere across the view's width.
+    // Drawn from a stream of their own, so the other crops stay what they were without them.
+    if (visible)
+      for (int a = 0; a < level; ++a) {
+        const uint64_t ls = hash_counter(s, 0x6c6576656cULL, uint64_t(a));
+        data::PerspectiveCropParams cp;
+        cp.horizontal_fov_rad = (50.0 + 30.0 * uniform01(ls, 0, 0)) * kDegToRad;
+        cp.yaw_rad = az + 0.5 * cp.horizontal_fov_rad * (2.0 * uniform01(ls, 0, 1) - 1.0);
+        cp.pitch_rad = (-10.0 + 20.0 * uniform01(ls, 0, 2)) * kDegToRad;
+        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr, jitter, hash_counter(ls, 0, 7)));
+        if (per[size_t(i)].back().sun_pixel) per[size_t(i)].back().weight = w;
+      }
+    const size_t first_random = per[size_t(i)].size();
     for (int a = 0; a < random; ++a, ++k) {
       const auto cp = params(0, 0, false);
       per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), visible, d, keep_ldr, jitter, hash_counter(s, uint64_t(k), 7)));
@@ -179,10 +200,10 @@ std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLab
         per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), visible, d, keep_ldr, jitter, hash_counter(s, uint64_t(k), 7)));
         if (per[size_t(i)].back().sun_pixel) per[size_t(i)].back().weight = w;
       }
-    // The azimuth head learns from the random crops only: the aimed and near crops all face the
-    // sun, and would teach it that the sun is mostly in front.
+    // The azimuth head learns from the random crops only: the aimed, near and level crops all face
+    // the sun, and would teach it that the sun is mostly in front.
     if (l->has_position)
-      for (size_t c = size_t(visible ? aimed + near : 0); c < per[size_t(i)].size(); ++c) set_azimuth(per[size_t(i)][c], w);
+      for (size_t c = first_random; c < per[size_t(i)].size(); ++c) set_azimuth(per[size_t(i)][c], w);
   }
   std::vector<GlareCrop> out;
   for (auto& v : per)
@@ -329,7 +350,8 @@ void score(train::SunGlareDetector& net, const std::vector<GlareCrop>& crops, co
 
 int run_sun_glare(const std::vector<std::string>& args) {
   std::string data_dir, split_file, hdr_dir, hdr_split, out, checkpoint, score_split = "val", train_split = "train";
-  int64_t steps = 3000, batch = 32, aimed = 8, near = 3, random = 6, hdr_crops = 16, width = 24;
+  int64_t steps = 3000, batch = 32, aimed = 8, near = 3, random = 6, hdr_crops = 16, width = 24, level = 0;
+  double aimed_span = 0.8;
   int64_t azimuth_bins = 0, azimuth_crops = 0, checkpoint_every = 500, stop_at = 0;
   double lr = 2e-3, azimuth_loss = 1.0, azimuth_width = 20.0;
   Jitter jitter;
@@ -343,18 +365,23 @@ int run_sun_glare(const std::vector<std::string>& args) {
       std::printf(
           "usage: streetlight-bench sun-glare --data DIR --split-file FILE [--hdr-data DIR --hdr-split-file FILE]\n"
           "                                  [--out CKPT | --checkpoint CKPT] [--steps N] [--batch B] [--lr X]\n"
-          "                                  [--aimed K] [--near K] [--random K] [--hdr-crops K] [--width W]\n"
+          "                                  [--aimed K] [--near K] [--random K] [--level-aimed K] [--aimed-span X]\n"
+          "                                  [--hdr-crops K] [--width W]\n"
           "                                  [--azimuth-bins A] [--azimuth-crops K] [--azimuth-loss X] [--azimuth-width DEG]\n"
           "                                  [--score-split val|train] [--jitter-exposure S] [--jitter-white-balance S]\n"
           "                                  [--jitter-tone S] [--train-split train|train+val]\n"
           "                                  [--checkpoint-every N] [--stop-at STEP]\n\n"
           "Trains the learned sun-glare detector (train/sun_glare.h) on crops of the TRAIN split of the labelled\n"
           "LDR panoramas DIR: per panorama with a visible sun, --aimed crops aimed at it, --near just beside it and\n"
-          "--random at random (defaults 8, 3, 6); --random crops of every other panorama; with --hdr-data, the\n"
-          "benchmark's crops of the HDR skies' train split (--hdr-crops each, default 16). Saves it to --out (width\n"
-          "--width, default 24). With --checkpoint it loads a saved detector instead (its width from the file).\n"
-          "Then scores it beside the visible-sun disk test on the same kinds of crops of the VAL split, and on the\n"
-          "benchmark's own val crops: fires within 5 and 10 degrees of a sun in view and false fires, at thresholds\n"
+          "--random at random (defaults 8, 3, 6), and --level-aimed level crops toward it (default 0: the benchmark's\n"
+          "pitch range, the sun anywhere across the view's width, edges included); --aimed-span X: the aimed crops\n"
+          "put the sun within the middle X of the view's width and height (default 0.8; 1: up to the edges);\n"
+          "--random crops of every other panorama; with --hdr-data, the benchmark's crops of the HDR skies' train\n"
+          "split (--hdr-crops each, default 16). Saves it to --out (width --width, default 24). With --checkpoint it\n"
+          "loads a saved detector instead (its width from the file).\n"
+          "Then scores it beside the visible-sun disk test on the same kinds of crops of the VAL split, on the\n"
+          "benchmark's own val crops and on 32 level crops toward each val sun: fires within 5 and 10 degrees of a\n"
+          "sun in view and false fires, at thresholds\n"
           "0.5 to 0.99, alone and behind the disk test. --score-split train scores on new crops of the TRAIN split\n"
           "instead (how well it fits the panoramas it learned from). Test is never read. scripts/train_sun_glare.sh\n"
           "has the released detector's flags. --train-split train+val trains on the validation places too (a final\n"
@@ -393,6 +420,13 @@ int run_sun_glare(const std::vector<std::string>& args) {
     else if (a == "--stop-at") stop_at = cli::parse_integer("sun-glare: --stop-at", value(), 1, 10000000);
     else if (a == "--batch") batch = cli::parse_integer("sun-glare: --batch", value(), 1, 4096);
     else if (a == "--aimed") aimed = cli::parse_integer("sun-glare: --aimed", value(), 0, 256);
+    else if (a == "--level-aimed") level = cli::parse_integer("sun-glare: --level-aimed", value(), 0, 256);
+    else if (a == "--aimed-span") {
+      const std::string v = value();
+      char* end = nullptr;
+      aimed_span = std::strtod(v.c_str(), &end);
+      SL_CHECK(end && *end == '\0' && aimed_span > 0.0 && aimed_span <= 1.0, "sun-glare: --aimed-span must be in (0, 1], got '", v, "'");
+    }
     else if (a == "--near") near = cli::parse_integer("sun-glare: --near", value(), 0, 256);
     else if (a == "--random") random = cli::parse_integer("sun-glare: --random", value(), 0, 256);
     else if (a == "--hdr-crops") hdr_crops = cli::parse_integer("sun-glare: --hdr-crops", value(), 1, 1024);
@@ -446,6 +480,8 @@ int run_sun_glare(const std::vector<std::string>& args) {
       cfg["azimuth_width"] = azimuth_width;
     }
     if (train_split != "train") cfg["train_split"] = train_split;
+    if (level > 0) cfg["level_aimed"] = level;
+    if (aimed_span != 0.8) cfg["aimed_span"] = aimed_span;
     // Resume: the crops are a pure function of the flags, each step's batch and rate of its index.
     const std::string partial = out + ".partial.safetensors";
     const bool resuming = std::filesystem::exists(partial);
@@ -462,7 +498,7 @@ int run_sun_glare(const std::vector<std::string>& args) {
     auto t0 = std::chrono::steady_clock::now();
     std::vector<GlareCrop> crops =
         panorama_crops(data_dir, labels, split_list(split_file, train_split), int(aimed), int(near), int(random), 0x676c617265ULL, false,
-                       int(azimuth_crops), jitter);
+                       int(azimuth_crops), jitter, int(level), aimed_span);
     if (!hdr_dir.empty())
       for (GlareCrop& c : benchmark_crops(hdr_dir, hdr_split, train_split, int(hdr_crops), false, jitter)) crops.push_back(std::move(c));
     int pos = 0;
@@ -549,6 +585,8 @@ int run_sun_glare(const std::vector<std::string>& args) {
   score(net, panorama_crops(data_dir, labels, split_list(split_file, sp), int(aimed), int(near), int(random), 0x76616cULL, true),
         (sp + ", generated crops (aimed, near, random)").c_str(), stdout);
   score(net, benchmark_crops(data_dir, split_file, sp, 8, true), (sp + ", the benchmark's LDR crops (8 per panorama)").c_str(), stdout);
+  score(net, panorama_crops(data_dir, labels, split_list(split_file, sp), 0, 0, 0, 0x76616cULL, true, 0, {}, 32),
+        (sp + ", level crops toward each visible sun (32 per panorama; the benchmark's pitch range)").c_str(), stdout);
   if (!hdr_dir.empty())
     score(net, benchmark_crops(hdr_dir, hdr_split, sp, 8, true), (sp + ", the benchmark's HDR crops (8 per sky)").c_str(), stdout);
   return 0;

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "data/csv.h"
 #include "support/tiny_ldr_folder.h"
 #include "support/tool_fixture.h"
 
@@ -47,13 +48,9 @@ Npy read_npy(const fs::path& path) {
 
 std::vector<std::vector<std::string>> read_csv_rows(const fs::path& path) {
   std::ifstream in(path);
+  const std::string text((std::istreambuf_iterator<char>(in)), {});
   std::vector<std::vector<std::string>> rows;
-  for (std::string line; std::getline(in, line);) {
-    std::vector<std::string> f;
-    std::stringstream ss(line);
-    for (std::string cell; std::getline(ss, cell, ',');) f.push_back(cell);
-    rows.push_back(f);
-  }
+  for (data::CsvRecord& r : data::parse_csv(text, "rows", path.string())) rows.push_back(std::move(r.fields));
   return rows;
 }
 

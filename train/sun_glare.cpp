@@ -59,6 +59,12 @@ Tensor SunGlareDetector::azimuth_features(const Tensor& x) {
   return reshape(azimuth_pool_->forward(f), {x.size(0), f.size(1) * 32});
 }
 
+Tensor SunGlareDetector::azimuth_hidden(const Tensor& x) {
+  const Tensor f = azimuth_features(x);  // throws without an azimuth head
+  const auto& head = static_cast<const nn::Sequential&>(*azimuth_);
+  return head[1]->forward(head[0]->forward(f));
+}
+
 GlareHeads SunGlareDetector::forward_heads(const Tensor& x) {
   SL_CHECK(x.defined() && x.dim() == 4 && x.size(1) == 4 && x.size(2) == kGlareInputHeight && x.size(3) == kGlareInputWidth,
            "SunGlareDetector: expected [N, 4, 64, 128], got ", x.defined() ? x.describe() : std::string("undefined"));

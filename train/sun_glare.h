@@ -111,6 +111,9 @@ class SunGlareDetector : public nn::Module {
   // What the azimuth head reads: the features average-pooled to 4×8 cells and flattened,
   // [N, 2·width·32] (for probes of what the detector knows; throws without an azimuth head).
   Tensor azimuth_features(const Tensor& x);
+  // The azimuth head's hidden units after their ReLU, [N, 64]: a unit that is 0 on every crop is
+  // dead, and a head whose units are all dead answers one constant (throws without an azimuth head).
+  Tensor azimuth_hidden(const Tensor& x);
   const SunGlareOptions& options() const { return opt_; }
   bool has_azimuth() const { return opt_.azimuth_bins > 0; }
 

@@ -15,9 +15,12 @@
 #include <string>
 #include <thread>
 
+#include "data/image_io.h"
+#include "data/sky_model.h"
 #include "support/tiny_ldr_folder.h"
 #include "tools/common/cli.h"
 #include "util/error.h"
+#include "util/math.h"
 
 namespace sl::test {
 
@@ -187,7 +190,7 @@ TEST(Executables, BenchSunGlareLevelCropsAddToTrainingAndToTheScores) {
   const std::string base = "OMP_NUM_THREADS=1 " + bench + " sun-glare --data " + folder + " --split-file " + split +
                            " --aimed 1 --near 1 --random 1 --batch 2 --width 4 --steps 2";
   auto crops_of = [](const std::string& out) {
-    const size_t at = out.find(" training crops");
+    const size_t at = out.find(" training crops (");
     if (at == std::string::npos) return -1;
     size_t begin = out.rfind(' ', at - 1);
     return std::stoi(out.substr(begin + 1, at - begin - 1));
@@ -206,6 +209,65 @@ TEST(Executables, BenchSunGlareLevelCropsAddToTrainingAndToTheScores) {
   EXPECT_EQ(other.code, 2) << other.out;
   EXPECT_EQ(std::count(other.out.begin(), other.out.end(), '\n'), 1) << other.out;
   EXPECT_NE(other.out.find("level_aimed"), std::string::npos) << other.out;
+  std::filesystem::remove_all(dir);
+}
+
+// The low-sun levers: --hdr-sun-crops K adds K crops toward the sun of each training HDR sky whose sun
+// is hard (two clear skies here, one sun low, one high), and needs the HDR folder; --low-sun-weight
+// weighs every training crop that shows a sun below --low-sun-below degrees, so below 90 it weighs
+// every crop with a sun in view and below 0 none. The azimuth head's score says how many of its
+// hidden units are alive.
+TEST(Executables, BenchSunGlareLowSunLevers) {
+  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
+  if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("sl_glare_low_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  const std::string folder = tiny_ldr_folder(dir.string());
+  const std::string split = (dir / "split.json").string();
+  std::ofstream(split) << R"({"train": ["t1.jpg", "t2.jpg", "b.jpg"], "val": ["a.jpg"]})";
+  const std::filesystem::path skies = dir / "skies";
+  std::filesystem::create_directories(skies);
+  const double suns[3] = {15.0, 60.0, 25.0};  // elevations; the third sky is val
+  const char* names[3] = {"low_1k.hdr", "high_1k.hdr", "val_1k.hdr"};
+  for (int i = 0; i < 3; ++i) {
+    data::SkyParams p;
+    p.sun_elevation_rad = suns[i] * kPi / 180.0;
+    p.sun_azimuth_rad = 0.7 * i;
+    data::write_image((skies / names[i]).string(), data::PreethamSky(p).render(64, 128));
+  }
+  const std::string sky_split = (dir / "sky_split.json").string();
+  std::ofstream(sky_split) << R"({"train": ["low_1k.hdr", "high_1k.hdr"], "val": ["val_1k.hdr"]})";
+  const std::string base = "OMP_NUM_THREADS=1 " + bench + " sun-glare --data " + folder + " --split-file " + split +
+                           " --aimed 1 --near 1 --random 1 --batch 2 --width 4 --steps 2 --azimuth-bins 4";
+  const std::string hdr = " --hdr-data " + skies.string() + " --hdr-split-file " + sky_split + " --hdr-crops 1";
+  auto number_before = [](const std::string& out, const std::string& what) {
+    const size_t at = out.find(what);
+    if (at == std::string::npos) return -1;
+    const size_t begin = out.find_last_of(" (", at - 1);
+    return std::stoi(out.substr(begin + 1, at - begin - 1));
+  };
+  const ProcessResult plain = run(base + hdr + " --out " + (dir / "plain.safetensors").string());
+  ASSERT_EQ(plain.code, 0) << plain.out;
+  const ProcessResult more = run(base + hdr + " --hdr-sun-crops 4 --out " + (dir / "more.safetensors").string());
+  ASSERT_EQ(more.code, 0) << more.out;
+  EXPECT_NE(more.out.find("8 crops toward the suns of 2 hard HDR skies"), std::string::npos) << more.out;
+  EXPECT_EQ(number_before(more.out, " training crops ("), number_before(plain.out, " training crops (") + 8) << plain.out << more.out;
+  EXPECT_NE(more.out.find("hidden units alive"), std::string::npos) << more.out;
+  // Below 90 degrees every crop with a sun in view is weighed; below 0 none is.
+  const ProcessResult all = run(base + hdr + " --low-sun-weight 4 --low-sun-below 90 --out " + (dir / "all.safetensors").string());
+  ASSERT_EQ(all.code, 0) << all.out;
+  EXPECT_EQ(number_before(all.out, " training crops show a sun below 90 deg"), number_before(all.out, " with the sun in view)"))
+      << all.out;
+  EXPECT_GT(number_before(all.out, " with the sun in view)"), 0) << all.out;
+  const ProcessResult none = run(base + hdr + " --low-sun-weight 4 --low-sun-below 0 --out " + (dir / "none.safetensors").string());
+  ASSERT_EQ(none.code, 0) << none.out;
+  EXPECT_EQ(number_before(none.out, " training crops show a sun below 0 deg"), 0) << none.out;
+  for (const std::string& bad : {std::string(" --hdr-sun-crops 4"), hdr + " --low-sun-weight -1", hdr + " --low-sun-below 91"}) {
+    const ProcessResult r = run(base + bad + " --out " + (dir / "bad.safetensors").string());
+    EXPECT_EQ(r.code, 2) << bad << "\n" << r.out;
+    EXPECT_EQ(r.out.rfind("error: ", 0), 0u) << bad << "\n" << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << bad << "\n" << r.out;
+  }
   std::filesystem::remove_all(dir);
 }
 
@@ -256,6 +318,21 @@ TEST(CliParseInteger, TakesTheWholeValueInRangeOrNamesIt) {
     } catch (const Error& e) {
       EXPECT_NE(std::string(e.what()).find("x: --n must be an integer in [1, 100], got '" + std::string(bad) + "'"),
                 std::string::npos)
+          << e.what();
+    }
+  }
+}
+
+TEST(CliParseNumber, TakesTheWholeFiniteValueInRangeOrNamesIt) {
+  EXPECT_EQ(cli::parse_number("x: --s", "0.25", 0.0, 1.0), 0.25);
+  EXPECT_EQ(cli::parse_number("x: --s", "2e-3", 0.0, 1.0), 2e-3);
+  EXPECT_EQ(cli::parse_number("x: --s", "1", 0.0, 1.0), 1.0);
+  for (const char* bad : {"", "abc", "0.5x", "1.5", "-0.1", " 0.5", "nan", "inf"}) {
+    try {
+      cli::parse_number("x: --s", bad, 0.0, 1.0);
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("x: --s must be a number in [0, 1], got '" + std::string(bad) + "'"), std::string::npos)
           << e.what();
     }
   }

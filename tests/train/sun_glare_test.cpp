@@ -212,12 +212,19 @@ TEST(SunGlare, TheAzimuthFeaturesAreTheAzimuthHeadsInput) {
     if (name == "azimuth.2.bias") b2 = p;
   }
   ASSERT_TRUE(w1.defined() && b1.defined() && w2.defined() && b2.defined());
-  const Tensor by_hand = add(matmul(relu(add(matmul(f, transpose(w1, 0, 1)), b1)), transpose(w2, 0, 1)), b2);
+  const Tensor hidden = relu(add(matmul(f, transpose(w1, 0, 1)), b1));
+  const Tensor by_hand = add(matmul(hidden, transpose(w2, 0, 1)), b2);
   EXPECT_LT(max(abs(sub(by_hand, net.forward_heads(x).azimuth))).item(), 1e-5);
+  // azimuth_hidden is that head's hidden layer after its ReLU (how many units are alive).
+  const Tensor h = net.azimuth_hidden(x);
+  ASSERT_EQ(h.shape(), (Shape{2, 64}));
+  EXPECT_LT(max(abs(sub(h, hidden))).item(), 1e-6);
+  EXPECT_GE(min(h).item(), 0.0);
   const Tensor one = net.azimuth_features(slice(x, 0, 1, 2));
   EXPECT_LT(max(abs(sub(one, slice(f, 0, 1, 2)))).item(), 1e-6);
   train::SunGlareDetector without({.width = 3, .seed = 4});
   EXPECT_THROW(without.azimuth_features(x), Error);
+  EXPECT_THROW(without.azimuth_hidden(x), Error);
 }
 
 // The glare map as a likelihood ratio over the sun head's grid: a map with half its mass on one

@@ -4,24 +4,16 @@
 // is in view, at several thresholds. `--score-split train` scores on new crops of the training
 // panoramas instead (how well it fits what it learned from). Test is never read.
 //
-// Crops of the labelled LDR panoramas (256×128, horizontal fov uniform in [50°, 80°], roll 0,
-// resampled in linear radiance as the benchmark's crops are):
-// - a panorama with a visible sun: `aimed` crops with the sun in the middle 80% of the view (the
-//   middle `aimed_span` of its width and height; 1 puts it anywhere up to the edges), `near` crops
-//   aimed 1.1-1.6 half-fovs beside it (the sun just out of view: the glare's spill without the sun),
-//   `level` crops drawn as the benchmark draws its views (pitch uniform in ±10°) with the yaw put so
-//   that the sun is anywhere across the view's width, in view when its height allows (the
-//   benchmark's suns in view lie in the view's outer tenth 44% of the time,
-//   scripts/sun_in_view_positions.py, where the default aimed crops never put them), and `random`
-//   crops (yaw uniform, pitch uniform in [−5°, 25°]); a crop's sun is in view when it projects
-//   inside the image;
-// - any other panorama (sun occluded or absent): `random` crops, none with a sun in view.
-// Plus, with --hdr-data, the benchmark's own crops of the HDR skies (as streetlight-eval draws them).
-// The validation score adds the benchmark's own crops of the validation LDR panoramas (8 each) and 32
-// level crops toward each validation sun.
+// The crops (tools/bench/sun_glare_crops.h): per labelled LDR panorama with a visible sun, crops
+// aimed at it, just beside it, level crops toward it, and random crops; random crops of every other
+// panorama; with --hdr-data, the benchmark's own crops of the HDR skies (as streetlight-eval draws
+// them) and, with --hdr-sun-crops, crops toward each hard HDR sun at many exposures. The validation
+// score adds the benchmark's own crops of the validation LDR panoramas (8 each) and 32 level crops
+// toward each validation sun.
 // With --azimuth-bins, the detector's azimuth head (front and back) trains on the random crops of
 // every panorama whose sun position is known (plus --azimuth-crops more of each) and on the HDR
-// crops, and is scored on the val crops with a known sun: the share put in the right half.
+// crops, and is scored on the val crops with a known sun: the share put in the right half, and how
+// many of its hidden units are alive.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -34,6 +26,7 @@
 #include <numeric>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -47,7 +40,7 @@
 #include "nn/checkpoint.h"
 #include "nn/optim.h"
 #include "tools/bench/bench.h"
-#include "tools/bench/ldr_panorama_radiance.h"
+#include "tools/bench/sun_glare_crops.h"
 #include "tools/common/cli.h"
 #include "train/metrics.h"
 #include "train/real_sky_benchmark.h"
@@ -62,182 +55,6 @@
 
 namespace sl::bench {
 namespace {
-
-struct GlareCrop {
-  Tensor input;  // glare_input of the crop
-  Tensor ldr;    // the crop itself (validation only, for the disk test)
-  render::Camera camera;
-  std::optional<glm::dvec2> sun_pixel;  // in view
-  glm::dvec3 sun{0.0, 1.0, 0.0};
-  double weight = 1.0;
-  // The sun's azimuth in the crop camera's canonical frame (train/street_batch.h), where the sun's
-  // position is known (in view or not), for the azimuth head; its weight there.
-  std::optional<double> azimuth;
-  double azimuth_weight = 0.0;
-};
-
-// The sun's azimuth φ = atan2(x, −z) in the camera's canonical frame and the azimuth head's weight
-// for it: the label's (half for a low-confidence label) times cos(elevation), since a sun near the
-// zenith has no azimuth to tell.
-void set_azimuth(GlareCrop& g, double label_weight) {
-  const glm::dvec3 c = train::canonical_frame(g.camera).direction(g.sun);
-  g.azimuth = std::atan2(c.x, -c.z);
-  g.azimuth_weight = label_weight * std::sqrt(std::max(0.0, 1.0 - std::clamp(c.y, -1.0, 1.0) * std::clamp(c.y, -1.0, 1.0)));
-}
-
-// Photometric jitter of a training crop (--jitter-*): the crops are drawn once, so each gets its own
-// camera: exposure 2^s, white-balance gains 2^u_c (scaled so grey keeps its Rec. 709 luminance) and a
-// tone curve v^(2^t), with s, u_c, t uniform in ±stops. Applied to the LDR crop in linear radiance
-// (v^2.2); a pixel clipped in every channel (≥ 0.98, as data/visible_sun.h) stays as it is, since a
-// sun's core clips under any exposure a street photo would use.
-struct Jitter {
-  double exposure = 0.0, white_balance = 0.0, tone = 0.0;
-  bool on() const { return exposure > 0.0 || white_balance > 0.0 || tone > 0.0; }
-};
-
-Tensor jitter_ldr(const Tensor& ldr, const Jitter& j, uint64_t seed) {
-  if (!j.on()) return ldr;
-  auto draw = [&](uint64_t k, double stops) { return stops * (2.0 * uniform01(seed, k, 0) - 1.0); };
-  double gain[3];
-  for (int c = 0; c < 3; ++c) gain[c] = std::exp2(draw(uint64_t(c), j.white_balance));
-  const double grey = luminance(gain[0], gain[1], gain[2]), exposure = std::exp2(draw(3, j.exposure));
-  const float tone = float(std::exp2(draw(4, j.tone)));
-  float g[3];
-  for (int c = 0; c < 3; ++c) g[c] = float(exposure * gain[c] / grey);
-  Tensor out = ldr.contiguous().clone();
-  float* v = out.data<float>();
-  const int64_t n = out.size(1) * out.size(2);
-  for (int64_t i = 0; i < n; ++i) {
-    if (v[i] >= 0.98f && v[n + i] >= 0.98f && v[2 * n + i] >= 0.98f) continue;
-    for (int c = 0; c < 3; ++c) {
-      float& x = v[c * n + i];
-      const float lin = std::pow(std::max(x, 0.0f), float(kLdrGamma)) * g[c];
-      x = std::pow(std::min(1.0f, std::pow(lin, 1.0f / float(kLdrGamma))), tone);
-    }
-  }
-  return out;
-}
-
-GlareCrop make_crop(const data::PerspectiveCrop& crop, bool visible, const glm::dvec3& sun, bool keep_ldr,
-                    const Jitter& jitter = {}, uint64_t jitter_seed = 0) {
-  GlareCrop g;
-  const Tensor ldr = jitter_ldr(data::to_ldr(crop.image, 1.0).contiguous(), jitter, jitter_seed);
-  g.input = train::glare_input(ldr);
-  if (keep_ldr) g.ldr = ldr;
-  g.camera = crop.camera;
-  g.sun = sun;
-  if (visible) {
-    const render::Projection pr = crop.camera.project(crop.camera.position() + 1e3 * sun);
-    if (pr.in_image) g.sun_pixel = pr.pixel;
-  }
-  return g;
-}
-
-std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLabels& labels,
-                                      const std::vector<std::string>& names, int aimed, int near, int random,
-                                      uint64_t seed, bool keep_ldr, int azimuth_crops = 0, const Jitter& jitter = {},
-                                      int level = 0, double aimed_span = 0.8) {
-  std::vector<std::vector<GlareCrop>> per(names.size());
-#pragma omp parallel for schedule(dynamic, 1)
-  for (int64_t i = 0; i < int64_t(names.size()); ++i) {
-    const data::PanoramaSunLabel* l = labels.find(names[size_t(i)]);
-    if (!l) continue;
-    const Tensor pano = read_ldr_panorama_radiance((std::filesystem::path(dir) / l->file).string());
-    const bool visible = l->has_position && l->sun == data::SunVisibility::Visible;
-    const glm::dvec3 d = l->has_position ? labels.direction(*l, int(pano.size(2)), int(pano.size(1))) : glm::dvec3(0, 1, 0);
-    const double az = std::atan2(d.x, -d.z), el = std::asin(std::clamp(d.y, -1.0, 1.0));
-    const uint64_t s = hash_counter(seed, std::hash<std::string>{}(l->file));
-    const double w = l->confidence == data::LabelConfidence::Low ? 0.5 : 1.0;
-    int k = 0;
-    auto params = [&](double yaw_offset_halves, double pitch_offset_halves, bool at_sun) {
-      data::PerspectiveCropParams cp;
-      cp.horizontal_fov_rad = (50.0 + 30.0 * uniform01(s, uint64_t(k), 0)) * kDegToRad;
-      const double half_h = 0.5 * cp.horizontal_fov_rad, half_v = std::atan(std::tan(half_h) * cp.height / cp.width);
-      if (at_sun) {
-        cp.yaw_rad = az + yaw_offset_halves * half_h;
-        cp.pitch_rad = std::clamp(el + pitch_offset_halves * half_v, -1.2, 1.2);
-      } else {
-        cp.yaw_rad = 2.0 * kPi * uniform01(s, uint64_t(k), 1);
-        cp.pitch_rad = (-5.0 + 30.0 * uniform01(s, uint64_t(k), 2)) * kDegToRad;
-      }
-      return cp;
-    };
-    if (visible) {
-      for (int a = 0; a < aimed; ++a, ++k) {
-        const auto cp = params(aimed_span * (2.0 * uniform01(s, uint64_t(k), 1) - 1.0),
-                               aimed_span * (2.0 * uniform01(s, uint64_t(k), 2) - 1.0), true);
-        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr, jitter, hash_counter(s, uint64_t(k), 7)));
-        per[size_t(i)].back().weight = w;
-      }
-      for (int a = 0; a < near; ++a, ++k) {
-        const double side = uniform01(s, uint64_t(k), 3) < 0.5 ? -1.0 : 1.0;
-        const auto cp = params(side * (1.1 + 0.5 * uniform01(s, uint64_t(k), 1)), 0.6 * (2.0 * uniform01(s, uint64_t(k), 2) - 1.0), true);
-        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr, jitter, hash_counter(s, uint64_t(k), 7)));
-      }
-    }
-    // Level crops toward the sun: the benchmark's pitch range, the sun anywhere across the view's width.
-    // Drawn from a stream of their own, so the other crops stay what they were without them.
-    if (visible)
-      for (int a = 0; a < level; ++a) {
-        const uint64_t ls = hash_counter(s, 0x6c6576656cULL, uint64_t(a));
-        data::PerspectiveCropParams cp;
-        cp.horizontal_fov_rad = (50.0 + 30.0 * uniform01(ls, 0, 0)) * kDegToRad;
-        cp.yaw_rad = az + 0.5 * cp.horizontal_fov_rad * (2.0 * uniform01(ls, 0, 1) - 1.0);
-        cp.pitch_rad = (-10.0 + 20.0 * uniform01(ls, 0, 2)) * kDegToRad;
-        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr, jitter, hash_counter(ls, 0, 7)));
-        if (per[size_t(i)].back().sun_pixel) per[size_t(i)].back().weight = w;
-      }
-    const size_t first_random = per[size_t(i)].size();
-    for (int a = 0; a < random; ++a, ++k) {
-      const auto cp = params(0, 0, false);
-      per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), visible, d, keep_ldr, jitter, hash_counter(s, uint64_t(k), 7)));
-      if (per[size_t(i)].back().sun_pixel) per[size_t(i)].back().weight = w;
-    }
-    // More random crops where the sun's position is known, for the azimuth head.
-    if (l->has_position)
-      for (int a = 0; a < azimuth_crops; ++a, ++k) {
-        const auto cp = params(0, 0, false);
-        per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), visible, d, keep_ldr, jitter, hash_counter(s, uint64_t(k), 7)));
-        if (per[size_t(i)].back().sun_pixel) per[size_t(i)].back().weight = w;
-      }
-    // The azimuth head learns from the random crops only: the aimed, near and level crops all face
-    // the sun, and would teach it that the sun is mostly in front.
-    if (l->has_position)
-      for (size_t c = first_random; c < per[size_t(i)].size(); ++c) set_azimuth(per[size_t(i)][c], w);
-  }
-  std::vector<GlareCrop> out;
-  for (auto& v : per)
-    for (auto& c : v) out.push_back(std::move(c));
-  return out;
-}
-
-// The benchmark's own crops of a folder's split (LDR panoramas or HDR skies).
-std::vector<GlareCrop> benchmark_crops(const std::string& dir, const std::string& split_file, const std::string& split,
-                                       int crops, bool keep_ldr, const Jitter& jitter = {}) {
-  const bool ldr = train::is_ldr_panorama_folder(dir);
-  const train::RealSkyFolder f =
-      ldr ? train::load_ldr_panorama_folder(dir, (std::filesystem::path(dir) / "sun_labels.csv").string(), split_file, split, crops)
-          : train::load_hdr_sky_folder(dir, split_file, split, crops);
-  std::vector<GlareCrop> out;
-  for (const train::RealSkyCrop& c : f.test) {
-    if (c.sample.views.empty()) continue;
-    const data::StreetView& v = c.sample.views[0];
-    GlareCrop g;
-    g.input = train::glare_input(jitter_ldr(v.ldr, jitter, hash_counter(0x6a6974746572ULL, uint64_t(out.size()), 0)));
-    if (keep_ldr) g.ldr = v.ldr;
-    g.camera = v.camera;
-    g.sun = c.sample.sun_direction;
-    // An LDR panorama's occluded sun is not a glare in view.
-    const bool glare = c.sun_known && c.sun_in_crop && (!ldr || c.label_sun == "visible");
-    if (c.sun_known) set_azimuth(g, 1.0);
-    if (glare) {
-      const render::Projection pr = v.camera.project(v.camera.position() + 1e3 * c.sample.sun_direction);
-      if (pr.in_image) g.sun_pixel = pr.pixel;
-    }
-    out.push_back(std::move(g));
-  }
-  return out;
-}
 
 std::vector<std::string> split_list(const std::string& split_file, const std::string& split) {
   return data::read_hdri_split(split_file).split_names(split);
@@ -254,6 +71,21 @@ Tensor batch_logits(train::SunGlareDetector& net, const std::vector<GlareCrop>& 
   TensorList xs;
   for (size_t i = begin; i < end; ++i) xs.push_back(crops[i].input);
   return net.forward(stack(xs, 0));
+}
+
+// How many of the azimuth head's hidden units are positive on at least one of the inputs ([4, 64, 128]
+// each), and how many it has.
+std::pair<int, int> azimuth_units_alive(train::SunGlareDetector& net, const std::vector<Tensor>& inputs) {
+  NoGradGuard ng;
+  std::vector<bool> alive;
+  for (size_t b = 0; b < inputs.size(); b += 64) {
+    const TensorList xs(inputs.begin() + std::ptrdiff_t(b), inputs.begin() + std::ptrdiff_t(std::min(inputs.size(), b + 64)));
+    const Tensor h = net.azimuth_hidden(stack(xs, 0)).to(DType::F64).contiguous();
+    alive.resize(size_t(h.size(1)), false);
+    const std::vector<double> v = h.to_vector();
+    for (size_t i = 0; i < v.size(); ++i) alive[i % alive.size()] = alive[i % alive.size()] || v[i] > 0.0;
+  }
+  return {int(std::count(alive.begin(), alive.end(), true)), int(alive.size())};
 }
 
 // The azimuth head on the crops whose sun's azimuth is known (flip-averaged, as LightingEstimator
@@ -285,9 +117,15 @@ void score_azimuth(train::SunGlareDetector& net, const std::vector<GlareCrop>& c
   }
   if (known == 0) return;
   std::sort(errors.begin(), errors.end());
+  // A head whose hidden units are all dead answers one constant, whatever the crop.
+  std::vector<Tensor> inputs;
+  for (const GlareCrop& c : crops)
+    if (c.azimuth) inputs.push_back(c.input);
+  const auto [alive, units] = azimuth_units_alive(net, inputs);
   std::fprintf(log, "  azimuth head: %d crops with a known sun; right half %.3f (the more common half alone %.3f); "
-               "median azimuth error of the mode %.1f deg\n",
-               known, double(right) / known, double(std::max(front, known - front)) / known, errors[errors.size() / 2]);
+               "median azimuth error of the mode %.1f deg; hidden units alive %d of %d%s\n",
+               known, double(right) / known, double(std::max(front, known - front)) / known, errors[errors.size() / 2], alive,
+               units, alive == 0 ? " (DEAD: it answers one constant)" : "");
 }
 
 // Scores of the detector (at several thresholds) and of the hand-made cue on one set of crops.
@@ -351,7 +189,8 @@ void score(train::SunGlareDetector& net, const std::vector<GlareCrop>& crops, co
 int run_sun_glare(const std::vector<std::string>& args) {
   std::string data_dir, split_file, hdr_dir, hdr_split, out, checkpoint, score_split = "val", train_split = "train";
   int64_t steps = 3000, batch = 32, aimed = 8, near = 3, random = 6, hdr_crops = 16, width = 24, level = 0;
-  double aimed_span = 0.8;
+  double aimed_span = 0.8, hdr_sun_exposure = 2.0, low_sun_weight = 1.0, low_sun_below = 30.0;
+  int64_t hdr_sun_k = 0;
   int64_t azimuth_bins = 0, azimuth_crops = 0, checkpoint_every = 500, stop_at = 0;
   double lr = 2e-3, azimuth_loss = 1.0, azimuth_width = 20.0;
   Jitter jitter;
@@ -366,7 +205,8 @@ int run_sun_glare(const std::vector<std::string>& args) {
           "usage: streetlight-bench sun-glare --data DIR --split-file FILE [--hdr-data DIR --hdr-split-file FILE]\n"
           "                                  [--out CKPT | --checkpoint CKPT] [--steps N] [--batch B] [--lr X]\n"
           "                                  [--aimed K] [--near K] [--random K] [--level-aimed K] [--aimed-span X]\n"
-          "                                  [--hdr-crops K] [--width W]\n"
+          "                                  [--hdr-crops K] [--hdr-sun-crops K] [--hdr-sun-exposure S]\n"
+          "                                  [--low-sun-weight W] [--low-sun-below DEG] [--width W]\n"
           "                                  [--azimuth-bins A] [--azimuth-crops K] [--azimuth-loss X] [--azimuth-width DEG]\n"
           "                                  [--score-split val|train] [--jitter-exposure S] [--jitter-white-balance S]\n"
           "                                  [--jitter-tone S] [--train-split train|train+val]\n"
@@ -390,7 +230,14 @@ int run_sun_glare(const std::vector<std::string>& args) {
           "trained on every crop whose sun position is known by cross-entropy (weight --azimuth-loss, default 1)\n"
           "against a Gaussian of --azimuth-width degrees (default 20), weighted by cos(elevation); --azimuth-crops K\n"
           "more random crops of each panorama with a known sun (default 0). Its score: the share of val crops put in\n"
-          "the right half (in front of the camera or behind it) and the median azimuth error of its mode.\n\n"
+          "the right half (in front of the camera or behind it), the median azimuth error of its mode, and how many of\n"
+          "its hidden units are alive on those crops (none: the head answers one constant). Training logs the count\n"
+          "on its batch and warns when it reaches 0.\n\n"
+          "Low suns (the only suns the benchmark's level views show): --hdr-sun-crops K (default 0) adds K crops toward\n"
+          "the sun of each training HDR sky whose sun is hard, alternately aimed at it and level, each at the\n"
+          "benchmark's exposure times 2^s, s uniform in +-S stops (--hdr-sun-exposure, default 2); --low-sun-weight W\n"
+          "(default 1) multiplies the loss weight of every training crop whose sun is in view below --low-sun-below\n"
+          "degrees of elevation (default 30).\n\n"
           "--jitter-exposure, --jitter-white-balance, --jitter-tone S (stops, default 0: off) give each training crop\n"
           "its own exposure, white balance and tone curve, uniform in ±S (pixels clipped in every channel kept).\n\n"
           "Training is resumable: every --checkpoint-every steps (default 500), on SIGINT or SIGTERM and at\n"
@@ -421,42 +268,29 @@ int run_sun_glare(const std::vector<std::string>& args) {
     else if (a == "--batch") batch = cli::parse_integer("sun-glare: --batch", value(), 1, 4096);
     else if (a == "--aimed") aimed = cli::parse_integer("sun-glare: --aimed", value(), 0, 256);
     else if (a == "--level-aimed") level = cli::parse_integer("sun-glare: --level-aimed", value(), 0, 256);
-    else if (a == "--aimed-span") {
-      const std::string v = value();
-      char* end = nullptr;
-      aimed_span = std::strtod(v.c_str(), &end);
-      SL_CHECK(end && *end == '\0' && aimed_span > 0.0 && aimed_span <= 1.0, "sun-glare: --aimed-span must be in (0, 1], got '", v, "'");
-    }
+    else if (a == "--aimed-span") aimed_span = cli::parse_number("sun-glare: --aimed-span", value(), 1e-3, 1.0);
+    else if (a == "--hdr-sun-crops") hdr_sun_k = cli::parse_integer("sun-glare: --hdr-sun-crops", value(), 0, 1024);
+    else if (a == "--hdr-sun-exposure") hdr_sun_exposure = cli::parse_number("sun-glare: --hdr-sun-exposure", value(), 0.0, 8.0);
+    else if (a == "--low-sun-weight") low_sun_weight = cli::parse_number("sun-glare: --low-sun-weight", value(), 0.0, 100.0);
+    else if (a == "--low-sun-below") low_sun_below = cli::parse_number("sun-glare: --low-sun-below", value(), 0.0, 90.0);
     else if (a == "--near") near = cli::parse_integer("sun-glare: --near", value(), 0, 256);
     else if (a == "--random") random = cli::parse_integer("sun-glare: --random", value(), 0, 256);
     else if (a == "--hdr-crops") hdr_crops = cli::parse_integer("sun-glare: --hdr-crops", value(), 1, 1024);
     else if (a == "--width") width = cli::parse_integer("sun-glare: --width", value(), 1, 256);
     else if (a == "--azimuth-bins") azimuth_bins = cli::parse_integer("sun-glare: --azimuth-bins", value(), 0, 360);
     else if (a == "--azimuth-crops") azimuth_crops = cli::parse_integer("sun-glare: --azimuth-crops", value(), 0, 256);
-    else if (a == "--azimuth-loss" || a == "--azimuth-width") {
-      const std::string v = value();
-      char* end = nullptr;
-      const double x = std::strtod(v.c_str(), &end);
-      SL_CHECK(end && *end == '\0' && std::isfinite(x) && x > 0.0, "sun-glare: ", a, " must be a positive number, got '", v, "'");
-      (a == "--azimuth-loss" ? azimuth_loss : azimuth_width) = x;
-    }
-    else if (a == "--jitter-exposure" || a == "--jitter-white-balance" || a == "--jitter-tone") {
-      const std::string v = value();
-      char* end = nullptr;
-      const double x = std::strtod(v.c_str(), &end);
-      SL_CHECK(end && *end == '\0' && std::isfinite(x) && x >= 0.0 && x <= 4.0, "sun-glare: ", a,
-               " must be a number of stops in [0, 4], got '", v, "'");
-      (a == "--jitter-exposure" ? jitter.exposure : a == "--jitter-tone" ? jitter.tone : jitter.white_balance) = x;
-    }
-    else if (a == "--lr") {
-      const std::string v = value();
-      char* end = nullptr;
-      lr = std::strtod(v.c_str(), &end);
-      SL_CHECK(end && *end == '\0' && std::isfinite(lr) && lr > 0.0, "sun-glare: --lr must be a positive number, got '", v, "'");
-    } else SL_CHECK(false, "sun-glare: unknown option '", a, "' (try --help)");
+    else if (a == "--azimuth-loss") azimuth_loss = cli::parse_number("sun-glare: --azimuth-loss", value(), 1e-6, 1e6);
+    else if (a == "--azimuth-width") azimuth_width = cli::parse_number("sun-glare: --azimuth-width", value(), 1e-3, 360.0);
+    else if (a == "--jitter-exposure") jitter.exposure = cli::parse_number("sun-glare: --jitter-exposure", value(), 0.0, 4.0);
+    else if (a == "--jitter-white-balance")
+      jitter.white_balance = cli::parse_number("sun-glare: --jitter-white-balance", value(), 0.0, 4.0);
+    else if (a == "--jitter-tone") jitter.tone = cli::parse_number("sun-glare: --jitter-tone", value(), 0.0, 4.0);
+    else if (a == "--lr") lr = cli::parse_number("sun-glare: --lr", value(), 1e-9, 10.0);
+    else SL_CHECK(false, "sun-glare: unknown option '", a, "' (try --help)");
   }
   SL_CHECK(!data_dir.empty() && !split_file.empty(), "sun-glare: --data DIR and --split-file FILE are required");
   SL_CHECK(hdr_dir.empty() == hdr_split.empty(), "sun-glare: --hdr-data and --hdr-split-file go together");
+  SL_CHECK(hdr_sun_k == 0 || !hdr_dir.empty(), "sun-glare: --hdr-sun-crops needs --hdr-data and --hdr-split-file");
   SL_CHECK(out.empty() != checkpoint.empty(), "sun-glare: give exactly one of --out (train) and --checkpoint (score)");
   SL_CHECK(train_split == "train" || score_split != "val",
            "sun-glare: --score-split val scores on panoramas that --train-split train+val trains on (use --score-split train)");
@@ -482,6 +316,8 @@ int run_sun_glare(const std::vector<std::string>& args) {
     if (train_split != "train") cfg["train_split"] = train_split;
     if (level > 0) cfg["level_aimed"] = level;
     if (aimed_span != 0.8) cfg["aimed_span"] = aimed_span;
+    if (hdr_sun_k > 0) cfg["hdr_sun"] = {{"crops", hdr_sun_k}, {"exposure_stops", hdr_sun_exposure}};
+    if (low_sun_weight != 1.0) cfg["low_sun"] = {{"weight", low_sun_weight}, {"below_deg", low_sun_below}};
     // Resume: the crops are a pure function of the flags, each step's batch and rate of its index.
     const std::string partial = out + ".partial.safetensors";
     const bool resuming = std::filesystem::exists(partial);
@@ -501,6 +337,17 @@ int run_sun_glare(const std::vector<std::string>& args) {
                        int(azimuth_crops), jitter, int(level), aimed_span);
     if (!hdr_dir.empty())
       for (GlareCrop& c : benchmark_crops(hdr_dir, hdr_split, train_split, int(hdr_crops), false, jitter)) crops.push_back(std::move(c));
+    if (hdr_sun_k > 0) {
+      const std::vector<GlareCrop> toward = hdr_sun_crops(hdr_dir, split_list(hdr_split, train_split), int(hdr_sun_k),
+                                                          hdr_sun_exposure, 0x6864727375ULL, jitter);
+      int shown = 0;
+      for (const GlareCrop& c : toward) shown += bool(c.sun_pixel);
+      std::fprintf(stderr, "sun-glare: %zu crops toward the suns of %zu hard HDR skies, %d with the sun in view\n", toward.size(),
+                   toward.size() / size_t(hdr_sun_k), shown);
+      crops.insert(crops.end(), toward.begin(), toward.end());
+    }
+    const int low = weigh_low_suns(crops, low_sun_weight, low_sun_below);
+    std::fprintf(stderr, "sun-glare: %d training crops show a sun below %.0f deg (weight x%g)\n", low, low_sun_below, low_sun_weight);
     int pos = 0;
     for (const GlareCrop& c : crops) pos += bool(c.sun_pixel);
     // The decoded panoramas' pages, freed between the kept crops, go back to the system.
@@ -563,9 +410,17 @@ int run_sun_glare(const std::vector<std::string>& args) {
       backward(loss);
       opt.step();
       running = step == first ? loss.item() : 0.98 * running + 0.02 * loss.item();
-      if ((step + 1) % 200 == 0 || step + 1 == steps)
-        std::fprintf(stderr, "sun-glare: step %lld/%lld loss %.4f (%.1f steps/s)\n", (long long)(step + 1), (long long)steps,
-                     running, double(step + 1 - first) / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+      if ((step + 1) % 200 == 0 || step + 1 == steps) {
+        std::string units;
+        if (azimuth_bins > 0) {
+          const auto [alive, all] = azimuth_units_alive(net, std::vector<Tensor>(xs.begin(), xs.end()));
+          units = "; azimuth units alive on the batch " + std::to_string(alive) + " of " + std::to_string(all);
+          if (alive == 0) units += " (warning: the azimuth head is dead, it answers one constant)";
+        }
+        std::fprintf(stderr, "sun-glare: step %lld/%lld loss %.4f (%.1f steps/s)%s\n", (long long)(step + 1), (long long)steps,
+                     running, double(step + 1 - first) / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+                     units.c_str());
+      }
       const bool stop = train::stop_requested() || step + 1 == stop_at;
       if (step + 1 < steps && (stop || (step + 1) % checkpoint_every == 0)) save_partial(step + 1);
       if (stop && step + 1 < steps) {

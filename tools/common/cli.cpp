@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 
@@ -159,6 +160,15 @@ int64_t parse_integer(const std::string& what, const std::string& value, int64_t
   const bool whole = !value.empty() && !std::isspace(static_cast<unsigned char>(value.front())) &&
                      whole_integer(value, &v);
   SL_CHECK(whole && v >= lo && v <= hi, what, " must be an integer in [", lo, ", ", hi, "], got '", value, "'");
+  return v;
+}
+
+double parse_number(const std::string& what, const std::string& value, double lo, double hi) {
+  char* end = nullptr;
+  const double v = value.empty() || std::isspace(static_cast<unsigned char>(value.front())) ? std::nan("")
+                                                                                             : std::strtod(value.c_str(), &end);
+  SL_CHECK(end && *end == '\0' && std::isfinite(v) && v >= lo && v <= hi, what, " must be a number in [", lo, ", ", hi,
+           "], got '", value, "'");
   return v;
 }
 

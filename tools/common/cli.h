@@ -16,6 +16,8 @@
 // - parse_integer(what, value, lo, hi): the whole of `value` as an integer in [lo, hi], else
 //   sl::Error "<what> must be an integer in [lo, hi], got '<value>'" (for hand-parsed flags such
 //   as the streetlight-bench subcommands').
+// - parse_number(what, value, lo, hi): the whole of `value` as a finite number in [lo, hi], else
+//   sl::Error "<what> must be a number in [lo, hi], got '<value>'".
 #pragma once
 #include <chrono>
 #include <cstdint>
@@ -29,6 +31,7 @@
 namespace sl::cli {
 
 int64_t parse_integer(const std::string& what, const std::string& value, int64_t lo, int64_t hi);
+double parse_number(const std::string& what, const std::string& value, double lo, double hi);
 
 struct Flag {
   std::string name;        // "--config"

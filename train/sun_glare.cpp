@@ -39,11 +39,15 @@ SunGlareDetector::SunGlareDetector(SunGlareOptions options) : nn::Module("SunGla
   none_ = register_module("none", std::make_shared<nn::Linear>(2 * w2, 1));
   SL_CHECK(opt_.azimuth_bins >= 0 && opt_.azimuth_bins <= 360, "SunGlareDetector: azimuth_bins must be in [0, 360], got ",
            opt_.azimuth_bins);
+  SL_CHECK(std::isfinite(opt_.azimuth_slope) && opt_.azimuth_slope >= 0.0 && opt_.azimuth_slope < 1.0,
+           "SunGlareDetector: azimuth_slope must be in [0, 1), got ", opt_.azimuth_slope);
   if (has_azimuth()) {
     // The features at 4×8 cells: where in the view it is bright, hazy or shaded, not the blob.
     azimuth_pool_ = register_module("azimuth_pool", std::make_shared<nn::AvgPool2d>(4));
     azimuth_ = register_module("azimuth", std::make_shared<nn::Sequential>(std::vector<std::shared_ptr<nn::Module>>{
-                                              std::make_shared<nn::Linear>(w2 * 32, 64), relu(),
+                                              std::make_shared<nn::Linear>(w2 * 32, 64),
+                                              opt_.azimuth_slope > 0.0 ? std::shared_ptr<nn::Module>(std::make_shared<nn::LeakyReLU>(opt_.azimuth_slope))
+                                                                       : std::shared_ptr<nn::Module>(relu()),
                                               std::make_shared<nn::Linear>(64, opt_.azimuth_bins)}));
   }
   init_parameters(opt_.seed);
@@ -266,8 +270,15 @@ std::shared_ptr<SunGlareDetector> load_sun_glare(const std::string& path) {
              "load_sun_glare: '", path, "' has config key 'azimuth_bins' that is not an integer in [0, 360]");
     bins = cfg["azimuth_bins"].get<int64_t>();
   }
+  double slope = 0.0;
+  if (cfg.contains("azimuth_slope")) {
+    SL_CHECK(cfg["azimuth_slope"].is_number() && cfg["azimuth_slope"].get<double>() >= 0.0 &&
+                 cfg["azimuth_slope"].get<double>() < 1.0,
+             "load_sun_glare: '", path, "' has config key 'azimuth_slope' that is not a number in [0, 1)");
+    slope = cfg["azimuth_slope"].get<double>();
+  }
   auto net = std::make_shared<SunGlareDetector>(
-      SunGlareOptions{.width = cfg["width"].get<int64_t>(), .azimuth_bins = bins, .seed = 1});
+      SunGlareOptions{.width = cfg["width"].get<int64_t>(), .azimuth_bins = bins, .azimuth_slope = slope, .seed = 1});
   nn::load_checkpoint(path, *net, nullptr);
   net->eval();
   return net;

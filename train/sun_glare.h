@@ -95,6 +95,9 @@ inline constexpr double kGlareMapWeight = 0.0;
 struct SunGlareOptions {
   int64_t width = 24;         // channels of the first layer; later layers use 2·width
   int64_t azimuth_bins = 0;   // sectors of the azimuth head; 0: no azimuth head
+  // The negative slope of the azimuth head's hidden activation: 0 is a ReLU (the 0.7.4 file); > 0 a
+  // leaky ReLU, whose units keep a gradient where they are negative and so cannot die for good.
+  double azimuth_slope = 0.0;
   uint64_t seed = 1;
 };
 
@@ -142,8 +145,9 @@ GlareReading read_glare_flip_averaged(SunGlareDetector& detector, const Tensor& 
 std::vector<double> glare_sky_factor(const SunGrid& grid, const render::Camera& camera, const std::vector<double>& cells);
 
 // A detector from a checkpoint saved by `streetlight-bench sun-glare` (stage "sun_glare"; its
-// config's "width" sizes the network, and "azimuth_bins", when present, its azimuth head), in eval mode. Throws sl::Error naming the file when it is
-// not one.
+// config's "width" sizes the network, "azimuth_bins", when present, its azimuth head, and
+// "azimuth_slope", when present, that head's activation), in eval mode. Throws sl::Error naming the
+// file when it is not one.
 std::shared_ptr<SunGlareDetector> load_sun_glare(const std::string& path);
 
 }  // namespace sl::train

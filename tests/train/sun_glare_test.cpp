@@ -225,6 +225,18 @@ TEST(SunGlare, TheAzimuthFeaturesAreTheAzimuthHeadsInput) {
   train::SunGlareDetector without({.width = 3, .seed = 4});
   EXPECT_THROW(without.azimuth_features(x), Error);
   EXPECT_THROW(without.azimuth_hidden(x), Error);
+  // With a leaky head (azimuth_slope s) a negative pre-activation p gives s·p, not 0.
+  train::SunGlareDetector leaky({.width = 3, .azimuth_bins = 8, .azimuth_slope = 0.25, .seed = 4});
+  Tensor lw1, lb1;
+  for (const auto& [name, p] : leaky.named_parameters()) {
+    if (name == "azimuth.0.weight") lw1 = p;
+    if (name == "azimuth.0.bias") lb1 = p;
+  }
+  const Tensor pre = add(matmul(leaky.azimuth_features(x), transpose(lw1, 0, 1)), lb1);
+  const Tensor want = add(relu(pre), mul_scalar(neg(relu(neg(pre))), 0.25));
+  EXPECT_LT(max(abs(sub(leaky.azimuth_hidden(x), want))).item(), 1e-6);
+  EXPECT_LT(min(leaky.azimuth_hidden(x)).item(), 0.0);
+  EXPECT_THROW(train::SunGlareDetector({.width = 3, .azimuth_bins = 8, .azimuth_slope = 1.0}), Error);
 }
 
 // The glare map as a likelihood ratio over the sun head's grid: a map with half its mass on one
@@ -308,6 +320,17 @@ TEST(SunGlare, LoadsWhatTheBenchSavedAndRefusesOtherCheckpoints) {
   ASSERT_TRUE(loaded_head->has_azimuth());
   EXPECT_EQ(max(abs(sub(loaded_head->forward_heads(x).azimuth, with_head.forward_heads(x).azimuth))).item(), 0.0);
   EXPECT_FALSE(loaded->has_azimuth());
+  // A leaky head loads leaky ("azimuth_slope"): its hidden units' negative parts survive the round trip.
+  train::SunGlareDetector leaky({.width = 3, .azimuth_bins = 8, .azimuth_slope = 0.2, .seed = 2});
+  const std::string leaky_file = scratch("glare_leaky.safetensors");
+  nn::save_checkpoint(leaky_file, leaky, nullptr,
+                      {.stage = "sun_glare", .step = 1, .config_json = R"({"width": 3, "azimuth_bins": 8, "azimuth_slope": 0.2})"});
+  const auto loaded_leaky = train::load_sun_glare(leaky_file);
+  EXPECT_EQ(loaded_leaky->options().azimuth_slope, 0.2);
+  EXPECT_EQ(max(abs(sub(loaded_leaky->forward_heads(x).azimuth, leaky.forward_heads(x).azimuth))).item(), 0.0);
+  nn::save_checkpoint(leaky_file, leaky, nullptr,
+                      {.stage = "sun_glare", .step = 1, .config_json = R"({"width": 3, "azimuth_bins": 8, "azimuth_slope": 1.5})"});
+  EXPECT_THROW(train::load_sun_glare(leaky_file), Error);
   try {
     train::load_sun_glare(other);
     ADD_FAILURE() << "expected sl::Error";

@@ -192,7 +192,7 @@ int run_sun_glare(const std::vector<std::string>& args) {
   double aimed_span = 0.8, hdr_sun_exposure = 2.0, low_sun_weight = 1.0, low_sun_below = 30.0;
   int64_t hdr_sun_k = 0;
   int64_t azimuth_bins = 0, azimuth_crops = 0, checkpoint_every = 500, stop_at = 0;
-  double lr = 2e-3, azimuth_loss = 1.0, azimuth_width = 20.0;
+  double lr = 2e-3, azimuth_loss = 1.0, azimuth_width = 20.0, azimuth_slope = 0.0;
   Jitter jitter;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
@@ -232,7 +232,8 @@ int run_sun_glare(const std::vector<std::string>& args) {
           "more random crops of each panorama with a known sun (default 0). Its score: the share of val crops put in\n"
           "the right half (in front of the camera or behind it), the median azimuth error of its mode, and how many of\n"
           "its hidden units are alive on those crops (none: the head answers one constant). Training logs the count\n"
-          "on its batch and warns when it reaches 0.\n\n"
+          "on its batch and warns when it reaches 0. --azimuth-slope S (default 0: ReLU) gives the head's hidden\n"
+          "layer a leaky ReLU of negative slope S, whose units keep a gradient and so cannot die for good.\n\n"
           "Low suns (the only suns the benchmark's level views show): --hdr-sun-crops K (default 0) adds K crops toward\n"
           "the sun of each training HDR sky whose sun is hard, alternately aimed at it and level, each at the\n"
           "benchmark's exposure times 2^s, s uniform in +-S stops (--hdr-sun-exposure, default 2); --low-sun-weight W\n"
@@ -280,6 +281,7 @@ int run_sun_glare(const std::vector<std::string>& args) {
     else if (a == "--azimuth-bins") azimuth_bins = cli::parse_integer("sun-glare: --azimuth-bins", value(), 0, 360);
     else if (a == "--azimuth-crops") azimuth_crops = cli::parse_integer("sun-glare: --azimuth-crops", value(), 0, 256);
     else if (a == "--azimuth-loss") azimuth_loss = cli::parse_number("sun-glare: --azimuth-loss", value(), 1e-6, 1e6);
+    else if (a == "--azimuth-slope") azimuth_slope = cli::parse_number("sun-glare: --azimuth-slope", value(), 0.0, 0.5);
     else if (a == "--azimuth-width") azimuth_width = cli::parse_number("sun-glare: --azimuth-width", value(), 1e-3, 360.0);
     else if (a == "--jitter-exposure") jitter.exposure = cli::parse_number("sun-glare: --jitter-exposure", value(), 0.0, 4.0);
     else if (a == "--jitter-white-balance")
@@ -299,7 +301,7 @@ int run_sun_glare(const std::vector<std::string>& args) {
   // Scoring a saved detector takes its width from the file (train::load_sun_glare).
   std::shared_ptr<train::SunGlareDetector> held =
       checkpoint.empty() ? std::make_shared<train::SunGlareDetector>(
-                               train::SunGlareOptions{.width = width, .azimuth_bins = azimuth_bins, .seed = 1})
+                               train::SunGlareOptions{.width = width, .azimuth_bins = azimuth_bins, .azimuth_slope = azimuth_slope, .seed = 1})
                          : train::load_sun_glare(checkpoint);
   train::SunGlareDetector& net = *held;
   if (checkpoint.empty()) {
@@ -312,6 +314,7 @@ int run_sun_glare(const std::vector<std::string>& args) {
       cfg["azimuth_crops"] = azimuth_crops;
       cfg["azimuth_loss"] = azimuth_loss;
       cfg["azimuth_width"] = azimuth_width;
+      if (azimuth_slope > 0.0) cfg["azimuth_slope"] = azimuth_slope;
     }
     if (train_split != "train") cfg["train_split"] = train_split;
     if (level > 0) cfg["level_aimed"] = level;

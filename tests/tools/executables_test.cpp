@@ -42,6 +42,28 @@ ProcessResult run(const std::string& cmd) {
   return r;
 }
 
+const std::string kBench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
+
+// What the sun-glare bench's training tests share: a fresh temp folder named by `tag` and the process,
+// the tiny labelled LDR panoramas in it (support/tiny_ldr_folder.h), their split (three train, one
+// val), and the bench's command on them at the smallest sizes; the caller adds its flags.
+struct GlareBenchRun {
+  std::filesystem::path dir;
+  std::string folder, split, base;
+};
+
+GlareBenchRun glare_bench_run(const std::string& tag, int steps) {
+  GlareBenchRun g;
+  g.dir = std::filesystem::temp_directory_path() / (tag + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(g.dir);
+  g.folder = tiny_ldr_folder(g.dir.string());
+  g.split = (g.dir / "split.json").string();
+  std::ofstream(g.split) << R"({"train": ["t1.jpg", "t2.jpg", "b.jpg"], "val": ["a.jpg"]})";
+  g.base = "OMP_NUM_THREADS=1 " + kBench + " sun-glare --data " + g.folder + " --split-file " + g.split +
+           " --aimed 1 --near 1 --random 1 --batch 2 --width 4 --steps " + std::to_string(steps);
+  return g;
+}
+
 std::vector<std::string> executables() {
   std::vector<std::string> out;
   const std::filesystem::path dir = std::filesystem::path(STREETLIGHT_BINARY_DIR) / "tools";
@@ -76,7 +98,7 @@ TEST(Executables, EveryToolAnswersHelpAndRejectsBadFlagsWithExitCode2) {
 // Every command that `streetlight-bench --help` lists answers its own --help with its usage and
 // exit 0.
 TEST(Executables, EveryBenchCommandAnswersHelp) {
-  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
+  const std::string& bench = kBench;
   if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
   const ProcessResult list = run(bench + " --help");
   ASSERT_EQ(list.code, 0) << list.out;
@@ -97,7 +119,7 @@ TEST(Executables, EveryBenchCommandAnswersHelp) {
 // The streetlight-bench subcommands parse their counts by hand; a count that is not a whole
 // integer in range is the same one-line error naming the flag and the value, exit 2.
 TEST(Executables, BenchCountsThatAreNotIntegersAreOneLineErrors) {
-  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
+  const std::string& bench = kBench;
   if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
   for (const std::string& args : {std::string("train-step --config x.json --steps 12abc"),
                                   std::string("train-step --config x.json --warmup -1"),
@@ -114,7 +136,7 @@ TEST(Executables, BenchCountsThatAreNotIntegersAreOneLineErrors) {
 // streetlight-bench sun-glare scores the detector on val, or on new crops of train (--score-split
 // train, its fit); the test split is never read: asking for it is a one-line error, exit 2.
 TEST(Executables, BenchSunGlareNeverScoresTheTestSplitNorWhatItTrainedOn) {
-  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
+  const std::string& bench = kBench;
   if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
   const ProcessResult r = run(bench + " sun-glare --data d --split-file s.json --checkpoint c --score-split test");
   EXPECT_EQ(r.code, 2) << r.out;
@@ -138,15 +160,10 @@ TEST(Executables, BenchSunGlareNeverScoresTheTestSplitNorWhatItTrainedOn) {
 // with the very bytes of an uninterrupted run and removes the partial file. Other flags are refused
 // with a one-line error naming the flag's key and the file.
 TEST(Executables, BenchSunGlareResumesBitIdenticallyAndRefusesOtherFlags) {
-  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
-  if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("sl_glare_resume_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
-  const std::string folder = tiny_ldr_folder(dir.string());
-  const std::string split = (dir / "split.json").string();
-  std::ofstream(split) << R"({"train": ["t1.jpg", "t2.jpg", "b.jpg"], "val": ["a.jpg"]})";
-  const std::string base = "OMP_NUM_THREADS=1 " + bench + " sun-glare --data " + folder + " --split-file " + split +
-                           " --aimed 1 --near 1 --random 1 --batch 2 --width 4 --steps 4";
+  if (!std::filesystem::exists(kBench)) GTEST_SKIP() << "streetlight-bench not built";
+  const GlareBenchRun g = glare_bench_run("sl_glare_resume", 4);
+  const std::filesystem::path& dir = g.dir;
+  const std::string& base = g.base;
   auto slurp = [](const std::filesystem::path& f) {
     std::ifstream in(f, std::ios::binary);
     return std::string(std::istreambuf_iterator<char>(in), {});
@@ -180,15 +197,10 @@ TEST(Executables, BenchSunGlareResumesBitIdenticallyAndRefusesOtherFlags) {
 // the scores gain a set of level crops toward each val sun, and a partial run made with the flag
 // resumes only with it.
 TEST(Executables, BenchSunGlareLevelCropsAddToTrainingAndToTheScores) {
-  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
-  if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("sl_glare_level_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
-  const std::string folder = tiny_ldr_folder(dir.string());
-  const std::string split = (dir / "split.json").string();
-  std::ofstream(split) << R"({"train": ["t1.jpg", "t2.jpg", "b.jpg"], "val": ["a.jpg"]})";
-  const std::string base = "OMP_NUM_THREADS=1 " + bench + " sun-glare --data " + folder + " --split-file " + split +
-                           " --aimed 1 --near 1 --random 1 --batch 2 --width 4 --steps 2";
+  if (!std::filesystem::exists(kBench)) GTEST_SKIP() << "streetlight-bench not built";
+  const GlareBenchRun g = glare_bench_run("sl_glare_level", 2);
+  const std::filesystem::path& dir = g.dir;
+  const std::string& base = g.base;
   auto crops_of = [](const std::string& out) {
     const size_t at = out.find(" training crops (");
     if (at == std::string::npos) return -1;
@@ -218,13 +230,9 @@ TEST(Executables, BenchSunGlareLevelCropsAddToTrainingAndToTheScores) {
 // every crop with a sun in view and below 0 none. The azimuth head's score says how many of its
 // hidden units are alive.
 TEST(Executables, BenchSunGlareLowSunLevers) {
-  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
-  if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("sl_glare_low_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
-  const std::string folder = tiny_ldr_folder(dir.string());
-  const std::string split = (dir / "split.json").string();
-  std::ofstream(split) << R"({"train": ["t1.jpg", "t2.jpg", "b.jpg"], "val": ["a.jpg"]})";
+  if (!std::filesystem::exists(kBench)) GTEST_SKIP() << "streetlight-bench not built";
+  const GlareBenchRun g = glare_bench_run("sl_glare_low", 2);
+  const std::filesystem::path& dir = g.dir;
   const std::filesystem::path skies = dir / "skies";
   std::filesystem::create_directories(skies);
   const double suns[3] = {15.0, 60.0, 25.0};  // elevations; the third sky is val
@@ -237,8 +245,7 @@ TEST(Executables, BenchSunGlareLowSunLevers) {
   }
   const std::string sky_split = (dir / "sky_split.json").string();
   std::ofstream(sky_split) << R"({"train": ["low_1k.hdr", "high_1k.hdr"], "val": ["val_1k.hdr"]})";
-  const std::string base = "OMP_NUM_THREADS=1 " + bench + " sun-glare --data " + folder + " --split-file " + split +
-                           " --aimed 1 --near 1 --random 1 --batch 2 --width 4 --steps 2 --azimuth-bins 4";
+  const std::string base = g.base + " --azimuth-bins 4";
   const std::string hdr = " --hdr-data " + skies.string() + " --hdr-split-file " + sky_split + " --hdr-crops 1";
   auto number_before = [](const std::string& out, const std::string& what) {
     const size_t at = out.find(what);
@@ -275,7 +282,7 @@ TEST(Executables, BenchSunGlareLowSunLevers) {
 // pure function of (kind, triangles, seed), reach the triangle target and overshoot it by at most
 // one part, and an unknown kind is a one-line error.
 TEST(Executables, GenMeshKindsAreDeterministicFromTheSeed) {
-  const std::string bench = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-bench";
+  const std::string& bench = kBench;
   if (!std::filesystem::exists(bench)) GTEST_SKIP() << "streetlight-bench not built";
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("sl_gen_mesh_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);

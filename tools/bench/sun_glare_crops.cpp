@@ -73,6 +73,32 @@ GlareCrop make_crop(const data::PerspectiveCrop& crop, bool visible, const glm::
   return g;
 }
 
+// Views toward a sun at azimuth az and elevation el (world frame), shared by the LDR panoramas' and the
+// HDR skies' crops. fov_u in [0, 1) draws the horizontal fov uniform in [50°, 80°].
+// - aimed_view: the view's centre `across` half-widths beside the sun's azimuth and `up` half-heights
+//   off its elevation (the sun in the middle |across|, |up| of the view's width and height when both
+//   are below 1), the pitch clamped to ±1.2 rad;
+// - level_view: the view's centre `across` half-widths beside the sun's azimuth at the caller's pitch
+//   (the benchmark's level range), so the sun is in view when its elevation allows.
+double fov_of(double fov_u) { return (50.0 + 30.0 * fov_u) * kDegToRad; }
+
+data::PerspectiveCropParams aimed_view(double fov_u, double az, double el, double across, double up) {
+  data::PerspectiveCropParams cp;
+  cp.horizontal_fov_rad = fov_of(fov_u);
+  const double half_h = 0.5 * cp.horizontal_fov_rad, half_v = std::atan(std::tan(half_h) * cp.height / cp.width);
+  cp.yaw_rad = az + across * half_h;
+  cp.pitch_rad = std::clamp(el + up * half_v, -1.2, 1.2);
+  return cp;
+}
+
+data::PerspectiveCropParams level_view(double fov_u, double az, double across, double pitch_rad) {
+  data::PerspectiveCropParams cp;
+  cp.horizontal_fov_rad = fov_of(fov_u);
+  cp.yaw_rad = az + 0.5 * cp.horizontal_fov_rad * across;
+  cp.pitch_rad = pitch_rad;
+  return cp;
+}
+
 }  // namespace
 
 std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLabels& labels,
@@ -92,16 +118,11 @@ std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLab
     const double w = l->confidence == data::LabelConfidence::Low ? 0.5 : 1.0;
     int k = 0;
     auto params = [&](double yaw_offset_halves, double pitch_offset_halves, bool at_sun) {
+      if (at_sun) return aimed_view(uniform01(s, uint64_t(k), 0), az, el, yaw_offset_halves, pitch_offset_halves);
       data::PerspectiveCropParams cp;
-      cp.horizontal_fov_rad = (50.0 + 30.0 * uniform01(s, uint64_t(k), 0)) * kDegToRad;
-      const double half_h = 0.5 * cp.horizontal_fov_rad, half_v = std::atan(std::tan(half_h) * cp.height / cp.width);
-      if (at_sun) {
-        cp.yaw_rad = az + yaw_offset_halves * half_h;
-        cp.pitch_rad = std::clamp(el + pitch_offset_halves * half_v, -1.2, 1.2);
-      } else {
-        cp.yaw_rad = 2.0 * kPi * uniform01(s, uint64_t(k), 1);
-        cp.pitch_rad = (-5.0 + 30.0 * uniform01(s, uint64_t(k), 2)) * kDegToRad;
-      }
+      cp.horizontal_fov_rad = fov_of(uniform01(s, uint64_t(k), 0));
+      cp.yaw_rad = 2.0 * kPi * uniform01(s, uint64_t(k), 1);
+      cp.pitch_rad = (-5.0 + 30.0 * uniform01(s, uint64_t(k), 2)) * kDegToRad;
       return cp;
     };
     if (visible) {
@@ -122,10 +143,8 @@ std::vector<GlareCrop> panorama_crops(const std::string& dir, const data::SunLab
     if (visible)
       for (int a = 0; a < level; ++a) {
         const uint64_t ls = hash_counter(s, 0x6c6576656cULL, uint64_t(a));
-        data::PerspectiveCropParams cp;
-        cp.horizontal_fov_rad = (50.0 + 30.0 * uniform01(ls, 0, 0)) * kDegToRad;
-        cp.yaw_rad = az + 0.5 * cp.horizontal_fov_rad * (2.0 * uniform01(ls, 0, 1) - 1.0);
-        cp.pitch_rad = (-10.0 + 20.0 * uniform01(ls, 0, 2)) * kDegToRad;
+        const auto cp = level_view(uniform01(ls, 0, 0), az, 2.0 * uniform01(ls, 0, 1) - 1.0,
+                                   (-10.0 + 20.0 * uniform01(ls, 0, 2)) * kDegToRad);
         per[size_t(i)].push_back(make_crop(data::crop_perspective(pano, cp), true, d, keep_ldr, jitter, hash_counter(ls, 0, 7)));
         if (per[size_t(i)].back().sun_pixel) per[size_t(i)].back().weight = w;
       }
@@ -196,17 +215,11 @@ std::vector<GlareCrop> hdr_sun_crops(const std::string& dir, const std::vector<s
     const double az = std::atan2(d.x, -d.z), el = std::asin(std::clamp(d.y, -1.0, 1.0));
     const uint64_t s = hash_counter(seed, std::hash<std::string>{}(names[size_t(i)]));
     for (int a = 0; a < k; ++a) {
-      data::PerspectiveCropParams cp;
-      cp.horizontal_fov_rad = (50.0 + 30.0 * uniform01(s, uint64_t(a), 0)) * kDegToRad;
-      const double half_h = 0.5 * cp.horizontal_fov_rad, half_v = std::atan(std::tan(half_h) * cp.height / cp.width);
+      const double fov_u = uniform01(s, uint64_t(a), 0);
       const double across = 2.0 * uniform01(s, uint64_t(a), 1) - 1.0, up = 2.0 * uniform01(s, uint64_t(a), 2) - 1.0;
-      if (a % 2 == 0) {  // aimed: the sun in the middle 80% of the view
-        cp.yaw_rad = az + 0.8 * across * half_h;
-        cp.pitch_rad = std::clamp(el + 0.8 * up * half_v, -1.2, 1.2);
-      } else {  // level: the benchmark's pitch range, the sun anywhere across the width
-        cp.yaw_rad = az + across * half_h;
-        cp.pitch_rad = 10.0 * up * kDegToRad;
-      }
+      const data::PerspectiveCropParams cp =
+          a % 2 == 0 ? aimed_view(fov_u, az, el, 0.8 * across, 0.8 * up)  // the sun in the middle 80% of the view
+                     : level_view(fov_u, az, across, 10.0 * up * kDegToRad);  // the benchmark's pitch range
       const data::PerspectiveCrop crop = data::crop_perspective(pano, cp);
       const double exposure = render::exposure_for_ldr_median(crop.image, 0.4) *
                               std::exp2(exposure_stops * (2.0 * uniform01(s, uint64_t(a), 3) - 1.0));

@@ -64,6 +64,7 @@ LightingPredictor::LightingPredictor(const LightingPredictorOptions& options)
     head_grid_ = register_module("head_grid", std::make_shared<nn::Conv2d>(feat, opt_.head_grid_channels, 1));
     feat += opt_.head_grid_channels * hw[0] * hw[1];
   }
+  feat_ = feat;
   const SkyAutoencoderOptions& sky = opt_.sky;
   if (opt_.sky_branch == "sky_decoder") {
     sky_head_ = register_module("sky_head", std::make_shared<nn::MLP>(nn::MlpOptions{
@@ -185,6 +186,7 @@ LightingPrediction LightingPredictor::predict(const Tensor& image, const Tensor&
   const Tensor g = head_features(image);
   const int64_t n = image.size(0);
   LightingPrediction out;
+  out.features = g;
   const SkyAutoencoderOptions& sky = opt_.sky;
   if (opt_.sky_branch == "sky_decoder") {
     out.code = sky_code(g);

@@ -73,6 +73,7 @@ struct LightingPrediction {
   Tensor env;       // [N, 3, Hs, Ws] = exp(log_env) (clamped)
   Tensor vsg;       // [N, 8, X, Y, Z] activated, or undefined without the volume branch
   Tensor sun_logits;  // [N, K] over options.sun_grid's cells, or undefined (sun_grid off)
+  Tensor features;    // g [N, feat], the pooled features every head reads (loss.domain_adversarial)
 };
 
 // The sky half of a prediction: the sky vector and, with sun_grid on, the sun's logits.
@@ -102,6 +103,7 @@ class LightingPredictor : public nn::Module {
   Tensor sun_logits(const Tensor& g, const Tensor& image);
   Tensor volume(const Tensor& g, const Tensor& rgba);
   const LightingPredictorOptions& options() const { return opt_; }
+  int64_t feature_dim() const { return feat_; }  // g's width
   // The frozen decoder (null unless sky_branch is "sky_decoder").
   const std::shared_ptr<SkyDecoder>& sky_decoder() const { return sky_decoder_; }
   nn::ResNet& backbone() { return *backbone_; }
@@ -120,6 +122,7 @@ class LightingPredictor : public nn::Module {
   std::shared_ptr<nn::MobileNetV2> sun_backbone_;
   std::shared_ptr<SkyDecoder> sky_decoder_;
   std::array<int64_t, 3> coarse_{};
+  int64_t feat_ = 0;
 };
 
 void validate(const LightingPredictorOptions& options);

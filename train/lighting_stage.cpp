@@ -15,6 +15,8 @@
 #include "data/panorama.h"
 #include "data/sun_extraction.h"
 #include "nn/checkpoint.h"
+#include "nn/functional/gradient_reversal.h"
+#include "nn/modules/mlp.h"
 #include "nn/modules/mobilenet_v2_tflite.h"
 #include "nn/safetensors.h"
 #include "render/environment_map.h"
@@ -115,6 +117,9 @@ LightingStage::LightingStage(const nlohmann::json& config, SampleSource train, S
                              .seed = seed_ + 2}));
     discriminator_->init_parameters(seed_ + 2);
   }
+  if (!adversarial_ && config.at("loss").at("domain_adversarial").get<double>() > 0)
+    domain_head_ = model_->register_module(
+        "domain_head", std::make_shared<nn::MLP>(nn::MlpOptions{.widths = {predictor_->feature_dim(), 64, 1}, .seed = seed_ + 3}));
   // train.freeze: parts of the predictor that keep their weights (and batch-norm statistics):
   // fine-tuning the heads on a new data mix over a fixed backbone (configs/README.md).
   for (const auto& part : config.at("train").value("freeze", nlohmann::json::array())) {
@@ -415,13 +420,31 @@ Tensor LightingStage::supervised_loss(const Forward& f, Metrics& m) {
   return total;
 }
 
+Tensor LightingStage::domain_loss(const Forward& f, Metrics& m) {
+  const auto& w = config_.at("loss");
+  const int64_t n = static_cast<int64_t>(f.samples.size());
+  std::vector<double> real;
+  for (const auto& s : f.samples) real.push_back(s.id.rfind("hdri:", 0) == 0 || s.id.rfind("ldr:", 0) == 0 ? 1.0 : 0.0);
+  const Tensor g = nn::gradient_reversal(f.pred.features, w.at("domain_reversal").get<double>());
+  const Tensor logits = reshape(domain_head_->forward(g), {n});
+  const Tensor labels = Tensor::from_vector(real, {n}).to(logits.dtype());
+  const Tensor loss = bce_with_logits(logits, labels);
+  m["domain_adversarial"] = loss.item();
+  const std::vector<double> z = logits.to_vector();
+  double right = 0;
+  for (size_t i = 0; i < z.size(); ++i) right += (z[i] >= 0) == (real[i] == 1.0) ? 1.0 : 0.0;
+  m["domain_accuracy"] = right / static_cast<double>(n);
+  return mul_scalar(loss, w.at("domain_adversarial").get<double>());
+}
+
 Metrics LightingStage::supervised_step(int64_t step) {
   predictor_->set_training(true);
   optim_->zero_grad();
   PhaseClock clock;
   const Forward f = forward_train(step);
   Metrics m;
-  const Tensor total = supervised_loss(f, m);
+  Tensor total = supervised_loss(f, m);
+  if (domain_head_) total = add(total, domain_loss(f, m));
   const double forward_ms = clock.lap();
   for (const auto& [k, v] : m) check_finite_loss(k, v, step);
   backward(total);

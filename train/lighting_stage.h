@@ -42,6 +42,14 @@
 // of the LDR split's val panoramas, data.ldr_val_crops each, whenever data.ldr_split is set), and PSNR / si-PSNR of the LDR
 // radiance of every other view rendered at data.val_view_height rows. best.safetensors follows
 // train.best_metric (default val_loss).
+// Domain-adversarial training (loss.domain_adversarial > 0, stage 2 only; issue 53): a classifier
+// domain_head.* (MLP g → 64 → 1, ReLU) on the pooled features g, behind a gradient reversal of
+// strength loss.domain_reversal (nn/functional/gradient_reversal.h), learns to tell a generated
+// street (label 0) from a real crop (HDR or LDR panorama, label 1) by bce_with_logits, while the
+// reversed gradient pushes the backbone toward features in which the two look alike, so that what
+// the sun head learns on the streets' many places carries over to the real photos. It is a
+// training term only: validation and val_loss leave it out, and the exported model holds no
+// domain_head. Reported as domain_adversarial and domain_accuracy (the classifier's share right).
 #pragma once
 #include <future>
 #include <map>
@@ -108,6 +116,8 @@ class LightingStage : public Stage {
   };
   Query query(const Forward& f, size_t i, const Tensor& origins, const Tensor& directions);
   Metrics supervised_step(int64_t step);
+  // loss.domain_adversarial's term over a training forward (adds it and the classifier's accuracy to `m`).
+  Tensor domain_loss(const Forward& f, Metrics& m);
 
   nlohmann::json config_;
   bool adversarial_ = false, flip_ = false;
@@ -121,6 +131,7 @@ class LightingStage : public Stage {
   std::shared_ptr<LightingPredictor> predictor_;
   std::shared_ptr<SkyAutoencoder> teacher_;
   std::shared_ptr<nn::PatchDiscriminator> discriminator_;
+  std::shared_ptr<nn::Module> domain_head_;  // loss.domain_adversarial > 0 only
   std::unique_ptr<nn::Optimizer> optim_;
   std::string best_metric_ = "val_loss";
   double last_data_ms_ = 0.0;

@@ -108,6 +108,12 @@ Tensor sky_separation_bce(const Tensor& transmittance, const Tensor& sky_mask) {
   return mul_scalar(mean(add(pos, neg)), -1.0);
 }
 
+Tensor bce_with_logits(const Tensor& logits, const Tensor& labels) {
+  SL_CHECK(logits.shape() == labels.shape(), "bce_with_logits: logits ", logits.describe(), " vs labels ",
+           labels.describe());
+  return mean(sub(softplus(logits), mul(labels, logits)));
+}
+
 Tensor generator_adversarial(const Tensor& d_fake) { return mul_scalar(mean(d_fake), -1.0); }
 
 Tensor discriminator_hinge(const Tensor& d_real, const Tensor& d_fake) {

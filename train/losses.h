@@ -60,6 +60,11 @@ Tensor depth_consistency(const Tensor& depth, const Tensor& transmittance, const
 // has a gradient.
 Tensor sky_separation_bce(const Tensor& transmittance, const Tensor& sky_mask);
 
+// Binary cross-entropy on logits z [N] against labels y [N] in [0, 1]: mean(softplus(z) − y·z),
+// finite for any finite z (softplus never overflows). The domain classifier's loss
+// (loss.domain_adversarial, train/lighting_stage.h).
+Tensor bce_with_logits(const Tensor& logits, const Tensor& labels);
+
 // Adversarial (Sec 3.4): the predictor minimises L_adv = −mean D(I_edit); the discriminator
 // the hinge loss mean relu(1 − D(real)) + mean relu(1 + D(fake)).
 Tensor generator_adversarial(const Tensor& d_fake);

@@ -99,6 +99,8 @@ json default_train_config() {
         {"sun_distribution", 0.0},
         {"sun_distribution_width_deg", 8.0},
         {"sun_half", 0.0},
+        {"domain_adversarial", 0.0},
+        {"domain_reversal", 1.0},
         {"low_sun_weight", 0.0},
         {"low_sun_below_deg", 30.0},
         {"sky_ldr", 1.0},
@@ -239,6 +241,13 @@ void check_train_config(const json& c) {
                (c.at("model").at("sun_grid").at("azimuth_bins").get<int64_t>() > 0 &&
                 c.at("model").at("sun_grid").at("azimuth_bins").get<int64_t>() % 4 == 0),
            "loss.sun_half > 0 needs model.sun_grid with azimuth_bins a multiple of 4");
+  const double domain = c.at("loss").at("domain_adversarial").get<double>();
+  const double reversal = c.at("loss").at("domain_reversal").get<double>();
+  SL_CHECK(std::isfinite(domain) && domain >= 0, "loss.domain_adversarial must be finite and >= 0, got ", domain);
+  SL_CHECK(std::isfinite(reversal) && reversal >= 0, "loss.domain_reversal must be finite and >= 0, got ", reversal);
+  SL_CHECK(domain == 0 || c.at("data").at("real_fraction").get<double>() + c.at("data").at("ldr_fraction").get<double>() > 0,
+           "loss.domain_adversarial > 0 needs real crops beside the generated streets (data.real_fraction or ",
+           "data.ldr_fraction)");
   const double low_sun = c.at("loss").at("low_sun_weight").get<double>();
   const double low_sun_below = c.at("loss").at("low_sun_below_deg").get<double>();
   SL_CHECK(std::isfinite(low_sun) && low_sun >= 0, "loss.low_sun_weight must be finite and >= 0, got ", low_sun);

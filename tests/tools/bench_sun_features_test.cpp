@@ -1,8 +1,9 @@
 // streetlight-bench sun-features (tools/bench/bench_sun_features.cpp): one row per crop with a known
 // sun and one per its mirror image, in rows.csv and in every feature block, with the mirror row's
-// sun mirrored; and scripts/probe_sun_features.py reads what it wrote.
+// sun mirrored; and scripts/probe_sun_features.py and scripts/ensemble_azimuth_heads.py read what it wrote.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -10,6 +11,7 @@
 #include <iterator>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "data/csv.h"
@@ -121,6 +123,30 @@ TEST(BenchSunFeatures, WritesARowPerCropAndMirrorInEveryBlock) {
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << text;
   EXPECT_NE(text.find("| statistics (102) | 10 |"), std::string::npos) << text;
   EXPECT_TRUE(fs::exists(dir + "/probe.json"));
+  // The ensemble script: the mean of two identical heads answers as each does; folders of other crops
+  // are a one-line error with exit code 2.
+  auto run_script = [&](const std::string& args) {
+    FILE* p = popen((python + " " + STREETLIGHT_SOURCE_DIR + "/scripts/ensemble_azimuth_heads.py " + args + " 2>&1").c_str(), "r");
+    std::string t;
+    while (p && fgets(buf, sizeof buf, p)) t += buf;
+    const int st = p ? pclose(p) : -1;
+    return std::make_pair(WIFEXITED(st) ? WEXITSTATUS(st) : -1, t);
+  };
+  const auto [code, table] = run_script("a=" + out + " b=" + out);
+  ASSERT_EQ(code, 0) << table;
+  auto cell = [&](const std::string& row) {
+    const size_t at = table.find("| " + row + " | ");
+    if (at == std::string::npos) return std::string("missing");
+    const size_t begin = at + row.size() + 5;
+    return table.substr(begin, table.find(" |", begin) - begin);
+  };
+  EXPECT_NE(cell("a"), "missing") << table;
+  EXPECT_EQ(cell("a"), cell("b")) << table;
+  EXPECT_EQ(cell("mean of a + b"), cell("a")) << table;
+  const auto [bad_code, bad_text] = run_script("a=" + out + " b=" + dir + "/train");
+  EXPECT_EQ(bad_code, 2) << bad_text;
+  EXPECT_EQ(bad_text.rfind("error: ", 0), 0u) << bad_text;
+  EXPECT_EQ(std::count(bad_text.begin(), bad_text.end(), '\n'), 1) << bad_text;
 }
 
 }  // namespace

@@ -73,6 +73,82 @@ TEST(LightingStage, FrozenPartsKeepTheirWeightsAndStatistics) {
   }
 }
 
+// loss.domain_adversarial (issue 53): a classifier on the pooled features tells the real crops (ids
+// "hdri:" and "ldr:") from the generated streets behind a gradient reversal. It trains (its weights
+// move; its loss and accuracy are reported and finite); at reversal 0 the predictor steps bit for bit
+// as without the term, so the term reaches the predictor only through the reversal, and at
+// reversal 1 it does reach it; validation leaves it out. Without real crops it is refused, naming
+// the key.
+TEST(LightingStage, ADomainClassifierTrainsBehindTheGradientReversal) {
+  const std::string dir = temp_dir("lighting_domain");
+  nlohmann::json c = tiny_config(kStageLighting);
+  c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  c["optim"]["clip_grad_norm"] = 1e9;  // the classifier's gradient would otherwise change the clipping
+  c["data"]["real_fraction"] = 0.5;    // what the check asks for; the source below is the mix
+  const train::SampleSource half_real{4, [](size_t i, uint64_t) {
+                                        data::StreetSample s = tiny_street_sample(i + 1);
+                                        if (i % 2 == 1) s.id = (i == 1 ? "hdri:" : "ldr:") + s.id;
+                                        return s;
+                                      }};
+  auto trained = [&](double weight, double reversal, Metrics* last, nn::StateDict* head) {
+    nlohmann::json g = c;
+    g["loss"]["domain_adversarial"] = weight;
+    g["loss"]["domain_reversal"] = reversal;
+    LightingStage stage(g, half_real, memory_source(1));
+    stage.initialise();
+    const double val_before = stage.validate().at("val_loss");
+    if (head && stage.model().child("domain_head")) {
+      *head = stage.model().child("domain_head")->state_dict();
+      for (auto& [n, t] : *head) t = t.clone();
+    }
+    Metrics m;
+    for (int64_t s = 0; s < 3; ++s) m = stage.step(s);
+    if (last) *last = m;
+    std::vector<std::pair<std::string, std::vector<double>>> out;
+    for (const auto& [n, t] : stage.predictor().state_dict()) out.emplace_back(n, t.to_vector());
+    if (head && stage.model().child("domain_head")) {
+      for (const auto& [n, t] : stage.model().child("domain_head")->state_dict()) {
+        EXPECT_NE(t.to_vector(), head->at(n).to_vector()) << "the classifier's " << n << " did not train";
+      }
+    }
+    return std::make_pair(out, val_before);
+  };
+  const auto [plain, plain_val] = trained(0.0, 1.0, nullptr, nullptr);
+  Metrics m;
+  nn::StateDict head;
+  const auto [off, off_val] = trained(1.0, 0.0, &m, &head);
+  ASSERT_FALSE(head.empty()) << "no domain_head";
+  EXPECT_EQ(off, plain) << "at reversal 0 the domain term must not reach the predictor";
+  EXPECT_EQ(off_val, plain_val) << "validation must leave the domain term out";
+  ASSERT_TRUE(m.count("domain_adversarial") && m.count("domain_accuracy"));
+  EXPECT_TRUE(std::isfinite(m.at("domain_adversarial")));
+  EXPECT_GT(m.at("domain_adversarial"), 0.0);
+  EXPECT_GE(m.at("domain_accuracy"), 0.0);
+  EXPECT_LE(m.at("domain_accuracy"), 1.0);
+  const auto [on, on_val] = trained(1.0, 1.0, nullptr, &head);
+  EXPECT_NE(on, plain) << "at reversal 1 the domain term must reach the predictor";
+  auto refusal = [](const nlohmann::json& config) {
+    try {
+      train::check_train_config(config);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  nlohmann::json bad = train::default_train_config();
+  bad["stage"] = kStageLighting;
+  bad["data"]["dataset"] = "streets";
+  bad["init"]["sky_checkpoint"] = c["init"]["sky_checkpoint"];
+  EXPECT_EQ(refusal(bad), "accepted");
+  bad["loss"]["domain_adversarial"] = 1.0;  // data.real_fraction and data.ldr_fraction are 0
+  EXPECT_NE(refusal(bad).find("loss.domain_adversarial > 0 needs real crops"), std::string::npos) << refusal(bad);
+  bad["loss"]["domain_adversarial"] = -1.0;
+  EXPECT_NE(refusal(bad).find("loss.domain_adversarial must be finite"), std::string::npos) << refusal(bad);
+  bad["loss"]["domain_adversarial"] = 0.0;
+  bad["loss"]["domain_reversal"] = -1.0;
+  EXPECT_NE(refusal(bad).find("loss.domain_reversal"), std::string::npos) << refusal(bad);
+}
+
 // Two labelled LDR panoramas (one sun at a pixel, one "none") written as PNG files with their
 // labels, read by ldr_panorama_source: mixed into training, they give finite steps; in
 // validation, their suns are scored apart as val_ldr_*.

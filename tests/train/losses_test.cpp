@@ -26,6 +26,7 @@ using train::psnr;
 using train::radiance_l2;
 using train::si_psnr;
 using train::sky_separation_bce;
+using train::bce_with_logits;
 
 namespace {
 
@@ -171,6 +172,30 @@ TEST(Losses, SkySeparationBceIsFiniteAtZeroAndOne) {
   for (double g : tau.grad().to_vector()) EXPECT_TRUE(std::isfinite(g));
   // Wrong labels at the extremes: large but finite.
   EXPECT_TRUE(std::isfinite(sky_separation_bce(tau.detach(), Tensor::from_vector({0, 1, 0}, {3})).item()));
+}
+
+// The domain classifier's loss: −mean(y log σ(z) + (1 − y) log(1 − σ(z))) by hand; a gradcheck; at
+// logits of ±1e4 (a classifier sure of itself, right or wrong) value and gradient stay finite.
+TEST(Losses, BceWithLogitsMatchesHandValuesGradchecksAndStaysFinite) {
+  const std::vector<double> z = {-2.0, 0.0, 1.5}, y = {0.0, 1.0, 1.0};
+  double want = 0;
+  for (int i = 0; i < 3; ++i) {
+    const double p = 1.0 / (1.0 + std::exp(-z[i]));
+    want -= (y[i] * std::log(p) + (1 - y[i]) * std::log(1 - p)) / 3;
+  }
+  EXPECT_NEAR(bce_with_logits(Tensor::from_vector(z, {3}).to(DType::F64), Tensor::from_vector(y, {3}).to(DType::F64)).item(),
+              want, 1e-12);
+  const Tensor labels = Tensor::from_vector({0.0, 1.0, 1.0, 0.0}, {4}).to(DType::F64);
+  const GradcheckResult r =
+      gradcheck([&](const TensorList& in) { return bce_with_logits(in[0], labels); },
+                {Tensor::from_vector({-2.5, -0.3, 0.8, 2.2}, {4}).to(DType::F64)});
+  EXPECT_TRUE(r.ok) << r.message;
+  const Tensor extreme = Tensor::from_vector({1e4, -1e4, 1e4, -1e4}, {4}).set_requires_grad(true);
+  const Tensor l = bce_with_logits(extreme, Tensor::from_vector({0.0, 1.0, 1.0, 0.0}, {4}));
+  EXPECT_NEAR(l.item(), 0.5e4, 1.0);  // two wrong by 1e4, two right
+  backward(l);
+  for (double g : extreme.grad().to_vector()) EXPECT_TRUE(std::isfinite(g));
+  EXPECT_THROW(bce_with_logits(Tensor::zeros({3}), Tensor::zeros({4})), Error);
 }
 
 TEST(Losses, AdversarialHingeAndGenerator) {

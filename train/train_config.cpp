@@ -245,6 +245,8 @@ void check_train_config(const json& c) {
   const double reversal = c.at("loss").at("domain_reversal").get<double>();
   SL_CHECK(std::isfinite(domain) && domain >= 0, "loss.domain_adversarial must be finite and >= 0, got ", domain);
   SL_CHECK(std::isfinite(reversal) && reversal >= 0, "loss.domain_reversal must be finite and >= 0, got ", reversal);
+  SL_CHECK(domain == 0 || c.at("stage").get<std::string>() == kStageLighting,
+           "loss.domain_adversarial is a term of stage 2 (\"lighting\"), not of stage \"", c.at("stage").get<std::string>(), "\"");
   SL_CHECK(domain == 0 || c.at("data").at("real_fraction").get<double>() + c.at("data").at("ldr_fraction").get<double>() > 0,
            "loss.domain_adversarial > 0 needs real crops beside the generated streets (data.real_fraction or ",
            "data.ldr_fraction)");

@@ -142,6 +142,11 @@ TEST(LightingStage, ADomainClassifierTrainsBehindTheGradientReversal) {
   EXPECT_EQ(refusal(bad), "accepted");
   bad["loss"]["domain_adversarial"] = 1.0;  // data.real_fraction and data.ldr_fraction are 0
   EXPECT_NE(refusal(bad).find("loss.domain_adversarial > 0 needs real crops"), std::string::npos) << refusal(bad);
+  bad["stage"] = train::kStageAdversarial;
+  bad["init"]["checkpoint"] = "lighting.safetensors";  // checked for being named only
+  EXPECT_NE(refusal(bad).find("loss.domain_adversarial is a term of stage 2"), std::string::npos) << refusal(bad);
+  bad["stage"] = kStageLighting;
+  bad["init"]["checkpoint"] = "";
   bad["loss"]["domain_adversarial"] = -1.0;
   EXPECT_NE(refusal(bad).find("loss.domain_adversarial must be finite"), std::string::npos) << refusal(bad);
   bad["loss"]["domain_adversarial"] = 0.0;

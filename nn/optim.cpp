@@ -26,6 +26,16 @@ Optimizer::Optimizer(std::string type_name, NamedTensors params, double lr, std:
   for (auto& slot : state_)
     for (const auto& [name, p] : params_) slot.push_back(Tensor::zeros(p.shape(), p.dtype()));
   for (size_t i = 0; i < params_.size(); ++i) steps_.push_back(Tensor::zeros({}, DType::I64));
+  lr_scale_.assign(params_.size(), 1.0);
+}
+
+void Optimizer::set_lr_scale(const std::string& prefix, double scale) {
+  SL_CHECK(std::isfinite(scale) && scale > 0, type_name_, ": the learning-rate scale of '", prefix,
+           "' must be finite and > 0, got ", scale);
+  bool any = false;
+  for (size_t i = 0; i < params_.size(); ++i)
+    if (params_[i].first.rfind(prefix, 0) == 0) lr_scale_[i] = scale, any = true;
+  SL_CHECK(any, type_name_, ": no parameter's name starts with '", prefix, "'");
 }
 
 void Optimizer::set_lr(double lr) {
@@ -118,7 +128,7 @@ SGD::SGD(NamedTensors params, SgdOptions options)
 
 void SGD::update(size_t i, const Tensor& g, int64_t t) {
   const Tensor& p = params()[i].second;
-  const double lr = this->lr(), wd = opt_.weight_decay, mu = opt_.momentum, damp = opt_.dampening;
+  const double lr = lr_of(i), wd = opt_.weight_decay, mu = opt_.momentum, damp = opt_.dampening;
   const bool nesterov = opt_.nesterov, first = t == 1;
   Tensor buf = mu > 0 ? slot(0, i) : Tensor();
   SL_DISPATCH_FLOAT(p.dtype(), "SGD", [&] {
@@ -155,7 +165,7 @@ Adam::Adam(std::string name, NamedTensors params, AdamOptions options, bool deco
 
 void Adam::update(size_t i, const Tensor& g, int64_t t) {
   const Tensor& p = params()[i].second;
-  const double lr = this->lr(), wd = opt_.weight_decay, b1 = opt_.beta1, b2 = opt_.beta2, eps = opt_.eps;
+  const double lr = lr_of(i), wd = opt_.weight_decay, b1 = opt_.beta1, b2 = opt_.beta2, eps = opt_.eps;
   const double bc1 = 1.0 - std::pow(b1, double(t));
   const double sqrt_bc2 = std::sqrt(1.0 - std::pow(b2, double(t)));
   const double step_size = lr / bc1;

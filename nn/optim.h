@@ -26,6 +26,10 @@
 //   enable it before loading a checkpoint. swap_average() swaps every parameter that has been
 //   stepped with its average, in place (so modules see the averaged weights); a second call
 //   swaps back. Parameters never stepped (frozen) keep their values.
+// - Per-parameter rates: set_lr_scale(prefix, s) makes every parameter whose name starts with
+//   prefix step at lr·s in place of lr (all its uses of lr, AdamW's decay among them); lr·1 is lr
+//   bit for bit. The scale is not state: who builds the optimiser sets it, before or after loading
+//   a checkpoint. A prefix that names no parameter, or a scale that is not finite and > 0, throws.
 // - Bad hyperparameters (lr < 0, betas outside [0, 1), eps <= 0, momentum < 0, decay outside
 //   (0, 1)) throw.
 #pragma once
@@ -43,6 +47,7 @@ class Optimizer {
   void zero_grad();
   double lr() const { return lr_; }
   void set_lr(double lr);
+  void set_lr_scale(const std::string& prefix, double scale);
   const NamedTensors& params() const { return params_; }
   const std::string& type_name() const { return type_name_; }
   StateDict state_dict() const;
@@ -56,11 +61,13 @@ class Optimizer {
   // Updates parameter i (its gradient g, contiguous, same dtype) given its step count t >= 1.
   virtual void update(size_t i, const Tensor& g, int64_t t) = 0;
   Tensor& slot(size_t slot_index, size_t param_index) { return state_[slot_index][param_index]; }
+  double lr_of(size_t param_index) const { return lr_ * lr_scale_[param_index]; }
 
  private:
   std::string type_name_;
   NamedTensors params_;
   double lr_;
+  std::vector<double> lr_scale_;  // one per parameter, 1 unless set_lr_scale
   std::vector<std::string> slot_names_;
   std::vector<std::vector<Tensor>> state_;  // [slot][param]
   std::vector<Tensor> steps_;               // I64 scalars, one per parameter

@@ -136,6 +136,9 @@ LightingStage::LightingStage(const nlohmann::json& config, SampleSource train, S
   optim_ = std::make_unique<nn::AdamW>(trainable(*model_),
                                        nn::AdamOptions{.lr = config.at("optim").at("lr").get<double>(),
                                                        .weight_decay = config.at("optim").at("weight_decay").get<double>()});
+  // The domain classifier starts afresh inside a model that may be fine-tuned at a small rate: it
+  // learns at loss.domain_lr_scale times the stage's rate.
+  if (domain_head_) optim_->set_lr_scale("domain_head.", config.at("loss").at("domain_lr_scale").get<double>());
 }
 
 void LightingStage::initialise() {

@@ -50,6 +50,8 @@
 // the sun head learns on the streets' many places carries over to the real photos. It is a
 // training term only: validation and val_loss leave it out, and the exported model holds no
 // domain_head. Reported as domain_adversarial and domain_accuracy (the classifier's share right).
+// The classifier learns at loss.domain_lr_scale times the stage's learning rate (nn::Optimizer
+// set_lr_scale): it starts afresh inside a model that is often fine-tuned at a small rate.
 #pragma once
 #include <future>
 #include <map>

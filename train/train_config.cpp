@@ -101,6 +101,7 @@ json default_train_config() {
         {"sun_half", 0.0},
         {"domain_adversarial", 0.0},
         {"domain_reversal", 1.0},
+        {"domain_lr_scale", 1.0},
         {"low_sun_weight", 0.0},
         {"low_sun_below_deg", 30.0},
         {"sky_ldr", 1.0},
@@ -245,6 +246,8 @@ void check_train_config(const json& c) {
   const double reversal = c.at("loss").at("domain_reversal").get<double>();
   SL_CHECK(std::isfinite(domain) && domain >= 0, "loss.domain_adversarial must be finite and >= 0, got ", domain);
   SL_CHECK(std::isfinite(reversal) && reversal >= 0, "loss.domain_reversal must be finite and >= 0, got ", reversal);
+  const double domain_lr = c.at("loss").at("domain_lr_scale").get<double>();
+  SL_CHECK(std::isfinite(domain_lr) && domain_lr > 0, "loss.domain_lr_scale must be finite and > 0, got ", domain_lr);
   SL_CHECK(domain == 0 || c.at("stage").get<std::string>() == kStageLighting,
            "loss.domain_adversarial is a term of stage 2 (\"lighting\"), not of stage \"", c.at("stage").get<std::string>(), "\"");
   SL_CHECK(domain == 0 || c.at("data").at("real_fraction").get<double>() + c.at("data").at("ldr_fraction").get<double>() > 0,

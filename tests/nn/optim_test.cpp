@@ -89,6 +89,39 @@ TEST(AdamW, DecoupledWeightDecayFollowsPyTorch) {
               {0.4792796683031988, -1.2451235213470124, 1.980402295981196}, 1e-12);
 }
 
+// set_lr_scale: the named parameters step at lr·s (SGD exactly; Adam's first step by lr·s against the
+// gradient's sign; AdamW's decay at lr·s too), the others exactly as without it; a prefix that names
+// nothing and a scale that is not positive throw.
+TEST(Optimizer, APrefixStepsAtItsOwnScaleOfTheRate) {
+  Tensor head = Tensor::from_vector({1.0, 2.0}, {2}).set_requires_grad(true);
+  Tensor body = Tensor::from_vector({1.0, 2.0}, {2}).set_requires_grad(true);
+  SGD sgd({{"head.w", head}, {"body.w", body}}, {.lr = 0.5});
+  sgd.set_lr_scale("head.", 10.0);
+  head.set_grad(Tensor::from_vector({0.02, -0.04}, {2}));
+  body.set_grad(Tensor::from_vector({0.2, -0.4}, {2}));
+  sgd.step();
+  expect_near(head.to_vector(), {0.9, 2.2}, 1e-7);  // float32
+  expect_near(body.to_vector(), {0.9, 2.2}, 1e-7);
+  // AdamW: the scaled parameter against a copy stepped by an unscaled optimiser at lr·s.
+  Tensor a = Tensor::from_vector({1.0, -1.0}, {2}).set_requires_grad(true);
+  Tensor b = Tensor::from_vector({1.0, -1.0}, {2}).set_requires_grad(true);
+  Tensor c = Tensor::from_vector({1.0, -1.0}, {2}).set_requires_grad(true);
+  Tensor d = Tensor::from_vector({1.0, -1.0}, {2}).set_requires_grad(true);
+  AdamW scaled({{"domain_head.w", a}, {"rest", b}}, {.lr = 1e-3, .weight_decay = 0.1});
+  scaled.set_lr_scale("domain_head.", 4.0);
+  AdamW fast({{"x", c}}, {.lr = 4e-3, .weight_decay = 0.1}), plain({{"x", d}}, {.lr = 1e-3, .weight_decay = 0.1});
+  for (int t = 0; t < 3; ++t) {
+    const Tensor g = Tensor::from_vector({0.3 - t, 0.7 * t}, {2});
+    for (Tensor* p : {&a, &b, &c, &d}) p->set_grad(g.clone());
+    scaled.step(), fast.step(), plain.step();
+  }
+  EXPECT_EQ(a.to_vector(), c.to_vector());
+  EXPECT_EQ(b.to_vector(), d.to_vector());
+  EXPECT_THROW(scaled.set_lr_scale("trunk.", 2.0), Error);
+  EXPECT_THROW(scaled.set_lr_scale("rest", 0.0), Error);
+  EXPECT_THROW(scaled.set_lr_scale("rest", std::nan("")), Error);
+}
+
 TEST(Optimizer, SkipsParametersWithoutGradientAndDoesNotAdvanceTheirStep) {
   Tensor a = Tensor::from_vector({1.0}, {1}).set_requires_grad(true);
   Tensor b = Tensor::from_vector({1.0}, {1}).set_requires_grad(true);

@@ -94,6 +94,7 @@ TEST(LightingStage, ADomainClassifierTrainsBehindTheGradientReversal) {
     nlohmann::json g = c;
     g["loss"]["domain_adversarial"] = weight;
     g["loss"]["domain_reversal"] = reversal;
+    g["loss"]["domain_lr_scale"] = 10.0;  // the classifier at its own rate; the predictor's is unchanged
     LightingStage stage(g, half_real, memory_source(1));
     stage.initialise();
     const double val_before = stage.validate().at("val_loss");
@@ -152,6 +153,9 @@ TEST(LightingStage, ADomainClassifierTrainsBehindTheGradientReversal) {
   bad["loss"]["domain_adversarial"] = 0.0;
   bad["loss"]["domain_reversal"] = -1.0;
   EXPECT_NE(refusal(bad).find("loss.domain_reversal"), std::string::npos) << refusal(bad);
+  bad["loss"]["domain_reversal"] = 1.0;
+  bad["loss"]["domain_lr_scale"] = 0.0;
+  EXPECT_NE(refusal(bad).find("loss.domain_lr_scale"), std::string::npos) << refusal(bad);
 }
 
 // Two labelled LDR panoramas (one sun at a pixel, one "none") written as PNG files with their

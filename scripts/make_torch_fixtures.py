@@ -54,11 +54,13 @@ class Family:
     def uniform(self, lo, hi, *shape):
         return lo + (hi - lo) * torch.rand(*shape, generator=self.gen)
 
-    def add(self, name, op, params, inputs, fn, extra=None):
-        """inputs: ordered dict name -> tensor (None = absent); fn(*inputs) -> output."""
-        leaves = {k: (v.clone().requires_grad_(True) if v is not None else None) for k, v in inputs.items()}
+    def add(self, name, op, params, inputs, fn, extra=None, constants=()):
+        """inputs: ordered dict name -> tensor (None = absent); fn(*inputs) -> output. Inputs named
+        in `constants` (labels, targets) get no gradient."""
+        leaves = {k: (v.clone().requires_grad_(k not in constants) if v is not None else None)
+                  for k, v in inputs.items()}
         out = fn(*leaves.values())
-        R = self.randn(*out.shape)
+        R = torch.randn(tuple(out.shape), generator=self.gen)  # a 0-d R for a scalar loss
         (out * R).sum().backward()
         for k, v in leaves.items():
             if v is None:
@@ -207,12 +209,92 @@ def depthwise_conv_family():
     fam.write("depthwise_conv.safetensors")
 
 
+def pointwise_family():
+    """The autodiff library's unary, binary (broadcasting) and reducing ops, over the ranges the
+    networks and losses reach: exp to ±20, softplus and sigmoid to ±40, log over 14 decades, expm1
+    and log1p near 0. Widths of 37 leave a tail after every SIMD lane count."""
+    fam = Family(8)
+    def log_uniform(lo, hi, *shape):
+        return torch.exp(fam.uniform(torch.log(torch.tensor(lo)).item(), torch.log(torch.tensor(hi)).item(), *shape))
+    unary = [  # name, op, params, x, torch function
+        ("neg", "neg", {}, fam.randn(3, 37), torch.neg),
+        ("exp", "exp", {}, fam.uniform(-20, 20, 3, 37), torch.exp),
+        ("log", "log", {}, log_uniform(1e-7, 1e7, 3, 37), torch.log),
+        ("log1p", "log1p", {}, torch.cat([fam.uniform(-0.9, 50, 2, 37), fam.uniform(-1e-4, 1e-4, 1, 37)]), torch.log1p),
+        ("expm1", "expm1", {}, torch.cat([fam.uniform(-10, 10, 2, 37), fam.uniform(-1e-4, 1e-4, 1, 37)]), torch.expm1),
+        ("sqrt", "sqrt", {}, log_uniform(1e-6, 1e4, 3, 37), torch.sqrt),
+        ("square", "square", {}, fam.randn(3, 37, scale=3), torch.square),
+        ("abs", "abs", {}, fam.randn(3, 37), torch.abs),
+        ("pow_2.2", "pow_scalar", {"p": 2.2}, fam.uniform(0.01, 5, 3, 37), lambda x: torch.pow(x, 2.2)),
+        ("pow_1_over_2.2", "pow_scalar", {"p": 1 / 2.2}, fam.uniform(0.01, 5, 3, 37), lambda x: torch.pow(x, 1 / 2.2)),
+        ("clamp", "clamp", {"lo": -0.5, "hi": 0.7}, fam.randn(3, 37), lambda x: torch.clamp(x, -0.5, 0.7)),
+        ("relu", "relu", {}, fam.randn(3, 37, scale=3), F.relu),
+        ("leaky_relu_0.2", "leaky_relu", {"slope": 0.2}, fam.randn(3, 37, scale=3), lambda x: F.leaky_relu(x, 0.2)),
+        ("elu_1", "elu", {"alpha": 1.0}, fam.randn(3, 37, scale=3), lambda x: F.elu(x, 1.0)),
+        ("elu_0.7", "elu", {"alpha": 0.7}, fam.randn(3, 37, scale=3), lambda x: F.elu(x, 0.7)),
+        ("sigmoid", "sigmoid", {}, fam.uniform(-40, 40, 3, 37), torch.sigmoid),
+        ("softplus", "softplus", {}, fam.uniform(-40, 40, 3, 37), F.softplus),
+        ("tanh", "tanh", {}, fam.uniform(-10, 10, 3, 37), torch.tanh),
+        ("sin", "sin", {}, fam.uniform(-10, 10, 3, 37), torch.sin),
+        ("cos", "cos", {}, fam.uniform(-10, 10, 3, 37), torch.cos),
+        ("acos", "acos", {}, fam.uniform(-0.99, 0.99, 3, 37), torch.acos),
+    ]
+    for name, op, params, x, fn in unary:
+        fam.add(name, op, params, {"x": x}, fn)
+    sign = lambda t: torch.where(fam.uniform(0, 1, *t.shape) < 0.5, -t, t)
+    binary = [  # name, op, x, y, torch function
+        ("add_broadcast", "add", fam.randn(2, 3, 37), fam.randn(3, 1), torch.add),
+        ("sub_broadcast", "sub", fam.randn(2, 1, 37), fam.randn(3, 37), torch.sub),
+        ("mul_broadcast", "mul", fam.randn(2, 3, 37), fam.randn(37), torch.mul),
+        ("div", "div", fam.randn(3, 37), sign(fam.uniform(0.5, 3, 3, 37)), torch.div),
+        ("pow", "pow", fam.uniform(0.1, 4, 3, 37), fam.uniform(-2, 3, 3, 37), torch.pow),
+        ("minimum", "minimum", fam.randn(3, 37), fam.randn(3, 37), torch.minimum),
+        ("maximum", "maximum", fam.randn(3, 37), fam.randn(3, 37), torch.maximum),
+        ("atan2", "atan2", fam.randn(3, 37), fam.randn(3, 37), torch.atan2),
+    ]
+    for name, op, x, y, fn in binary:
+        fam.add(name, op, {}, {"x": x, "y": y}, fn)
+    reducing = [  # name, op, params, x, torch function
+        ("sum_02", "sum", {"axes": [0, 2], "keepdim": False}, fam.randn(2, 3, 37), lambda x: x.sum(dim=(0, 2))),
+        ("mean_1_keep", "mean", {"axes": [1], "keepdim": True}, fam.randn(2, 3, 37), lambda x: x.mean(dim=1, keepdim=True)),
+        ("max_1", "max", {"axes": [1], "keepdim": False}, fam.randn(2, 37, 5), lambda x: x.amax(dim=1)),
+        ("min_2_keep", "min", {"axes": [2], "keepdim": True}, fam.randn(2, 3, 37), lambda x: x.amin(dim=2, keepdim=True)),
+        ("logsumexp_1", "logsumexp", {"axis": 1, "keepdim": False}, fam.randn(4, 37, scale=50),
+         lambda x: torch.logsumexp(x, dim=1)),
+        ("logsumexp_0_keep", "logsumexp", {"axis": 0, "keepdim": True}, fam.randn(37, 3, scale=3),
+         lambda x: torch.logsumexp(x, dim=0, keepdim=True)),
+        ("normalize_1", "normalize", {"axis": 1}, fam.randn(37, 3), lambda x: F.normalize(x, dim=1)),
+    ]
+    for name, op, params, x, fn in reducing:
+        fam.add(name, op, params, {"x": x}, fn)
+    fam.write("pointwise.safetensors")
+
+
+def loss_family():
+    """The training losses that PyTorch also has: binary cross-entropy on logits (the domain
+    classifier), the cross-entropy against a soft target weighted per row (the sun distribution's
+    loss, train/sun_distribution.h) and L1. Labels and targets get no gradient."""
+    fam = Family(9)
+    z = torch.cat([fam.uniform(-30, 30, 38), torch.tensor([-1e4, 1e4])])
+    y = torch.cat([(fam.uniform(0, 1, 20) < 0.5).float(), fam.uniform(0, 1, 18), torch.tensor([1.0, 0.0])])
+    fam.add("bce_with_logits", "bce_with_logits", {}, {"x": z, "y": y},
+            lambda x, y: F.binary_cross_entropy_with_logits(x, y), constants=("y",))
+    for name, scale in (("soft_ce", 3.0), ("soft_ce_large_logits", 80.0)):
+        logits = fam.randn(5, 48, scale=scale)
+        target = torch.softmax(fam.randn(5, 48, scale=2.0), dim=1)
+        weights = fam.uniform(0.5, 2.0, 5)
+        fam.add(name, "soft_cross_entropy", {}, {"x": logits, "y": target, "w": weights},
+                lambda x, y, w: (F.cross_entropy(x, y, reduction="none") * w).mean(), constants=("y", "w"))
+    fam.add("l1", "l1", {}, {"x": fam.randn(4, 37), "y": fam.randn(4, 37)}, F.l1_loss)
+    fam.write("losses.safetensors")
+
+
 def main():
     torch.manual_seed(0)
     torch.set_num_threads(1)
     os.makedirs(OUT_DIR, exist_ok=True)
     for family in (conv_family, upsample_family, pool_family, norm_family, linear_family, grid_sample_family,
-                   depthwise_conv_family):
+                   depthwise_conv_family, pointwise_family, loss_family):
         family()
     total = sum(os.path.getsize(os.path.join(OUT_DIR, f)) for f in os.listdir(OUT_DIR))
     print(f"wrote {len(os.listdir(OUT_DIR))} files, {total} bytes, to {OUT_DIR}", file=sys.stderr)

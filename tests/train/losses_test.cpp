@@ -7,7 +7,9 @@
 #include "autodiff/gradcheck.h"
 #include "autodiff/ops.h"
 #include "train/losses.h"
+#include "support/torch_fixture.h"
 #include "train/metrics.h"
+#include "train/sun_distribution.h"
 #include "util/math.h"
 
 namespace sl::test {
@@ -213,6 +215,24 @@ TEST(Metrics, PsnrAndScaleInvariantPsnr) {
   EXPECT_NEAR(psnr(p, t), 10 * std::log10(1 / mse), 1e-5);  // float32 inputs
   EXPECT_NEAR(angular_error_deg({1, 0, 0}, {0, 0, 1}), 90.0, 1e-9);
   EXPECT_DOUBLE_EQ(median({3, 1, 2, 10}), 2.5);
+}
+
+// The losses PyTorch also has, against PyTorch 1.13 on tests/fixtures/torch/losses.safetensors:
+// bce_with_logits = F.binary_cross_entropy_with_logits (logits up to ±1e4), the sun
+// distribution's weighted soft-target cross-entropy = mean(F.cross_entropy(z, t, reduction="none")
+// · w) (logits of spread 3 and 80), and l1 = F.l1_loss. Outputs and gradients.
+TEST(Losses, MatchPyTorchOnItsFixtures) {
+  size_t cases = 0;
+  run_torch_family("losses.safetensors", [&](const Fixture&, const std::string&, const nlohmann::json& c, auto& in) {
+    ++cases;
+    const std::string op = c.at("op");
+    if (op == "bce_with_logits") return bce_with_logits(in["x"], in["y"]);
+    if (op == "soft_cross_entropy") return train::sun_distribution_loss(in["x"], in["y"], in["w"]);
+    if (op == "l1") return train::l1(in["x"], in["y"]);
+    ADD_FAILURE() << "the fixture names an op this test does not know: " << op;
+    return Tensor();
+  });
+  EXPECT_EQ(cases, 4u) << "every case of the fixture ran";
 }
 
 }  // namespace

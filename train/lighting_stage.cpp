@@ -427,7 +427,7 @@ Tensor LightingStage::domain_loss(const Forward& f, Metrics& m) {
   const auto& w = config_.at("loss");
   const int64_t n = static_cast<int64_t>(f.samples.size());
   std::vector<double> real;
-  for (const auto& s : f.samples) real.push_back(s.id.rfind("hdri:", 0) == 0 || s.id.rfind("ldr:", 0) == 0 ? 1.0 : 0.0);
+  for (const auto& s : f.samples) real.push_back(sample_origin(s.id) == SampleOrigin::Street ? 0.0 : 1.0);
   const Tensor g = nn::gradient_reversal(f.pred.features, w.at("domain_reversal").get<double>());
   const Tensor logits = reshape(domain_head_->forward(g), {n});
   const Tensor labels = Tensor::from_vector(real, {n}).to(logits.dtype());
@@ -506,11 +506,11 @@ Metrics LightingStage::validate() {
     if (f.samples[0].sun_known) {
       const double e = angular_error_deg(dir, f.items[0].sun_direction);
       sun_err.push_back(e);
-      const std::string& id = f.samples[0].id;
-      (id.rfind("hdri:", 0) == 0 ? real_err : id.rfind("ldr:", 0) == 0 ? ldr_err : street_err).push_back(e);
+      const SampleOrigin origin = sample_origin(f.samples[0].id);
+      (origin == SampleOrigin::HdrCrop ? real_err : origin == SampleOrigin::LdrCrop ? ldr_err : street_err).push_back(e);
       const double len = glm::length(dir) * glm::length(f.items[0].sun_direction);
       if (std::isfinite(len) && len > 0.0) {  // sun_error_parts refuses a zero direction
-        auto& group = parts[id.rfind("hdri:", 0) == 0 ? "real" : id.rfind("ldr:", 0) == 0 ? "ldr" : "street"];
+        auto& group = parts[origin == SampleOrigin::HdrCrop ? "real" : origin == SampleOrigin::LdrCrop ? "ldr" : "street"];
         group.first.push_back(dir);
         group.second.push_back(f.items[0].sun_direction);
       }

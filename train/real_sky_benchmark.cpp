@@ -12,6 +12,7 @@
 #include "data/ldr_panorama_sample.h"
 #include "data/panorama.h"
 #include "train/metrics.h"
+#include "train/sample_source.h"
 #include "train/street_batch.h"
 #include "util/error.h"
 #include "util/file_kind.h"
@@ -55,7 +56,7 @@ std::vector<RealSkyCrop> real_sky_crops(const std::vector<std::string>& paths, i
     for (int k = 0; k < crops_per_panorama; ++k) {
       RealSkyCrop c;
       c.panorama = name;
-      c.sample = panorama_street_sample(pano, "hdri:" + name + "#" + std::to_string(k), seed, static_cast<uint64_t>(k),
+      c.sample = panorama_street_sample(pano, crop_sample_id(SampleOrigin::HdrCrop, name, static_cast<uint64_t>(k)), seed, static_cast<uint64_t>(k),
                                         options);
       const Camera& cam = c.sample.views[0].camera;
       c.sun_canonical = canonical_frame(cam).direction(c.sample.sun_direction);
@@ -104,7 +105,7 @@ LdrPanoramaCrops ldr_panorama_crops(const std::vector<std::string>& paths, const
       c.label_sun = data::to_string(label->sun);
       c.label_confidence = data::to_string(label->confidence);
       c.scene = data::to_string(label->scene);
-      c.sample = data::ldr_panorama_street_sample(pano, "ldr:" + name + "#" + std::to_string(k), seed,
+      c.sample = data::ldr_panorama_street_sample(pano, crop_sample_id(SampleOrigin::LdrCrop, name, static_cast<uint64_t>(k)), seed,
                                                   static_cast<uint64_t>(k), options, keep_images);
       const StreetSample& s = c.sample;
       const Camera& cam = s.views[0].camera;

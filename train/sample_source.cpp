@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <string_view>
 #include <unordered_map>
 
 #include "data/hdri_folder.h"
@@ -28,6 +29,23 @@ using sl::data::StreetDataset;
 using sl::data::StreetSample;
 
 namespace sl::train {
+
+namespace {
+constexpr std::string_view kHdrCropPrefix = "hdri:";
+constexpr std::string_view kLdrCropPrefix = "ldr:";
+}  // namespace
+
+SampleOrigin sample_origin(const std::string& id) {
+  if (id.starts_with(kHdrCropPrefix)) return SampleOrigin::HdrCrop;
+  if (id.starts_with(kLdrCropPrefix)) return SampleOrigin::LdrCrop;
+  return SampleOrigin::Street;
+}
+
+std::string crop_sample_id(SampleOrigin origin, const std::string& file, uint64_t stream) {
+  SL_CHECK(origin != SampleOrigin::Street, "crop_sample_id: a generated street keeps its own id");
+  return std::string(origin == SampleOrigin::HdrCrop ? kHdrCropPrefix : kLdrCropPrefix) + file + "#" +
+         std::to_string(stream);
+}
 
 size_t sample_bytes(const StreetSample& sample) {
   size_t bytes = 0;
@@ -107,7 +125,7 @@ SampleSource panorama_source(const std::vector<std::string>& paths, const Panora
   const size_t per = std::max<size_t>(1, items / n);
   return SampleSource{items, [panos, names, options, seed, vary_with_draw, n, per](size_t i, uint64_t draw) {
                         const auto [k, stream] = panorama_draw(i, draw, vary_with_draw, n, per);
-                        return panorama_street_sample((*panos)[k], "hdri:" + (*names)[k] + "#" + std::to_string(stream),
+                        return panorama_street_sample((*panos)[k], crop_sample_id(SampleOrigin::HdrCrop, (*names)[k], stream),
                                                       seed, stream, options);
                       }};
 }
@@ -162,7 +180,7 @@ SampleSource ldr_panorama_source(const std::vector<std::string>& paths, const st
   return SampleSource{items, [panos, names, options, seed, vary_with_draw, n, per, cumulative](size_t i, uint64_t draw) {
                         auto [k, stream] = panorama_draw(i, draw, vary_with_draw, n, per);
                         if (!cumulative.empty()) k = data::pick_weighted(cumulative, uniform01(seed, kPlaceStream, draw));
-                        return data::ldr_panorama_street_sample((*panos)[k], "ldr:" + (*names)[k] + "#" + std::to_string(stream),
+                        return data::ldr_panorama_street_sample((*panos)[k], crop_sample_id(SampleOrigin::LdrCrop, (*names)[k], stream),
                                                                 seed, stream, options);
                       }};
 }

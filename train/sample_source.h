@@ -28,6 +28,15 @@
 
 namespace sl::train {
 
+// Where a sample came from, told by its id: a crop of a real HDR panorama is "hdri:<file>#<stream>",
+// a crop of a real LDR panorama "ldr:<file>#<stream>", and any other id is a generated street. The
+// sources below write these ids (crop_sample_id); the stage reads them back (sample_origin) to
+// group its validation errors and to label the domain classifier (train/lighting_stage.h).
+enum class SampleOrigin { Street, HdrCrop, LdrCrop };
+SampleOrigin sample_origin(const std::string& id);
+// crop_sample_id(HdrCrop or LdrCrop, file, stream); throws for Street (a street keeps its own id).
+std::string crop_sample_id(SampleOrigin origin, const std::string& file, uint64_t stream);
+
 struct SampleSource {
   size_t size = 0;
   std::function<data::StreetSample(size_t index, uint64_t draw)> load;

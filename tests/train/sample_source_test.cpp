@@ -52,6 +52,19 @@ std::string copy_of_tiny_dataset(const std::string& name) {
   return dst;
 }
 
+// The ids the real-panorama sources write are the ones the stage reads back to group its errors
+// and label its domain classifier: "hdri:<file>#<stream>", "ldr:<file>#<stream>", else a street.
+TEST(SampleSource, CropIdsNameTheirOriginAndEveryOtherIdIsAStreet) {
+  using train::SampleOrigin;
+  EXPECT_EQ(train::crop_sample_id(SampleOrigin::HdrCrop, "sky.exr", 7), "hdri:sky.exr#7");
+  EXPECT_EQ(train::crop_sample_id(SampleOrigin::LdrCrop, "street.jpg", 0), "ldr:street.jpg#0");
+  for (SampleOrigin o : {SampleOrigin::HdrCrop, SampleOrigin::LdrCrop})
+    EXPECT_EQ(train::sample_origin(train::crop_sample_id(o, "a#b:c", 123456789012ull)), o);
+  for (const char* id : {"", "000012", "hdri", "ldr", "xhdri:a#1", "HDRI:a#1"})
+    EXPECT_EQ(train::sample_origin(id), SampleOrigin::Street) << id;
+  EXPECT_THROW(train::crop_sample_id(SampleOrigin::Street, "a", 0), sl::Error);
+}
+
 TEST(SampleSource, CachedSampleIsTheDecodedOneAndSurvivesItsFolder) {
   const std::string dir = copy_of_tiny_dataset("cache_hit");
   const SampleSource plain = dataset_source(dir, "train");

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Trains the released lighting model from nothing and publishes it as models/streetlight.safetensors
-# with its model card (models/README.md). Steps, each resumable (a killed run continues where it
-# stopped, bit-identically for the training stages):
+# Trains the released model (0.7.4: models/streetlight.safetensors and models/sun_glare.safetensors)
+# from nothing. Steps, each resumable (a killed run continues where it stopped, bit-identically for
+# the training stages):
+#   The base model (release 0.6.0, 2026-11-27):
 #   1. the synthetic streets (configs/release_datagen.json), a third of them lit by the training
 #      panoramas of configs/hdri_split.json, rendered by two processes; then 320 held-out test
 #      streets (configs/release_datagen_test.json: another seed, all in the test split) for a
@@ -19,20 +20,28 @@
 #      with loss.ldr_sun_energy, which keeps the sun of unlabelled camera photos in the energy span
 #      of the labelled ones;
 #   6. the streets (configs/release_streets.json): 1000 steps on the generated streets alone at a
-#      lower rate, which gives back the streets' accuracy the real crops cost and, on validation,
-#      also lowered the real errors (docs/RESULTS.md, 2026-11-27); its checkpoint is the one with the
-#      lowest validation error on the streets;
-#   7. evaluation of steps 5 and 6 on the real HDR and LDR test splits and the synthetic test split;
-#   8. the release: step 6's checkpoint, exported (F16) with a model card that lists data, configs,
-#      steps, wall times, commit and the test metrics beside the constant baseline. Stage 3
-#      (configs/release_adversarial.json) is not part of the recipe: the last two releases'
-#      validation chose the stage before it (models/README.md).
+#      lower rate; its checkpoint with the lowest validation error on the streets is the base model;
+#   7. the base model's evaluation on the test splits (DIR/eval) and its card (DIR/base_model_card.md,
+#      scripts/write_model_card.sh);
+#   The release (0.7.4):
+#   8. the sun head (release 0.7.2): scripts/train_sun_grid.sh --previous DIR/streets/best.safetensors
+#      into DIR/sun_grid: a probability over sun directions trained on 480 more streets and the
+#      enlarged real data, then the backbone widened to 64 channels for 20000 steps;
+#   9. the sun-glare detector and its azimuth head: scripts/train_sun_glare.sh into DIR/glare;
+#  10. the release's evaluation on the test splits (DIR/release_eval: the sun head with the detector);
+#  11. the release: step 8's last.safetensors exported (F16) to models/streetlight.safetensors and
+#      step 9's detector copied to models/sun_glare.safetensors. The model card (models/README.md) is
+#      written by hand from DIR/release_eval/results.md: it also describes the pictures. Stage 3
+#      (configs/release_adversarial.json) is not part of the recipe: validation chose the stage
+#      before it (models/README.md).
+# Wall time on an AMD EPYC with 2 vCPUs: about 9 h (about 3 h 20 min to step 7, 4 h 40 min for step 8,
+# 1 h 15 min for step 9), measured part by part and partly under load (models/README.md).
 # Usage: scripts/train_release.sh [--runs DIR] [--build-dir DIR] [--skip-build] [--no-publish]
 #                                  [--stop-after STEP]
 #   --runs DIR     run folder (default ../streetlight-runs/release, outside the repository)
 #   --no-publish   train and evaluate only; leave models/ untouched
 #   --stop-after STEP  stop once STEP is done (datagen, test_streets, sky, lighting, sun, sun_ldr,
-#                      streets, eval)
+#                      streets, eval, sun_grid, glare, release_eval)
 # Needs ../shared/data/hdri (the real panoramas). Logs go to DIR/*.log; progress to stderr.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -44,10 +53,10 @@ while [ $# -gt 0 ]; do
     --skip-build) build=0 ;;
     --no-publish) publish=0 ;;
     --stop-after) stop_after="$2"; shift
-      case "$stop_after" in datagen|test_streets|sky|lighting|sun|sun_ldr|streets|eval) ;;
-        *) echo "error: --stop-after '$stop_after': expected datagen, test_streets, sky, lighting, sun, sun_ldr, streets or eval" >&2; exit 2 ;;
+      case "$stop_after" in datagen|test_streets|sky|lighting|sun|sun_ldr|streets|eval|sun_grid|glare|release_eval) ;;
+        *) echo "error: --stop-after '$stop_after': expected datagen, test_streets, sky, lighting, sun, sun_ldr, streets, eval, sun_grid, glare or release_eval" >&2; exit 2 ;;
       esac ;;
-    -h|--help) sed -n '2,36p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d'; exit 0 ;;
     *) echo "error: unknown option '$1' (try --help)" >&2; exit 2 ;;
   esac
   shift
@@ -92,7 +101,7 @@ datagen() {  # datagen CONFIG OUT_NAME: two processes, one shard each
   done
   for p in "${pids[@]}"; do wait "$p" || { echo "error: streetlight-datagen failed, see $runs/${2}_datagen_*.log" >&2; exit 1; }; done
 }
-say "1/8 synthetic streets (configs/release_datagen.json, configs/release_datagen_test.json), 2 processes"
+say "1/11 synthetic streets (configs/release_datagen.json, configs/release_datagen_test.json), 2 processes"
 timed datagen datagen configs/release_datagen.json street
 timed test_streets datagen configs/release_datagen_test.json test_street
 timed sky train_stage sky configs/release_sky.json --set "data.hdri_dir=$hdri"
@@ -108,24 +117,39 @@ timed streets train_stage streets configs/release_streets.json --set "data.hdri_
   --set "data.dataset=$runs/street" --set "init.sky_checkpoint=$runs/sky/best.safetensors" \
   --set "init.checkpoint=$runs/sun_ldr/best.safetensors"
 
-say "7/8 evaluating steps 5 and 6 (real HDR and LDR test splits, 8 crops per panorama; the held-out test streets)"
+say "7/11 evaluating the base model's candidates, steps 5 and 6 (real HDR and LDR test splits, 8 crops per panorama; the held-out test streets)"
 evaluate() {
   "$bin/streetlight-eval" --data "$hdri" --hdri-split configs/hdri_split.json --split test --crops 8 \
     --data "$ldr" --ldr-split configs/pano_ldr_split.json \
     --data "$runs/test_street" --baseline-data "$runs/street" --no-budgets --out "$runs/eval" \
     --checkpoint "$runs/sun_ldr/best.safetensors" --name "LDR energy span (sun_ldr)" \
-    --checkpoint "$runs/streets/best.safetensors" --name "streets (released)" > /dev/null
+    --checkpoint "$runs/streets/best.safetensors" --name "streets (the base model)" > /dev/null
+  echo streets > "$runs/chosen"
+  bash scripts/write_model_card.sh "$runs" > "$runs/base_model_card.md"
 }
 timed eval evaluate
 
-chosen=streets
-echo "$chosen" > "$runs/chosen"
-say "8/8 releasing step 6 ($chosen)"
+say "8/11 the sun head (scripts/train_sun_grid.sh from the base model; logs in $runs/sun_grid/)"
+timed sun_grid bash scripts/train_sun_grid.sh --runs "$runs/sun_grid" --build-dir "$build_dir" --no-publish \
+  --previous "$runs/streets/best.safetensors" --stop-after wide
+say "9/11 the sun-glare detector (scripts/train_sun_glare.sh)"
+timed glare bash scripts/train_sun_glare.sh --runs "$runs/glare" --build-dir "$build_dir" --no-publish
+
+say "10/11 evaluating the release (the sun head with the detector) on the test splits"
+release_evaluate() {
+  "$bin/streetlight-eval" --data "$hdri" --hdri-split configs/hdri_split.json --split test --crops 8 \
+    --data "$ldr" --ldr-split configs/pano_ldr_split.json --data "$runs/test_street" --baseline-data "$runs/street" \
+    --no-budgets --out "$runs/release_eval" --sun-glare "$runs/glare/sun_glare.safetensors" \
+    --checkpoint "$runs/sun_grid/wide_long/last.safetensors" --name "the release" > /dev/null
+}
+timed release_eval release_evaluate
+
 if [ "$publish" = 1 ]; then
   commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
-  "$bin/streetlight-export" --checkpoint "$runs/$chosen/best.safetensors" --out models/streetlight.safetensors \
-    --meta "commit=$commit" --meta "script=scripts/train_release.sh" --meta "license=see models/README.md"
-  bash scripts/write_model_card.sh "$runs" > models/README.md.tmp && mv models/README.md.tmp models/README.md
-  say "published models/streetlight.safetensors and models/README.md"
+  "$bin/streetlight-export" --checkpoint "$runs/sun_grid/wide_long/last.safetensors" --out models/streetlight.safetensors \
+    --meta "commit=$commit" --meta "script=scripts/train_release.sh" --meta "version=0.7.4" \
+    --meta "license=see models/README.md"
+  cp "$runs/glare/sun_glare.safetensors" models/sun_glare.safetensors
+  say "11/11 published models/streetlight.safetensors and models/sun_glare.safetensors; write their card in models/README.md from $runs/release_eval/results.md"
 fi
 say "done in $(( $(date +%s) - start )) s (this invocation); per-step wall times in $runs/*.done"

@@ -19,17 +19,21 @@
 #   4. evaluation of the previous releases and the new model on the real test splits (8 crops per
 #      panorama) and on the held-out streets when DIR/test_street exists (configs/release_datagen_test.json);
 #   5. the release: part 4's last.safetensors exported (F16) to models/streetlight.safetensors.
-# Usage: scripts/train_sun_grid.sh [--runs DIR] [--build-dir DIR] [--no-publish] [--stop-after STEP]
+# Usage: scripts/train_sun_grid.sh [--runs DIR] [--build-dir DIR] [--previous FILE] [--no-publish] [--stop-after STEP]
 #   --runs DIR   run folder (default ../streetlight-runs/sun_grid, outside the repository)
+#   --previous FILE  the model to continue (default: release 0.6.0 from git; scripts/train_release.sh
+#                passes the base model it trained)
 #   --stop-after STEP  datagen, previous, train, more, head, wide or eval
 # Wall time here (AMD EPYC, 2 vCPUs): about 7400 s up to part 3, and 9309 s for part 4 on 2 threads.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-runs=../streetlight-runs/sun_grid; build_dir=build; publish=1; stop_after=
+runs=../streetlight-runs/sun_grid; build_dir=build; publish=1; stop_after=; previous_file=
 while [ $# -gt 0 ]; do
   case "$1" in
     --runs) runs="$2"; shift ;;
     --build-dir) build_dir="$2"; shift ;;
+    --previous) previous_file="${2:?--previous needs a checkpoint}"; shift
+      [ -f "$previous_file" ] || { echo "error: --previous '$previous_file': no such file" >&2; exit 2; } ;;
     --no-publish) publish=0 ;;
     --stop-after) stop_after="$2"; shift
       case "$stop_after" in datagen|previous|train|more|head|wide|eval) ;;
@@ -64,7 +68,11 @@ datagen() {
   done
   for p in "${pids[@]}"; do wait "$p" || { echo "error: streetlight-datagen failed, see $runs/street_datagen_*.log" >&2; exit 1; }; done
 }
-previous() { git show 42f2b6d:models/streetlight.safetensors > "$runs/previous.safetensors.tmp" && mv "$runs/previous.safetensors.tmp" "$runs/previous.safetensors"; }
+previous() {
+  if [ -n "$previous_file" ]; then cp "$previous_file" "$runs/previous.safetensors.tmp"
+  else git show 42f2b6d:models/streetlight.safetensors > "$runs/previous.safetensors.tmp"; fi
+  mv "$runs/previous.safetensors.tmp" "$runs/previous.safetensors"
+}
 train_part() {  # train_part NAME CONFIG INIT: one stage into $runs/NAME, resumed from its last checkpoint
   local name=$1 config=$2 init=$3 resume=()
   [ -f "$runs/$name/last.safetensors" ] && resume=(--resume "$runs/$name/last.safetensors")

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <mutex>
+#include <utility>
 #include <vector>
 
 #include "data/exr_header.h"
@@ -226,6 +227,32 @@ std::vector<float> planar_values(const Tensor& t, const std::string& path, const
 
 }  // namespace
 
+namespace {
+
+int orientation_of(const OIIO::ImageSpec& spec) {
+  const int o = spec.get_int_attribute("Orientation", 1);
+  return o >= 1 && o <= 8 ? o : 1;
+}
+
+// The stored (row, column) shown at upright (r, c) for EXIF orientation o, stored size h x w.
+// The tag says where the 0th stored row and column appear: 2 mirrors, 3 turns 180 degrees, 4 flips,
+// 5 transposes, 6 turns a quarter clockwise, 7 transposes across the other diagonal, 8 turns a
+// quarter counter-clockwise.
+inline std::pair<int64_t, int64_t> stored_pixel(int o, int64_t r, int64_t c, int64_t h, int64_t w) {
+  switch (o) {
+    case 2: return {r, w - 1 - c};
+    case 3: return {h - 1 - r, w - 1 - c};
+    case 4: return {h - 1 - r, c};
+    case 5: return {c, r};
+    case 6: return {h - 1 - c, r};
+    case 7: return {h - 1 - c, w - 1 - r};
+    case 8: return {c, w - 1 - r};
+    default: return {r, c};
+  }
+}
+
+}  // namespace
+
 ImageInfo read_image_info(const std::string& path) {
   OpenedInput f = open_input(path, "read_image_info");
   ImageInfo info;
@@ -234,6 +261,9 @@ ImageInfo read_image_info(const std::string& path) {
   info.channels = f.spec.nchannels;
   info.is_float = is_float_type(f.spec.format);
   info.bits = static_cast<int>(f.spec.format.size() * 8);
+  info.orientation = orientation_of(f.spec);
+  const int focal = f.spec.get_int_attribute("Exif:FocalLengthIn35mmFilm", 0);
+  info.focal_35mm = focal > 0 ? focal : 0.0;
   return info;
 }
 
@@ -241,7 +271,13 @@ Tensor read_image(const std::string& path, const ImageReadOptions& options) {
   const char* op = "read_image";
   OpenedInput f = open_input(path, op);
   const int fc = f.spec.nchannels, w = f.spec.width, h = f.spec.height;
-  check_size(f.spec, options.width, options.height, path, op);
+  const int orientation = options.upright ? orientation_of(f.spec) : 1;
+  const bool swap = orientation_swaps_axes(orientation);
+  const int out_w = swap ? h : w, out_h = swap ? w : h;
+  SL_CHECK((options.width <= 0 || out_w == options.width) && (options.height <= 0 || out_h == options.height), op,
+           ": '", path, "' is ", out_w, "x", out_h, swap ? " upright" : "", ", expected ",
+           options.width > 0 ? std::to_string(options.width) : std::string("any"), "x",
+           options.height > 0 ? std::to_string(options.height) : std::string("any"));
   const int want = options.channels == 0 ? fc : options.channels;
   SL_CHECK(want == 1 || want == 2 || want == 3 || want == 4, op, ": '", path,
            "': requested channel count must be 0-4, got ", options.channels);
@@ -254,7 +290,7 @@ Tensor read_image(const std::string& path, const ImageReadOptions& options) {
 
   const bool curve = options.transfer == Transfer::SRGB ||
                      (options.transfer == Transfer::Auto && !float_file);
-  Tensor image = Tensor::empty({want, h, w}, DType::F32);
+  Tensor image = Tensor::empty({want, out_h, out_w}, DType::F32);
   float* dst = image.data<float>();
   const int64_t plane = static_cast<int64_t>(w) * h;
   parallel_for(plane, 16384, [&](int64_t p0, int64_t p1) {
@@ -262,7 +298,12 @@ Tensor read_image(const std::string& path, const ImageReadOptions& options) {
       const int src_c = grey_to_rgb ? 0 : c;
       const bool apply = curve && !is_alpha(c, want);
       for (int64_t p = p0; p < p1; ++p) {
-        const float x = buf[static_cast<size_t>(p * fc + src_c)];
+        int64_t q = p;  // the stored pixel shown at upright pixel p
+        if (orientation != 1) {
+          const auto [sr, sc] = stored_pixel(orientation, p / out_w, p % out_w, h, w);
+          q = sr * w + sc;
+        }
+        const float x = buf[static_cast<size_t>(q * fc + src_c)];
         dst[c * plane + p] = apply ? srgb_to_linear(x) : x;
       }
     }

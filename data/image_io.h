@@ -15,6 +15,13 @@
 // returned as 0 by default (the KITTI convention, safe in arithmetic) or NaN on request; when
 // writing, 0, negative, NaN and ±Inf all mean missing (code 0 in PNG, NaN in EXR).
 //
+// Camera photos (JPEG, TIFF) may store the sensor's rows with an EXIF Orientation tag (1-8) that
+// says how a viewer turns them: a phone held upright writes 6 (0th row on the right). read_image
+// returns the stored rows unless ImageReadOptions::upright, which applies the tag (mirrors and
+// quarter turns, exact), so the tensor is the picture as a viewer shows it and its width and height
+// are the viewer's. The size check (width, height) then applies to the upright picture.
+// read_image_info reports the tag and the EXIF 35 mm-equivalent focal length (0 when absent).
+//
 // Writes go to a temporary file in the destination folder, renamed over the destination only
 // after the whole image was written, so a failure never leaves a partial file.
 //
@@ -46,6 +53,8 @@ struct ImageReadOptions {
   int channels = 0;
   // 0 accepts any size; otherwise the file must have exactly this size.
   int width = 0, height = 0;
+  // Apply the file's EXIF Orientation tag (see above); false: the stored rows.
+  bool upright = false;
 };
 
 struct ImageWriteOptions {
@@ -57,7 +66,12 @@ struct ImageInfo {
   int width = 0, height = 0, channels = 0;
   bool is_float = false;  // float or half pixels (EXR, HDR)
   int bits = 0;           // bits per channel as stored
+  int orientation = 1;    // EXIF Orientation, 1-8 (1 when absent or out of range); width, height as stored
+  double focal_35mm = 0;  // EXIF FocalLengthIn35mmFilm in mm, 0 when absent
 };
+
+// The size of the picture upright: width and height swapped for orientations 5-8.
+inline bool orientation_swaps_axes(int orientation) { return orientation >= 5 && orientation <= 8; }
 
 ImageInfo read_image_info(const std::string& path);
 Tensor read_image(const std::string& path, const ImageReadOptions& options = {});

@@ -3,6 +3,8 @@
 // them (data/image_io.h).
 #include <pybind11/stl.h>
 
+#include <cmath>
+
 #include "autodiff/ops.h"
 #include "data/image_io.h"
 #include "python/bindings.h"
@@ -17,13 +19,13 @@ struct PyPhoto {
   py::array_t<uint8_t> image;
   py::tuple intrinsics;
   py::array_t<float> depth;
-  std::string depth_source;
+  std::string depth_source, intrinsics_source;
   double camera_height = 1.65, pitch = 0.0;
 };
 
 PyPhoto load(const std::string& image, const std::optional<std::string>& intrinsics, const std::optional<std::string>& depth,
              const std::optional<std::string>& lidar, const std::optional<std::string>& calib, double camera_height,
-             double pitch) {
+             double pitch, const std::optional<double>& fov) {
   train::PhotoSources s;
   s.image = image;
   s.intrinsics = path_or_empty(intrinsics);
@@ -32,6 +34,11 @@ PyPhoto load(const std::string& image, const std::optional<std::string>& intrins
   s.calib = path_or_empty(calib);
   s.camera_height_m = camera_height;
   s.pitch_deg = pitch;
+  if (fov) {
+    SL_CHECK(std::isfinite(*fov) && *fov > 0.0 && *fov < 180.0, "load_photo: fov must lie between 0 and 180 degrees, got ",
+             *fov);
+    s.fov_deg = *fov;
+  }
   const train::Photo p = file_call({s.image, s.intrinsics, s.depth, s.lidar, s.calib}, [&] {
     Compute c;
     return train::load_photo(s);
@@ -42,6 +49,7 @@ PyPhoto load(const std::string& image, const std::optional<std::string>& intrins
   out.intrinsics = py::make_tuple(k.fx, k.fy, k.cx, k.cy);
   out.depth = image_from_tensor(reshape(p.depth, {1, p.depth.size(0), p.depth.size(1)}));
   out.depth_source = p.depth_source;
+  out.intrinsics_source = p.intrinsics_source;
   out.camera_height = camera_height;
   out.pitch = pitch;
   return out;
@@ -80,13 +88,16 @@ void bind_photo(py::module_& m) {
       .def_readonly("intrinsics", &PyPhoto::intrinsics, "(fx, fy, cx, cy) in pixels")
       .def_readonly("depth", &PyPhoto::depth, "H x W float32 camera-z metres (0 where unknown)")
       .def_readonly("depth_source", &PyPhoto::depth_source, "'depth-file', 'lidar' or 'ground-plane'")
+      .def_readonly("intrinsics_source", &PyPhoto::intrinsics_source, "'file', 'calib', 'fov' or 'exif'")
       .def_readonly("camera_height", &PyPhoto::camera_height, "metres above the ground")
       .def_readonly("pitch", &PyPhoto::pitch, "degrees, positive up");
   m.def("load_photo", &load, py::arg("image"), py::kw_only(), py::arg("intrinsics") = py::none(),
         py::arg("depth") = py::none(), py::arg("lidar") = py::none(), py::arg("calib") = py::none(),
-        py::arg("camera_height") = 1.65, py::arg("pitch") = 0.0,
-        "Reads a photo as streetlight-insert --image does: intrinsics from a KITTI projection file or\n"
-        "JSON {fx, fy, cx, cy} (else from calib's P2), depth from a depth file (EXR metres or KITTI\n"
+        py::arg("camera_height") = 1.65, py::arg("pitch") = 0.0, py::arg("fov") = py::none(),
+        "Reads a photo as streetlight-insert --image does, turned upright by its EXIF orientation:\n"
+        "intrinsics from a KITTI projection file or JSON {fx, fy, cx, cy}, else from calib's P2, else a\n"
+        "centred camera with horizontal field of view `fov` degrees, else the photo's EXIF 35 mm-\n"
+        "equivalent focal length (OSError naming the image when none is there); depth from a depth file (EXR metres or KITTI\n"
         "16-bit PNG), else KITTI lidar + calib (projected and densified), else the ground plane seen\n"
         "from camera_height. Raises OSError (FileNotFoundError) for a file it cannot read.");
   m.def("write_image", &write, py::arg("path"), py::arg("image"),

@@ -57,12 +57,13 @@ class Photo:
     intrinsics: Tuple[float, float, float, float]
     depth: np.ndarray  # H x W float32 metres
     depth_source: str
+    intrinsics_source: str  # 'file', 'calib', 'fov' or 'exif'
     camera_height: float
     pitch: float
 
 def load_photo(image: str, *, intrinsics: Optional[str] = None, depth: Optional[str] = None,
                lidar: Optional[str] = None, calib: Optional[str] = None, camera_height: float = 1.65,
-               pitch: float = 0.0) -> Photo: ...
+               pitch: float = 0.0, fov: Optional[float] = None) -> Photo: ...
 def write_image(path: str, image: np.ndarray) -> None: ...
 
 class Lighting:

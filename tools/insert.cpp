@@ -193,6 +193,12 @@ Refinement refinement_from_args(const cli::Args& a, const std::string& checkpoin
   return r;
 }
 
+// The first view's intrinsics and where they came from (train/photo_input.h photo_intrinsics).
+json intrinsics_json(const Photo& photo) {
+  const render::Intrinsics& k = photo.camera.intrinsics();
+  return {{"source", photo.intrinsics_source}, {"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}};
+}
+
 PhotoSources sources_from_args(const cli::Args& a, size_t i) {
   const auto images = a.all("--image"), intr = a.all("--intrinsics"), poses = a.all("--pose");
   PhotoSources s;
@@ -201,6 +207,11 @@ PhotoSources sources_from_args(const cli::Args& a, size_t i) {
     SL_CHECK(intr.size() == images.size() || intr.size() == 1, "give one --intrinsics per --image (", images.size(),
              " images, ", intr.size(), " intrinsics) or one for all");
     s.intrinsics = intr[intr.size() == 1 ? 0 : i];
+  }
+  if (a.has("--fov")) {
+    s.fov_deg = a.number("--fov", 0.0);
+    SL_CHECK(std::isfinite(s.fov_deg) && s.fov_deg > 0.0 && s.fov_deg < 180.0,
+             "--fov DEG must lie between 0 and 180 degrees, got ", a.get("--fov"));
   }
   s.camera_height_m = a.number("--camera-height", 1.65);
   s.pitch_deg = a.number("--pitch", 0.0);
@@ -330,6 +341,7 @@ int single(const cli::Args& a) {
             {"views", photos.size()},
             {"object", object_spec},
             {"depth_source", photo.depth_source},
+            {"intrinsics", intrinsics_json(photo)},
             {"sun", sun_json(light)},
             {"placement", {{"at_camera_ground_xz", {ax, az}},
                            {"world_x_m", pose.x_m},
@@ -386,6 +398,11 @@ int single(const cli::Args& a) {
   out.commit();
   if (a.has("--json")) std::cout << j.dump() << "\n";
   std::fprintf(stderr, "depth: %s\n", photo.depth_source.c_str());
+  if (photo.intrinsics_source == "fov" || photo.intrinsics_source == "exif")
+    std::fprintf(stderr, "intrinsics: from %s, fx = fy = %.1f px (horizontal field of view %.1f°)\n",
+                 photo.intrinsics_source == "fov" ? "--fov" : "the photo's EXIF 35 mm-equivalent focal length",
+                 photo.camera.intrinsics().fx,
+                 2.0 * std::atan(0.5 * photo.camera.intrinsics().width / photo.camera.intrinsics().fx) * 180.0 / kPi);
   if (refine.options.steps > 0) {
     const glm::dvec3 before = estimated.sun_direction_world();
     std::fprintf(stderr, "refine: %d steps, -D %.4f -> %.4f, sun azimuth %.1f° -> %.1f°, elevation %.1f° -> %.1f° (%.0f ms)\n",
@@ -402,16 +419,19 @@ int single(const cli::Args& a) {
 
 int run(int argc, char** argv) {
   cli::Args a("streetlight-insert",
-              "streetlight-insert --image PHOTO --intrinsics FILE --object MODEL.glb --at X,Z [--yaw DEG] [--scale S]\n"
-              "                   [--checkpoint CKPT] --out DIR [--depth FILE | --lidar BIN --calib FILE]\n"
+              "streetlight-insert --image PHOTO [--intrinsics FILE | --fov DEG] --object MODEL.glb --at X,Z [--yaw DEG]\n"
+              "                   [--scale S] [--checkpoint CKPT] --out DIR [--depth FILE | --lidar BIN --calib FILE]\n"
               "                   [--refine N [--discriminator FILE]]\n"
               "streetlight-insert --batch LIST.json|FOLDER [--checkpoint CKPT] --out DIR [--object M.glb ...]\n\n"
               "Estimates the photo's HDR lighting with a trained checkpoint (Wang et al. ECCV 2022, Sec 3.2) and\n"
               "inserts a glTF object with its shading and cast shadow (Sec 3.3). --at X,Z is in metres in the first\n"
               "camera's ground frame: X to the right, Z forward. Depth: --depth, else --lidar + --calib, else the\n"
-              "ground plane seen from --camera-height and --pitch. --object procedural:car needs no file.",
+              "ground plane seen from --camera-height and --pitch. Intrinsics: --intrinsics, else --calib, else\n"
+              "--fov, else the photo's EXIF 35 mm-equivalent focal length (phone and camera JPEGs have it); a\n"
+              "photo's EXIF orientation is applied. --object procedural:car needs no file.",
               {{"--image", "PHOTO", "street photo (PNG/JPEG; several for multi-view, with --pose)", true},
                {"--intrinsics", "FILE", "KITTI 3x4 projection file (P2) or JSON {fx, fy, cx, cy}", true},
+               {"--fov", "DEG", "horizontal field of view, for a photo without --intrinsics (centred, square pixels)"},
                {"--sample", "DIR", "a generated street sample (DIR/samples/<id>): view 0 with its depth and pose;\n"
                 "                               without --at, the generator's own placement; without --object, its object"},
                {"--pose", "X,Y,Z,YAW[,PITCH]", "multi-view: world pose of each camera (metres, degrees)", true},

@@ -1,7 +1,8 @@
 #include "train/batch_list.h"
 
-#include <filesystem>
+#include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 
 #include <nlohmann/json.hpp>
@@ -43,6 +44,13 @@ std::vector<BatchListEntry> read_batch_list(const std::string& path) {
     s.lidar = rel("lidar");
     s.calib = rel("calib");
     SL_CHECK(!s.image.empty(), "--batch '", path, "': an entry has no \"image\"");
+    if (e.contains("fov")) {
+      SL_CHECK(e.at("fov").is_number(), "--batch '", path, "': entry ", i, " key \"fov\" must be a number of degrees, got ",
+               e.at("fov").type_name());
+      s.fov_deg = e.at("fov").get<double>();
+      SL_CHECK(std::isfinite(s.fov_deg) && s.fov_deg > 0.0 && s.fov_deg < 180.0, "--batch '", path, "': entry ", i,
+               " \"fov\" must lie between 0 and 180 degrees, got ", s.fov_deg);
+    }
     BatchListEntry entry;
     entry.sources = s;
     entry.labels = rel("labels");

@@ -76,21 +76,43 @@ Camera photo_camera(const Intrinsics& k, const PhotoSources& s) {
   return Camera(k, rotation_from_yaw_pitch_roll(s.yaw_deg * kPi / 180.0, s.pitch_deg * kPi / 180.0, 0.0), pos);
 }
 
+Intrinsics photo_intrinsics(const PhotoSources& s, int w, int h, std::string* source) {
+  std::string from;
+  Intrinsics k;
+  if (!s.intrinsics.empty()) {
+    k = read_intrinsics(s.intrinsics, w, h), from = "file";
+  } else if (!s.calib.empty()) {
+    k = read_kitti_calibration(s.calib, w, h).p2.intrinsics, from = "calib";
+  } else if (s.fov_deg != 0.0) {
+    SL_CHECK(std::isfinite(s.fov_deg) && s.fov_deg > 0.0 && s.fov_deg < 180.0,
+             "--fov DEG must lie between 0 and 180 degrees, got ", s.fov_deg);
+    k = render::intrinsics_from_fov(s.fov_deg * kPi / 180.0, w, h), from = "fov";
+  } else {
+    const double f35 = data::read_image_info(s.image).focal_35mm;
+    SL_CHECK(f35 > 0.0, "image '", s.image, "' has no intrinsics: give --intrinsics FILE (KITTI P2 or JSON {fx, fy, "
+             "cx, cy}) or --fov DEG (its horizontal field of view); its EXIF has no 35 mm-equivalent focal length");
+    constexpr double kFullFrameDiagonalMm = 43.266615305567875;  // √(36² + 24²)
+    const double f = f35 * std::sqrt(double(w) * w + double(h) * h) / kFullFrameDiagonalMm;
+    k.fx = k.fy = f;
+    k.cx = 0.5 * w, k.cy = 0.5 * h;
+    k.width = w, k.height = h;
+    render::validate(k, "EXIF focal length");
+    from = "exif";
+  }
+  if (source) *source = from;
+  return k;
+}
+
 Photo load_photo(const PhotoSources& s) {
   SL_CHECK(!s.image.empty(), "--image is required");
   Photo p;
   ImageReadOptions ro;
   ro.transfer = Transfer::Linear;
   ro.channels = 3;
+  ro.upright = true;
   p.ldr = read_image(s.image, ro);
   const int h = static_cast<int>(p.ldr.size(1)), w = static_cast<int>(p.ldr.size(2));
-  Intrinsics k;
-  if (!s.intrinsics.empty()) {
-    k = read_intrinsics(s.intrinsics, w, h);
-  } else {
-    SL_CHECK(!s.calib.empty(), "--intrinsics FILE is required (or --calib with --lidar)");
-    k = read_kitti_calibration(s.calib, w, h).p2.intrinsics;
-  }
+  const Intrinsics k = photo_intrinsics(s, w, h, &p.intrinsics_source);
   p.camera = photo_camera(k, s);
   if (!s.depth.empty()) {
     const Tensor d = read_depth(s.depth);
@@ -142,6 +164,7 @@ Photo load_street_view(const std::string& dir, int view, Placement* placement, b
                                 in.height);
     p.depth = reshape(d, {in.height, in.width}).contiguous();
     p.depth_source = "dataset";
+    p.intrinsics_source = "dataset";
     if (has_placement) *has_placement = false;
     if (placement && m.contains("object") && !m.at("object").is_null()) {
       const auto& pl = m.at("object").at("placement");

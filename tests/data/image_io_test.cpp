@@ -12,6 +12,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "support/exif_photo.h"
 #include "support/test_files.h"
 #include "util/random.h"
 
@@ -258,6 +259,52 @@ TEST(ImageIo, ReadsTheRealKittiPhotograph) {
   mean /= static_cast<double>(img.numel());
   EXPECT_GT(mean, 0.02);
   EXPECT_LT(mean, 0.8);
+}
+
+// A phone's photo: stored rows and an EXIF Orientation tag. With `upright` the tensor is the picture
+// as a viewer shows it. The expected pictures of the stored rows [[1 2 3] [4 5 6]] are those of
+// PIL's ImageOps.exif_transpose, an independent implementation of the tag.
+TEST(ImageIo, UprightAppliesEveryExifOrientation) {
+  const std::vector<std::vector<std::vector<int>>> upright = {
+      {{1, 2, 3}, {4, 5, 6}}, {{3, 2, 1}, {6, 5, 4}}, {{6, 5, 4}, {3, 2, 1}}, {{4, 5, 6}, {1, 2, 3}},
+      {{1, 4}, {2, 5}, {3, 6}}, {{4, 1}, {5, 2}, {6, 3}}, {{6, 3}, {5, 2}, {4, 1}}, {{3, 6}, {2, 5}, {1, 4}}};
+  const sl::Tensor stored = sl::Tensor::from_vector({40 / 255.0, 80 / 255.0, 120 / 255.0, 160 / 255.0, 200 / 255.0, 240 / 255.0}, {1, 2, 3});
+  for (int o = 1; o <= 8; ++o) {
+    SCOPED_TRACE("orientation " + std::to_string(o));
+    const std::string path = sl::test::scratch("orientation_" + std::to_string(o) + ".tif");
+    sl::test::write_exif_photo(path, stored, o);
+    EXPECT_EQ(sl::data::read_image_info(path).orientation, o);
+    sl::data::ImageReadOptions ro{.transfer = sl::data::Transfer::Linear, .channels = 1};
+    const auto expect_picture = [](const sl::Tensor& t, const std::vector<std::vector<int>>& want) {
+      ASSERT_EQ(t.shape(), (sl::Shape{1, int64_t(want.size()), int64_t(want[0].size())}));
+      const auto v = t.to_vector();
+      for (size_t r = 0; r < want.size(); ++r)
+        for (size_t c = 0; c < want[0].size(); ++c)
+          EXPECT_NEAR(v[r * want[0].size() + c] * 255.0 / 40.0, want[r][c], 1e-5) << r << "," << c;
+    };
+    expect_picture(sl::data::read_image(path, ro), upright[0]);  // without upright: the stored rows
+    ro.upright = true;
+    const auto& want = upright[static_cast<size_t>(o - 1)];
+    expect_picture(sl::data::read_image(path, ro), want);
+    // The size check is of the upright picture.
+    ro.width = static_cast<int>(want[0].size()), ro.height = static_cast<int>(want.size());
+    EXPECT_NO_THROW(sl::data::read_image(path, ro));
+    if (o >= 5) {
+      ro.width = 3, ro.height = 2;
+      expect_error_naming([&] { sl::data::read_image(path, ro); }, path, "2x3 upright");
+    }
+  }
+}
+
+TEST(ImageIo, InfoReadsTheExif35mmFocalLengthAndAnAbsentOneIsZero) {
+  const sl::Tensor img = random_image(3, 8, 12, 0.0, 1.0, 3);
+  const std::string with = sl::test::scratch("focal_26.jpg"), without = sl::test::scratch("focal_none.png");
+  sl::test::write_exif_photo(with, img, 1, 26);
+  sl::data::write_image(without, img);
+  EXPECT_EQ(sl::data::read_image_info(with).focal_35mm, 26.0);
+  EXPECT_EQ(sl::data::read_image_info(with).orientation, 1);
+  EXPECT_EQ(sl::data::read_image_info(without).focal_35mm, 0.0);
+  EXPECT_EQ(sl::data::read_image_info(without).orientation, 1);
 }
 
 }  // namespace sl::test

@@ -58,6 +58,19 @@ def test_photo_from_load_photo_is_the_image_the_tool_reads(kitti):
     assert photo.image.dtype == np.uint8 and photo.image.ndim == 3 and photo.image.shape[2] == 3
     assert photo.depth_source == "ground-plane"
     assert len(photo.intrinsics) == 4
+    assert photo.intrinsics_source == "file"
+
+
+def test_a_photo_without_intrinsics_takes_a_field_of_view(kitti):
+    png = str(kitti / "000008.png")
+    photo = sl.load_photo(png, fov=90.0)
+    assert photo.intrinsics_source == "fov"
+    w = photo.image.shape[1]
+    assert photo.intrinsics == pytest.approx((w / 2, w / 2, w / 2, photo.image.shape[0] / 2))
+    with pytest.raises(OSError, match="--fov"):  # a PNG has no EXIF focal length
+        sl.load_photo(png)
+    with pytest.raises(ValueError, match="fov"):
+        sl.load_photo(png, fov=180.0)
 
 
 def test_lighting_gives_the_sky_and_a_sun_in_the_camera_frame(released):

@@ -15,6 +15,7 @@
 #include "render/gltf_writer.h"
 #include "train/photo_insertion.h"
 #include "util/math.h"
+#include "support/exif_photo.h"
 #include "support/tool_fixture.h"
 #include "nn/checkpoint.h"
 #include "train/lighting_predictor.h"
@@ -378,6 +379,58 @@ TEST(InsertTool, IntrinsicsOfAnotherImageAreACleanError) {
   const auto r2 = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --intrinsics " + c.dir +
                                                      "/k2.json --at 0,8 --out " + c.dir + "/out" + c.base);
   expect_clean_error(r2, c.dir + "/out", "1242x375");
+}
+
+// A phone's JPEG: its rows stored sideways with EXIF Orientation 6, and a 35 mm-equivalent focal
+// length of 26 mm, no intrinsics file. The tool turns it upright and takes the focal length from the
+// EXIF (the diagonal of the 35 mm frame, 43.27 mm, spans the image's); --fov sets a field of view
+// instead; a photo with neither is a clean error naming it.
+TEST(InsertTool, APhonePhotoNeedsNoIntrinsicsFile) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_phone");
+  const sl::Tensor up = sl::data::read_image(c.dir + "/photo.png", {.transfer = sl::data::Transfer::Linear});
+  const int64_t H = up.size(1), W = up.size(2);  // 32 x 64 upright; stored 64 rows of 32
+  sl::Tensor stored = sl::Tensor::empty({3, W, H});
+  const auto u = up.to_vector();
+  float* s = stored.data<float>();
+  for (int64_t ch = 0; ch < 3; ++ch)
+    for (int64_t sr = 0; sr < W; ++sr)
+      for (int64_t sc = 0; sc < H; ++sc)  // orientation 6 shows stored (sr, sc) at upright (sc, W - 1 - sr)
+        s[(ch * W + sr) * H + sc] = static_cast<float>(u[static_cast<size_t>((ch * H + sc) * W + (W - 1 - sr))]);
+  sl::test::write_exif_photo(c.dir + "/phone.jpg", stored, 6, 26);
+  const std::string out = c.dir + "/out";
+  const auto r = run_tool("streetlight-insert", "--image " + c.dir + "/phone.jpg --at 0,8 --out " + out + c.base);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("intrinsics: from the photo's EXIF"), std::string::npos) << r.out;
+  std::ifstream jf(out + "/result.json");
+  const auto j = nlohmann::json::parse(jf);
+  EXPECT_EQ(j["intrinsics"]["source"], "exif");
+  const double f = 26.0 * std::sqrt(double(W * W + H * H)) / 43.266615305567875;
+  EXPECT_NEAR(j["intrinsics"]["fx"].get<double>(), f, 1e-9);
+  EXPECT_NEAR(j["intrinsics"]["fy"].get<double>(), f, 1e-9);
+  EXPECT_EQ(j["intrinsics"]["cx"].get<double>(), W / 2.0);
+  EXPECT_EQ(j["intrinsics"]["cy"].get<double>(), H / 2.0);
+  const sl::Tensor comp = sl::data::read_image(out + "/composite.png", {.transfer = sl::data::Transfer::Linear});
+  ASSERT_EQ(comp.shape(), (sl::Shape{3, H, W})) << "the composite is the upright picture";
+  const auto v = comp.to_vector();
+  EXPECT_GT(v[0], v[static_cast<size_t>((H - 1) * W)]) << "the photo's bright sky stays at the top";
+
+  const std::string out2 = c.dir + "/out_fov";
+  const auto r2 = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --fov 90 --at 0,8 --out " + out2 + c.base);
+  ASSERT_EQ(r2.code, 0) << r2.out;
+  std::ifstream jf2(out2 + "/result.json");
+  const auto j2 = nlohmann::json::parse(jf2);
+  EXPECT_EQ(j2["intrinsics"]["source"], "fov");
+  EXPECT_NEAR(j2["intrinsics"]["fx"].get<double>(), W / 2.0, 1e-9);  // tan(45°) = 1
+
+  const auto r3 = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --at 0,8 --out " + c.dir + "/out3" + c.base);
+  expect_clean_error(r3, c.dir + "/out3", "photo.png");
+  EXPECT_NE(r3.out.find("--fov"), std::string::npos) << r3.out;
+  for (const char* bad : {"0", "180", "-5", "nan"}) {
+    const auto r4 = run_tool("streetlight-insert", "--image " + c.dir + "/photo.png --fov " + std::string(bad) +
+                                                       " --at 0,8 --out " + c.dir + "/out4" + c.base);
+    expect_clean_error(r4, c.dir + "/out4", "--fov");
+  }
 }
 
 TEST(InsertTool, ObjectBehindTheCameraIsACleanError) {

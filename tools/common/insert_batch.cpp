@@ -69,6 +69,7 @@ std::vector<BatchItem> batch_items(const std::string& spec, const cli::Args& a) 
   auto base = [&](PhotoSources s) {
     s.camera_height_m = a.number("--camera-height", 1.65);
     s.pitch_deg = a.number("--pitch", 0.0);
+    if (s.fov_deg == 0.0 && a.has("--fov")) s.fov_deg = a.number("--fov", 0.0);  // the list's own "fov" wins
     return s;
   };
   if (fs::is_directory(spec)) {

@@ -487,8 +487,9 @@ int run(int argc, char** argv) {
                 "                               1,4,16; exact volume queries, so far costlier per ray than the final render)"},
                {"--discriminator", "FILE", "the discriminator for --refine: a stage-3 checkpoint or an export made with\n"
                 "                               --with-discriminator (default: the one in --checkpoint, if any)"},
-               {"--batch", "LIST", "batch mode: KITTI folder (image_2, calib, label_2, velodyne) or JSON list of\n"
-                "                               {image, intrinsics, depth|lidar+calib, labels, id}; writes a KITTI folder\n"
+               {"--batch", "LIST", "batch mode: KITTI folder (image_2, calib, label_2, velodyne), a folder of photos\n"
+                "                               (intrinsics from --fov or their EXIF), or JSON list of {image,\n"
+                "                               intrinsics|fov, depth|lidar+calib, labels, id}; writes a KITTI folder\n"
                 "                               keeping ids, labels and calibration, and resumes a killed run"},
                {"--objects-per-image", "N", "batch: objects per image (default 1)"},
                {"--json", "", "print result.json on stdout"}});

@@ -501,6 +501,36 @@ TEST(InsertTool, BatchWritesAKittiLayoutDataset) {
   EXPECT_EQ(line.rfind("Car ", 0), 0u) << line;
 }
 
+// A folder of phone photos, no KITTI layout: each photo's intrinsics from its EXIF focal length,
+// written into the output's calib/ as a KITTI P2 (fx in the first row).
+TEST(InsertTool, BatchTakesAFolderOfPhonePhotos) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_batch_phone");
+  const sl::Tensor up = sl::data::read_image(c.dir + "/photo.png", {.transfer = sl::data::Transfer::Linear});
+  const std::string photos = c.dir + "/phone";
+  fs::create_directories(photos);
+  sl::test::write_exif_photo(photos + "/IMG_0001.JPG", up, 1, 26);
+  sl::test::write_exif_photo(photos + "/IMG_0002.jpg", up, 1, 52);
+  std::ofstream(photos + "/notes.txt") << "not a photo";
+  const std::string out = c.dir + "/aug";
+  const auto r = run_tool("streetlight-insert", "--batch " + photos + " --out " + out + c.base);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const double diagonal_px = std::sqrt(64.0 * 64.0 + 32.0 * 32.0);
+  for (const auto& [id, f35] : {std::pair<std::string, double>{"IMG_0001", 26.0}, {"IMG_0002", 52.0}}) {
+    SCOPED_TRACE(id);
+    EXPECT_TRUE(fs::exists(fs::path(out) / "image_2" / (id + ".png")));
+    EXPECT_TRUE(fs::exists(fs::path(out) / "label_2" / (id + ".txt")));
+    std::ifstream cf(out + "/calib/" + id + ".txt");
+    std::string line;
+    double fx = 0;
+    while (std::getline(cf, line))
+      if (line.rfind("P2:", 0) == 0) fx = std::stod(line.substr(3));
+    EXPECT_NEAR(fx, f35 * diagonal_px / 43.266615305567875, 1e-3);
+  }
+  const auto empty = run_tool("streetlight-insert", "--batch " + c.dir + "/aug/label_2 --out " + c.dir + "/aug2" + c.base);
+  expect_clean_error(empty, c.dir + "/aug2", "nor PNG or JPEG photos");
+}
+
 }  // namespace
 
 namespace {

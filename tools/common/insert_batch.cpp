@@ -1,6 +1,7 @@
 #include "tools/common/insert_batch.h"
 
 #include <algorithm>
+#include <cctype>
 #include <csignal>
 #include <cmath>
 #include <cstdlib>
@@ -72,12 +73,33 @@ std::vector<BatchItem> batch_items(const std::string& spec, const cli::Args& a) 
     if (s.fov_deg == 0.0 && a.has("--fov")) s.fov_deg = a.number("--fov", 0.0);  // the list's own "fov" wins
     return s;
   };
-  if (fs::is_directory(spec)) {
+  const auto is_photo = [](const fs::path& p) {
+    std::string ext = p.extension().string();
+    for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    return ext == ".png" || ext == ".jpg" || ext == ".jpeg";
+  };
+  if (fs::is_directory(spec) && !fs::is_directory(fs::path(spec) / "image_2")) {
+    // A plain folder of photos (a phone's, a camera's): every PNG or JPEG in it, its intrinsics
+    // from --fov or its EXIF focal length (train/photo_input.h), the ground plane for depth.
+    std::vector<fs::path> images;
+    for (const auto& e : fs::directory_iterator(spec))
+      if (e.is_regular_file() && is_photo(e.path())) images.push_back(e.path());
+    std::sort(images.begin(), images.end());
+    SL_CHECK(!images.empty(), "batch folder '", spec,
+             "' has neither an image_2/ subfolder (KITTI layout) nor PNG or JPEG photos");
+    for (const auto& img : images) {
+      BatchItem it;
+      it.id = img.stem().string();
+      PhotoSources s;
+      s.image = img.string();
+      it.sources = base(s);
+      out.push_back(it);
+    }
+  } else if (fs::is_directory(spec)) {
     const fs::path dir(spec);
-    SL_CHECK(fs::is_directory(dir / "image_2"), "batch folder '", spec, "' has no image_2/ subfolder");
     std::vector<fs::path> images;
     for (const auto& e : fs::directory_iterator(dir / "image_2"))
-      if (e.path().extension() == ".png" || e.path().extension() == ".jpg") images.push_back(e.path());
+      if (is_photo(e.path())) images.push_back(e.path());
     std::sort(images.begin(), images.end());
     for (const auto& img : images) {
       BatchItem it;

@@ -1,6 +1,7 @@
 // streetlight-bench sun-features (tools/bench/bench_sun_features.cpp): one row per crop with a known
 // sun and one per its mirror image, in rows.csv and in every feature block, with the mirror row's
-// sun mirrored; and scripts/probe_sun_features.py and scripts/ensemble_azimuth_heads.py read what it wrote.
+// sun mirrored; and scripts/probe_sun_features.py, scripts/ensemble_azimuth_heads.py and
+// scripts/sun_half_by_split.py read what it wrote.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -147,6 +148,23 @@ TEST(BenchSunFeatures, WritesARowPerCropAndMirrorInEveryBlock) {
   EXPECT_EQ(bad_code, 2) << bad_text;
   EXPECT_EQ(bad_text.rfind("error: ", 0), 0u) << bad_text;
   EXPECT_EQ(std::count(bad_text.begin(), bad_text.end(), '\n'), 1) << bad_text;
+  // The split script counts every crop once (the mirror rows left out), and a folder without rows is
+  // one line with exit code 2 and nothing else printed.
+  auto run_split = [&](const std::string& args) {
+    FILE* p = popen((python + " " + STREETLIGHT_SOURCE_DIR + "/scripts/sun_half_by_split.py " + args + " 2>&1").c_str(), "r");
+    std::string t;
+    while (p && fgets(buf, sizeof buf, p)) t += buf;
+    const int st = p ? pclose(p) : -1;
+    return std::make_pair(WIFEXITED(st) ? WEXITSTATUS(st) : -1, t);
+  };
+  const auto [split_code, split_table] = run_split("mine=" + out);
+  ASSERT_EQ(split_code, 0) << split_table;
+  EXPECT_NE(split_table.find("| mine | " + std::to_string((rows.size() - 1) / 2) + " | "), std::string::npos)
+      << split_table;
+  const auto [none_code, none_text] = run_split("mine=" + out + " other=" + dir + "/nowhere");
+  EXPECT_EQ(none_code, 2) << none_text;
+  EXPECT_EQ(none_text.rfind("error: ", 0), 0u) << none_text;
+  EXPECT_EQ(std::count(none_text.begin(), none_text.end(), '\n'), 1) << none_text;
 }
 
 }  // namespace

@@ -25,6 +25,32 @@ Placement placement_in_camera_ground_frame(const Camera& camera, double right_m,
   return Placement{ground.x, ground.z, yaw_deg, scale};
 }
 
+PixelPlacement placement_at_pixel(const Camera& camera, const Tensor& depth, int col, int row, double yaw_deg,
+                                  double scale) {
+  const Intrinsics& k = camera.intrinsics();
+  SL_CHECK(depth.defined() && depth.dim() == 2 && depth.size(0) == k.height && depth.size(1) == k.width,
+           "placement_at_pixel: expected a depth map [", k.height, ", ", k.width, "], got ",
+           depth.defined() ? depth.describe() : std::string("undefined"));
+  SL_CHECK(col >= 0 && col < k.width && row >= 0 && row < k.height, "pixel (", col, ", ", row,
+           ") lies outside the ", k.width, "x", k.height, " image");
+  const double z = depth.contiguous().to(DType::F64).data<double>()[static_cast<size_t>(row) * k.width + col];
+  SL_CHECK(std::isfinite(z) && z > 0.0, "pixel (", col, ", ", row, ") sees no surface (depth ", z,
+           ": sky or a hole in the depth); pick a pixel on the ground");
+  const glm::dvec3 p = camera.unproject(col + 0.5, row + 0.5, z);
+  const glm::dvec3 right = camera.rotation()[0], fwd = camera.rotation()[2];
+  const glm::dvec3 r_h = glm::normalize(glm::dvec3(right.x, 0, right.z)), f_h = glm::normalize(glm::dvec3(fwd.x, 0, fwd.z));
+  const glm::dvec3 d = p - camera.position();
+  // r_h and f_h are orthonormal on the ground for any yaw and pitch without roll; solve the 2x2
+  // system in general so that a rolled camera also round-trips.
+  const double a = r_h.x, b = f_h.x, c = r_h.z, e = f_h.z, det = a * e - b * c;
+  SL_CHECK(std::abs(det) > 1e-12, "placement_at_pixel: the camera looks straight up or down");
+  PixelPlacement out;
+  out.placement = Placement{p.x, p.z, yaw_deg, scale};
+  out.right_m = (d.x * e - b * d.z) / det;
+  out.forward_m = (a * d.z - c * d.x) / det;
+  return out;
+}
+
 void check_placement(const Mesh& mesh, const Placement& p, const char* fn) {
   SL_CHECK(mesh.triangle_count() > 0 && !mesh.bounds().empty(), fn, ": the object mesh is empty");
   SL_CHECK(std::isfinite(p.x_m) && std::isfinite(p.z_m) && std::isfinite(p.yaw_deg), fn, ": placement (x ", p.x_m,

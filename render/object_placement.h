@@ -38,6 +38,18 @@ glm::dvec3 rotate_yaw(const glm::dvec3& v, double yaw_rad);
 Placement placement_in_camera_ground_frame(const Camera& camera, double right_m, double forward_m, double yaw_deg,
                                            double scale = 1.0);
 
+// The placement under a pixel: the point the photo shows at pixel (col, row) of `depth` ([H, W]
+// camera-frame z in metres, the camera's size; 0, NaN or inf: nothing seen there), its world x and z,
+// with yaw and scale copied; and that point's (right_m, forward_m) in the camera's ground frame above
+// (so placement_in_camera_ground_frame(camera, right_m, forward_m, ...) is the same placement).
+// Throws naming the pixel when it lies outside the image or sees nothing (sky, a depth hole).
+struct PixelPlacement {
+  Placement placement;
+  double right_m = 0.0, forward_m = 0.0;
+};
+PixelPlacement placement_at_pixel(const Camera& camera, const Tensor& depth, int col, int row, double yaw_deg,
+                                  double scale = 1.0);
+
 // Throws unless the mesh has triangles and the placement is finite with scale > 0; `fn` names
 // the caller in the message.
 void check_placement(const Mesh& mesh, const Placement& placement, const char* fn);

@@ -72,12 +72,12 @@ using sl::cli::warn_if_no_shadow_sun;
 
 namespace {
 
-std::pair<double, double> parse_pair(const std::string& flag, const std::string& v) {
+std::pair<double, double> parse_pair(const std::string& flag, const std::string& v, const char* shape = "X,Z") {
   double a = 0, b = 0;
   char comma = 0, extra = 0;
   std::istringstream is(v);
   if (!(is >> a >> comma >> b) || comma != ',' || (is >> extra) || !std::isfinite(a) || !std::isfinite(b))
-    fail(flag, " expects two numbers 'X,Z', got '", v, "'");
+    fail(flag, " expects two numbers '", shape, "', got '", v, "'");
   return {a, b};
 }
 
@@ -247,11 +247,26 @@ int single(const cli::Args& a) {
   // A sample is compared with its path-traced truth, so by default it gets the generator's object.
   const std::string object_spec = a.has("--object") ? a.get("--object") : street_sample_object(a.get("--sample"));
   const Mesh object = load_object(object_spec);
-  SL_CHECK(a.has("--at") || has_sample_place, "--at X,Z is required (metres right of and ahead of the first camera)");
+  SL_CHECK(a.has("--at") || a.has("--at-pixel") || has_sample_place,
+           "--at X,Z is required (metres right of and ahead of the first camera), or --at-pixel U,V");
+  SL_CHECK(!(a.has("--at") && a.has("--at-pixel")), "give --at X,Z or --at-pixel U,V, not both");
   Placement pose;
   pose.yaw_deg = 90.0;
   double ax = 0, az = 0;
-  if (a.has("--at")) {
+  if (a.has("--at-pixel")) {
+    // The object stands on what the first photo shows at that pixel (its depth: file, lidar or
+    // the ground plane).
+    const auto [u, v] = parse_pair("--at-pixel", a.get("--at-pixel"), "U,V");
+    try {
+      const render::PixelPlacement at = render::placement_at_pixel(
+          photo.camera, photo.depth, static_cast<int>(std::floor(u)), static_cast<int>(std::floor(v)),
+          a.number("--yaw", 90.0));
+      pose = at.placement;
+      ax = at.right_m, az = at.forward_m;
+    } catch (const Error& e) {
+      fail("--at-pixel ", a.get("--at-pixel"), " (depth: ", photo.depth_source, "): ", e.what());
+    }
+  } else if (a.has("--at")) {
     std::tie(ax, az) = parse_pair("--at", a.get("--at"));
     // --at is in the first camera's ground frame: X right, Z forward.
     pose = render::placement_in_camera_ground_frame(photo.camera, ax, az, a.number("--yaw", 90.0));
@@ -442,6 +457,8 @@ int run(int argc, char** argv) {
                {"--pitch", "DEG", "camera pitch, positive up (default 0)"},
                {"--object", "MODEL", "glTF/GLB model, or procedural:car (several: batch mode only)", true},
                {"--at", "X,Z", "ground position in metres (right, forward) of the first camera"},
+               {"--at-pixel", "U,V", "instead of --at: stand the object on what the first photo shows at pixel column U,\n"
+                "                               row V (pick a pixel on the ground; result.json gives its --at X,Z)"},
                {"--yaw", "DEG", "object heading about +Y; 90 points its length away from the camera (default 90)"},
                {"--scale", "S", "uniform object scale (default 1)"},
                {"--checkpoint", "CKPT", "lighting or adversarial stage checkpoint (default: the released model, models/streetlight.safetensors)"},

@@ -433,6 +433,31 @@ TEST(InsertTool, APhonePhotoNeedsNoIntrinsicsFile) {
   }
 }
 
+// --at-pixel U,V stands the object on what that pixel shows: here the ground plane seen from 1.65 m
+// by a level camera (fx = fy = 38.4, principal point (32, 16)), so pixel (32, 28)'s centre lies
+// 1.65 · 38.4 / 12.5 m ahead and 0.5 / 38.4 of that to the right. A sky pixel, or --at with it, is a
+// clean error.
+TEST(InsertTool, AtPixelStandsTheObjectOnWhatThePixelShows) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_at_pixel");
+  const std::string out = c.dir + "/out", in = " --image " + c.dir + "/photo.png --intrinsics " + c.dir + "/intrinsics.json";
+  const auto r = run_tool("streetlight-insert", in + " --at-pixel 32,28 --out " + out + c.base);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream jf(out + "/result.json");
+  const auto j = nlohmann::json::parse(jf);
+  const double forward = 1.65 * 38.4 / 12.5;
+  EXPECT_NEAR(j["placement"]["at_camera_ground_xz"][1].get<double>(), forward, 1e-6);
+  EXPECT_NEAR(j["placement"]["at_camera_ground_xz"][0].get<double>(), 0.5 / 38.4 * forward, 1e-6);
+  EXPECT_NEAR(j["box3d"]["z"].get<double>(), forward, 1e-6);
+  const auto sky = run_tool("streetlight-insert", in + " --at-pixel 32,3 --out " + c.dir + "/out2" + c.base);
+  expect_clean_error(sky, c.dir + "/out2", "sees no surface");
+  EXPECT_NE(sky.out.find("--at-pixel 32,3"), std::string::npos) << sky.out;
+  const auto both = run_tool("streetlight-insert", in + " --at 0,8 --at-pixel 32,28 --out " + c.dir + "/out3" + c.base);
+  expect_clean_error(both, c.dir + "/out3", "not both");
+  const auto bad = run_tool("streetlight-insert", in + " --at-pixel 32 --out " + c.dir + "/out4" + c.base);
+  expect_clean_error(bad, c.dir + "/out4", "'U,V'");
+}
+
 TEST(InsertTool, ObjectBehindTheCameraIsACleanError) {
   if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
   const InsertCase c = setup("insert_behind");

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 #include <vector>
 
 #include "util/error.h"
@@ -17,10 +18,20 @@ glm::dvec3 rotate_yaw(const glm::dvec3& v, double yaw_rad) {
   return {c * v.x + s * v.z, v.y, -s * v.x + c * v.z};
 }
 
+namespace {
+
+// The camera's right and forward axes projected onto the ground and normalised: the axes of its
+// ground frame.
+std::pair<glm::dvec3, glm::dvec3> ground_axes(const Camera& camera) {
+  const glm::dvec3 right = camera.rotation()[0], fwd = camera.rotation()[2];
+  return {glm::normalize(glm::dvec3(right.x, 0, right.z)), glm::normalize(glm::dvec3(fwd.x, 0, fwd.z))};
+}
+
+}  // namespace
+
 Placement placement_in_camera_ground_frame(const Camera& camera, double right_m, double forward_m, double yaw_deg,
                                            double scale) {
-  const glm::dvec3 right = camera.rotation()[0], fwd = camera.rotation()[2];
-  const glm::dvec3 r_h = glm::normalize(glm::dvec3(right.x, 0, right.z)), f_h = glm::normalize(glm::dvec3(fwd.x, 0, fwd.z));
+  const auto [r_h, f_h] = ground_axes(camera);
   const glm::dvec3 ground = camera.position() + right_m * r_h + forward_m * f_h;
   return Placement{ground.x, ground.z, yaw_deg, scale};
 }
@@ -37,8 +48,7 @@ PixelPlacement placement_at_pixel(const Camera& camera, const Tensor& depth, int
   SL_CHECK(std::isfinite(z) && z > 0.0, "pixel (", col, ", ", row, ") sees no surface (depth ", z,
            ": sky or a hole in the depth); pick a pixel on the ground");
   const glm::dvec3 p = camera.unproject(col + 0.5, row + 0.5, z);
-  const glm::dvec3 right = camera.rotation()[0], fwd = camera.rotation()[2];
-  const glm::dvec3 r_h = glm::normalize(glm::dvec3(right.x, 0, right.z)), f_h = glm::normalize(glm::dvec3(fwd.x, 0, fwd.z));
+  const auto [r_h, f_h] = ground_axes(camera);
   const glm::dvec3 d = p - camera.position();
   // r_h and f_h are orthonormal on the ground for any yaw and pitch without roll; solve the 2x2
   // system in general so that a rolled camera also round-trips.

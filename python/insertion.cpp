@@ -31,14 +31,18 @@ struct PyInsertion {
   PyLighting lighting;
   std::string kitti_label;
   render::Placement placement;
+  double at_x = 0.0, at_z = 0.0;  // the placement in the camera's ground frame (streetlight-insert --at)
   std::string object;
 };
 
 PyInsertion insert(const py::array& image, const py::handle& intrinsics, const PyLighting& lighting,
-                   const std::string& obj, std::pair<double, double> at, double yaw, double scale,
+                   const std::string& obj, const std::optional<std::pair<double, double>>& at,
+                   const std::optional<std::pair<int, int>>& at_pixel, double yaw, double scale,
                    const std::optional<py::array>& depth, std::optional<double> camera_height, std::optional<double> pitch,
                    bool sun_from_shadows, bool fast, uint64_t seed) {
-  const auto [ax, az] = at;
+  SL_CHECK(at.has_value() != at_pixel.has_value(), at ? "give at=(X, Z) or at_pixel=(U, V), not both"
+                                                      : "at=(X, Z) metres or at_pixel=(U, V) is required");
+  double ax = at ? at->first : 0.0, az = at ? at->second : 0.0;
   SL_CHECK(std::isfinite(ax) && std::isfinite(az), "at: expected two finite numbers (X right, Z forward), got (", ax, ", ",
            az, ")");
   SL_CHECK(std::isfinite(yaw), "yaw: expected degrees, got ", yaw);
@@ -61,7 +65,19 @@ PyInsertion insert(const py::array& image, const py::handle& intrinsics, const P
     Compute c;
     return cli::load_object(obj);
   });
-  out.placement = render::placement_in_camera_ground_frame(view.camera, ax, az, yaw, scale);
+  if (at_pixel) {
+    try {
+      const render::PixelPlacement p =
+          render::placement_at_pixel(view.camera, view.depth, at_pixel->first, at_pixel->second, yaw, scale);
+      out.placement = p.placement;
+      ax = p.right_m, az = p.forward_m;
+    } catch (const Error& e) {
+      fail("at_pixel=(", at_pixel->first, ", ", at_pixel->second, ") (depth: ", depth_source, "): ", e.what());
+    }
+  } else {
+    out.placement = render::placement_in_camera_ground_frame(view.camera, ax, az, yaw, scale);
+  }
+  out.at_x = ax, out.at_z = az;
   out.lighting = lighting;
   {
     Compute c;
@@ -133,6 +149,7 @@ void bind_insertion(py::module_& m) {
       .def_property_readonly("truncated", [](const PyInsertion& r) { return r.result.truncated; })
       .def_property_readonly("placement", [](const PyInsertion& r) {
             py::dict d;
+            d["at"] = py::make_tuple(r.at_x, r.at_z);
             d["world_x_m"] = r.placement.x_m;
             d["world_z_m"] = r.placement.z_m;
             d["ground_y_m"] = r.result.ground_y_m;
@@ -145,12 +162,13 @@ void bind_insertion(py::module_& m) {
            "Writes composite.png, object_mask.png, shadow_map.png, sky.exr, sky.png and label.txt as\n"
            "streetlight-insert does (atomically: the folder appears complete or not at all).");
   m.def("insert", &insert, py::arg("image"), py::arg("intrinsics"), py::arg("lighting"), py::arg("obj"), py::kw_only(),
-        py::arg("at"), py::arg("yaw") = 90.0, py::arg("scale") = 1.0, py::arg("depth") = py::none(),
+        py::arg("at") = py::none(), py::arg("at_pixel") = py::none(), py::arg("yaw") = 90.0, py::arg("scale") = 1.0, py::arg("depth") = py::none(),
         py::arg("camera_height") = py::none(), py::arg("pitch") = py::none(), py::arg("sun_from_shadows") = false,
         py::arg("fast") = false, py::arg("seed") = 0,
         "Inserts an object into the photo under `lighting` (Sec 3.3, Eq. 2-4), as streetlight-insert.\n"
         "  obj: a glTF/GLB path or 'procedural:car'\n"
-        "  at: (X, Z) metres on the ground, right of and ahead of the camera\n"
+        "  at: (X, Z) metres on the ground, right of and ahead of the camera; or\n"
+        "  at_pixel: (U, V) the pixel column and row whose ground (in depth) the object stands on\n"
         "  yaw: heading in degrees about +Y; 90 (streetlight-insert's default) points the length away\n"
         "  depth, camera_height, pitch: as Estimator.estimate (None depth: the ground plane)\n"
         "  sun_from_shadows: take the sun from the photo's own cast shadows (needs real depth)\n"

@@ -132,7 +132,8 @@ class Insertion:
     def save(self, folder: str) -> None: ...
 
 def insert(image: np.ndarray, intrinsics: Intrinsics, lighting: Lighting, obj: str, *,
-           at: Tuple[float, float], yaw: float = 90.0, scale: float = 1.0,
+           at: Optional[Tuple[float, float]] = None, at_pixel: Optional[Tuple[int, int]] = None,
+           yaw: float = 90.0, scale: float = 1.0,
            depth: Optional[np.ndarray] = None, camera_height: Optional[float] = None,
            pitch: Optional[float] = None, sun_from_shadows: bool = False, fast: bool = False,
            seed: int = 0) -> Insertion: ...

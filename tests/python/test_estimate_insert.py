@@ -129,6 +129,23 @@ def test_missing_files_are_file_not_found_errors_naming_the_file(released, tool,
     assert out.returncode == 2
 
 
+def test_at_pixel_stands_the_object_on_the_pixels_ground(released):
+    light = sl.Estimator(released).estimate(street_image(), (60.0, 60.0, 48.0, 24.0))
+    # A level camera 1.65 m up: pixel (48, 40)'s centre sees the ground 1.65 * 60 / 16.5 = 6 m ahead.
+    r = sl.insert(street_image(), (60.0, 60.0, 48.0, 24.0), light, "procedural:car", at_pixel=(48, 40), fast=True)
+    assert r.placement["at"] == pytest.approx((0.5 / 60 * 6.0, 6.0), abs=1e-9)
+    by_metres = sl.insert(street_image(), (60.0, 60.0, 48.0, 24.0), light, "procedural:car", at=r.placement["at"],
+                          fast=True)
+    assert by_metres.placement["world_x_m"] == pytest.approx(r.placement["world_x_m"], abs=1e-9)
+    assert by_metres.placement["world_z_m"] == pytest.approx(r.placement["world_z_m"], abs=1e-9)
+    with pytest.raises(ValueError, match="sees no surface"):
+        sl.insert(street_image(), (60.0, 60.0, 48.0, 24.0), light, "procedural:car", at_pixel=(48, 3))
+    with pytest.raises(ValueError, match="not both"):
+        sl.insert(street_image(), (60.0, 60.0, 48.0, 24.0), light, "procedural:car", at=(0, 8), at_pixel=(48, 40))
+    with pytest.raises(ValueError, match="is required"):
+        sl.insert(street_image(), (60.0, 60.0, 48.0, 24.0), light, "procedural:car")
+
+
 def test_bad_placement_is_a_value_error(released):
     light = sl.Estimator(released).estimate(street_image(), (60.0, 60.0, 48.0, 24.0))
     with pytest.raises(ValueError, match="behind the camera"):

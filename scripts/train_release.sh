@@ -89,6 +89,12 @@ train_stage() {  # train_stage NAME CONFIG [--set ...]
   say "stage $name ($config)${resume:+, resuming}"
   "$bin/streetlight-train" --config "$config" "$@" "${resume[@]}" --out "$runs/$name" --json \
     > "$runs/$name.json" 2> >(tee -a "$runs/$name.log" >&2)
+  # SIGINT/SIGTERM make streetlight-train save and exit 0 with "interrupted": a stage cut short must
+  # not be recorded as done, or the next run would go on from its partial weights.
+  if grep -q '"interrupted":true' "$runs/$name.json"; then
+    echo "train_release: $name was interrupted (last.safetensors saved); run the same command again to resume it" >&2
+    exit 130
+  fi
 }
 
 datagen() {  # datagen CONFIG OUT_NAME: two processes, one shard each

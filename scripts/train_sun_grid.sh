@@ -79,6 +79,12 @@ train_part() {  # train_part NAME CONFIG INIT: one stage into $runs/NAME, resume
   "$bin/streetlight-train" --config "$config" --set "data.dataset=$runs/street" \
     --set "data.hdri_dir=$hdri" --set "data.ldr_dir=$ldr" --set "init.checkpoint=$init" \
     "${resume[@]}" --out "$runs/$name" --json > "$runs/$name.json" 2> >(tee -a "$runs/$name.log" >&2)
+  # SIGINT/SIGTERM make streetlight-train save and exit 0 with "interrupted": a stage cut short must
+  # not be recorded as done, or the next run would go on from its partial weights.
+  if grep -q '"interrupted":true' "$runs/$name.json"; then
+    echo "train_sun_grid: $name was interrupted (last.safetensors saved); run the same command again to resume it" >&2
+    exit 130
+  fi
 }
 evaluate() {
   local streets=()

@@ -225,10 +225,6 @@ std::vector<float> planar_values(const Tensor& t, const std::string& path, const
   return std::vector<float>(v.begin(), v.end());
 }
 
-}  // namespace
-
-namespace {
-
 int orientation_of(const OIIO::ImageSpec& spec) {
   const int o = spec.get_int_attribute("Orientation", 1);
   return o >= 1 && o <= 8 ? o : 1;

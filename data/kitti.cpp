@@ -259,6 +259,27 @@ Tensor densify_depth(const Tensor& sparse, const Intrinsics& k, const std::vecto
   return out;
 }
 
+KittiLidar load_kitti_lidar(const std::string& calibration_path, const std::string& velodyne_path, int width,
+                            int height) {
+  KittiLidar l;
+  l.calibration = read_kitti_calibration(calibration_path, width, height);
+  const render::Intrinsics& k = l.calibration.p2.intrinsics;
+  SL_CHECK(k.cx > 0 && k.cx < width && k.cy > 0 && k.cy < height, "load_kitti_lidar: '", calibration_path,
+           "': principal point (", k.cx, ", ", k.cy, ") lies outside the ", width, "x", height,
+           " image; the calibration belongs to another image (or the photo is turned)");
+  if (velodyne_path.empty()) return l;
+  SL_CHECK(l.calibration.has_lidar, "load_kitti_lidar: '", calibration_path,
+           "' has no lidar-to-camera transform (lidar2cam or Tr_velo_to_cam), needed for '", velodyne_path, "'");
+  l.points = read_velodyne(velodyne_path);
+  l.sparse_depth = lidar_depth(l.points, l.calibration);
+  for (const glm::vec4& p : l.points) {
+    glm::dvec3 cp;
+    const glm::dvec3 uvz = project_point(p, l.calibration, &cp);
+    if (uvz.z > kMinDepth && std::isfinite(cp.x + cp.y + cp.z)) l.camera_points.push_back(cp);
+  }
+  return l;
+}
+
 KittiFrame load_kitti_frame(const std::string& image_path, const std::string& calibration_path,
                             const std::string& velodyne_path, double camera_height_m) {
   KittiFrame f;
@@ -267,20 +288,9 @@ KittiFrame load_kitti_frame(const std::string& image_path, const std::string& ca
   o.transfer = Transfer::Linear;
   f.image = read_image(image_path, o).contiguous();
   const int H = static_cast<int>(f.image.size(1)), W = static_cast<int>(f.image.size(2));
-  f.calibration = read_kitti_calibration(calibration_path, W, H);
+  static_cast<KittiLidar&>(f) = load_kitti_lidar(calibration_path, velodyne_path, W, H);
   f.camera = Camera(f.calibration.p2.intrinsics, rotation_from_yaw_pitch_roll(0.0, 0.0, 0.0),
                     glm::dvec3(0.0, camera_height_m, 0.0));
-  if (!velodyne_path.empty()) {
-    SL_CHECK(f.calibration.has_lidar, "load_kitti_frame: '", calibration_path,
-             "' has no lidar-to-camera transform (lidar2cam or Tr_velo_to_cam), needed for '", velodyne_path, "'");
-    f.points = read_velodyne(velodyne_path);
-    f.sparse_depth = lidar_depth(f.points, f.calibration);
-    for (const glm::vec4& p : f.points) {
-      glm::dvec3 cp;
-      const glm::dvec3 uvz = project_point(p, f.calibration, &cp);
-      if (uvz.z > kMinDepth && std::isfinite(cp.x + cp.y + cp.z)) f.camera_points.push_back(cp);
-    }
-  }
   return f;
 }
 

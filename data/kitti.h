@@ -63,13 +63,24 @@ Tensor densify_depth(const Tensor& sparse_depth, const render::Intrinsics& intri
                      const std::vector<glm::dvec3>& camera_points, const DensifyParams& params = {},
                      GroundPlane* plane = nullptr);
 
-struct KittiFrame {
-  Tensor image;  // [3, H, W] stored 8-bit values in [0, 1] (sRGB-encoded, not decoded)
+// A velodyne scan seen from camera 2 of a width x height image.
+struct KittiLidar {
   KittiCalibration calibration;
-  render::Camera camera;
-  std::vector<glm::vec4> points;      // empty without a velodyne file
+  std::vector<glm::vec4> points;          // empty without a velodyne file
   std::vector<glm::dvec3> camera_points;  // the points in camera-2 coordinates (z > 0.5 m)
-  Tensor sparse_depth;                // [H, W], undefined without a velodyne file
+  Tensor sparse_depth;                    // [H, W], undefined without a velodyne file
+};
+
+// The calibration and, when velodyne_path is not empty, the scan's points and sparse depth, for an
+// image already read. Throws when the principal point lies outside width x height (a calibration of
+// another image, or a photo turned by its EXIF orientation), and when a scan is given but the
+// calibration has no lidar-to-camera transform.
+KittiLidar load_kitti_lidar(const std::string& calibration_path, const std::string& velodyne_path, int width,
+                            int height);
+
+struct KittiFrame : KittiLidar {
+  Tensor image;  // [3, H, W] stored 8-bit values in [0, 1] (sRGB-encoded, not decoded)
+  render::Camera camera;
 };
 
 KittiFrame load_kitti_frame(const std::string& image_path, const std::string& calibration_path,

@@ -15,8 +15,8 @@
 
 using sl::data::densify_depth;
 using sl::data::ImageReadOptions;
-using sl::data::KittiFrame;
-using sl::data::load_kitti_frame;
+using sl::data::KittiLidar;
+using sl::data::load_kitti_lidar;
 using sl::data::MissingDepth;
 using sl::data::read_depth;
 using sl::data::read_image;
@@ -122,7 +122,7 @@ Photo load_photo(const PhotoSources& s) {
     p.depth_source = "depth-file";
   } else if (!s.lidar.empty()) {
     SL_CHECK(!s.calib.empty(), "--lidar needs --calib FILE (the lidar-to-camera calibration)");
-    const KittiFrame f = load_kitti_frame(s.image, s.calib, s.lidar, s.camera_height_m);
+    const KittiLidar f = load_kitti_lidar(s.calib, s.lidar, w, h);  // the photo as read, not read again
     SL_CHECK(f.sparse_depth.defined(), "lidar file '", s.lidar, "' gave no depth");
     p.depth = densify_depth(f.sparse_depth, k, f.camera_points).contiguous();
     p.depth_source = "lidar";

@@ -14,7 +14,9 @@ using sl::data::densify_depth;
 using sl::data::GroundPlane;
 using sl::data::KittiCalibration;
 using sl::data::KittiFrame;
+using sl::data::KittiLidar;
 using sl::data::load_kitti_frame;
+using sl::data::load_kitti_lidar;
 using sl::data::read_kitti_calibration;
 using sl::data::read_velodyne;
 
@@ -92,6 +94,30 @@ TEST(Kitti, TextProjectionAndBadVelodyne) {
     EXPECT_NE(std::string(e.what()).find("bad.bin"), std::string::npos);
   }
   EXPECT_THROW(load_kitti_frame(kitti("000008.png"), kitti("000008.txt"), kitti("000008_velodyne.bin")), Error);
+}
+
+// The lidar of a photo already read (streetlight-insert --lidar reads the photo once, upright) is
+// the frame's own, bit for bit; a size the calibration does not fit is refused, naming the file.
+TEST(Kitti, LidarOfAPhotoAlreadyReadIsTheFramesOwn) {
+  SKIP_WITHOUT_KITTI();
+  const KittiFrame f = load_kitti_frame(kitti("000008.png"), kitti("000008_calib.json"), kitti("000008_velodyne.bin"));
+  const KittiLidar l = load_kitti_lidar(kitti("000008_calib.json"), kitti("000008_velodyne.bin"), 1242, 375);
+  ASSERT_EQ(l.points.size(), f.points.size());
+  ASSERT_EQ(l.camera_points.size(), f.camera_points.size());
+  for (size_t i = 0; i < l.camera_points.size(); ++i) ASSERT_EQ(l.camera_points[i], f.camera_points[i]) << i;
+  ASSERT_EQ(l.sparse_depth.shape(), f.sparse_depth.shape());
+  EXPECT_TRUE(std::equal(l.sparse_depth.data<float>(), l.sparse_depth.data<float>() + l.sparse_depth.numel(),
+                         f.sparse_depth.data<float>()));
+  const KittiLidar none = load_kitti_lidar(kitti("000008_calib.json"), "", 1242, 375);
+  EXPECT_TRUE(none.points.empty());
+  EXPECT_FALSE(none.sparse_depth.defined());
+  EXPECT_NEAR(none.calibration.p2.intrinsics.fx, 721.5377, 1e-9);
+  try {
+    load_kitti_lidar(kitti("000008_calib.json"), kitti("000008_velodyne.bin"), 375, 1242);  // turned a quarter
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("000008_calib.json"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

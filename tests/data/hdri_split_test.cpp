@@ -213,6 +213,50 @@ TEST(HdriSplit, TheLdrPanoramaSplitKeepsEveryPlaceInOneSplit) {
   EXPECT_GE(test_places.size(), 20u) << "the test split's suns come from too few places";
 }
 
+// scripts/place_subset_split.py (learning curves over places): a seeded half of the training places
+// and its complement partition train, keep every place whole, and leave val and test as they were.
+TEST(HdriSplit, APlaceSubsetAndItsComplementPartitionTrainByPlace) {
+  const std::string folder = shared_data("pano_ldr");
+  if (!fs::is_directory(folder)) GTEST_SKIP() << "needs ../shared/data/pano_ldr (places.csv)";
+  const std::string base = "--split " + config("pano_ldr_split.json") + " --places " + folder + "/places.csv --seed 3";
+  const std::string a = scratch("half_a.json"), b = scratch("half_b.json");
+  const auto [code_a, text_a] = run_python_script("place_subset_split.py", base + " --out " + a);
+  ASSERT_EQ(code_a, 0) << text_a;
+  const auto [code_b, text_b] = run_python_script("place_subset_split.py", base + " --complement --out " + b);
+  ASSERT_EQ(code_b, 0) << text_b;
+  const HdriSplit full = read_hdri_split(config("pano_ldr_split.json"));
+  const HdriSplit sa = read_hdri_split(a), sb = read_hdri_split(b);
+  for (const char* split : {"val", "test"}) {
+    EXPECT_EQ(sa.splits.at(split), full.splits.at(split)) << split;
+    EXPECT_EQ(sb.splits.at(split), full.splits.at(split)) << split;
+  }
+  const auto& ta = sa.splits.at("train");
+  const auto& tb = sb.splits.at("train");
+  std::set<std::string> in_a(ta.begin(), ta.end()), in_b(tb.begin(), tb.end());
+  const auto& tf = full.splits.at("train");
+  EXPECT_EQ(in_a.size() + in_b.size(), tf.size());
+  for (const auto& f : tf) EXPECT_NE(in_a.count(f), in_b.count(f)) << f << " must be in exactly one half";
+  EXPECT_GT(in_a.size(), tf.size() / 4);
+  EXPECT_GT(in_b.size(), tf.size() / 4);
+  // Every place whole: places.csv's, and the first 69's (a finer grouping than the script's).
+  std::map<std::string, std::string> half;
+  for (const auto& f : tf) half[f] = in_a.count(f) ? "a" : "b";
+  std::map<std::string, std::set<std::string>> train_places;
+  for (const auto& [place, files] : read_places(folder + "/places.csv"))
+    for (const auto& f : files)
+      if (half.count(f)) train_places[place].insert(f);
+  expect_groups_whole(half, train_places);
+  std::map<std::string, std::string> first;
+  for (const auto& [f, sp] : split_of(read_hdri_split(config("pano_ldr_split_69.json"))))
+    if (sp == "train") first[f] = half.at(f);
+  expect_groups_whole(first, first_split_places(first));
+  // Bad input: one line naming the value, exit code 2, nothing written.
+  const auto [bad_code, bad_text] = run_python_script("place_subset_split.py", base + " --share 0 --out " + scratch("bad.json"));
+  EXPECT_EQ(bad_code, 2) << bad_text;
+  EXPECT_EQ(bad_text, "error: --share 0.0: must lie in (0, 1]\n");
+  EXPECT_FALSE(fs::exists(scratch("bad.json")));
+}
+
 TEST(HdriSplit, ANameInTwoSplitsIsRefusedNamingTheFileAndTheName) {
   const std::string path = scratch("twice_split.json");
   std::ofstream(path) << R"({"train": ["a.jpg", "b.jpg"], "test": ["b.jpg"]})";

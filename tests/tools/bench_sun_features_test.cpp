@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "data/csv.h"
+#include "support/test_files.h"
 #include "support/tiny_ldr_folder.h"
 #include "support/tool_fixture.h"
 
@@ -126,14 +127,7 @@ TEST(BenchSunFeatures, WritesARowPerCropAndMirrorInEveryBlock) {
   EXPECT_TRUE(fs::exists(dir + "/probe.json"));
   // The ensemble script: the mean of two identical heads answers as each does; folders of other crops
   // are a one-line error with exit code 2.
-  auto run_python = [&](const std::string& script, const std::string& args) {
-    FILE* p = popen((python + " " + STREETLIGHT_SOURCE_DIR + "/scripts/" + script + " " + args + " 2>&1").c_str(), "r");
-    std::string t;
-    while (p && fgets(buf, sizeof buf, p)) t += buf;
-    const int st = p ? pclose(p) : -1;
-    return std::make_pair(WIFEXITED(st) ? WEXITSTATUS(st) : -1, t);
-  };
-  auto run_script = [&](const std::string& args) { return run_python("ensemble_azimuth_heads.py", args); };
+  auto run_script = [&](const std::string& args) { return run_python_script("ensemble_azimuth_heads.py", args); };
   const auto [code, table] = run_script("a=" + out + " b=" + out);
   ASSERT_EQ(code, 0) << table;
   auto cell = [&](const std::string& row) {
@@ -151,7 +145,7 @@ TEST(BenchSunFeatures, WritesARowPerCropAndMirrorInEveryBlock) {
   EXPECT_EQ(std::count(bad_text.begin(), bad_text.end(), '\n'), 1) << bad_text;
   // The split script counts every crop once (the mirror rows left out), and a folder without rows is
   // one line with exit code 2 and nothing else printed.
-  auto run_split = [&](const std::string& args) { return run_python("sun_half_by_split.py", args); };
+  auto run_split = [&](const std::string& args) { return run_python_script("sun_half_by_split.py", args); };
   const auto [split_code, split_table] = run_split("mine=" + out);
   ASSERT_EQ(split_code, 0) << split_table;
   EXPECT_NE(split_table.find("| mine | " + std::to_string((rows.size() - 1) / 2) + " | "), std::string::npos)

@@ -39,7 +39,8 @@ PyInsertion insert(const py::array& image, const py::handle& intrinsics, const P
                    const std::string& obj, const std::optional<std::pair<double, double>>& at,
                    const std::optional<std::pair<int, int>>& at_pixel, double yaw, double scale,
                    const std::optional<py::array>& depth, std::optional<double> camera_height, std::optional<double> pitch,
-                   bool sun_from_shadows, bool fast, uint64_t seed) {
+                   bool sun_from_shadows, bool fast, uint64_t seed, const std::string& label_class) {
+  train::check_kitti_class(label_class, "label_class");
   SL_CHECK(at.has_value() != at_pixel.has_value(), at ? "give at=(X, Z) or at_pixel=(U, V), not both"
                                                       : "at=(X, Z) metres or at_pixel=(U, V) is required");
   double ax = at ? at->first : 0.0, az = at ? at->second : 0.0;
@@ -100,7 +101,7 @@ PyInsertion insert(const py::array& image, const py::handle& intrinsics, const P
   }
   check_signals();
   SL_CHECK(out.result.visible, "the object at at=(", ax, ", ", az, ") covers no pixel of the image");
-  out.kitti_label = train::kitti_label_line("Car", 0.0, 0, out.result.box2d, out.result.box3d);
+  out.kitti_label = train::kitti_label_line(label_class, 0.0, 0, out.result.box2d, out.result.box3d);
   return out;
 }
 
@@ -164,7 +165,7 @@ void bind_insertion(py::module_& m) {
   m.def("insert", &insert, py::arg("image"), py::arg("intrinsics"), py::arg("lighting"), py::arg("obj"), py::kw_only(),
         py::arg("at") = py::none(), py::arg("at_pixel") = py::none(), py::arg("yaw") = 90.0, py::arg("scale") = 1.0, py::arg("depth") = py::none(),
         py::arg("camera_height") = py::none(), py::arg("pitch") = py::none(), py::arg("sun_from_shadows") = false,
-        py::arg("fast") = false, py::arg("seed") = 0,
+        py::arg("fast") = false, py::arg("seed") = 0, py::arg("label_class") = "Car",
         "Inserts an object into the photo under `lighting` (Sec 3.3, Eq. 2-4), as streetlight-insert.\n"
         "  obj: a glTF/GLB path or 'procedural:car'\n"
         "  at: (X, Z) metres on the ground, right of and ahead of the camera; or\n"
@@ -173,6 +174,8 @@ void bind_insertion(py::module_& m) {
         "  depth, camera_height, pitch: as Estimator.estimate (None depth: the ground plane)\n"
         "  sun_from_shadows: take the sun from the photo's own cast shadows (needs real depth)\n"
         "  fast: streetlight-insert --fast; seed: the sampling seed\n"
+        "  label_class: the KITTI class of kitti_label (streetlight-insert --class): Car, Van, Truck,\n"
+        "    Pedestrian, Person_sitting, Cyclist, Tram or Misc\n"
         "Returns an Insertion. Releases the GIL. Raises ValueError for a bad argument or placement,\n"
         "OSError (FileNotFoundError) for an object file it cannot read.");
 }

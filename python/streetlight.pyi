@@ -136,7 +136,7 @@ def insert(image: np.ndarray, intrinsics: Intrinsics, lighting: Lighting, obj: s
            yaw: float = 90.0, scale: float = 1.0,
            depth: Optional[np.ndarray] = None, camera_height: Optional[float] = None,
            pitch: Optional[float] = None, sun_from_shadows: bool = False, fast: bool = False,
-           seed: int = 0) -> Insertion: ...
+           seed: int = 0, label_class: str = "Car") -> Insertion: ...
 
 def train(config: Union[str, Mapping], *, out: Optional[str] = None, resume: Optional[str] = None,
           overrides: Sequence[str] = (),

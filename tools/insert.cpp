@@ -247,6 +247,7 @@ int single(const cli::Args& a) {
   // A sample is compared with its path-traced truth, so by default it gets the generator's object.
   const std::string object_spec = a.has("--object") ? a.get("--object") : street_sample_object(a.get("--sample"));
   const Mesh object = load_object(object_spec);
+  const std::string object_class = cli::object_classes(a, 1)[0];
   SL_CHECK(a.has("--at") || a.has("--at-pixel") || has_sample_place,
            "--at X,Z is required (metres right of and ahead of the first camera), or --at-pixel U,V");
   SL_CHECK(!(a.has("--at") && a.has("--at-pixel")), "give --at X,Z or --at-pixel U,V, not both");
@@ -346,7 +347,7 @@ int single(const cli::Args& a) {
   write_image(out.file("sky.exr"), sky);
   write_image(out.file("sky.png"), ldr_from_hdr(sky), lin);
   write_depth(out.file("depth.exr"), unsqueeze(photo.depth, 0));
-  const std::string label = kitti_label_line("Car", 0.0, 0, ins.box2d, ins.box3d);
+  const std::string label = kitti_label_line(object_class, 0.0, 0, ins.box2d, ins.box3d);
   write_text(out.file("label.txt"), label + "\n");
   const glm::dvec3 sun = light.sun_direction_world();
   json j = {{"checkpoint", est.path()},
@@ -355,6 +356,7 @@ int single(const cli::Args& a) {
             {"image", a.has("--sample") ? a.get("--sample") : a.all("--image")[0]},
             {"views", photos.size()},
             {"object", object_spec},
+            {"class", object_class},
             {"depth_source", photo.depth_source},
             {"intrinsics", intrinsics_json(photo)},
             {"sun", sun_json(light)},
@@ -456,6 +458,8 @@ int run(int argc, char** argv) {
                {"--camera-height", "M", "camera height above the ground (default 1.65)"},
                {"--pitch", "DEG", "camera pitch, positive up (default 0)"},
                {"--object", "MODEL", "glTF/GLB model, or procedural:car (several: batch mode only)", true},
+               {"--class", "NAME", "the object's KITTI class in label.txt: Car (default), Van, Truck, Pedestrian,\n"
+                "                               Person_sitting, Cyclist, Tram or Misc (batch: once, or once per --object)", true},
                {"--at", "X,Z", "ground position in metres (right, forward) of the first camera"},
                {"--at-pixel", "U,V", "instead of --at: stand the object on what the first photo shows at pixel column U,\n"
                 "                               row V (pick a pixel on the ground; result.json gives its --at X,Z)"},

@@ -25,6 +25,13 @@ bool mask_box2d(const Tensor& mask, double threshold, std::array<double, 4>& box
   return true;
 }
 
+const std::string& check_kitti_class(const std::string& name, const std::string& what) {
+  static const char* const kClasses[] = {"Car", "Van", "Truck", "Pedestrian", "Person_sitting", "Cyclist", "Tram", "Misc"};
+  for (const char* c : kClasses)
+    if (name == c) return name;
+  fail(what, " '", name, "' is not a KITTI class: expected Car, Van, Truck, Pedestrian, Person_sitting, Cyclist, Tram or Misc");
+}
+
 std::string kitti_label_line(const std::string& type, double truncated, int occluded,
                              const std::array<double, 4>& b, const std::array<double, 7>& d) {
   double alpha = d[6] - std::atan2(d[3], d[5]);

@@ -146,6 +146,18 @@ def test_at_pixel_stands_the_object_on_the_pixels_ground(released):
         sl.insert(street_image(), (60.0, 60.0, 48.0, 24.0), light, "procedural:car")
 
 
+def test_label_class_names_the_object_in_its_kitti_label(released):
+    light = sl.Estimator(released).estimate(street_image(), (60.0, 60.0, 48.0, 24.0))
+    r = sl.insert(street_image(), (60.0, 60.0, 48.0, 24.0), light, "procedural:car", at=(0, 8), fast=True,
+                  label_class="Truck")
+    assert r.kitti_label.split()[0] == "Truck"
+    default = sl.insert(street_image(), (60.0, 60.0, 48.0, 24.0), light, "procedural:car", at=(0, 8), fast=True)
+    assert default.kitti_label.split()[0] == "Car"
+    assert default.kitti_label.split()[1:] == r.kitti_label.split()[1:]
+    with pytest.raises(ValueError, match="label_class 'Bus' is not a KITTI class"):
+        sl.insert(street_image(), (60.0, 60.0, 48.0, 24.0), light, "procedural:car", at=(0, 8), label_class="Bus")
+
+
 def test_bad_placement_is_a_value_error(released):
     light = sl.Estimator(released).estimate(street_image(), (60.0, 60.0, 48.0, 24.0))
     with pytest.raises(ValueError, match="behind the camera"):

@@ -526,6 +526,41 @@ TEST(InsertTool, BatchWritesAKittiLayoutDataset) {
   EXPECT_EQ(line.rfind("Car ", 0), 0u) << line;
 }
 
+// --class names the object in label.txt and result.json, and in a batch's label_2 (once for every
+// object, or once per --object); a class KITTI does not have, or a count that fits neither, is one line.
+TEST(InsertTool, ClassNamesTheObjectInItsLabels) {
+  if (!sl::test::tool_built("streetlight-insert")) GTEST_SKIP();
+  const InsertCase c = setup("insert_class");
+  const std::string photo = "--image " + c.dir + "/photo.png --intrinsics " + c.dir + "/intrinsics.json --at 0,8";
+  const auto r = run_tool("streetlight-insert", photo + " --class Truck --out " + c.dir + "/out" + c.base);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream lf(c.dir + "/out/label.txt");
+  std::string line;
+  ASSERT_TRUE(std::getline(lf, line));
+  EXPECT_EQ(line.rfind("Truck ", 0), 0u) << line;
+  std::ifstream jf(c.dir + "/out/result.json");
+  EXPECT_EQ(nlohmann::json::parse(jf)["class"], "Truck");
+  expect_clean_error(run_tool("streetlight-insert", photo + " --class Bus --out " + c.dir + "/bad" + c.base),
+                     c.dir + "/bad", "'Bus' is not a KITTI class");
+  expect_clean_error(run_tool("streetlight-insert", photo + " --class Car --class Van --out " + c.dir + "/bad" + c.base),
+                     c.dir + "/bad", "--class was given 2 times for 1 objects");
+  std::ofstream(c.dir + "/list.json") << R"([{"image": "photo.png", "intrinsics": "intrinsics.json"}])";
+  // Two objects: the base flags' procedural car and one more.
+  const std::string batch = "--batch " + c.dir + "/list.json --objects-per-image 2 --object procedural:car";
+  const auto b = run_tool("streetlight-insert", batch + " --class Van --class Tram --out " + c.dir + "/aug" + c.base);
+  ASSERT_EQ(b.code, 0) << b.out;
+  std::ifstream bl(c.dir + "/aug/label_2/000000.txt");
+  int lines = 0;
+  while (std::getline(bl, line)) {
+    ++lines;
+    EXPECT_TRUE(line.rfind("Van ", 0) == 0 || line.rfind("Tram ", 0) == 0) << line;
+  }
+  EXPECT_GE(lines, 1);
+  expect_clean_error(run_tool("streetlight-insert", batch + " --class Van --class Tram --class Car --out " + c.dir +
+                                                        "/bad" + c.base),
+                     c.dir + "/bad", "--class was given 3 times for 2 objects");
+}
+
 // A folder of phone photos, no KITTI layout: each photo's intrinsics from its EXIF focal length,
 // written into the output's calib/ as a KITTI P2 (fx in the first row).
 TEST(InsertTool, BatchTakesAFolderOfPhonePhotos) {

@@ -169,6 +169,7 @@ struct BatchResult {
 };
 
 BatchResult augment_one(const cli::Args& a, LightingEstimator& est, const std::vector<Mesh>& objects,
+                        const std::vector<std::string>& classes,
                         const BatchItem& item, uint64_t item_index, const fs::path& out, int done_so_far) {
   Photo photo = load_photo(item.sources);
   std::vector<KittiLabel> labels = item.labels.empty() ? std::vector<KittiLabel>{} : read_kitti_labels(item.labels);
@@ -195,7 +196,8 @@ BatchResult augment_one(const cli::Args& a, LightingEstimator& est, const std::v
     pose.x_m = rng.uniform(-4.0, 4.0);
     pose.z_m = -rng.uniform(6.0, 25.0);
     pose.yaw_deg = rng.uniform(0.0, 360.0);
-    const Mesh& obj = objects[static_cast<size_t>(rng.randint(static_cast<int64_t>(objects.size())))];
+    const size_t which = static_cast<size_t>(rng.randint(static_cast<int64_t>(objects.size())));
+    const Mesh& obj = objects[which];
     if (overlaps_any(kitti_box3d(obj, pose, photo.camera), labels, added)) continue;  // never park in a real car
     PhotoInsertion ins;
     try {
@@ -216,7 +218,7 @@ BatchResult augment_one(const cli::Args& a, LightingEstimator& est, const std::v
         d[p] = z[p];  // ...and stand in front of what they cover
       }
     KittiLabel l;
-    l.type = "Car";
+    l.type = classes[which];
     l.box2d = ins.box2d;
     l.box3d = ins.box3d;
     l.truncated = ins.truncated;
@@ -255,6 +257,7 @@ int insert_batch(const cli::Args& a) {
   const std::vector<std::string> specs = a.has("--object") ? a.all("--object") : std::vector<std::string>{"procedural:car"};
   std::vector<Mesh> objects;
   for (const auto& s : specs) objects.push_back(load_object(s));
+  const std::vector<std::string> classes = cli::object_classes(a, objects.size());
   // The output folder is written in place, frame by frame, so that a run can resume: batch.json
   // marks it as this tool's, a frame is finished when its image exists (written last), and
   // leftovers of a killed run (util/file.h temporaries of a process that is gone) are removed first.
@@ -289,7 +292,7 @@ int insert_batch(const cli::Args& a) {
   int done = 0, placed = 0;
   json this_run = json::array();
   for (size_t i : todo) {
-    const BatchResult r = augment_one(a, est, objects, items[i], i, out, done);
+    const BatchResult r = augment_one(a, est, objects, classes, items[i], i, out, done);
     placed += r.placed;
     this_run.push_back({{"id", items[i].id}, {"objects", r.placed}, {"depth", r.depth_source}});
     if (r.sun_from_shadows) this_run.back()["sun_from_shadows"] = *r.sun_from_shadows;

@@ -1,5 +1,7 @@
 #include "tools/common/insert_options.h"
 
+#include "train/object_labels.h"
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -18,6 +20,15 @@ render::Mesh load_object(const std::string& spec) {
   return data::to_object_frame(render::load_gltf(spec));
 }
 
+
+std::vector<std::string> object_classes(const Args& a, size_t objects) {
+  if (!a.has("--class")) return std::vector<std::string>(objects, "Car");
+  const std::vector<std::string> given = a.all("--class");
+  SL_CHECK(given.size() == 1 || given.size() == objects, "--class was given ", given.size(), " times for ", objects,
+           " objects: give it once (for every object) or once per --object, in the same order");
+  for (const auto& c : given) train::check_kitti_class(c, "--class");
+  return given.size() == 1 ? std::vector<std::string>(objects, given[0]) : given;
+}
 
 train::PhotoInsertionOptions insertion_options(const Args& a, const render::RadianceQueryOptions& volume_query) {
   train::PhotoInsertionOptions o = a.has("--fast") ? train::fast_insertion_options() : train::PhotoInsertionOptions{};

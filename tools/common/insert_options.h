@@ -4,6 +4,7 @@
 // Throws: sl::Error naming the flag or the file (exit 2 through cli::run_main).
 #pragma once
 #include <string>
+#include <vector>
 
 #include "data/sun_from_shadows.h"
 #include "render/mesh.h"
@@ -16,6 +17,9 @@ namespace sl::cli {
 
 // "procedural:car" or a glTF file, in the object frame (data/procedural_car.h, to_object_frame).
 render::Mesh load_object(const std::string& spec);
+// The KITTI class of each of `objects` objects (train/object_labels.h check_kitti_class): "Car"
+// without --class, one --class for all, or one per --object in their order.
+std::vector<std::string> object_classes(const Args& a, size_t objects);
 // --fast, --aa, --light-samples, --shadow-rays, --shadow-width, --shadow-height,
 // --adaptive-samples, --denoise-radius, --exact-light-rays, --exact-shadow-rays, --exact, --seed.
 train::PhotoInsertionOptions insertion_options(const Args& a, const render::RadianceQueryOptions& volume_query);

@@ -4,6 +4,7 @@
 // hours into a run.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -20,16 +21,30 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// Whether a config file, or a base it extends ("extends", relative to the extending file), names a
+// stage: a variant that lists only what differs from its base is a training config too.
+bool names_a_stage(fs::path p) {
+  for (int depth = 0; depth < 16; ++depth) {
+    std::ifstream f(p);
+    const nlohmann::json j = nlohmann::json::parse(f);
+    if (!j.is_object()) return false;
+    if (j.contains("stage")) return true;
+    if (!j.contains("extends")) return false;
+    p = p.parent_path() / j.at("extends").get<std::string>();
+  }
+  return false;
+}
+
 TEST(CommittedConfigs, EveryTrainingConfigValidatesAndBuildsItsModel) {
   const fs::path dir = fs::path(STREETLIGHT_SOURCE_DIR) / "configs";
   std::vector<fs::path> configs;
   for (const auto& e : fs::directory_iterator(dir)) {
     if (e.path().extension() != ".json") continue;
-    std::ifstream f(e.path());
-    const nlohmann::json j = nlohmann::json::parse(f);
-    if (j.is_object() && j.contains("stage")) configs.push_back(e.path());  // datagen configs and splits have none
+    if (names_a_stage(e.path())) configs.push_back(e.path());  // datagen configs and splits have none
   }
   ASSERT_GE(configs.size(), 17u) << "the training configs of configs/README.md";
+  // The variants that extend a base are among them.
+  EXPECT_NE(std::find(configs.begin(), configs.end(), dir / "release_sun_grid_compact_mix50.json"), configs.end());
   for (const fs::path& p : configs) {
     SCOPED_TRACE(p.filename().string());
     try {

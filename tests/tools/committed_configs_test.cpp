@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
 #include <string>
 #include <vector>
 
@@ -21,18 +20,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Whether a config file, or a base it extends ("extends", relative to the extending file), names a
-// stage: a variant that lists only what differs from its base is a training config too.
-bool names_a_stage(fs::path p) {
-  for (int depth = 0; depth < 16; ++depth) {
-    std::ifstream f(p);
-    const nlohmann::json j = nlohmann::json::parse(f);
-    if (!j.is_object()) return false;
-    if (j.contains("stage")) return true;
-    if (!j.contains("extends")) return false;
-    p = p.parent_path() / j.at("extends").get<std::string>();
-  }
-  return false;
+// Whether a config file, or a base it extends, names a stage: a variant that lists only what
+// differs from its base is a training config too.
+bool names_a_stage(const fs::path& p) {
+  const std::vector<cli::ConfigFile> chain = cli::read_config_chain(p.string());
+  return std::any_of(chain.begin(), chain.end(),
+                     [](const cli::ConfigFile& f) { return f.content.is_object() && f.content.contains("stage"); });
 }
 
 TEST(CommittedConfigs, EveryTrainingConfigValidatesAndBuildsItsModel) {

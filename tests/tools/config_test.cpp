@@ -12,6 +12,8 @@
 
 namespace sl::test {
 using cli::Config;
+using cli::ConfigFile;
+using cli::read_config_chain;
 using cli::key_paths;
 using cli::nearest;
 
@@ -94,6 +96,16 @@ TEST(Config, ExtendsMergesTheBaseFileFirstRelativeToTheExtendingFile) {
   EXPECT_EQ(c.string("model.norm"), "group");       // the base where nothing overrides it
   EXPECT_EQ(c.integer("train.steps"), 100);         // the defaults where no file sets it
   EXPECT_FALSE(c.tree().contains("extends"));       // not a key of the effective config
+  // The chain itself, for a reader without a defaults tree: bases first, in merge order, each
+  // file's own keys only.
+  const std::vector<ConfigFile> chain = read_config_chain(dir + "/sub/top.json");
+  ASSERT_EQ(chain.size(), 3u);
+  EXPECT_EQ(std::filesystem::path(chain[0].path).filename(), "base.json");
+  EXPECT_EQ(std::filesystem::path(chain[1].path).filename(), "middle.json");
+  EXPECT_EQ(chain[2].path, dir + "/sub/top.json");
+  EXPECT_EQ(chain[0].content.at("seed").get<int>(), 7);
+  EXPECT_EQ(chain[1].content, nlohmann::json::parse(R"({"model": {"base_channels": 48}})"));
+  EXPECT_EQ(chain[2].content, nlohmann::json::parse(R"({"seed": 9})"));
 }
 
 TEST(Config, ExtendsCyclesMissingBasesAndNonStringsAreErrorsNamingTheFile) {

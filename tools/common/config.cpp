@@ -115,38 +115,42 @@ void Config::merge(const json& overrides, const std::string& origin) {
   merge_into(value_, defaults_, overrides, "", key_paths(defaults_), origin);
 }
 
-void Config::merge_file(const std::string& path) {
-  std::ifstream in(path);
-  SL_CHECK(in.good(), "cannot open config file '", path, "'");
-  json j;
-  try {
-    j = json::parse(in, nullptr, true, /*ignore_comments=*/true);
-  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number past double
-    fail("config file '", path, "' is not valid JSON: ", e.what());
-  }
-  if (j.is_object() && j.contains("extends")) {
-    const json& base = j["extends"];
-    SL_CHECK(base.is_string() && !base.get<std::string>().empty(), "config file '", path,
-             "': \"extends\" expects the path of another config file, got ", base.dump());
-    const std::string base_path =
-        (std::filesystem::path(path).parent_path() / base.get<std::string>()).lexically_normal().string();
-    const std::string self = std::filesystem::path(path).lexically_normal().string();
-    SL_CHECK(extending_.size() < 16, "config file '", path, "': \"extends\" chains deeper than 16 files");
-    SL_CHECK(base_path != self && std::find(extending_.begin(), extending_.end(), base_path) == extending_.end(),
-             "config file '", path, "' extends '", base_path, "', which is already being read (a cycle)");
-    SL_CHECK(std::ifstream(base_path).good(), "config file '", path, "' extends '", base_path,
-             "', which cannot be opened");
-    extending_.push_back(self);
+std::vector<ConfigFile> read_config_chain(const std::string& path) {
+  std::vector<ConfigFile> chain;  // the extending file first, until it is reversed
+  std::vector<std::string> selves;  // each read file's normalised path, to find a cycle
+  for (std::string p = path;;) {
+    std::ifstream in(p);
+    SL_CHECK(in.good(), "cannot open config file '", p, "'");
+    json j;
     try {
-      merge_file(base_path);
-    } catch (...) {
-      extending_.pop_back();
-      throw;
+      j = json::parse(in, nullptr, true, /*ignore_comments=*/true);
+    } catch (const json::exception& e) {  // parse_error, and out_of_range for a number past double
+      fail("config file '", p, "' is not valid JSON: ", e.what());
     }
-    extending_.pop_back();
-    j.erase("extends");
+    std::string base_path;
+    if (j.is_object() && j.contains("extends")) {
+      const json& base = j["extends"];
+      SL_CHECK(base.is_string() && !base.get<std::string>().empty(), "config file '", p,
+               "': \"extends\" expects the path of another config file, got ", base.dump());
+      base_path = (std::filesystem::path(p).parent_path() / base.get<std::string>()).lexically_normal().string();
+      selves.push_back(std::filesystem::path(p).lexically_normal().string());
+      SL_CHECK(chain.size() < 16, "config file '", p, "': \"extends\" chains deeper than 16 files");
+      SL_CHECK(std::find(selves.begin(), selves.end(), base_path) == selves.end(), "config file '", p, "' extends '",
+               base_path, "', which is already being read (a cycle)");
+      SL_CHECK(std::ifstream(base_path).good(), "config file '", p, "' extends '", base_path,
+               "', which cannot be opened");
+      j.erase("extends");
+    }
+    chain.push_back({p, std::move(j)});
+    if (base_path.empty()) break;
+    p = base_path;
   }
-  merge(j, "config file '" + path + "'");
+  std::reverse(chain.begin(), chain.end());
+  return chain;
+}
+
+void Config::merge_file(const std::string& path) {
+  for (const ConfigFile& f : read_config_chain(path)) merge(f.content, "config file '" + f.path + "'");
 }
 
 void Config::set(const std::string& assignment) {

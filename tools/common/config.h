@@ -9,7 +9,8 @@
 // A config file may start from another: a top-level "extends": "base.json" (a path relative to
 // the extending file's folder) merges the base file first, then the rest of the file over it.
 // Chains are allowed; a cycle, a missing base or a non-string "extends" is an error naming the
-// file. "extends" itself is not a config key and is not stored.
+// file. "extends" itself is not a config key and is not stored. read_config_chain() gives the
+// chain's files themselves, for a reader that needs them without a defaults tree.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -38,8 +39,18 @@ class Config {
  private:
   nlohmann::json defaults_;
   nlohmann::json value_;
-  std::vector<std::string> extending_;  // the files whose "extends" chain is being followed
 };
+
+// One file of an "extends" chain: its path as reached and its JSON, without the "extends" key.
+struct ConfigFile {
+  std::string path;
+  nlohmann::json content;
+};
+
+// The files that the config file at `path` stands for, its bases first and `path` last, in the
+// order merge_file() merges them. Errors name the file, as merge_file()'s do (unreadable, not
+// JSON, a bad "extends", a missing base, a cycle, more than 16 levels).
+std::vector<ConfigFile> read_config_chain(const std::string& path);
 
 // Every key path of a JSON object ("a", "a.b", ...), for suggestions and documentation.
 std::vector<std::string> key_paths(const nlohmann::json& j, const std::string& prefix = "");

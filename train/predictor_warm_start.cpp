@@ -62,13 +62,15 @@ Tensor widen_backbone_tensor(const std::string& name, const Tensor& old, const T
 
 bool warm_start_predictor(const std::string& path, const std::shared_ptr<LightingPredictor>& predictor,
                           const std::shared_ptr<SkyAutoencoder>& teacher) {
-  bool has_teacher = false, has_sun_head = false, has_head_grid = false, has_third_block = false, has_sun_backbone = false;
+  bool has_teacher = false, has_sun_head = false, has_head_grid = false, has_third_block = false, has_sun_backbone = false,
+       has_volume = false;
   int64_t sun_head_inputs = 0, stem_width = 0;
   for (const auto& [name, t] : nn::read_safetensors(path).tensors) {
     has_teacher |= name.rfind("teacher.", 0) == 0;
     has_sun_head |= name.rfind("predictor.sun_head.", 0) == 0;
     has_head_grid |= name.rfind("predictor.head_grid.", 0) == 0;
     has_sun_backbone |= name.rfind("predictor.sun_backbone.", 0) == 0;
+    has_volume |= name.rfind("predictor.volume_mlp.", 0) == 0 || name.rfind("predictor.volume_unet.", 0) == 0;
     has_third_block |= name.rfind("predictor.backbone.layer1.2.", 0) == 0;  // ResNet-34's, not -18's
     if (name == "predictor.sun_head.net.0.weight") sun_head_inputs = t.size(1);
     if (name == "predictor.backbone.conv1.weight") stem_width = t.size(0);
@@ -87,7 +89,10 @@ bool warm_start_predictor(const std::string& path, const std::shared_ptr<Lightin
   // A narrower backbone (model.backbone_width) widens: see widen_backbone_tensor; the heads get
   // zero columns for the new features. A sun head gains its own backbone (model.sun_backbone) the
   // same way: zero columns for its features, which come last; the backbone keeps its initialisation
-  // (init.sun_backbone_weights, loaded after this, replaces it).
+  // (init.sun_backbone_weights, loaded after this, replaces it). A model trained without the volume
+  // branch (model.volume_branch false: the backbone and the sky and sun heads alone, at less than half
+  // the cost of a step) gains it: the volume MLP and 3D UNet keep their initialisation, and the sky's
+  // answers are the loaded model's, since they do not read the volume.
   const LightingPredictorOptions& mine = predictor->options();
   std::shared_ptr<LightingPredictor> loaded = predictor;
   // The checkpoint's own architecture: this model's, less what the checkpoint does not have.
@@ -95,6 +100,7 @@ bool warm_start_predictor(const std::string& path, const std::shared_ptr<Lightin
   if (!has_sun_head) without.sun_grid = SunGrid{}, without.sun_image_statistics = false;
   if (!has_head_grid) without.head_grid_channels = 0;
   if (!has_sun_backbone) without.sun_backbone.clear();
+  if (!has_volume) without.volume_branch = false;
   if (!has_third_block && mine.backbone_depth == 34) without.backbone_depth = 18;
   if (stem_width > 0 && stem_width < mine.backbone_width) {
     SL_CHECK(mine.head_grid_channels == 0 && !mine.sun_image_statistics, "init.checkpoint '", path,
@@ -112,7 +118,8 @@ bool warm_start_predictor(const std::string& path, const std::shared_ptr<Lightin
            "start the grid from a model without model.sun_image_statistics");
   if (without.sun_grid.enabled() != mine.sun_grid.enabled() || without.head_grid_channels != mine.head_grid_channels ||
       without.sun_image_statistics != mine.sun_image_statistics || without.backbone_depth != mine.backbone_depth ||
-      without.backbone_width != mine.backbone_width || without.sun_backbone != mine.sun_backbone)
+      without.backbone_width != mine.backbone_width || without.sun_backbone != mine.sun_backbone ||
+      without.volume_branch != mine.volume_branch)
     loaded = std::make_shared<LightingPredictor>(without);
   Holder previous;
   previous.register_module("predictor", loaded);

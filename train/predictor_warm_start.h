@@ -14,7 +14,9 @@
 //     norm at zero, so each passes its input on unchanged;
 //   - a wider backbone (model.backbone_width): the old channels keep their indices and values, no
 //     new channel reaches an old one, and the heads get zero columns for the new features (not
-//     with model.head_grid_channels or model.sun_image_statistics: refused).
+//     with model.head_grid_channels or model.sun_image_statistics: refused);
+//   - the volume branch (model.volume_branch), from a model trained without it: the volume MLP and
+//     3D UNet keep their initialisation.
 // - Throws sl::Error naming the file and tensor for any other mismatch of names or shapes.
 #pragma once
 #include <memory>

@@ -1,8 +1,8 @@
 // Starting stage 2 from a checkpoint that is not the model being trained (train/predictor_warm_start.h,
 // init.checkpoint, init.reinitialise): an exported predictor with a teacher of its own; a model that
 // grows (a sun head, the heads' feature grid, a deeper or wider backbone, image statistics or an
-// ImageNet backbone for the sun head) keeps every loaded tensor and starts from the loaded model's
-// answers, and what is new trains; parts named for reinitialisation start afresh.
+// ImageNet backbone for the sun head, the volume branch) keeps every loaded tensor and starts from
+// the loaded model's answers, and what is new trains; parts named for reinitialisation start afresh.
 #include "train/predictor_warm_start.h"
 
 #include <gtest/gtest.h>
@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <set>
 #include <string>
 #include <vector>
@@ -88,9 +89,10 @@ std::string refusal(const std::function<void()>& f, const std::string& what) {
 // ships; `before` holds a copy of its tensors and `answers` its sky answers for `image`.
 class PredictorWarmStart : public ::testing::Test {
  protected:
-  void export_model(const std::string& name, bool sun_head = true) {
+  void export_model(const std::string& name, bool sun_head = true, bool volume = true) {
     dir = temp_dir(name);
     c = tiny_config(kStageLighting);
+    c["model"]["volume_branch"] = volume;
     sky = save_sky_checkpoint(c, dir);
     c["init"]["sky_checkpoint"] = sky;
     if (sun_head) {
@@ -238,6 +240,40 @@ TEST_F(PredictorWarmStart, ASunHeadStartsFromAModelWithoutOne) {
   bad["loss"]["sun_distribution"] = 1.0;
   EXPECT_NE(refusal([&] { train::check_train_config(bad); }, "loss.sun_distribution without model.sun_grid").find("model.sun_grid"),
             std::string::npos);
+}
+
+// A model trained without the volume branch (model.volume_branch false: the backbone and the sky and
+// sun heads, a cheap first part of a recipe) gains it: every loaded tensor is the file's, the volume
+// MLP and 3D UNet are the new model's own initialisation, the sky's answers are unchanged, and a step
+// trains the volume through the radiance rays.
+TEST_F(PredictorWarmStart, AVolumeBranchStartsFromAModelWithoutOne) {
+  export_model("warm_volume", true, false);
+  for (const auto& [name, t] : before)
+    ASSERT_TRUE(name.rfind("volume_", 0) != 0) << "the exported model has a volume part: " << name;
+  nlohmann::json g = from_exported();
+  g["model"]["volume_branch"] = true;
+  LightingStage stage(g, memory_source(2), memory_source(1));
+  stage.initialise();
+  const nn::StateDict fresh = train::LightingPredictor(stage.predictor().options()).state_dict();
+  std::map<std::string, std::vector<double>> volume;
+  for (const auto& [name, t] : stage.predictor().state_dict()) {
+    if (name.rfind("volume_", 0) == 0) {
+      EXPECT_EQ(t.to_vector(), fresh.at(name).to_vector()) << name;
+      volume[name] = t.to_vector();
+      continue;
+    }
+    ASSERT_TRUE(before.count(name)) << name;
+    EXPECT_EQ(t.to_vector(), before.at(name).to_vector()) << name;
+  }
+  ASSERT_FALSE(volume.empty()) << "no volume branch";
+  expect_same_answers(sky_answers(stage, image), answers);
+  const Metrics m = stage.step(0);
+  ASSERT_TRUE(m.count("depth") && m.count("sky_separation")) << "the volume's losses did not run";
+  EXPECT_TRUE(std::isfinite(m.at("loss")));
+  int moved = 0;
+  for (const auto& [name, t] : stage.predictor().state_dict())
+    if (volume.count(name) && t.to_vector() != volume.at(name)) ++moved;
+  EXPECT_GT(moved, 0) << "the volume branch did not train";
 }
 
 // A model without the heads' grid (model.head_grid_channels) gains one: every head that reads

@@ -134,8 +134,7 @@ Metrics AdversarialStage::step(int64_t step) {
       m["time_allreduce_ms"] = allreduce_gradients(optim_->params());
       clock.lap();
     }
-    check_finite_gradients(optim_->params(), step);
-    m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
+    m["grad_norm"] = clip_finite_gradients(optim_->params(), clip_, step);
     optim_->step();
     m["time_optimizer_ms"] = clock.lap();
     return m;
@@ -164,8 +163,7 @@ Metrics AdversarialStage::step(int64_t step) {
     m["time_allreduce_ms"] = allreduce_gradients(optim_->params());
     clock.lap();
   }
-  check_finite_gradients(optim_->params(), step);
-  m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
+  m["grad_norm"] = clip_finite_gradients(optim_->params(), clip_, step);
   optim_->set_lr(lr_);
   optim_->step();
   // (2) Discriminator: hinge on real vs the detached composite.
@@ -181,8 +179,7 @@ Metrics AdversarialStage::step(int64_t step) {
     m["time_allreduce_ms"] += allreduce_gradients(optim_->params());
     clock.lap();
   }
-  check_finite_gradients(optim_->params(), step);
-  nn::clip_grad_norm(optim_->params(), clip_);
+  clip_finite_gradients(optim_->params(), clip_, step);
   const double base = config_.at("optim").at("lr").get<double>();
   optim_->set_lr(lr_ * config_.at("optim").at("discriminator_lr").get<double>() / base);
   optim_->step();
@@ -205,16 +202,14 @@ Metrics AdversarialStage::step_without_samples(int64_t step, const Tensor& total
   m["time_backward_ms"] = clock.lap();
   m["time_allreduce_ms"] = allreduce_gradients(optim_->params());
   clock.lap();
-  check_finite_gradients(optim_->params(), step);
-  m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
+  m["grad_norm"] = clip_finite_gradients(optim_->params(), clip_, step);
   optim_->set_lr(lr_);
   optim_->step();
   optim_->zero_grad();
   const double optimizer_ms = clock.lap();
   m["time_allreduce_ms"] += allreduce_gradients(optim_->params());
   clock.lap();
-  check_finite_gradients(optim_->params(), step);
-  nn::clip_grad_norm(optim_->params(), clip_);
+  clip_finite_gradients(optim_->params(), clip_, step);
   const double base = config_.at("optim").at("lr").get<double>();
   optim_->set_lr(lr_ * config_.at("optim").at("discriminator_lr").get<double>() / base);
   optim_->step();

@@ -456,8 +456,7 @@ Metrics LightingStage::supervised_step(int64_t step) {
     m["time_allreduce_ms"] = allreduce_gradients(optim_->params());
     clock.lap();  // not part of the optimiser's time
   }
-  check_finite_gradients(optim_->params(), step);
-  m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
+  m["grad_norm"] = clip_finite_gradients(optim_->params(), clip_, step);
   optim_->step();
   // The share of this batch's labelled suns that the input view shows (issue 53: crops that
   // show the sun must be common enough to learn from).

@@ -98,8 +98,7 @@ Metrics SkyStage::step(int64_t step) {
     m["time_allreduce_ms"] = allreduce_gradients(optim_->params());
     clock.lap();  // not part of the optimiser's time
   }
-  check_finite_gradients(optim_->params(), step);
-  m["grad_norm"] = nn::clip_grad_norm(optim_->params(), clip_);
+  m["grad_norm"] = clip_finite_gradients(optim_->params(), clip_, step);
   optim_->step();
   m["time_data_ms"] = data_ms;
   m["time_forward_ms"] = forward_ms;

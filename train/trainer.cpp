@@ -74,6 +74,12 @@ void check_finite_gradients(const nn::NamedTensors& params, int64_t step) {
   }
 }
 
+double clip_finite_gradients(const nn::NamedTensors& params, double max_norm, int64_t step) {
+  const double norm = nn::clip_grad_norm(params, max_norm);
+  if (!std::isfinite(norm)) check_finite_gradients(params, step);  // throws, naming the parameter
+  return norm;  // still not finite only when finite double gradients overflow the sum of squares
+}
+
 RunResult run_training(Stage& stage, const nlohmann::json& config, const RunOptions& options) {
   namespace fs = std::filesystem;
   const nlohmann::json& t = config.at("train");

@@ -48,6 +48,11 @@ class NonFiniteError : public std::runtime_error {
 void check_finite_loss(const std::string& what, double value, int64_t step);
 // Throws NonFiniteError naming the first parameter whose gradient has a NaN or ±inf.
 void check_finite_gradients(const nn::NamedTensors& params, int64_t step);
+// nn::clip_grad_norm with check_finite_gradients' guarantee, in one pass over the gradients where
+// they are finite: the global norm is finite iff every gradient is (its sum of squares is taken in
+// double), and only a non-finite norm, which leaves the gradients untouched, looks for the
+// parameter to name. Returns the norm before clipping.
+double clip_finite_gradients(const nn::NamedTensors& params, double max_norm, int64_t step);
 
 class Stage {
  public:

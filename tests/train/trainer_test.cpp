@@ -20,6 +20,7 @@ using train::LightingStage;
 using train::Metrics;
 using train::NonFiniteError;
 using train::check_finite_gradients;
+using train::clip_finite_gradients;
 using train::RunOptions;
 using train::RunResult;
 using train::SkyStage;
@@ -155,7 +156,8 @@ TEST(Trainer, WeightAverageResumesBitIdenticallyAndBestHoldsTheAverage) {
 }
 
 // The gradient check reads every element (a NaN or Inf anywhere, in float and double) and names
-// the first parameter that holds one.
+// the first parameter that holds one; so does the clipping that the stages call in its place, which
+// otherwise clips as nn::clip_grad_norm does.
 TEST(Trainer, NonFiniteGradientAnywhereNamesItsParameter) {
   const auto with_grad = [](DType dtype, int64_t bad_at, double bad) {
     Tensor p = Tensor::zeros({1001}, dtype).set_requires_grad(true);
@@ -175,7 +177,22 @@ TEST(Trainer, NonFiniteGradientAnywhereNamesItsParameter) {
           EXPECT_NE(std::string(e.what()).find("'head.w'"), std::string::npos) << e.what();
           EXPECT_NE(std::string(e.what()).find("step 3"), std::string::npos) << e.what();
         }
+        try {
+          clip_finite_gradients({{"fine", with_grad(dtype, -1, 0)}, {"head.w", with_grad(dtype, at, bad)}}, 1.0, 4);
+          ADD_FAILURE() << "clipping missed " << bad << " at " << at;
+        } catch (const NonFiniteError& e) {
+          EXPECT_NE(std::string(e.what()).find("'head.w'"), std::string::npos) << e.what();
+          EXPECT_NE(std::string(e.what()).find("step 4"), std::string::npos) << e.what();
+        }
       }
+    // Finite gradients: the same norm and the same clipped gradients as nn::clip_grad_norm.
+    const nn::NamedTensors a{{"fine", with_grad(dtype, -1, 0)}, {"head.w", with_grad(dtype, 517, -3.0)}};
+    const nn::NamedTensors b{{"fine", with_grad(dtype, -1, 0)}, {"head.w", with_grad(dtype, 517, -3.0)}};
+    EXPECT_EQ(clip_finite_gradients(a, 1.0, 5), nn::clip_grad_norm(b, 1.0));
+    for (size_t i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(a[i].second.grad().to_vector(), b[i].second.grad().to_vector()) << a[i].first;
+      EXPECT_LT(a[i].second.grad().to_vector()[0], 0.5) << "not clipped";
+    }
   }
 }
 

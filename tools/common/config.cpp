@@ -118,9 +118,11 @@ void Config::merge(const json& overrides, const std::string& origin) {
 std::vector<ConfigFile> read_config_chain(const std::string& path) {
   std::vector<ConfigFile> chain;  // the extending file first, until it is reversed
   std::vector<std::string> selves;  // each read file's normalised path, to find a cycle
+  std::string extended_by;  // the file whose "extends" named p, for the message when p cannot be opened
   for (std::string p = path;;) {
     std::ifstream in(p);
-    SL_CHECK(in.good(), "cannot open config file '", p, "'");
+    if (extended_by.empty()) SL_CHECK(in.good(), "cannot open config file '", p, "'");
+    SL_CHECK(in.good(), "config file '", extended_by, "' extends '", p, "', which cannot be opened");
     json j;
     try {
       j = json::parse(in, nullptr, true, /*ignore_comments=*/true);
@@ -137,12 +139,11 @@ std::vector<ConfigFile> read_config_chain(const std::string& path) {
       SL_CHECK(chain.size() < 16, "config file '", p, "': \"extends\" chains deeper than 16 files");
       SL_CHECK(std::find(selves.begin(), selves.end(), base_path) == selves.end(), "config file '", p, "' extends '",
                base_path, "', which is already being read (a cycle)");
-      SL_CHECK(std::ifstream(base_path).good(), "config file '", p, "' extends '", base_path,
-               "', which cannot be opened");
       j.erase("extends");
     }
     chain.push_back({p, std::move(j)});
     if (base_path.empty()) break;
+    extended_by = p;
     p = base_path;
   }
   std::reverse(chain.begin(), chain.end());

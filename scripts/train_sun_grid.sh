@@ -6,7 +6,9 @@
 # real data: configs/release_sun_grid.json, on 480 generated streets (configs/release_datagen.json,
 # 480 samples), crops of the 39 training HDR skies (configs/hdri_split.json) and of the 522 training
 # LDR panoramas (configs/pano_ldr_split.json). Steps, each resumable:
-#   1. the streets, rendered by two processes (--skip-existing);
+#   1. the streets, rendered by two processes (--skip-existing); with --streets-from, the samples an
+#      earlier render of the same config holds are hard-linked from it instead (streetlight-datagen
+#      --reuse: the same files, tests/tools/datagen_test.cpp);
 #   2. the previous release's weights, from git;
 #   3. the stage, part 1 (configs/release_sun_grid.json), part 2 (configs/release_sun_grid_more.json,
 #      3000 more steps from part 1's last checkpoint; its best.safetensors is release 0.7.0) and
@@ -19,21 +21,26 @@
 #   4. evaluation of the previous releases and the new model on the real test splits (8 crops per
 #      panorama) and on the held-out streets when DIR/test_street exists (configs/release_datagen_test.json);
 #   5. the release: part 4's last.safetensors exported (F16) to models/streetlight.safetensors.
-# Usage: scripts/train_sun_grid.sh [--runs DIR] [--build-dir DIR] [--previous FILE] [--no-publish] [--stop-after STEP]
+# Usage: scripts/train_sun_grid.sh [--runs DIR] [--build-dir DIR] [--previous FILE] [--streets-from DIR]
+#                                   [--no-publish] [--stop-after STEP]
 #   --runs DIR   run folder (default ../streetlight-runs/sun_grid, outside the repository)
 #   --previous FILE  the model to continue (default: release 0.6.0 from git; scripts/train_release.sh
 #                passes the base model it trained)
+#   --streets-from DIR  a street dataset rendered with configs/release_datagen.json and the same sky
+#                settings (scripts/train_release.sh passes its 960 streets, whose first 480 are these)
 #   --stop-after STEP  datagen, previous, train, more, head, wide or eval
 # Wall time here (AMD EPYC, 2 vCPUs): about 7400 s up to part 3, and 9309 s for part 4 on 2 threads.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-runs=../streetlight-runs/sun_grid; build_dir=build; publish=1; stop_after=; previous_file=
+runs=../streetlight-runs/sun_grid; build_dir=build; publish=1; stop_after=; previous_file=; reuse=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --runs) runs="$2"; shift ;;
     --build-dir) build_dir="$2"; shift ;;
     --previous) previous_file="${2:?--previous needs a checkpoint}"; shift
       [ -f "$previous_file" ] || { echo "error: --previous '$previous_file': no such file" >&2; exit 2; } ;;
+    --streets-from) [ -f "${2:?--streets-from needs a folder}/index.json" ] || { echo "error: --streets-from '$2': no index.json there" >&2; exit 2; }
+      reuse=(--reuse "$(cd "$2" && pwd)"); shift ;;
     --no-publish) publish=0 ;;
     --stop-after) stop_after="$2"; shift
       case "$stop_after" in datagen|previous|train|more|head|wide|eval) ;;
@@ -63,7 +70,7 @@ datagen() {
   for k in 0 1; do
     OMP_NUM_THREADS=1 "$bin/streetlight-datagen" --config configs/release_datagen.json --set samples=480 \
       --set "sky.hdri_folder=$hdri" --set sky.hdri_split=configs/hdri_split.json \
-      --out "$runs/street" --shard "$k/2" --skip-existing --json > "$runs/street_datagen_$k.json" 2> "$runs/street_datagen_$k.log" &
+      --out "$runs/street" --shard "$k/2" --skip-existing "${reuse[@]}" --json > "$runs/street_datagen_$k.json" 2> "$runs/street_datagen_$k.log" &
     pids+=($!)
   done
   for p in "${pids[@]}"; do wait "$p" || { echo "error: streetlight-datagen failed, see $runs/street_datagen_*.log" >&2; exit 1; }; done

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "data/contact_sheet.h"
+#include "data/sample_reuse.h"
 #include "data/street_generator.h"
 #include "tools/common/cli.h"
 #include "util/file.h"
@@ -35,6 +36,7 @@ int run(int argc, char** argv) {
        {"--samples", "N", "number of samples (overrides 'samples')"},
        {"--shard", "K/N", "render only the samples i with i mod N = K (run N processes on one --out)"},
        {"--skip-existing", "", "keep samples already complete in DIR (samples/<id>/meta.json exists)"},
+       {"--reuse", "SRC", "link the samples an earlier render SRC holds instead of rendering them (same config but 'samples')"},
        {"--contact-sheet", "PNG", "also write a contact sheet of the first rows to this PNG"},
        {"--contact-rows", "N", "rows of the contact sheet (default 4)"},
        {"--print-config", "", "print the effective config as JSON and exit"},
@@ -67,6 +69,12 @@ int run(int argc, char** argv) {
     SL_CHECK(shards >= 1 && shard >= 0 && shard < shards, "--shard K/N needs 0 <= K < N, got '", v, "'");
   }
   SL_CHECK(contact_rows >= 1 && contact_rows <= 64, "--contact-rows must be in [1, 64], got ", contact_rows);
+  const std::string reuse = args.has("--reuse") ? args.get("--reuse") : std::string();
+  if (!reuse.empty()) {
+    std::error_code ec;
+    SL_CHECK(!fs::exists(out, ec) || !fs::equivalent(reuse, out, ec), "--reuse '", reuse, "' is the --out folder itself");
+    sl::data::check_reusable(reuse, c.tree);
+  }
 
   // From here on every failure is a run-time failure (exit 1), not bad input.
   try {
@@ -77,13 +85,18 @@ int run(int argc, char** argv) {
     sl::cli::Progress progress("datagen", c.samples);
     std::vector<std::string> ids;
     int64_t with_object = 0;
-    int64_t rendered = 0;
+    int64_t rendered = 0, reused = 0;
     for (int64_t i = 0; i < c.samples; ++i) {
       char id[32];
       std::snprintf(id, sizeof id, "%06lld", static_cast<long long>(i));  // docs/DATASET.md ids
       ids.push_back(id);
       const bool mine = i % shards == shard;
       if (!mine || (args.has("--skip-existing") && fs::exists(samples_dir / id / "meta.json"))) continue;
+      if (!reuse.empty() && sl::data::reuse_sample(reuse, id, samples_dir.string())) {
+        ++reused;
+        progress.update(i + 1, "sample " + ids.back() + " (reused)");
+        continue;
+      }
       const sl::data::GeneratedSample g = sl::data::generate_street_sample(c, i, samples_dir.string());
       SL_CHECK(g.id == ids.back(), "datagen: sample ", i, " has id '", g.id, "', expected '", ids.back(), "'");
       with_object += g.has_insertion ? 1 : 0;
@@ -99,6 +112,7 @@ int run(int argc, char** argv) {
     const nlohmann::json summary = {{"out", out},
                                     {"samples", c.samples},
                                     {"rendered", rendered},
+                                    {"reused", reused},
                                     {"with_object", with_object},
                                     {"seconds", seconds},
                                     {"samples_per_minute", seconds > 0 ? 60.0 * static_cast<double>(rendered) / seconds : 0.0},
@@ -106,9 +120,10 @@ int run(int argc, char** argv) {
     if (args.has("--json"))
       std::cout << summary.dump() << "\n";
     else
-      std::fprintf(stderr, "wrote %lld samples to %s in %.1f s (%.2f samples/min, %d threads)\n",
+      std::fprintf(stderr, "wrote %lld samples to %s in %.1f s (%.2f samples/min, %d threads)%s\n",
                    static_cast<long long>(rendered), out.c_str(), seconds, summary["samples_per_minute"].get<double>(),
-                   omp_get_max_threads());
+                   omp_get_max_threads(),
+                   reused > 0 ? (", " + std::to_string(reused) + " reused from " + reuse).c_str() : "");
   } catch (const std::exception& e) {
     throw std::runtime_error(e.what());
   }

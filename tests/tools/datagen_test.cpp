@@ -1,0 +1,147 @@
+// streetlight-datagen --reuse (data/sample_reuse.h): linking an earlier render's samples gives the
+// bytes a fresh render writes, renders only what the source lacks, and refuses another config.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace sl::test {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kDatagen = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-datagen";
+
+struct Result {
+  int code;
+  std::string out;
+};
+
+Result run(const std::string& cmd) {
+  Result r{-1, ""};
+  FILE* p = popen((cmd + " 2>&1").c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  while (fgets(buf.data(), buf.size(), p)) r.out += buf.data();
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string bytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// Every file under a and b, compared byte for byte; returns the first difference, or "".
+std::string first_difference(const fs::path& a, const fs::path& b) {
+  size_t files = 0;
+  for (const auto& e : fs::recursive_directory_iterator(a)) {
+    if (!e.is_regular_file()) continue;
+    ++files;
+    const fs::path rel = fs::relative(e.path(), a);
+    if (!fs::exists(b / rel)) return rel.string() + " is missing in " + b.string();
+    if (bytes(e.path()) != bytes(b / rel)) return rel.string() + " differs";
+  }
+  for (const auto& e : fs::recursive_directory_iterator(b))
+    if (e.is_regular_file() && !fs::exists(a / fs::relative(e.path(), b)))
+      return fs::relative(e.path(), b).string() + " is only in " + b.string();
+  return files == 0 ? "no files in " + a.string() : "";
+}
+
+class DatagenReuse : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!fs::exists(kDatagen)) GTEST_SKIP() << kDatagen << " is not built";
+    dir_ = fs::temp_directory_path() / ("datagen_reuse_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    config_ = (dir_ / "tiny.json").string();
+    std::ofstream(config_) << R"({"seed": 3,
+      "render": {"spp": 2, "max_depth": 2, "environment_width": 32, "target_noise": 0},
+      "panorama": {"width": 32, "height": 16}, "views": {"count": 1, "width": 32, "height": 16},
+      "sky": {"width": 32, "height": 8}, "insertion": {"min_visible_pixels": 4, "coverage_samples": 2}})";
+  }
+  void TearDown() override {
+    if (!dir_.empty()) fs::remove_all(dir_);
+  }
+  // streetlight-datagen on the tiny config, `samples` samples into dir_/out, plus `extra` flags.
+  Result datagen(int samples, const std::string& out, const std::string& extra = "") {
+    return run("OMP_NUM_THREADS=1 " + kDatagen + " --config " + config_ + " --samples " + std::to_string(samples) +
+               " --out " + (dir_ / out).string() + " --json " + extra);
+  }
+  static nlohmann::json summary(const Result& r) {
+    const auto brace = r.out.rfind("\n{");
+    return nlohmann::json::parse(brace == std::string::npos ? r.out : r.out.substr(brace + 1));
+  }
+  fs::path dir_;
+  std::string config_;
+};
+
+}  // namespace
+
+TEST_F(DatagenReuse, LinkedSamplesAreTheBytesOfAFreshRenderWithTheirOwnSplit) {
+  ASSERT_EQ(datagen(3, "source").code, 0);
+  const Result fresh = datagen(2, "fresh");
+  ASSERT_EQ(fresh.code, 0) << fresh.out;
+  const Result linked = datagen(2, "linked", "--reuse " + (dir_ / "source").string());
+  ASSERT_EQ(linked.code, 0) << linked.out;
+  EXPECT_EQ(summary(linked)["rendered"], 0);
+  EXPECT_EQ(summary(linked)["reused"], 2);
+  // Samples, index.json (a split over two ids, not the source's three) and all: the same bytes.
+  EXPECT_EQ(first_difference(dir_ / "fresh", dir_ / "linked"), "");
+  EXPECT_NE(bytes(dir_ / "source" / "index.json"), bytes(dir_ / "linked" / "index.json"));
+  // Linked, not copied: the file is the source's (same file system here).
+  struct stat a {}, b {};
+  ASSERT_EQ(::stat((dir_ / "source/samples/000001/meta.json").c_str(), &a), 0);
+  ASSERT_EQ(::stat((dir_ / "linked/samples/000001/meta.json").c_str(), &b), 0);
+  EXPECT_EQ(a.st_ino, b.st_ino);
+}
+
+TEST_F(DatagenReuse, RendersOnlyTheSamplesTheSourceLacks) {
+  ASSERT_EQ(datagen(2, "source").code, 0);
+  const Result more = datagen(3, "more", "--reuse " + (dir_ / "source").string());
+  ASSERT_EQ(more.code, 0) << more.out;
+  EXPECT_EQ(summary(more)["reused"], 2);
+  EXPECT_EQ(summary(more)["rendered"], 1);
+  ASSERT_EQ(datagen(3, "fresh").code, 0);
+  EXPECT_EQ(first_difference(dir_ / "fresh", dir_ / "more"), "");
+  // An incomplete source sample (no meta.json, as a killed render could not leave one, but a
+  // hand-edited folder can) is rendered, not linked.
+  fs::remove(dir_ / "source/samples/000000/meta.json");
+  const Result again = datagen(2, "again", "--reuse " + (dir_ / "source").string());
+  ASSERT_EQ(again.code, 0) << again.out;
+  EXPECT_EQ(summary(again)["reused"], 1);
+  EXPECT_EQ(summary(again)["rendered"], 1);
+  for (const char* id : {"000000", "000001"})
+    EXPECT_EQ(first_difference(dir_ / "again/samples" / id, dir_ / "fresh/samples" / id), "") << id;
+}
+
+TEST_F(DatagenReuse, AnotherConfigOrAMissingSourceIsBadInputWithNoOutput) {
+  ASSERT_EQ(datagen(1, "source").code, 0);
+  const std::string src = " --reuse " + (dir_ / "source").string();
+  const Result other = datagen(1, "other", "--set render.spp=3" + src);
+  EXPECT_EQ(other.code, 2) << other.out;
+  EXPECT_NE(other.out.find("error: --reuse"), std::string::npos) << other.out;
+  EXPECT_NE(other.out.find("'render.spp' is 2 there and 3 here"), std::string::npos) << other.out;
+  EXPECT_FALSE(fs::exists(dir_ / "other"));
+  const Result missing = datagen(1, "missing", "--reuse " + (dir_ / "nowhere").string());
+  EXPECT_EQ(missing.code, 2) << missing.out;
+  EXPECT_NE(missing.out.find("nowhere/index.json"), std::string::npos) << missing.out;
+  EXPECT_FALSE(fs::exists(dir_ / "missing"));
+  const Result itself = datagen(1, "source", src);
+  EXPECT_EQ(itself.code, 2) << itself.out;
+  EXPECT_NE(itself.out.find("is the --out folder itself"), std::string::npos) << itself.out;
+}
+
+}  // namespace sl::test

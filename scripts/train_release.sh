@@ -27,7 +27,9 @@
 #   8. the sun head (release 0.7.2): scripts/train_sun_grid.sh --previous DIR/streets/best.safetensors
 #      into DIR/sun_grid: a probability over sun directions trained on 480 streets and the enlarged
 #      real data, then the backbone widened to 64 channels for 20000 steps; the 480 streets are the
-#      first 480 of step 1's, hard-linked rather than rendered again (--streets-from);
+#      first 480 of step 1's, hard-linked rather than rendered again (--streets-from); each of its
+#      four parts validates once, at its end (--validate-at-end: its last checkpoint, which the next
+#      part and the release take, is the same bits as with validation every 500 or 1000 steps);
 #   9. the sun-glare detector and its azimuth head: scripts/train_sun_glare.sh into DIR/glare;
 #  10. the release's evaluation on the test splits (DIR/release_eval: the sun head with the detector);
 #  11. the release: step 8's last.safetensors exported (F16) to models/streetlight.safetensors and
@@ -38,7 +40,9 @@
 # Wall time on an AMD EPYC with 2 vCPUs: about 9 h (about 3 h 20 min to step 7, 4 h 40 min for step 8,
 # 1 h 15 min for step 9), measured part by part and partly under load (models/README.md); step 8's
 # figure includes 1932 s of rendering its 480 streets, which it now links from step 1 in under a
-# second (0.015 s for 40 on an AMD EPYC; the same files).
+# second (0.015 s for 40 on an AMD EPYC; the same files), and 38 validations, of which it now runs 4
+# (one at width 64 takes 29 s on an AMD EPYC: 19 fewer save about 550 s in part 4; parts 1-3, at
+# width 32, not measured).
 # Usage: scripts/train_release.sh [--runs DIR] [--build-dir DIR] [--skip-build] [--no-publish]
 #                                  [--stop-after STEP]
 #   --runs DIR     run folder (default ../streetlight-runs/release, outside the repository)
@@ -140,7 +144,7 @@ timed eval evaluate
 
 say "8/11 the sun head (scripts/train_sun_grid.sh from the base model; logs in $runs/sun_grid/)"
 timed sun_grid bash scripts/train_sun_grid.sh --runs "$runs/sun_grid" --build-dir "$build_dir" --no-publish \
-  --previous "$runs/streets/best.safetensors" --streets-from "$runs/street" --stop-after wide
+  --previous "$runs/streets/best.safetensors" --streets-from "$runs/street" --validate-at-end --stop-after wide
 say "9/11 the sun-glare detector (scripts/train_sun_glare.sh)"
 timed glare bash scripts/train_sun_glare.sh --runs "$runs/glare" --build-dir "$build_dir" --no-publish
 

@@ -92,6 +92,36 @@ TEST(Trainer, LightingResumeIsBitIdentical) {
   EXPECT_EQ(tail[1], all[3]);
 }
 
+// Validation reads the model and changes nothing it trains: a lighting run validated after every
+// step ends with the weights of one validated once, at its end. So a stage whose last checkpoint
+// is what the next step uses may validate as rarely as its monitoring needs (scripts/train_release.sh).
+TEST(Trainer, ValidationLeavesTheTrainedWeightsUnchanged) {
+  const std::string dir = temp_dir("val_every_light");
+  nlohmann::json c = tiny_config(kStageLighting);
+  c["init"]["sky_checkpoint"] = save_sky_checkpoint(c, dir);
+  c["train"]["steps"] = 4;
+  c["train"]["batch_size"] = 1;
+  nlohmann::json often = c, once = c;
+  often["train"]["val_every"] = 1;
+  once["train"]["val_every"] = 4;
+  LightingStage a(often, memory_source(3), memory_source(2));
+  const std::vector<double> la = run_losses(a, often, dir + "/often", "", 0);
+  LightingStage b(once, memory_source(3), memory_source(2));
+  const std::vector<double> lb = run_losses(b, once, dir + "/once", "", 0);
+  EXPECT_EQ(la, lb);
+  // Parameters and buffers (the batch-norm statistics) alike.
+  for (const bool buffers : {false, true}) {
+    const auto ta = buffers ? a.model().named_buffers() : a.model().named_parameters();
+    const auto tb = buffers ? b.model().named_buffers() : b.model().named_parameters();
+    ASSERT_EQ(ta.size(), tb.size());
+    EXPECT_GT(ta.size(), 0u);
+    for (size_t i = 0; i < ta.size(); ++i) {
+      ASSERT_EQ(ta[i].first, tb[i].first);
+      EXPECT_EQ(ta[i].second.to_vector(), tb[i].second.to_vector()) << ta[i].first;
+    }
+  }
+}
+
 // optim.schedule_steps: a run that stops at train.steps = 2 under a 6-step schedule, then resumes
 // with train.steps = 6, computes what one 6-step run computes; the schedule, not where the run
 // stops, sets the rate.

@@ -42,7 +42,8 @@
 # figure includes 1932 s of rendering its 480 streets, which it now links from step 1 in under a
 # second (0.015 s for 40 on an AMD EPYC; the same files), and 38 validations, of which it now runs 4
 # (one at width 64 takes 29 s on an AMD EPYC: 19 fewer save about 550 s in part 4; parts 1-3, at
-# width 32, not measured).
+# width 32, not measured). Re-estimated idle on an AMD EPYC at 66983e1 from 100-step timings of each
+# config: about 21 300 s (5.9 h) in all (docs/RESULTS.md, 2026-12-03).
 # Usage: scripts/train_release.sh [--runs DIR] [--build-dir DIR] [--skip-build] [--no-publish]
 #                                  [--stop-after STEP]
 #   --runs DIR     run folder (default ../streetlight-runs/release, outside the repository)

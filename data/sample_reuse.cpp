@@ -2,8 +2,8 @@
 #include "data/sample_reuse.h"
 
 #include <filesystem>
-#include <fstream>
 
+#include "data/street_dataset.h"
 #include "util/error.h"
 #include "util/file.h"
 
@@ -13,15 +13,7 @@ namespace fs = std::filesystem;
 
 void check_reusable(const std::string& source_dir, const nlohmann::json& config_tree) {
   const fs::path index = fs::path(source_dir) / "index.json";
-  std::ifstream in(index);
-  SL_CHECK(in.good(), "--reuse '", source_dir, "': no readable '", index.string(),
-           "' (a folder written by streetlight-datagen)");
-  nlohmann::json j;
-  try {
-    in >> j;
-  } catch (const nlohmann::json::exception& e) {
-    fail("--reuse '", source_dir, "': '", index.string(), "' is not JSON: ", e.what());
-  }
+  const nlohmann::json j = read_json(index, "--reuse '" + source_dir + "'");
   SL_CHECK(j.is_object() && j.contains("config") && j["config"].is_object(), "--reuse '", source_dir, "': '",
            index.string(), "' has no 'config' object");
   nlohmann::json theirs = j["config"], mine = config_tree;

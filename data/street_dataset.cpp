@@ -19,8 +19,6 @@ namespace sl::data {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-namespace {
-
 json read_json(const fs::path& path, const std::string& what) {
   std::ifstream f(path);
   SL_CHECK(f.good(), what, ": cannot open '", path.string(), "'");
@@ -30,6 +28,8 @@ json read_json(const fs::path& path, const std::string& what) {
     fail(what, ": '", path.string(), "' is not valid JSON: ", e.what());
   }
 }
+
+namespace {
 
 // Looks up a nested key, naming the file and the key path when it is missing.
 const json& key(const json& j, const std::string& k, const fs::path& file) {

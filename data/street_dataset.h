@@ -22,7 +22,10 @@
 #include <thread>
 #include <vector>
 
+#include <filesystem>
+
 #include <glm/glm.hpp>
+#include <nlohmann/json.hpp>
 
 #include "autodiff/tensor.h"
 #include "render/camera.h"
@@ -71,6 +74,10 @@ struct StreetSample {
   std::array<double, 4> box2d{};  // x1 y1 x2 y2 (pixels of view 0)
   std::array<double, 7> box3d{};  // h w l x y z ry (KITTI, view 0's camera frame)
 };
+
+// A dataset file (index.json, meta.json) parsed; sl::Error "<what>: ..." naming the path when it
+// cannot be opened or is not JSON.
+nlohmann::json read_json(const std::filesystem::path& path, const std::string& what);
 
 // What a sample says of its sun, read from meta.json alone (no image is decoded): the label,
 // whether it is usable, and view 0's camera (the input view of training and evaluation).

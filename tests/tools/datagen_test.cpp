@@ -2,11 +2,7 @@
 // bytes a fresh render writes, renders only what the source lacks, and refuses another config.
 #include <gtest/gtest.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <array>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -14,29 +10,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include "support/tool_fixture.h"
+
 namespace sl::test {
 
 namespace {
 
 namespace fs = std::filesystem;
-
-const std::string kDatagen = std::string(STREETLIGHT_BINARY_DIR) + "/tools/streetlight-datagen";
-
-struct Result {
-  int code;
-  std::string out;
-};
-
-Result run(const std::string& cmd) {
-  Result r{-1, ""};
-  FILE* p = popen((cmd + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  while (fgets(buf.data(), buf.size(), p)) r.out += buf.data();
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
 
 std::string bytes(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -62,10 +42,9 @@ std::string first_difference(const fs::path& a, const fs::path& b) {
 class DatagenReuse : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (!fs::exists(kDatagen)) GTEST_SKIP() << kDatagen << " is not built";
-    dir_ = fs::temp_directory_path() / ("datagen_reuse_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    if (!tool_built("streetlight-datagen")) GTEST_SKIP() << "streetlight-datagen is not built";
+    // One folder per test: ctest runs the tests of this fixture in parallel processes.
+    dir_ = tool_dir(std::string("datagen_reuse_") + ::testing::UnitTest::GetInstance()->current_test_info()->name());
     config_ = (dir_ / "tiny.json").string();
     std::ofstream(config_) << R"({"seed": 3,
       "render": {"spp": 2, "max_depth": 2, "environment_width": 32, "target_noise": 0},
@@ -76,11 +55,11 @@ class DatagenReuse : public ::testing::Test {
     if (!dir_.empty()) fs::remove_all(dir_);
   }
   // streetlight-datagen on the tiny config, `samples` samples into dir_/out, plus `extra` flags.
-  Result datagen(int samples, const std::string& out, const std::string& extra = "") {
-    return run("OMP_NUM_THREADS=1 " + kDatagen + " --config " + config_ + " --samples " + std::to_string(samples) +
-               " --out " + (dir_ / out).string() + " --json " + extra);
+  ToolRun datagen(int samples, const std::string& out, const std::string& extra = "") {
+    return run_tool("streetlight-datagen", "--config " + config_ + " --samples " + std::to_string(samples) + " --out " +
+                                               (dir_ / out).string() + " --json " + extra);
   }
-  static nlohmann::json summary(const Result& r) {
+  static nlohmann::json summary(const ToolRun& r) {
     const auto brace = r.out.rfind("\n{");
     return nlohmann::json::parse(brace == std::string::npos ? r.out : r.out.substr(brace + 1));
   }
@@ -92,9 +71,9 @@ class DatagenReuse : public ::testing::Test {
 
 TEST_F(DatagenReuse, LinkedSamplesAreTheBytesOfAFreshRenderWithTheirOwnSplit) {
   ASSERT_EQ(datagen(3, "source").code, 0);
-  const Result fresh = datagen(2, "fresh");
+  const ToolRun fresh = datagen(2, "fresh");
   ASSERT_EQ(fresh.code, 0) << fresh.out;
-  const Result linked = datagen(2, "linked", "--reuse " + (dir_ / "source").string());
+  const ToolRun linked = datagen(2, "linked", "--reuse " + (dir_ / "source").string());
   ASSERT_EQ(linked.code, 0) << linked.out;
   EXPECT_EQ(summary(linked)["rendered"], 0);
   EXPECT_EQ(summary(linked)["reused"], 2);
@@ -110,7 +89,7 @@ TEST_F(DatagenReuse, LinkedSamplesAreTheBytesOfAFreshRenderWithTheirOwnSplit) {
 
 TEST_F(DatagenReuse, RendersOnlyTheSamplesTheSourceLacks) {
   ASSERT_EQ(datagen(2, "source").code, 0);
-  const Result more = datagen(3, "more", "--reuse " + (dir_ / "source").string());
+  const ToolRun more = datagen(3, "more", "--reuse " + (dir_ / "source").string());
   ASSERT_EQ(more.code, 0) << more.out;
   EXPECT_EQ(summary(more)["reused"], 2);
   EXPECT_EQ(summary(more)["rendered"], 1);
@@ -119,7 +98,7 @@ TEST_F(DatagenReuse, RendersOnlyTheSamplesTheSourceLacks) {
   // An incomplete source sample (no meta.json, as a killed render could not leave one, but a
   // hand-edited folder can) is rendered, not linked.
   fs::remove(dir_ / "source/samples/000000/meta.json");
-  const Result again = datagen(2, "again", "--reuse " + (dir_ / "source").string());
+  const ToolRun again = datagen(2, "again", "--reuse " + (dir_ / "source").string());
   ASSERT_EQ(again.code, 0) << again.out;
   EXPECT_EQ(summary(again)["reused"], 1);
   EXPECT_EQ(summary(again)["rendered"], 1);
@@ -130,16 +109,11 @@ TEST_F(DatagenReuse, RendersOnlyTheSamplesTheSourceLacks) {
 TEST_F(DatagenReuse, AnotherConfigOrAMissingSourceIsBadInputWithNoOutput) {
   ASSERT_EQ(datagen(1, "source").code, 0);
   const std::string src = " --reuse " + (dir_ / "source").string();
-  const Result other = datagen(1, "other", "--set render.spp=3" + src);
-  EXPECT_EQ(other.code, 2) << other.out;
-  EXPECT_NE(other.out.find("error: --reuse"), std::string::npos) << other.out;
-  EXPECT_NE(other.out.find("'render.spp' is 2 there and 3 here"), std::string::npos) << other.out;
-  EXPECT_FALSE(fs::exists(dir_ / "other"));
-  const Result missing = datagen(1, "missing", "--reuse " + (dir_ / "nowhere").string());
-  EXPECT_EQ(missing.code, 2) << missing.out;
-  EXPECT_NE(missing.out.find("nowhere/index.json"), std::string::npos) << missing.out;
-  EXPECT_FALSE(fs::exists(dir_ / "missing"));
-  const Result itself = datagen(1, "source", src);
+  const ToolRun other = datagen(1, "other", "--set render.spp=3" + src);
+  expect_clean_error(other, (dir_ / "other").string(), "'render.spp' is 2 there and 3 here");
+  const ToolRun missing = datagen(1, "missing", "--reuse " + (dir_ / "nowhere").string());
+  expect_clean_error(missing, (dir_ / "missing").string(), "nowhere/index.json");
+  const ToolRun itself = datagen(1, "source", src);
   EXPECT_EQ(itself.code, 2) << itself.out;
   EXPECT_NE(itself.out.find("is the --out folder itself"), std::string::npos) << itself.out;
 }

@@ -1,6 +1,7 @@
 // Reusing the samples of an earlier street-dataset render. See sample_reuse.h.
 #include "data/sample_reuse.h"
 
+#include <algorithm>
 #include <filesystem>
 
 #include "data/street_dataset.h"
@@ -20,9 +21,18 @@ void check_reusable(const std::string& source_dir, const nlohmann::json& config_
   theirs.erase("samples");
   mine.erase("samples");
   // RFC 6902: the first operation that turns their config into this one names a differing key.
+  // A path spelled two ways (relative here, absolute there) names the same file: not a difference.
+  const auto same_file = [&](const nlohmann::json& op) {
+    if (op.at("op") != "replace") return false;
+    const nlohmann::json::json_pointer at(op.at("path").get<std::string>());
+    const nlohmann::json &a = theirs.at(at), &b = mine.at(at);
+    std::error_code ec;
+    return a.is_string() && b.is_string() && fs::equivalent(a.get<std::string>(), b.get<std::string>(), ec);
+  };
   const nlohmann::json patch = nlohmann::json::diff(theirs, mine);
-  if (patch.empty()) return;
-  const nlohmann::json::json_pointer key(patch[0].at("path").get<std::string>());
+  const auto first = std::find_if_not(patch.begin(), patch.end(), same_file);
+  if (first == patch.end()) return;
+  const nlohmann::json::json_pointer key(first->at("path").get<std::string>());
   const std::string was = theirs.contains(key) ? theirs.at(key).dump() : "absent";
   const std::string is = mine.contains(key) ? mine.at(key).dump() : "absent";
   std::string name = key.to_string().substr(1);  // "/render/spp" -> "render.spp", as --set spells it

@@ -6,7 +6,9 @@
 // render's sample i whenever it holds its own sample i; only the train/val/test split, drawn over
 // all ids, differs, and the caller writes its own index.json.
 // - check_reusable throws sl::Error (bad input) when `source_dir` has no readable index.json, or
-//   when its config differs, naming the first differing key and both values.
+//   when its config differs, naming the first differing key and both values. Two strings that
+//   name the same existing file or folder from the working directory (std::filesystem::equivalent:
+//   "../shared/data/hdri" and its absolute path) are not a difference.
 // - reuse_sample links `source_dir/samples/<id>/` into `samples_dir/<id>/`: each file hard-linked
 //   (copied where the two folders are on different file systems) into a temporary sibling folder
 //   that is renamed when complete (util/file.h AtomicDirectory), so a kill leaves no <id>/ behind.

@@ -13,6 +13,7 @@
 
 #include "data/contact_sheet.h"
 #include "data/sample_reuse.h"
+#include "data/street_dataset.h"
 #include "data/street_generator.h"
 #include "tools/common/cli.h"
 #include "util/file.h"
@@ -94,6 +95,9 @@ int run(int argc, char** argv) {
       if (!mine || (args.has("--skip-existing") && fs::exists(samples_dir / id / "meta.json"))) continue;
       if (!reuse.empty() && sl::data::reuse_sample(reuse, id, samples_dir.string())) {
         ++reused;
+        // The summary's with_object counts every sample of this run, linked ones too.
+        const nlohmann::json meta = sl::data::read_json(samples_dir / id / "meta.json", "--reuse sample " + ids.back());
+        with_object += meta.contains("object") && !meta["object"].is_null() ? 1 : 0;
         progress.update(i + 1, "sample " + ids.back() + " (reused)");
         continue;
       }

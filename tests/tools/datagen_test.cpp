@@ -118,4 +118,26 @@ TEST_F(DatagenReuse, AnotherConfigOrAMissingSourceIsBadInputWithNoOutput) {
   EXPECT_NE(itself.out.find("is the --out folder itself"), std::string::npos) << itself.out;
 }
 
+TEST_F(DatagenReuse, APathSpelledAnotherWayNamesTheSameConfigAndLinkedObjectsAreCounted) {
+  // The object file, spelled absolute for the source and relative for the second render (the
+  // tools run in this test's working directory, so both name the same file).
+  const fs::path box = dir_ / "box.glb", other = dir_ / "other.glb";
+  fs::copy_file(fs::path(STREETLIGHT_SOURCE_DIR) / "tests/fuzz/corpus/gltf/w_box.glb", box);
+  fs::copy_file(box, other);
+  const std::string relative = fs::relative(box, fs::current_path()).string();
+  ASSERT_NE(relative, box.string());
+  const ToolRun source = datagen(2, "source", "--set insertion.object=" + box.string());
+  ASSERT_EQ(source.code, 0) << source.out;
+  const ToolRun linked = datagen(2, "linked", "--set insertion.object=" + relative + " --reuse " + (dir_ / "source").string());
+  ASSERT_EQ(linked.code, 0) << linked.out;
+  EXPECT_EQ(summary(linked)["reused"], 2);
+  EXPECT_EQ(summary(linked)["rendered"], 0);
+  // with_object counts the linked samples as a render counts its own.
+  EXPECT_EQ(summary(linked)["with_object"], summary(source)["with_object"]);
+  EXPECT_GT(summary(source)["with_object"].get<int>(), 0);
+  // A copy of the file is another file: its bytes could change, so it is another config.
+  const ToolRun copy = datagen(2, "copy", "--set insertion.object=" + other.string() + " --reuse " + (dir_ / "source").string());
+  expect_clean_error(copy, (dir_ / "copy").string(), "'insertion.object'");
+}
+
 }  // namespace sl::test
